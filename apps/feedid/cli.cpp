@@ -1,0 +1,114 @@
+#include "cli.hpp"
+
+#include <cstdio>
+#include <charconv>
+#include <fstream>
+#include <iostream>
+
+#include <fmt/core.h>
+
+#include "feedid/error.hpp"
+
+namespace feedid::cli {
+
+void TraceArguments::add_to(CLI::App& app) {
+    app.add_option("FILE", file, "The trace: CSV, MATLAB .mat, SINUMERIK trace XML, TwinCAT Scope CSV or halscope text")
+        ->required();
+    app.add_option("--channel", channel_assignments,
+                   "Use a channel for a role: ROLE=NAME (roles: time, position, reference_position, velocity, "
+                   "velocity_command, current, force, external_force); repeatable")
+        ->take_all()
+        ->allow_extra_args(false);
+    app.add_option("--unit", unit_assignments, "The unit of a role's channel where the file gives none: ROLE=UNIT")
+        ->take_all()
+        ->allow_extra_args(false);
+    app.add_option("--axis", axis,
+                   "The axis: which one to read from a multi-axis trace (NC axis index or name) and its label in the "
+                   "history");
+    app.add_option("--format", format, "Read as this format instead of detecting it")
+        ->check(CLI::IsMember({"csv", "mat", "sinumerik-trace", "twincat-scope", "halscope"}));
+    app.add_option("--rated", rated, "What 100 % means for channels given in percent, in SI units (e.g. 18 for 18 A)");
+}
+
+ImportOptions TraceArguments::import_options() const {
+    ImportOptions options;
+    for (const auto& text : channel_assignments) {
+        auto [role, name] = parse_role_assignment(text, "--channel");
+        options.channels[role] = name;
+    }
+    for (const auto& text : unit_assignments) {
+        auto [role, unit] = parse_role_assignment(text, "--unit");
+        options.units[role] = unit;
+    }
+    options.axis = axis;
+    options.format = format;
+    if (lead_mm) options.unit_context.lead_m = *lead_mm * 1e-3;
+    if (rated) {
+        options.unit_context.rated_value_si = *rated;
+        options.unit_context.rated_quantity = Quantity::current;
+    }
+    return options;
+}
+
+Trace TraceArguments::read(bool print_findings) const {
+    Trace trace = read_trace(file, import_options());
+    if (print_findings) {
+        for (const auto& finding : trace.findings) fmt::print(stderr, "feedid: {}\n", finding);
+    }
+    return trace;
+}
+
+void DriveArguments::add_to(CLI::App& app) {
+    app.add_option("--kt", kt, "Motor torque constant K_t [N*m/A]; with --lead gives F = K_t*i*2*pi/lead");
+    app.add_option("--lead", lead_mm, "Ball-screw lead [mm per revolution]");
+    app.add_option("--gear-ratio", gear_ratio, "Motor revolutions per screw revolution")->default_val(1.0);
+    app.add_option("--force-constant", force_constant,
+                   "Force per unit of the drive signal [N per signal unit], a number or the name of a scalar in the "
+                   "file (e.g. gtau)");
+}
+
+DriveConstants DriveArguments::constants() const {
+    DriveConstants constants;
+    constants.torque_constant_Nm_per_A = kt;
+    if (lead_mm) constants.lead_m = *lead_mm * 1e-3;
+    constants.gear_ratio = gear_ratio;
+    if (!force_constant.empty()) {
+        double value = 0.0;
+        const auto* begin = force_constant.data();
+        const auto* end = begin + force_constant.size();
+        const auto [ptr, error] = std::from_chars(begin, end, value);
+        if (error == std::errc() && ptr == end) constants.force_constant = value;
+        else constants.force_constant_name = force_constant;
+    }
+    if (const auto problem = constants.validate(); !problem.empty()) throw InputError(problem);
+    return constants;
+}
+
+void write_json(const nlohmann::json& document, const std::string& path) {
+    const std::string text = document.dump(2) + "\n";
+    if (path == "-") {
+        std::fwrite(text.data(), 1, text.size(), stdout);
+        std::fflush(stdout);
+        return;
+    }
+    std::ofstream out(path, std::ios::binary);
+    if (!out) throw InputError(fmt::format("{}: cannot write the file", path));
+    out << text;
+    if (!out) throw InputError(fmt::format("{}: cannot write the file", path));
+}
+
+nlohmann::json read_json(const std::string& path) {
+    std::string text;
+    if (path == "-") {
+        text.assign(std::istreambuf_iterator<char>(std::cin), {});
+    } else {
+        text = read_file_bytes(path);
+    }
+    try {
+        return nlohmann::json::parse(text);
+    } catch (const nlohmann::json::parse_error& e) {
+        throw InputError(fmt::format("{}: not a JSON document (byte {})", path, e.byte));
+    }
+}
+
+}  // namespace feedid::cli

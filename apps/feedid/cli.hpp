@@ -1,0 +1,62 @@
+#pragma once
+// Shared pieces of the feedid command line: options every trace-reading subcommand takes, output helpers, and the
+// registration function of each subcommand (one file each in apps/feedid/).
+
+#include <CLI/CLI.hpp>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "feedid/drive.hpp"
+#include "feedid/io/import.hpp"
+
+namespace feedid::cli {
+
+/// What a subcommand runs after parsing; returns the exit code (0 ok, 1 analysis failed, 2 bad input).
+using Action = std::function<int()>;
+
+/// `FILE [--channel ROLE=NAME]... [--unit ROLE=UNIT]... [--axis N] [--format F]`
+struct TraceArguments {
+    std::string file;
+    std::vector<std::string> channel_assignments;
+    std::vector<std::string> unit_assignments;
+    std::string axis;
+    std::string format;
+    std::optional<double> lead_mm;  // shared with DriveArguments when both are present
+    std::optional<double> rated;    // rated value for % units
+
+    void add_to(CLI::App& app);
+    [[nodiscard]] ImportOptions import_options() const;
+    /// Reads and prepares the trace; prints the import findings (guessed roles, assumed units) to stderr.
+    [[nodiscard]] Trace read(bool print_findings = true) const;
+};
+
+/// `[--kt K --lead L [--gear-ratio G]] [--force-constant K|NAME]`
+struct DriveArguments {
+    std::optional<double> kt;
+    std::optional<double> lead_mm;
+    double gear_ratio{1.0};
+    std::string force_constant;
+
+    void add_to(CLI::App& app);
+    [[nodiscard]] DriveConstants constants() const;
+};
+
+/// Writes a JSON document to a path, or stdout for "-".
+void write_json(const nlohmann::json& document, const std::string& path);
+/// Reads a JSON document; InputError naming the file on failure.
+nlohmann::json read_json(const std::string& path);
+
+Action add_info_command(CLI::App& app);
+Action add_identify_command(CLI::App& app);
+Action add_gains_command(CLI::App& app);
+Action add_simulate_command(CLI::App& app);
+Action add_synth_command(CLI::App& app);
+Action add_plan_command(CLI::App& app);
+Action add_history_command(CLI::App& app);
+Action add_report_command(CLI::App& app);
+
+}  // namespace feedid::cli

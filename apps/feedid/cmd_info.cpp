@@ -1,0 +1,80 @@
+// feedid info FILE: what a trace holds (channels, roles, units, sample time, findings).
+#include <algorithm>
+#include <cstdio>
+
+#include <fmt/core.h>
+
+#include "cli.hpp"
+
+namespace feedid::cli {
+
+namespace {
+struct InfoCommand {
+    TraceArguments trace_arguments;
+    std::string json_path;
+
+    int run() const {
+        Trace trace = trace_arguments.read(false);
+        const TimeBase base = trace.time_base();
+        nlohmann::json document;
+        document["format"] = trace.format;
+        document["samples"] = trace.samples();
+        document["sample_time_s"] = base.sample_time_s;
+        document["duration_s"] = base.duration_s;
+        document["rotary"] = trace.rotary;
+        document["channels"] = nlohmann::json::array();
+        for (const auto& channel : trace.channels) {
+            nlohmann::json entry{{"name", channel.name},
+                                 {"role", role_name(channel.role)},
+                                 {"unit", channel.unit},
+                                 {"source_unit", channel.source_unit}};
+            const auto [low, high] = std::minmax_element(channel.values.begin(), channel.values.end());
+            entry["min"] = channel.values.empty() ? nlohmann::json() : nlohmann::json(*low);
+            entry["max"] = channel.values.empty() ? nlohmann::json() : nlohmann::json(*high);
+            document["channels"].push_back(entry);
+        }
+        document["constants"] = trace.constants;
+        document["findings"] = trace.findings;
+        if (!json_path.empty()) {
+            write_json(document, json_path);
+            return 0;
+        }
+        fmt::print("{}\n", trace.source_path);
+        fmt::print("  format       {}\n", trace.format);
+        fmt::print("  samples      {}\n", trace.samples());
+        fmt::print("  sample time  {:.6g} s ({:.6g} Hz){}\n", base.sample_time_s,
+                   base.sample_time_s > 0 ? 1.0 / base.sample_time_s : 0.0, base.jittery ? ", jittery" : "");
+        fmt::print("  duration     {:.6g} s\n", base.duration_s);
+        fmt::print("  axis         {}\n", trace.rotary ? "rotary" : "linear");
+        fmt::print("  channels\n");
+        fmt::print("    {:<28} {:<20} {:<8} {:<10} {:>14} {:>14}\n", "name", "role", "unit", "source", "min", "max");
+        for (const auto& channel : trace.channels) {
+            const auto [low, high] = std::minmax_element(channel.values.begin(), channel.values.end());
+            fmt::print("    {:<28} {:<20} {:<8} {:<10} {:>14.6g} {:>14.6g}\n", channel.name, role_name(channel.role),
+                       channel.unit.empty() ? "-" : channel.unit,
+                       channel.source_unit.empty() ? "-" : channel.source_unit, *low, *high);
+        }
+        if (!trace.constants.empty()) {
+            fmt::print("  constants\n");
+            for (const auto& [name, value] : trace.constants) fmt::print("    {:<28} {:.10g}\n", name, value);
+        }
+        if (!trace.findings.empty()) {
+            fmt::print("  findings\n");
+            for (const auto& finding : trace.findings) fmt::print("    - {}\n", finding);
+        }
+        return 0;
+    }
+};
+}  // namespace
+
+Action add_info_command(CLI::App& app) {
+    auto command = std::make_shared<InfoCommand>();
+    auto* sub = app.add_subcommand("info", "Show what a trace holds: channels, roles, units, sample time, findings");
+    command->trace_arguments.add_to(*sub);
+    sub->add_option("--json", command->json_path, "Write the info document to PATH ('-' for stdout)");
+    sub->footer("Example:\n  feedid info ../shared/data/emps/DATA_EMPS.mat\n"
+                "  feedid info trace.csv --channel position=x_act --unit current=A --json -");
+    return [command] { return command->run(); };
+}
+
+}  // namespace feedid::cli

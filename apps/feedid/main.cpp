@@ -1,0 +1,66 @@
+// feedid: the command line. A thin main over the library; each subcommand lives in its own file.
+#include <cstdio>
+#include <exception>
+#include <map>
+
+#include <fmt/core.h>
+
+#include "cli.hpp"
+#include "feedid/error.hpp"
+#include "feedid/version.hpp"
+
+int main(int argc, char** argv) {
+    using namespace feedid::cli;
+    CLI::App app{"feedid: rapid parameter estimation and health monitoring of CNC feed drives", "feedid"};
+    app.set_version_flag("--version", std::string(feedid::version));
+    app.require_subcommand(1);
+    app.footer("Exit codes: 0 success, 1 the analysis failed (the message says why), 2 bad usage or bad input.\n"
+               "Run `feedid SUBCOMMAND --help` for a subcommand's options and an example.");
+
+    std::map<CLI::App*, Action> actions;
+    const auto add = [&](Action (*add_command)(CLI::App&)) {
+        const std::size_t before = app.get_subcommands({}).size();
+        Action action = add_command(app);
+        actions[app.get_subcommands({}).at(before)] = std::move(action);
+    };
+    add(add_info_command);
+    add(add_identify_command);
+    add(add_gains_command);
+    add(add_simulate_command);
+    add(add_synth_command);
+    add(add_plan_command);
+    add(add_history_command);
+    add(add_report_command);
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForVersion& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        fmt::print(stderr, "feedid: {}\n", e.what());
+        return 2;
+    }
+
+    try {
+        for (auto* sub : app.get_subcommands()) {
+            return actions.at(sub)();
+        }
+        return 2;
+    } catch (const feedid::InputError& e) {
+        fmt::print(stderr, "feedid: {}\n", e.what());
+        return 2;
+    } catch (const feedid::AnalysisError& e) {
+        fmt::print(stderr, "feedid: {}\n", e.what());
+        return 1;
+    } catch (const std::bad_alloc&) {
+        fmt::print(stderr, "feedid: out of memory\n");
+        return 2;
+    } catch (const std::exception& e) {
+        fmt::print(stderr, "feedid: internal error: {}\n", e.what());
+        return 1;
+    }
+}

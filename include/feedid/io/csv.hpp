@@ -1,0 +1,25 @@
+#pragma once
+// Delimited text traces: a header row of `name [unit]` (also `name (unit)` and `name/unit`), comma, semicolon or
+// tab separated, `#` comment lines, decimal comma with `;`. Values are parsed with fast_float; missing cells are NaN.
+
+#include <string>
+#include <string_view>
+
+#include "feedid/trace.hpp"
+
+namespace feedid {
+
+/// Parses CSV text into raw channels (values in the source units, roles unassigned). Comment lines before the header
+/// of the form `# name = number` become trace constants. `source` names the file in error messages. Throws InputError
+/// with the line number on a malformed file.
+Trace parse_csv(std::string_view text, const std::string& source);
+
+/// Splits a header cell into name and unit: "x [mm]" -> {"x", "mm"}, "v (mm/min)" -> {"v", "mm/min"},
+/// "i/A" -> {"i", "A"}, "time" -> {"time", ""}.
+std::pair<std::string, std::string> split_name_unit(std::string_view header_cell);
+
+/// Writes a trace as CSV: its constants as `# name = value` lines, then `name [unit]` headers (SI units), then the
+/// values in the shortest form that reads back exactly.
+std::string write_csv(const Trace& trace);
+
+}  // namespace feedid

@@ -1,0 +1,51 @@
+#pragma once
+// The import chain: read (a format reader) -> map channels to roles -> convert units to SI -> validate.
+// read_trace() detects the format from the content and runs the whole chain.
+
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "feedid/trace.hpp"
+#include "feedid/units.hpp"
+
+namespace feedid {
+
+struct ImportOptions {
+    /// Explicit role -> source channel name (from `--channel ROLE=NAME`).
+    std::map<Role, std::string> channels;
+    /// Units for role channels whose source carries none, or overrides (from `--unit ROLE=UNIT`).
+    std::map<Role, std::string> units;
+    /// Context for units that need it (rpm needs a lead, % needs a rating).
+    UnitContext unit_context;
+    /// For sources holding several axes (a SINUMERIK trace): which axis to read, by NC axis index ("2", from the
+    /// `[u1, 2]` suffix) or by axis name ("X"); empty = the only or first one. Also the axis label for the history.
+    std::string axis;
+    /// Sampling period [s] for sources that carry none (halsampler output); ignored where the file states one.
+    std::optional<double> sample_time_s;
+    /// Force a format instead of detecting it ("csv", "mat", "sinumerik-trace", "twincat-scope", "halscope").
+    std::string format;
+};
+
+/// Parses `ROLE=VALUE` (for --channel and --unit); throws InputError naming the option.
+std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::string_view option);
+
+/// Assigns roles (explicit ones first, then guesses from common names, each guess recorded in trace.findings),
+/// converts every channel with a known unit to SI, and validates. A role channel whose unit is unknown is an
+/// InputError naming the channel and the unit; a role channel without any unit is taken as SI and that is recorded
+/// in findings.
+void prepare_trace(Trace& trace, const ImportOptions& options);
+
+/// Reads any supported file (format from the content, then the extension) and prepares it.
+Trace read_trace(const std::filesystem::path& path, const ImportOptions& options = {});
+
+/// Names the format of a file from its first bytes and extension: "csv", "mat", "sinumerik-trace", "twincat-scope",
+/// "halscope", or "" when unknown.
+std::string detect_format(const std::filesystem::path& path);
+
+/// Reads a whole file into memory; InputError naming the file when it cannot be read.
+std::string read_file_bytes(const std::filesystem::path& path);
+
+}  // namespace feedid

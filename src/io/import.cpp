@@ -1,0 +1,253 @@
+#include "feedid/io/import.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <fstream>
+
+#include <fmt/core.h>
+
+#include "feedid/error.hpp"
+#include "feedid/io/csv.hpp"
+#include "feedid/io/halscope.hpp"
+#include "feedid/io/mat.hpp"
+#include "feedid/io/sinumerik_trace.hpp"
+#include "feedid/io/twincat_scope.hpp"
+
+namespace feedid {
+
+namespace {
+
+std::string lower_alnum(std::string_view name) {
+    std::string out;
+    for (const char c : name) {
+        if (std::isalnum(static_cast<unsigned char>(c))) out += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    }
+    return out;
+}
+
+// Common channel names, compared lower-case with punctuation removed ("x_ref" == "xref").
+struct RoleNames {
+    Role role;
+    std::array<std::string_view, 16> names;
+};
+constexpr std::array<RoleNames, 7> common_names{{
+    {Role::time, {"t", "time", "times", "zeit", "timestamp", "tsec", "ts"}},
+    {Role::position, {"x", "pos", "position", "qm", "q", "xact", "posact", "actpos", "actualposition", "xmeas",
+                      "measpos", "y", "z", "phi", "angle"}},
+    {Role::reference_position, {"xref", "xset", "xcmd", "qg", "qr", "qref", "posref", "posset", "poscmd", "cmdpos",
+                                "setpos", "possetpoint", "reference", "ref", "xr"}},
+    {Role::velocity, {"v", "vel", "velocity", "dq", "qd", "vact", "velact", "actvel", "speed"}},
+    {Role::velocity_command, {"vset", "vcmd", "vref", "velset", "velcmd", "velref", "cmdvel", "velocitycommand",
+                              "velocitysetpoint", "nset", "speedsetpoint"}},
+    {Role::current, {"i", "iq", "current", "cur", "iact", "iqact", "actcurr", "actcurrent", "id", "idrive"}},
+    {Role::force, {"f", "force", "fd", "fdrive", "driveforce"}},
+}};
+
+std::string where(const Trace& trace) { return trace.source_path.empty() ? std::string("trace") : trace.source_path; }
+
+bool compatible(Role role, Quantity quantity) {
+    switch (role) {
+        case Role::time: return quantity == Quantity::time;
+        case Role::position:
+        case Role::reference_position: return quantity == Quantity::length || quantity == Quantity::angle;
+        case Role::velocity:
+        case Role::velocity_command: return quantity == Quantity::velocity || quantity == Quantity::angular_velocity;
+        case Role::current:
+            return quantity == Quantity::current || quantity == Quantity::voltage || quantity == Quantity::torque ||
+                   quantity == Quantity::force || quantity == Quantity::dimensionless;
+        case Role::force:
+        case Role::external_force: return quantity == Quantity::force || quantity == Quantity::torque;
+        case Role::other: return true;
+    }
+    return true;
+}
+
+std::string_view default_si_unit(Role role, bool rotary) {
+    switch (role) {
+        case Role::time: return "s";
+        case Role::position:
+        case Role::reference_position: return rotary ? "rad" : "m";
+        case Role::velocity:
+        case Role::velocity_command: return rotary ? "rad/s" : "m/s";
+        case Role::current: return "A";
+        case Role::force:
+        case Role::external_force: return rotary ? "N*m" : "N";
+        case Role::other: return "";
+    }
+    return "";
+}
+
+void assign_roles(Trace& trace, const ImportOptions& options) {
+    // Explicit assignments first; they take a role away from any channel that had it.
+    for (const auto& [role, name] : options.channels) {
+        auto* channel = trace.find(name);
+        if (channel == nullptr) {
+            std::string available;
+            for (const auto& c : trace.channels) available += (available.empty() ? "" : ", ") + c.name;
+            throw InputError(fmt::format("{}: --channel {}={}: no channel named '{}' (the file has: {})", where(trace),
+                                         role_name(role), name, name, available));
+        }
+        for (auto& other : trace.channels) {
+            if (other.role == role) other.role = Role::other;
+        }
+        channel->role = role;
+    }
+    // Then guesses for the roles still open, from common names; each guess is said.
+    for (const auto& [role, names] : common_names) {
+        if (trace.has(role)) continue;
+        for (auto& channel : trace.channels) {
+            if (channel.role != Role::other) continue;
+            const std::string key = lower_alnum(channel.name);
+            if (std::find(names.begin(), names.end(), key) != names.end() && !key.empty()) {
+                channel.role = role;
+                trace.findings.push_back(fmt::format("channel '{}' taken as {} (guessed from its name; set it with "
+                                                     "--channel {}=NAME)",
+                                                     channel.name, role_name(role), role_name(role)));
+                break;
+            }
+        }
+    }
+}
+
+void convert_units(Trace& trace, const ImportOptions& options) {
+    // Decide rotary/linear from the position unit first (it decides what an SI default means for the rest).
+    for (auto& channel : trace.channels) {
+        const auto override_unit = options.units.find(channel.role);
+        if (channel.role != Role::other && override_unit != options.units.end()) channel.source_unit = override_unit->second;
+    }
+    if (const auto* position = trace.find(Role::position); position != nullptr && !position->source_unit.empty()) {
+        if (auto conversion = parse_unit(position->source_unit, options.unit_context)) {
+            trace.rotary = conversion->quantity == Quantity::angle;
+        }
+    }
+    for (auto& channel : trace.channels) {
+        if (!channel.unit.empty()) continue;  // already SI (a reader that converted itself)
+        if (channel.source_unit.empty()) {
+            if (channel.role != Role::other) {
+                channel.unit = std::string(default_si_unit(channel.role, trace.rotary));
+                trace.findings.push_back(fmt::format("channel '{}' ({}) carries no unit: taken as {} (state it with "
+                                                     "--unit {}=UNIT)",
+                                                     channel.name, role_name(channel.role), channel.unit,
+                                                     role_name(channel.role)));
+            }
+            continue;
+        }
+        std::optional<UnitConversion> conversion;
+        if (channel.role != Role::other) {
+            conversion = parse_unit_or_throw(channel.source_unit, channel.name, options.unit_context);
+            if (!compatible(channel.role, conversion->quantity)) {
+                throw InputError(fmt::format("{}: channel '{}' is used as {} but its unit '{}' is not one for that "
+                                             "role",
+                                             where(trace), channel.name, role_name(channel.role), channel.source_unit));
+            }
+        } else {
+            conversion = parse_unit(channel.source_unit, options.unit_context);
+            if (!conversion) {
+                trace.findings.push_back(fmt::format("channel '{}': unit '{}' is not known; values left as they are",
+                                                     channel.name, channel.source_unit));
+                continue;
+            }
+        }
+        if (conversion->scale != 1.0 || conversion->offset != 0.0) {
+            for (double& value : channel.values) value = conversion->scale * value + conversion->offset;
+        }
+        channel.unit = conversion->si_unit;
+    }
+}
+
+}  // namespace
+
+std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::string_view option) {
+    const auto equals = text.find('=');
+    if (equals == std::string_view::npos || equals == 0 || equals + 1 == text.size()) {
+        throw InputError(fmt::format("{} {}: expected ROLE=VALUE", option, text));
+    }
+    const auto role = parse_role(text.substr(0, equals));
+    if (!role || *role == Role::other) {
+        throw InputError(fmt::format("{} {}: unknown role '{}' (roles: time, position, reference_position, velocity, "
+                                     "velocity_command, current, force, external_force)",
+                                     option, text, text.substr(0, equals)));
+    }
+    return {*role, std::string(text.substr(equals + 1))};
+}
+
+void prepare_trace(Trace& trace, const ImportOptions& options) {
+    assign_roles(trace, options);
+    convert_units(trace, options);
+    trace.validate();
+}
+
+std::string read_file_bytes(const std::filesystem::path& path) {
+    std::error_code error;
+    if (std::filesystem::is_directory(path, error)) throw InputError(fmt::format("{}: is a directory, not a file", path.string()));
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(fmt::format("{}: cannot open the file", path.string()));
+    in.seekg(0, std::ios::end);
+    const auto size = in.tellg();
+    if (size < 0) throw InputError(fmt::format("{}: cannot read the file", path.string()));
+    in.seekg(0, std::ios::beg);
+    std::string bytes(static_cast<std::size_t>(size), '\0');
+    in.read(bytes.data(), size);
+    if (!in) throw InputError(fmt::format("{}: cannot read the file", path.string()));
+    return bytes;
+}
+
+namespace {
+std::string format_from_content(std::string_view head, const std::filesystem::path& path) {
+    if (head.substr(0, 6) == "MATLAB" || head.substr(0, 4) == "\x89HDF") return "mat";
+    if (head.find("<traceSession") != std::string_view::npos) return "sinumerik-trace";
+    // TwinCAT Scope: "Name<separator>scope name", then "File<separator>..." and "Starttime of export".
+    if (head.size() > 5 && head.starts_with("Name") && std::string_view("\t ;:,").find(head[4]) != std::string_view::npos &&
+        (head.find("Starttime of export") != std::string_view::npos ||
+         head.find("\nFile") != std::string_view::npos)) {
+        return "twincat-scope";
+    }
+    // halscope: the first non-blank line states the sampling period ("# Sampling period is N ns" from 2.9 on).
+    if (const auto first = head.find_first_not_of(" \t\r\n"); first != std::string_view::npos) {
+        auto line = head.substr(first, head.find('\n', first) - first);
+        while (!line.empty() && (line.front() == '#' || line.front() == ' ')) line.remove_prefix(1);
+        if (line.starts_with("Sampling period is")) return "halscope";
+    }
+    if (looks_like_halsampler(head)) return "halscope";
+    auto extension = path.extension().string();
+    std::transform(extension.begin(), extension.end(), extension.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    if (extension == ".mat") return "mat";
+    if (extension == ".xml") return "sinumerik-trace";
+    return "csv";
+}
+}  // namespace
+
+std::string detect_format(const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(fmt::format("{}: cannot open the file", path.string()));
+    std::string head(4096, '\0');
+    in.read(head.data(), static_cast<std::streamsize>(head.size()));
+    head.resize(static_cast<std::size_t>(in.gcount()));
+    return format_from_content(head, path);
+}
+
+Trace read_trace(const std::filesystem::path& path, const ImportOptions& options) {
+    std::error_code error;
+    if (!std::filesystem::exists(path, error)) throw InputError(fmt::format("{}: no such file", path.string()));
+    const std::string format = options.format.empty() ? detect_format(path) : options.format;
+    Trace trace;
+    if (format == "mat") {
+        trace = read_mat(path);
+    } else {
+        const std::string bytes = read_file_bytes(path);
+        if (bytes.empty()) throw InputError(fmt::format("{}: empty file", path.string()));
+        if (format == "csv") trace = parse_csv(bytes, path.string());
+        else if (format == "sinumerik-trace") trace = parse_sinumerik_trace(bytes, path.string(), options.axis);
+        else if (format == "twincat-scope") trace = parse_twincat_scope(bytes, path.string());
+        else if (format == "halscope") trace = parse_halscope(bytes, path.string(), options.sample_time_s);
+        else throw InputError(fmt::format("--format {}: unknown format (csv, mat, sinumerik-trace, twincat-scope, halscope)", format));
+    }
+    trace.source_path = path.string();
+    if (trace.format.empty()) trace.format = format;
+    prepare_trace(trace, options);
+    return trace;
+}
+
+}  // namespace feedid

@@ -1,0 +1,490 @@
+// SINUMERIK Solution Line servo trace XML. See the header for the time-base and unit rules.
+//
+// Layout (as written by "SINUMERIK Solution Line Trace", traceSession version 01.00.03.02):
+//   <traceSession>
+//     <traceCaptureSetup[_V20]> <signalSettings> <signal key= name= unitsType= description=/> ...
+//     <traceDisplaySetup[_V20]> <signals> <signal key= unitsType= description=/> ...
+//     <traceData> <dataFrame>
+//         <dataSignal key= id="f1" name="/Nck/!SD/nckServoDataActPos2ndEnc64 [u1, 1]" interval="0.002"
+//                     unitsType="posn" datapointCount= description=/>
+//         <rec time="0.000000" f1=".." f2=".."/>   (sparse: an attribute only when the value changed)
+#include "feedid/io/sinumerik_trace.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <optional>
+#include <unordered_map>
+
+#include <fmt/core.h>
+#include <pugixml.hpp>
+
+#include "feedid/error.hpp"
+#include "text_scan.hpp"
+
+namespace feedid {
+
+namespace {
+
+constexpr double not_a_number = std::numeric_limits<double>::quiet_NaN();
+
+struct Signal {
+    std::string id;
+    std::string key;
+    std::string variable;     // NC variable without path and axis suffix: "nckServoDataActPos2ndEnc64"
+    std::string axis;         // from "[u1, 1]": "1"; empty when the name carries none
+    std::string units_type;   // "posn", "velo", ...
+    std::string description;  // "Position actual value meas.system 2 (64 bit)"
+    double interval_s{not_a_number};
+    long long datapoint_count{-1};
+    std::size_t line{0};
+    std::vector<double> times;   // sparse events: when the value was written [s]
+    std::vector<double> values;  // ... and the value, in the source unit
+};
+
+struct Session {
+    std::vector<Signal> signals;
+    double first_time{not_a_number};
+    double last_time{not_a_number};
+    std::size_t input_bytes{0};
+    std::vector<std::string> findings;
+};
+
+bool contains_ci(std::string_view text, std::string_view pattern) {
+    if (pattern.size() > text.size()) return false;
+    for (std::size_t i = 0; i + pattern.size() <= text.size(); ++i) {
+        std::size_t k = 0;
+        while (k < pattern.size() && std::tolower(static_cast<unsigned char>(text[i + k])) ==
+                                         std::tolower(static_cast<unsigned char>(pattern[k]))) {
+            ++k;
+        }
+        if (k == pattern.size()) return true;
+    }
+    return false;
+}
+
+bool equals_ci(std::string_view a, std::string_view b) { return a.size() == b.size() && contains_ci(a, b); }
+
+// "/Nck/!SD/nckServoDataActPos2ndEnc64 [u1, 1]" -> variable "nckServoDataActPos2ndEnc64", axis "1".
+void split_signal_name(std::string_view name, std::string& variable, std::string& axis) {
+    name = scan::trim(name);
+    axis.clear();
+    if (const auto open = name.rfind('['); open != std::string_view::npos && name.back() == ']') {
+        std::string_view inside = name.substr(open + 1, name.size() - open - 2);
+        if (const auto comma = inside.find(','); comma != std::string_view::npos) inside = inside.substr(comma + 1);
+        axis = std::string(scan::trim(inside));
+        name = scan::trim(name.substr(0, open));
+    }
+    if (const auto slash = name.rfind('/'); slash != std::string_view::npos) name = name.substr(slash + 1);
+    while (!name.empty() && (name.front() == '$' || name.front() == '!')) name.remove_prefix(1);
+    variable = std::string(name);
+}
+
+// SINUMERIK unitsType names -> unit strings parse_unit() knows. posn/velo are the NC's basic length system
+// (metric: mm, mm/min); a rotary axis writes deg and deg/min (rev/min for a spindle) - the file does not say which,
+// so a linear metric axis is assumed and said (see read_axis).
+std::optional<std::string> unit_of(std::string_view units_type) {
+    struct Entry {
+        std::string_view type;
+        std::string_view unit;
+    };
+    static constexpr Entry table[] = {
+        {"posn", "mm"},   {"velo", "mm/min"}, {"current", "A"},  {"torque", "N*m"}, {"percent", "%"},
+        {"accel", "m/s^2"}, {"time", "s"},    {"voltage", "V"},  {"force", "N"},    {"freq", "Hz"},
+        {"angle", "deg"}, {"speed", "rpm"},
+    };
+    for (const auto& entry : table) {
+        if (equals_ci(units_type, entry.type)) return std::string(entry.unit);
+    }
+    return std::nullopt;
+}
+
+std::size_t line_of_node(std::string_view xml, const pugi::xml_node& node) {
+    const auto offset = node.offset_debug();
+    return offset < 0 ? 0 : scan::line_of(xml, static_cast<std::size_t>(offset));
+}
+
+// Signal ids are "f1", "f2", ...: a direct index for those, a map for anything else.
+class SignalLookup {
+public:
+    explicit SignalLookup(const std::vector<Signal>& signals) {
+        for (std::size_t k = 0; k < signals.size(); ++k) {
+            const auto& id = signals[k].id;
+            if (const auto number = f_number(id); number && *number < 4096) {
+                if (by_number_.size() <= *number) by_number_.resize(*number + 1, -1);
+                by_number_[*number] = static_cast<int>(k);
+            } else {
+                by_name_[id] = static_cast<int>(k);
+            }
+        }
+    }
+    [[nodiscard]] int find(std::string_view id) const {
+        if (const auto number = f_number(id); number && *number < by_number_.size()) {
+            if (by_number_[*number] >= 0) return by_number_[*number];
+        }
+        const auto it = by_name_.find(std::string(id));
+        return it == by_name_.end() ? -1 : it->second;
+    }
+
+private:
+    static std::optional<std::size_t> f_number(std::string_view id) {
+        if (id.size() < 2 || id.size() > 6 || id.front() != 'f') return std::nullopt;
+        std::size_t number = 0;
+        for (std::size_t k = 1; k < id.size(); ++k) {
+            if (id[k] < '0' || id[k] > '9') return std::nullopt;
+            number = number * 10 + static_cast<std::size_t>(id[k] - '0');
+        }
+        return number;
+    }
+    std::vector<int> by_number_;
+    std::unordered_map<std::string, int> by_name_;
+};
+
+double parse_attribute_number(std::string_view xml, const std::string& source, const pugi::xml_node& node,
+                              const pugi::xml_attribute& attribute) {
+    double value = 0.0;
+    if (!scan::parse_number(attribute.value(), value) || !std::isfinite(value)) {
+        throw InputError(fmt::format("{}: line {}: <{} {}=\"{}\">: not a finite number", source,
+                                     line_of_node(xml, node), node.name(), attribute.name(), attribute.value()));
+    }
+    return value;
+}
+
+Session read_session(std::string_view xml, const std::string& source) {
+    pugi::xml_document document;
+    const auto parsed = document.load_buffer(xml.data(), xml.size(), pugi::parse_minimal | pugi::parse_escapes,
+                                             pugi::encoding_utf8);
+    if (!parsed) {
+        throw InputError(fmt::format("{}: line {}: not well-formed XML ({})", source,
+                                     scan::line_of(xml, static_cast<std::size_t>(std::max<std::ptrdiff_t>(0, parsed.offset))),
+                                     parsed.description()));
+    }
+    const auto session_node = document.child("traceSession");
+    if (!session_node) throw InputError(fmt::format("{}: no <traceSession> element: not a SINUMERIK trace", source));
+    const auto data = session_node.child("traceData");
+    if (!data) throw InputError(fmt::format("{}: <traceSession> holds no <traceData> element", source));
+    const auto frame = data.child("dataFrame");
+    if (!frame) throw InputError(fmt::format("{}: line {}: <traceData> holds no <dataFrame>", source, line_of_node(xml, data)));
+
+    Session session;
+    session.input_bytes = xml.size();
+    if (frame.next_sibling("dataFrame")) {
+        session.findings.push_back("the trace holds several data frames; only the first is read");
+    }
+
+    // Descriptions and unit types from the setup sections, by signal key: the dataSignal's own unitsType is not
+    // always a unit (the reference file writes "611DTime1" for the torque setpoint that the display setup calls
+    // "torque").
+    std::map<std::string, std::pair<std::string, std::string>, std::less<>> setup;  // key -> (unitsType, description)
+    for (const auto& section : session_node.children()) {
+        const std::string_view name = section.name();
+        pugi::xml_node list;
+        if (name.starts_with("traceDisplaySetup")) list = section.child("signals");
+        else if (name.starts_with("traceCaptureSetup")) list = section.child("signalSettings");
+        if (!list) continue;
+        for (const auto& signal : list.children("signal")) {
+            auto& entry = setup[signal.attribute("key").value()];
+            if (entry.first.empty() || !unit_of(entry.first)) entry.first = signal.attribute("unitsType").value();
+            if (entry.second.empty()) entry.second = signal.attribute("description").value();
+        }
+    }
+
+    for (const auto& node : frame.children("dataSignal")) {
+        Signal signal;
+        signal.line = line_of_node(xml, node);
+        signal.id = node.attribute("id").value();
+        signal.key = node.attribute("key").value();
+        if (signal.id.empty()) {
+            throw InputError(fmt::format("{}: line {}: <dataSignal> without an id", source, signal.line));
+        }
+        split_signal_name(node.attribute("name").value(), signal.variable, signal.axis);
+        if (signal.variable.empty()) signal.variable = signal.key.empty() ? signal.id : signal.key;
+        signal.units_type = node.attribute("unitsType").value();
+        signal.description = node.attribute("description").value();
+        if (const auto it = setup.find(signal.key); it != setup.end()) {
+            if (!unit_of(signal.units_type) && unit_of(it->second.first)) signal.units_type = it->second.first;
+            if (signal.description.empty()) signal.description = it->second.second;
+        }
+        const auto interval = node.attribute("interval");
+        if (!interval) {
+            throw InputError(fmt::format("{}: line {}: <dataSignal id=\"{}\"> has no interval", source, signal.line,
+                                         signal.id));
+        }
+        signal.interval_s = parse_attribute_number(xml, source, node, interval);
+        if (!(signal.interval_s > 0.0)) {
+            throw InputError(fmt::format("{}: line {}: <dataSignal id=\"{}\">: interval {} is not positive", source,
+                                         signal.line, signal.id, interval.value()));
+        }
+        if (const auto count = node.attribute("datapointCount")) signal.datapoint_count = count.as_llong(-1);
+        for (const auto& other : session.signals) {
+            if (other.id == signal.id) {
+                throw InputError(fmt::format("{}: line {}: <dataSignal id=\"{}\"> is declared twice", source,
+                                             signal.line, signal.id));
+            }
+        }
+        session.signals.push_back(std::move(signal));
+    }
+    if (session.signals.empty()) {
+        throw InputError(fmt::format("{}: line {}: <dataFrame> declares no <dataSignal>", source,
+                                     line_of_node(xml, frame)));
+    }
+
+    const SignalLookup lookup(session.signals);
+    std::size_t unknown_attributes = 0;
+    double previous = -std::numeric_limits<double>::infinity();
+    for (const auto& rec : frame.children()) {
+        if (std::string_view(rec.name()) != "rec") continue;
+        const auto time_attribute = rec.attribute("time");
+        if (!time_attribute) {
+            throw InputError(fmt::format("{}: line {}: <rec> without a time", source, line_of_node(xml, rec)));
+        }
+        const double time = parse_attribute_number(xml, source, rec, time_attribute);
+        if (time < previous) {
+            throw InputError(fmt::format("{}: line {}: <rec time=\"{}\"> goes back in time (the record before is at "
+                                         "{} s)",
+                                         source, line_of_node(xml, rec), time_attribute.value(), previous));
+        }
+        previous = time;
+        if (std::isnan(session.first_time)) session.first_time = time;
+        session.last_time = time;
+        for (auto attribute = rec.first_attribute(); attribute; attribute = attribute.next_attribute()) {
+            const std::string_view name = attribute.name();
+            if (name == "time") continue;
+            const int index = lookup.find(name);
+            if (index < 0) {
+                ++unknown_attributes;
+                continue;
+            }
+            auto& signal = session.signals[static_cast<std::size_t>(index)];
+            const double value = parse_attribute_number(xml, source, rec, attribute);
+            if (!signal.times.empty() && signal.times.back() == time) {
+                signal.values.back() = value;  // the same instant written twice: the later value counts
+            } else {
+                signal.times.push_back(time);
+                signal.values.push_back(value);
+            }
+        }
+    }
+    if (std::isnan(session.first_time)) {
+        throw InputError(fmt::format("{}: line {}: <dataFrame> holds no <rec> records", source,
+                                     line_of_node(xml, frame)));
+    }
+    if (unknown_attributes > 0) {
+        session.findings.push_back(fmt::format("{} record values belong to no declared <dataSignal> and were ignored",
+                                               unknown_attributes));
+    }
+    return session;
+}
+
+struct RoleGuess {
+    std::size_t signal;
+    Role role;
+};
+
+// Roles from the NC variable names (see the header). The position comes from the direct measuring system (2nd
+// encoder, the linear scale) when the trace has it: that is what the position loop closes on and what the table
+// really does; velocity is taken from the same measuring system so that the two agree.
+std::vector<RoleGuess> guess_roles(const std::vector<Signal>& signals, const std::vector<std::size_t>& members) {
+    auto find = [&](std::initializer_list<std::string_view> patterns, std::string_view units_type,
+                    std::string_view prefer = {}) -> std::optional<std::size_t> {
+        std::optional<std::size_t> any;
+        for (const auto index : members) {
+            const auto& signal = signals[index];
+            if (!equals_ci(signal.units_type, units_type)) continue;
+            for (const auto pattern : patterns) {
+                if (!contains_ci(signal.variable, pattern)) continue;
+                if (prefer.empty() || contains_ci(signal.variable, prefer)) return index;
+                if (!any) any = index;
+            }
+        }
+        return any;
+    };
+    std::vector<RoleGuess> guesses;
+    const auto direct = find({"ActPos2ndEnc", "measPos2"}, "posn");
+    const auto motor = find({"ActPos1stEnc", "measPos1"}, "posn");
+    const std::string_view encoder = direct ? "2nd" : "1st";
+    if (const auto position = direct ? direct : motor) guesses.push_back({*position, Role::position});
+    if (const auto reference = find({"CmdPos", "PosSetpoint", "SetPos"}, "posn", encoder)) {
+        guesses.push_back({*reference, Role::reference_position});
+    }
+    if (const auto command = find({"CmdVel", "VelSetpoint", "SetVel"}, "velo")) {
+        guesses.push_back({*command, Role::velocity_command});
+    }
+    if (const auto velocity = find({"ActVel", "measVel"}, "velo", encoder)) guesses.push_back({*velocity, Role::velocity});
+    if (const auto current = find({"ActCurr", "CurrAct", "iqAct"}, "current")) guesses.push_back({*current, Role::current});
+    return guesses;
+}
+
+Trace build_axis(const Session& session, const std::string& axis, const std::string& source) {
+    const auto& signals = session.signals;
+    std::vector<std::size_t> members;
+    for (std::size_t k = 0; k < signals.size(); ++k) {
+        if (signals[k].axis == axis || signals[k].axis.empty()) members.push_back(k);
+    }
+    Trace trace;
+    trace.format = "sinumerik-trace";
+    trace.findings = session.findings;
+
+    std::vector<std::size_t> kept;
+    for (const auto index : members) {
+        if (signals[index].times.empty()) {
+            trace.findings.push_back(fmt::format("signal '{}' has no samples in the records; left out",
+                                                 signals[index].variable));
+        } else {
+            kept.push_back(index);
+        }
+    }
+    if (kept.empty()) {
+        throw InputError(fmt::format("{}: no signal of axis {} has any sample in the records", source,
+                                     axis.empty() ? std::string("(none)") : axis));
+    }
+    double step = std::numeric_limits<double>::infinity();
+    for (const auto index : kept) step = std::min(step, signals[index].interval_s);
+
+    // The fine time base, and a cap on what a few bytes of a hostile file can make us allocate: a real trace writes
+    // a record for nearly every fine sample, so cells (samples x channels) far beyond the file size mean a broken
+    // time or interval attribute.
+    const double span = session.last_time - session.first_time;
+    const double count_real = std::floor(span / step + 1e-6) + 1.0;
+    const double cell_limit = std::max(16.0e6, 2.0 * static_cast<double>(session.input_bytes));
+    if (!(count_real >= 1.0) || count_real * static_cast<double>(kept.size() + 1) > cell_limit) {
+        throw InputError(fmt::format("{}: records from {} s to {} s at an interval of {} s would make {:.0f} samples, "
+                                     "far more than the file holds records for",
+                                     source, session.first_time, session.last_time, step, count_real));
+    }
+    const auto n = static_cast<std::size_t>(count_real);
+
+    std::vector<double> time(n);
+    for (std::size_t j = 0; j < n; ++j) time[j] = session.first_time + static_cast<double>(j) * step;
+
+    std::vector<Channel> channels;
+    std::map<std::string, int> name_use;
+    for (const auto index : kept) ++name_use[signals[index].variable];
+    for (const auto index : kept) {
+        const auto& signal = signals[index];
+        Channel channel;
+        channel.name = name_use[signal.variable] > 1 ? signal.variable + "_" + signal.key : signal.variable;
+        channel.source_unit = unit_of(signal.units_type).value_or(signal.units_type);
+        // Forward-fill on the signal's own grid (origin: its first sample, spacing: its interval), then read the
+        // grid at each fine time: the latest grid value at or before it; NaN before the first sample.
+        const double origin = signal.times.front();
+        const double interval = signal.interval_s;
+        channel.values.assign(n, not_a_number);
+        std::size_t event = 0;
+        double held = not_a_number;
+        for (std::size_t j = 0; j < n; ++j) {
+            const double position = (time[j] - origin) / interval;
+            if (position < -1e-6) continue;
+            const double cell = std::floor(position + 1e-6);
+            while (event < signal.times.size() && std::round((signal.times[event] - origin) / interval) <= cell) {
+                held = signal.values[event];
+                ++event;
+            }
+            channel.values[j] = held;
+        }
+        channels.push_back(std::move(channel));
+    }
+
+    // Roles, each guess said.
+    const auto guesses = guess_roles(signals, kept);
+    for (const auto& guess : guesses) {
+        const auto position = static_cast<std::size_t>(std::find(kept.begin(), kept.end(), guess.signal) - kept.begin());
+        auto& channel = channels[position];
+        channel.role = guess.role;
+        const auto& description = signals[guess.signal].description;
+        trace.findings.push_back(fmt::format("channel '{}'{} taken as {} (guessed from the NC variable name; set it "
+                                             "with --channel {}=NAME)",
+                                             channel.name, description.empty() ? "" : " (" + description + ")",
+                                             role_name(guess.role), role_name(guess.role)));
+    }
+    if (!guesses.empty()) {
+        trace.findings.push_back("SINUMERIK units taken for a linear metric axis: posn in mm, velo in mm/min (state "
+                                 "others with --unit ROLE=UNIT, e.g. --unit position=deg for a rotary axis)");
+    }
+
+    // The trace starts where every role channel has a value (sparse signals on coarser grids may start later).
+    std::size_t first = 0;
+    for (const auto& channel : channels) {
+        if (channel.role == Role::other) continue;
+        std::size_t k = 0;
+        while (k < n && std::isnan(channel.values[k])) ++k;
+        first = std::max(first, k);
+    }
+    if (first >= n) throw InputError(fmt::format("{}: no sample where all role channels have values", source));
+    if (first > 0) {
+        trace.findings.push_back(fmt::format("the first {} samples were dropped: not every role channel had a value "
+                                             "yet",
+                                             first));
+    }
+    for (const auto index : kept) {
+        const auto& signal = signals[index];
+        if (signal.datapoint_count > 0 && static_cast<std::size_t>(signal.datapoint_count) != n &&
+            signal.interval_s == step) {
+            trace.findings.push_back(fmt::format("signal '{}' declares {} data points; the records span {}",
+                                                 signal.variable, signal.datapoint_count, n));
+            break;
+        }
+    }
+
+    auto cut = [first](std::vector<double>& values) {
+        values.erase(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(first));
+    };
+    cut(time);
+    trace.channels.push_back(Channel{"time", Role::time, "", "s", std::move(time)});
+    for (auto& channel : channels) {
+        cut(channel.values);
+        trace.channels.push_back(std::move(channel));
+    }
+    return trace;
+}
+
+std::vector<std::string> axes_of(const Session& session) {
+    std::vector<std::string> axes;
+    for (const auto& signal : session.signals) {
+        if (!signal.axis.empty() && std::find(axes.begin(), axes.end(), signal.axis) == axes.end()) {
+            axes.push_back(signal.axis);
+        }
+    }
+    if (axes.empty()) axes.emplace_back();
+    return axes;
+}
+
+}  // namespace
+
+Trace parse_sinumerik_trace(std::string_view xml, const std::string& source, const std::string& axis) {
+    const Session session = read_session(xml, source);
+    const auto axes = axes_of(session);
+    std::string chosen;
+    if (axis.empty()) {
+        chosen = axes.front();
+    } else {
+        for (const auto& candidate : axes) {
+            if (equals_ci(candidate, axis)) chosen = candidate;
+        }
+        if (chosen.empty()) {
+            std::string list;
+            for (const auto& candidate : axes) list += (list.empty() ? "" : ", ") + candidate;
+            throw InputError(fmt::format("{}: --axis {}: the trace holds no such axis (it holds: {})", source, axis,
+                                         list.empty() ? std::string("none named") : list));
+        }
+    }
+    Trace trace = build_axis(session, chosen, source);
+    if (axes.size() > 1) {
+        std::string list;
+        for (const auto& candidate : axes) list += (list.empty() ? "" : ", ") + candidate;
+        trace.findings.insert(trace.findings.begin(),
+                              fmt::format("the trace holds axes {}; read axis {} (choose with --axis)", list, chosen));
+    }
+    return trace;
+}
+
+std::vector<Trace> parse_sinumerik_trace_axes(std::string_view xml, const std::string& source) {
+    const Session session = read_session(xml, source);
+    std::vector<Trace> traces;
+    for (const auto& axis : axes_of(session)) traces.push_back(build_axis(session, axis, source));
+    return traces;
+}
+
+}  // namespace feedid

@@ -1,0 +1,165 @@
+#include "feedid/trace.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <utility>
+
+#include <fmt/core.h>
+
+#include "feedid/error.hpp"
+
+namespace feedid {
+
+namespace {
+constexpr std::array<std::pair<Role, std::string_view>, 9> role_names{{
+    {Role::other, "other"},
+    {Role::time, "time"},
+    {Role::position, "position"},
+    {Role::reference_position, "reference_position"},
+    {Role::velocity, "velocity"},
+    {Role::velocity_command, "velocity_command"},
+    {Role::current, "current"},
+    {Role::force, "force"},
+    {Role::external_force, "external_force"},
+}};
+
+std::string where(const Trace& trace) { return trace.source_path.empty() ? std::string("trace") : trace.source_path; }
+}  // namespace
+
+std::string_view role_name(Role role) {
+    for (const auto& [r, name] : role_names) {
+        if (r == role) return name;
+    }
+    return "other";
+}
+
+std::optional<Role> parse_role(std::string_view name) {
+    for (const auto& [r, role_string] : role_names) {
+        if (role_string == name) return r;
+    }
+    return std::nullopt;
+}
+
+std::size_t Trace::samples() const {
+    if (const auto* time = find(Role::time)) return time->values.size();
+    return channels.empty() ? 0 : channels.front().values.size();
+}
+
+const Channel* Trace::find(Role role) const {
+    if (role == Role::other) return nullptr;
+    for (const auto& channel : channels) {
+        if (channel.role == role) return &channel;
+    }
+    return nullptr;
+}
+
+Channel* Trace::find(Role role) { return const_cast<Channel*>(std::as_const(*this).find(role)); }
+
+const Channel* Trace::find(std::string_view name) const {
+    for (const auto& channel : channels) {
+        if (channel.name == name) return &channel;
+    }
+    return nullptr;
+}
+
+Channel* Trace::find(std::string_view name) { return const_cast<Channel*>(std::as_const(*this).find(name)); }
+
+std::span<const double> Trace::column(Role role) const {
+    const auto* channel = find(role);
+    if (channel == nullptr) {
+        throw InputError(fmt::format("{}: no {} channel (map one with --channel {}=NAME)", where(*this),
+                                     role_name(role), role_name(role)));
+    }
+    return channel->values;
+}
+
+Channel& Trace::set(std::string name, Role role, std::string unit, std::vector<double> values) {
+    if (role != Role::other) {
+        for (auto& channel : channels) {
+            if (channel.role == role && channel.name != name) channel.role = Role::other;
+        }
+    }
+    if (auto* existing = find(name)) {
+        existing->role = role;
+        existing->unit = std::move(unit);
+        existing->values = std::move(values);
+        return *existing;
+    }
+    channels.push_back(Channel{std::move(name), role, unit, unit, std::move(values)});
+    return channels.back();
+}
+
+TimeBase Trace::time_base() const {
+    const auto time = column(Role::time);
+    TimeBase base;
+    if (time.size() < 2) return base;
+    std::vector<double> steps(time.size() - 1);
+    for (std::size_t k = 0; k + 1 < time.size(); ++k) steps[k] = time[k + 1] - time[k];
+    auto middle = steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2);
+    std::nth_element(steps.begin(), middle, steps.end());
+    base.sample_time_s = *middle;
+    for (std::size_t k = 0; k + 1 < time.size(); ++k) {
+        base.max_deviation_s = std::max(base.max_deviation_s, std::abs(time[k + 1] - time[k] - base.sample_time_s));
+    }
+    base.duration_s = time.back() - time.front();
+    base.jittery = base.max_deviation_s > 0.01 * base.sample_time_s;
+    return base;
+}
+
+void Trace::validate() {
+    const auto* time = find(Role::time);
+    if (time == nullptr) throw InputError(fmt::format("{}: no time channel", where(*this)));
+    const std::size_t n = time->values.size();
+    if (n == 0) throw InputError(fmt::format("{}: the trace holds no samples", where(*this)));
+    for (const auto& channel : channels) {
+        if (channel.values.size() != n) {
+            throw InputError(fmt::format("{}: channel '{}' has {} samples, the time channel {}", where(*this),
+                                         channel.name, channel.values.size(), n));
+        }
+    }
+    for (const auto& channel : channels) {
+        if (channel.role == Role::other) continue;
+        for (std::size_t k = 0; k < n; ++k) {
+            if (!std::isfinite(channel.values[k])) {
+                throw InputError(fmt::format("{}: channel '{}' ({}) has a missing or non-finite value at sample {}",
+                                             where(*this), channel.name, role_name(channel.role), k + 1));
+            }
+        }
+    }
+    for (std::size_t k = 1; k < n; ++k) {
+        if (!(time->values[k] > time->values[k - 1])) {
+            throw InputError(fmt::format("{}: time is not strictly increasing at sample {} ({} s after {} s)",
+                                         where(*this), k + 1, time->values[k], time->values[k - 1]));
+        }
+    }
+    if (n >= 2) {
+        const TimeBase base = time_base();
+        if (base.jittery) {
+            findings.push_back(fmt::format("jittery time base: median sample time {:.6g} s, largest deviation {:.3g} s "
+                                           "({:.1f} % of a sample)",
+                                           base.sample_time_s, base.max_deviation_s,
+                                           100.0 * base.max_deviation_s / base.sample_time_s));
+        }
+    }
+}
+
+Trace Trace::slice(std::size_t first, std::size_t last) const {
+    Trace out;
+    out.source_path = source_path;
+    out.format = format;
+    out.constants = constants;
+    out.findings = findings;
+    out.rotary = rotary;
+    last = std::min(last, samples());
+    first = std::min(first, last);
+    for (const auto& channel : channels) {
+        Channel copy{channel.name, channel.role, channel.unit, channel.source_unit, {}};
+        copy.values.assign(channel.values.begin() + static_cast<std::ptrdiff_t>(first),
+                           channel.values.begin() + static_cast<std::ptrdiff_t>(last));
+        out.channels.push_back(std::move(copy));
+    }
+    return out;
+}
+
+}  // namespace feedid

@@ -1,0 +1,83 @@
+#include "feedid/trace.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "feedid/error.hpp"
+
+using namespace feedid;
+
+namespace {
+Trace make_trace(std::vector<double> time, std::vector<double> position) {
+    Trace trace;
+    trace.source_path = "test.csv";
+    trace.set("t", Role::time, "s", std::move(time));
+    trace.set("x", Role::position, "m", std::move(position));
+    return trace;
+}
+}  // namespace
+
+TEST(Trace, ReportsSampleTimeAndDuration) {
+    Trace trace = make_trace({0.0, 0.001, 0.002, 0.003}, {0, 1, 2, 3});
+    trace.validate();
+    const auto base = trace.time_base();
+    EXPECT_NEAR(base.sample_time_s, 0.001, 1e-15);
+    EXPECT_NEAR(base.duration_s, 0.003, 1e-15);
+    EXPECT_FALSE(base.jittery);
+    EXPECT_TRUE(trace.findings.empty());
+    EXPECT_EQ(trace.samples(), 4u);
+}
+
+TEST(Trace, RejectsTimeThatDoesNotIncrease) {
+    Trace trace = make_trace({0.0, 0.001, 0.001, 0.003}, {0, 1, 2, 3});
+    try {
+        trace.validate();
+        FAIL() << "expected an InputError";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("sample 3"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("test.csv"), std::string::npos) << e.what();
+    }
+}
+
+TEST(Trace, RejectsNonFiniteValuesInRoleChannels) {
+    Trace trace = make_trace({0.0, 0.001, 0.002}, {0, std::numeric_limits<double>::quiet_NaN(), 2});
+    EXPECT_THROW(trace.validate(), InputError);
+    // ... but not in channels without a role
+    Trace other = make_trace({0.0, 0.001, 0.002}, {0, 1, 2});
+    other.set("note", Role::other, "", {1, std::numeric_limits<double>::quiet_NaN(), 3});
+    EXPECT_NO_THROW(other.validate());
+}
+
+TEST(Trace, RejectsColumnsOfDifferentLength) {
+    Trace trace = make_trace({0.0, 0.001, 0.002}, {0, 1});
+    EXPECT_THROW(trace.validate(), InputError);
+}
+
+TEST(Trace, ReportsJitterWithItsFigures) {
+    Trace trace = make_trace({0.0, 0.001, 0.0021, 0.003, 0.004}, {0, 1, 2, 3, 4});
+    trace.validate();
+    const auto base = trace.time_base();
+    EXPECT_TRUE(base.jittery);
+    EXPECT_NEAR(base.max_deviation_s, 0.0001, 1e-12);
+    ASSERT_EQ(trace.findings.size(), 1u);
+    EXPECT_NE(trace.findings[0].find("jittery"), std::string::npos);
+}
+
+TEST(Trace, SetReplacesTheRoleHolder) {
+    Trace trace = make_trace({0.0, 0.001}, {0, 1});
+    trace.set("x2", Role::position, "m", {5, 6});
+    EXPECT_EQ(trace.find(Role::position)->name, "x2");
+    EXPECT_EQ(trace.find("x")->role, Role::other);
+}
+
+TEST(Trace, ColumnOfMissingRoleNamesTheRole) {
+    Trace trace = make_trace({0.0, 0.001}, {0, 1});
+    try {
+        (void)trace.column(Role::current);
+        FAIL();
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("current"), std::string::npos);
+    }
+}

@@ -1,0 +1,78 @@
+#pragma once
+// Helpers shared by the tests: where the reference data lives, running the feedid CLI, temporary files.
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <sys/wait.h>
+
+namespace feedid::testing {
+
+/// ../shared/data (a CMake cache variable); tests that need it skip with a message when it is absent.
+inline std::filesystem::path shared_data() { return FEEDID_SHARED_DATA; }
+
+#define FEEDID_REQUIRE_SHARED(relative)                                                                      \
+    do {                                                                                                     \
+        if (!std::filesystem::exists(::feedid::testing::shared_data() / (relative)))                         \
+            GTEST_SKIP() << "reference data not found: " << (::feedid::testing::shared_data() / (relative))  \
+                         << " (set -DFEEDID_SHARED_DATA=...)";                                               \
+    } while (0)
+
+struct CliResult {
+    int exit_code{-1};
+    std::string out;
+    std::string err;
+};
+
+/// A fresh folder under the system temp directory, named after the running test.
+inline std::filesystem::path temp_dir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    auto dir = std::filesystem::temp_directory_path() / "feedid-tests" /
+               (std::string(info->test_suite_name()) + "." + info->name());
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+inline std::string read_text(const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), {}};
+}
+
+inline void write_text(const std::filesystem::path& path, const std::string& text) {
+    std::ofstream out(path, std::ios::binary);
+    out << text;
+}
+
+/// Runs the feedid binary with a shell-quoted argument string; captures stdout, stderr and the exit code.
+inline CliResult run_cli(const std::string& arguments) {
+    const auto dir = temp_dir().parent_path() / "cli-capture";
+    std::filesystem::create_directories(dir);
+    static int counter = 0;
+    const auto out_path = dir / ("out" + std::to_string(::getpid()) + "_" + std::to_string(counter) + ".txt");
+    const auto err_path = dir / ("err" + std::to_string(::getpid()) + "_" + std::to_string(counter++) + ".txt");
+    const std::string command = std::string("'") + FEEDID_CLI + "' " + arguments + " >'" + out_path.string() +
+                                "' 2>'" + err_path.string() + "' </dev/null";
+    const int status = std::system(command.c_str());
+    CliResult result;
+    result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    result.out = read_text(out_path);
+    result.err = read_text(err_path);
+    std::filesystem::remove(out_path);
+    std::filesystem::remove(err_path);
+    return result;
+}
+
+/// Counts the lines of a message (a "one clear message" is one line).
+inline int count_lines(const std::string& text) {
+    int lines = 0;
+    for (const char c : text) lines += c == '\n';
+    return lines;
+}
+
+}  // namespace feedid::testing
