@@ -1,0 +1,161 @@
+// feedid identify FILE: mass and friction of the axis, with uncertainty (the paper's two-step RLS, done right).
+#include <cstdio>
+#include <memory>
+
+#include <fmt/core.h>
+
+#include "cli.hpp"
+#include "feedid/error.hpp"
+#include "feedid/identify.hpp"
+
+namespace feedid::cli {
+
+namespace {
+
+struct IdentifyCommand {
+    TraceArguments trace_arguments;
+    DriveArguments drive_arguments;
+    IdentifyOptions options;
+    std::string model{"symmetric"};
+    std::string differentiation{"butterworth"};
+    std::string rls_variant{"directional"};
+    bool no_stribeck{false};
+    std::optional<double> cutoff, from, to, split, moving;
+    std::optional<std::size_t> edge;
+    std::string json_path;
+
+    void add_to(CLI::App& sub) {
+        trace_arguments.add_to(sub);
+        drive_arguments.add_to(sub);
+        sub.add_option("--model", model, "Friction model: symmetric (the paper's eq. 11) or asymmetric (per direction)")
+            ->check(CLI::IsMember({"symmetric", "asymmetric"}))
+            ->capture_default_str();
+        sub.add_flag("--offset", options.offset, "Also estimate a constant force offset (gravity, sensor offset)");
+        sub.add_flag("--no-stribeck", no_stribeck, "Skip step 2 (breakaway friction and Stribeck velocity)");
+        sub.add_option("--json", json_path, "Write the result document to PATH ('-' for stdout)");
+        auto* pre = sub.add_option_group("Preprocessing");
+        pre->add_option("--differentiation", differentiation,
+                        "How velocity and acceleration are obtained from position: butterworth (zero-phase low-pass, "
+                        "then central differences), central (the paper), savitzky-golay")
+            ->check(CLI::IsMember({"butterworth", "central", "savitzky-golay"}))
+            ->capture_default_str();
+        pre->add_option("--filter-order", options.filter_order, "Butterworth order")->capture_default_str();
+        pre->add_option("--cutoff", cutoff, "Butterworth cut-off [Hz] (default: min(100 Hz, sample rate / 10))");
+        pre->add_option("--sg-window", options.savitzky_golay_window,
+                        "Savitzky-Golay window [samples, odd] (default: about 20 ms)");
+        pre->add_option("--sg-order", options.savitzky_golay_order, "Savitzky-Golay polynomial order")->capture_default_str();
+        pre->add_option("--decimate", options.decimation,
+                        "Decimate every regressor column and the force by this factor (order-8 Chebyshev anti-alias "
+                        "filter, forwards and backwards; default 1 = none)");
+        pre->add_option("--edge-samples", edge,
+                        "Samples dropped at each end after filtering (default: 2.5 filter periods, fs/cutoff*2.5)");
+        auto* select = sub.add_option_group("Data selection");
+        select->add_option("--from", from, "Start of the analysis window [s]");
+        select->add_option("--to", to, "End of the analysis window [s]");
+        select->add_option("--split-velocity", split,
+                           "Step 1 uses |v| above, step 2 the quasi-static samples below [m/s or rad/s] (default: a "
+                           "tenth of the typical constant-velocity speed)");
+        select->add_option("--moving-threshold", moving,
+                           "|v| above which a sample counts as moving [m/s] (default: 5x the velocity noise floor)");
+        auto* rls = sub.add_option_group("RLS");
+        rls->add_option("--lambda", options.rls.forgetting_factor, "Forgetting factor")->capture_default_str();
+        rls->add_option("--p0", options.rls.initial_covariance, "Initial covariance P(0) = p0 * I")->capture_default_str();
+        rls->add_option("--rls", rls_variant,
+                        "RLS variant: directional (forgetting only where the data excites; robust) or paper "
+                        "(exponential forgetting, eq. 7-9)")
+            ->check(CLI::IsMember({"directional", "paper"}))
+            ->capture_default_str();
+    }
+
+    IdentifyOptions resolved() const {
+        IdentifyOptions o = options;
+        o.drive = drive_arguments.constants();
+        o.model = model == "asymmetric" ? FrictionModelKind::asymmetric : FrictionModelKind::symmetric;
+        o.differentiation = differentiation == "central"          ? Differentiation::central
+                            : differentiation == "savitzky-golay" ? Differentiation::savitzky_golay
+                                                                  : Differentiation::butterworth;
+        o.rls.variant = rls_variant == "paper" ? RlsVariant::exponential : RlsVariant::directional;
+        o.stribeck = !no_stribeck;
+        o.cutoff_hz = cutoff;
+        o.from_s = from;
+        o.to_s = to;
+        o.split_velocity = split;
+        o.moving_threshold = moving;
+        o.edge_samples = edge;
+        if (o.decimation == 0) o.decimation = 1;
+        return o;
+    }
+
+    int run() const {
+        const IdentifyOptions o = resolved();
+        if (const auto problem = o.validate(); !problem.empty()) throw InputError(problem);
+        const Trace trace = trace_arguments.read();
+        const IdentifyResult result = identify(trace, o);
+        if (!json_path.empty()) write_json(result.document, json_path);
+        if (json_path != "-") print_table(result);
+        if (result.status == "failed") {
+            for (const auto& d : result.diagnostics) fmt::print(stderr, "feedid: {}\n", d);
+            return 1;
+        }
+        if (json_path == "-") {
+            for (const auto& d : result.diagnostics) fmt::print(stderr, "feedid: {}\n", d);
+        }
+        return 0;
+    }
+
+    static void print_table(const IdentifyResult& result) {
+        const auto& doc = result.document;
+        fmt::print("{} ({} samples, {:.6g} s)\n", doc["trace"]["path"].get<std::string>(),
+                   doc["trace"]["samples"].get<std::size_t>(), doc["trace"]["duration_s"].get<double>());
+        fmt::print("model: {}{}\n\n", result.model, result.offset ? " with offset" : "");
+        fmt::print("  {:<6} {:>14}   {:<12} {:<10}\n", "", "value", "std. error", "unit");
+        for (const auto& p : result.parameters) {
+            if (p.estimate.value) {
+                fmt::print("  {:<6} {:>14.6g} ± {:<12.3g} {:<10}\n", p.symbol, *p.estimate.value,
+                           p.estimate.standard_error.value_or(NAN), p.unit);
+            } else {
+                fmt::print("  {:<6} {:>14}   {:<12} {:<10}\n", p.symbol, "—", "", p.unit);
+            }
+        }
+        if (doc.contains("fit")) {
+            fmt::print("\n  step-1 batch QR: relative error {:.3f} %, condition number {:.3g}, {} samples\n",
+                       doc["fit"]["relative_error_pct"].get<double>(), doc["fit"]["condition_number"].get<double>(),
+                       doc["fit"]["samples_used"].get<std::size_t>());
+        }
+        if (doc.contains("rls")) {
+            fmt::print("  RLS ({}): settled at {:.3g} s{}\n", doc["rls"]["variant"].get<std::string>(),
+                       doc["rls"]["transient_end_s"].get<double>(), doc["rls"]["settled"].get<bool>() ? "" : " (did not settle)");
+            for (const auto& [key, value] : doc["rls"]["final"].items()) {
+                fmt::print("    {:<28} final {:>12.6g}   averaged {:>12.6g}\n", key, value.get<double>(),
+                           doc["rls"]["averaged"][key].get<double>());
+            }
+        }
+        if (doc.contains("selection")) {
+            fmt::print("  data:\n");
+            for (const auto& note : doc["selection"]["notes"]) fmt::print("    - {}\n", note.get<std::string>());
+        }
+        if (!result.diagnostics.empty() && result.status != "failed") {
+            fmt::print("  diagnostics:\n");
+            for (const auto& d : result.diagnostics) fmt::print("    - {}\n", d);
+        }
+    }
+};
+
+}  // namespace
+
+Action add_identify_command(CLI::App& app) {
+    auto command = std::make_shared<IdentifyCommand>();
+    auto* sub = app.add_subcommand("identify", "Estimate mass, viscous, Coulomb and breakaway friction and Stribeck "
+                                               "velocity, each with a standard error");
+    command->add_to(*sub);
+    sub->footer(
+        "Examples:\n"
+        "  feedid identify ../shared/data/emps/DATA_EMPS.mat --channel position=qm --channel current=vir \\\n"
+        "      --force-constant gtau --offset --json -\n"
+        "  feedid identify trace.csv --kt 1.45 --lead 10 --model asymmetric\n"
+        "Exit codes: 0 identified (possibly with some parameters null: see diagnostics), 1 the data cannot identify "
+        "the model (the message says why and what data would), 2 bad usage or bad input.");
+    return [command] { return command->run(); };
+}
+
+}  // namespace feedid::cli

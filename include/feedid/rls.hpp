@@ -1,0 +1,100 @@
+#pragma once
+// Recursive least squares with exponential forgetting, fixed size (the paper's eq. 7-9), and a robust variant whose
+// forgetting acts only in the direction the data excites. The per-sample update never allocates and never throws.
+
+#include <cmath>
+#include <cstddef>
+
+#include <Eigen/Core>
+
+namespace feedid {
+
+enum class RlsVariant {
+    /// The paper's eq. (7)-(9): P(k) = (I - L*phi^T)*P(k-1)/lambda. With lambda < 1 and a regressor that does not
+    /// excite every direction (no acceleration on a constant-velocity test), P grows as lambda^-k in the unexcited
+    /// directions until it overflows ("covariance wind-up"); the estimator reports it (Rls::wound_up()).
+    exponential,
+    /// Directional forgetting (Kulhavy 1987): the information matrix R = P^-1 forgets only along the current
+    /// regressor, R <- R - (1-lambda)*phi*phi^T/(phi^T*P*phi) + phi*phi^T, so information in directions the data does
+    /// not excite is kept, and P stays symmetric positive definite and bounded by P(0) there. Same gain as eq. (8).
+    directional,
+};
+
+struct RlsOptions {
+    double forgetting_factor{0.99995};  ///< lambda, in (0, 1]
+    double initial_covariance{1e6};     ///< P(0) = initial_covariance * I
+    RlsVariant variant{RlsVariant::directional};
+};
+
+/// What one update did.
+enum class RlsUpdate : unsigned char {
+    updated,       ///< estimate and covariance updated
+    no_excitation, ///< phi^T*P*phi below round-off: nothing to learn, nothing forgotten (robust variant)
+    non_finite,    ///< phi or y not finite: sample ignored
+};
+
+template <int N>
+class Rls {
+public:
+    using Vector = Eigen::Matrix<double, N, 1>;
+    using Matrix = Eigen::Matrix<double, N, N>;
+
+    explicit Rls(const RlsOptions& options = {}, const Vector& initial_estimate = Vector::Zero())
+        : options_(options), theta_(initial_estimate) {
+        reset(initial_estimate);
+    }
+
+    void reset(const Vector& initial_estimate = Vector::Zero()) {
+        theta_ = initial_estimate;
+        covariance_ = Matrix::Identity() * options_.initial_covariance;
+        updates_ = 0;
+        wound_up_ = false;
+    }
+
+    /// One sample: y = phi^T * theta + noise.
+    RlsUpdate update(const Vector& phi, double y) noexcept {
+        if (!phi.allFinite() || !std::isfinite(y)) return RlsUpdate::non_finite;
+        const double lambda = options_.forgetting_factor;
+        const Vector p_phi = covariance_ * phi;
+        const double r = phi.dot(p_phi);  // phi^T P phi
+        const double error = y - phi.dot(theta_);
+        if (options_.variant == RlsVariant::exponential) {
+            // eq. (8): L = P*phi / (lambda + phi^T*P*phi); eq. (7); eq. (9): P = (I - L*phi^T)*P / lambda
+            const Vector gain = p_phi / (lambda + r);
+            theta_ += gain * error;
+            covariance_ = (covariance_ - gain * p_phi.transpose()) / lambda;
+            if (!covariance_.allFinite() || covariance_.diagonal().maxCoeff() > wind_up_limit) wound_up_ = true;
+            ++updates_;
+            return RlsUpdate::updated;
+        }
+        // Directional forgetting. With R_new = R + eps*phi*phi^T, eps = 1 - (1 - lambda)/r:
+        //   P_new = P - eps/(lambda + r) * (P*phi)(P*phi)^T,   P_new*phi = P*phi/(lambda + r) = L (eq. 8).
+        const double scale = covariance_.diagonal().cwiseAbs().maxCoeff();
+        if (!(r > 1e-14 * scale * phi.squaredNorm()) || !(r > 0.0)) return RlsUpdate::no_excitation;
+        const double eps = 1.0 - (1.0 - lambda) / r;
+        const Vector gain = p_phi / (lambda + r);
+        theta_ += gain * error;
+        covariance_.noalias() -= (eps / (lambda + r)) * (p_phi * p_phi.transpose());
+        covariance_ = 0.5 * (covariance_ + covariance_.transpose()).eval();
+        ++updates_;
+        return RlsUpdate::updated;
+    }
+
+    [[nodiscard]] const Vector& estimate() const noexcept { return theta_; }
+    [[nodiscard]] const Matrix& covariance() const noexcept { return covariance_; }
+    [[nodiscard]] std::size_t updates() const noexcept { return updates_; }
+    [[nodiscard]] const RlsOptions& options() const noexcept { return options_; }
+    /// The exponential variant's covariance has grown past 1e150 or overflowed (its estimate is then unreliable).
+    [[nodiscard]] bool wound_up() const noexcept { return wound_up_; }
+
+    static constexpr double wind_up_limit = 1e150;
+
+private:
+    RlsOptions options_;
+    Vector theta_;
+    Matrix covariance_;
+    std::size_t updates_{0};
+    bool wound_up_{false};
+};
+
+}  // namespace feedid

@@ -1,0 +1,45 @@
+#pragma once
+// Preprocessing: differentiation, zero-phase filtering, decimation, data selection.
+
+#include <array>
+#include <cstddef>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace feedid {
+
+/// A digital filter as second-order sections: each row b0 b1 b2 a0 a1 a2 (a0 == 1).
+struct SecondOrderSections {
+    std::vector<std::array<double, 6>> sections;
+};
+
+/// Butterworth low-pass of the given order, cut-off [Hz] at sample rate [Hz], by the bilinear transform with
+/// pre-warping (as MATLAB's butter).
+SecondOrderSections butterworth_lowpass(int order, double cutoff_hz, double sample_rate_hz);
+/// Chebyshev type I low-pass (pass-band ripple [dB]) as MATLAB's cheby1; used for decimation (order 8, 0.05 dB).
+SecondOrderSections chebyshev1_lowpass(int order, double ripple_db, double cutoff_hz, double sample_rate_hz);
+
+/// Forward-backward (zero-phase) filtering with odd reflection padding at both ends and steady-state initial
+/// conditions, as MATLAB's filtfilt.
+std::vector<double> filtfilt(const SecondOrderSections& filter, std::span<const double> x);
+
+/// Central differences: d[k] = (x[k+1] - x[k-1]) / (2*dt); one-sided at the ends.
+std::vector<double> central_difference(std::span<const double> x, double dt);
+
+/// Savitzky-Golay smoothing derivative of order `derivative` (0, 1, 2) with a centred window of `window` samples
+/// (odd) and polynomial order `polynomial`; the ends use the same polynomial fitted to the first/last window.
+std::vector<double> savitzky_golay(std::span<const double> x, int window, int polynomial, int derivative, double dt);
+
+/// Decimation by `factor` as MATLAB's decimate: an order-8 Chebyshev I low-pass at 0.8 * (fs/2)/factor applied
+/// forwards and backwards, then every factor-th sample, ending on the last one.
+std::vector<double> decimate(std::span<const double> x, int factor);
+
+/// The indices decimate() keeps for a signal of n samples.
+std::vector<std::size_t> decimation_indices(std::size_t n, int factor);
+
+/// Robust noise floor of a signal: 1.4826 * median absolute deviation of its first differences / sqrt(2)
+/// (the standard deviation of white noise on the samples).
+double noise_floor(std::span<const double> x);
+
+}  // namespace feedid

@@ -1,0 +1,232 @@
+#include "stribeck_fit.hpp"
+
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Dense>
+#include <unsupported/Eigen/LevenbergMarquardt>
+
+namespace feedid::detail {
+
+LogLinearStribeck fit_log_linear(const FitSamples& samples, double mass, double viscous, double coulomb, double offset,
+                                 double noise_level, const RlsOptions& rls_options) {
+    LogLinearStribeck result;
+    Rls<2> rls(rls_options);
+    for (std::size_t k = 0; k < samples.size(); ++k) {
+        const double v = samples.velocity[k];
+        const double sign = v > 0.0 ? 1.0 : -1.0;
+        // eq. (12): what the first step's model leaves unexplained is the Stribeck part
+        const double stribeck = samples.force[k] - mass * samples.acceleration[k] - viscous * v - coulomb * sign - offset;
+        if (stribeck * sign <= 0.0) {
+            ++result.wrong_sign;
+            continue;
+        }
+        if (std::abs(stribeck) < noise_level) {
+            ++result.below_noise;
+            continue;
+        }
+        // eq. (13): ln|F_stri| = ln|F_B - F_C| - |v|/v_s
+        rls.update(Eigen::Vector2d(1.0, std::abs(v)), std::log(std::abs(stribeck)));
+        ++result.used;
+    }
+    if (result.used >= 3 && rls.estimate()(1) < 0.0) {
+        result.breakaway = coulomb + std::exp(rls.estimate()(0));
+        result.stribeck_velocity = -1.0 / rls.estimate()(1);
+    }
+    return result;
+}
+
+CurveLayout::CurveLayout(const CurveModel& model) {
+    int next = 0;
+    mass = next++;
+    const int groups = model.asymmetric ? 2 : 1;
+    for (int g = 0; g < groups; ++g) {
+        viscous[g] = next++;
+        coulomb[g] = next++;
+        const bool stribeck = g == 0 ? model.stribeck_forward : model.stribeck_reverse;
+        if (stribeck) {
+            delta[g] = next++;
+            log_vs[g] = next++;
+        }
+    }
+    if (model.offset) offset = next++;
+    size = next;
+}
+
+namespace {
+
+struct CurveFunctor : Eigen::DenseFunctor<double> {
+    CurveFunctor(const FitSamples& samples, const CurveModel& model, const CurveLayout& layout)
+        : Eigen::DenseFunctor<double>(layout.size, static_cast<int>(samples.size())),
+          samples_(samples), model_(model), layout_(layout) {}
+
+    int operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residual) const {
+        for (std::size_t k = 0; k < samples_.size(); ++k) {
+            residual(static_cast<Eigen::Index>(k)) = predict(x, k) - samples_.force[k];
+        }
+        return 0;
+    }
+
+    int df(const Eigen::VectorXd& x, Eigen::MatrixXd& jacobian) const {
+        jacobian.setZero();
+        for (std::size_t k = 0; k < samples_.size(); ++k) {
+            const auto row = static_cast<Eigen::Index>(k);
+            const double v = samples_.velocity[k];
+            const double sign = v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
+            const int g = layout_.group(v, model_.asymmetric);
+            jacobian(row, layout_.mass) = samples_.acceleration[k];
+            jacobian(row, layout_.viscous[g]) = v;
+            jacobian(row, layout_.coulomb[g]) = sign;
+            if (layout_.delta[g] >= 0) {
+                const double vs = std::exp(x(layout_.log_vs[g]));
+                const double decay = std::exp(-std::abs(v) / vs);
+                jacobian(row, layout_.delta[g]) = sign * decay;
+                // d/d(ln v_s) exp(-|v|/v_s) = exp(-|v|/v_s) * |v|/v_s
+                jacobian(row, layout_.log_vs[g]) = sign * x(layout_.delta[g]) * decay * std::abs(v) / vs;
+            }
+            if (layout_.offset >= 0) jacobian(row, layout_.offset) = 1.0;
+        }
+        return 0;
+    }
+
+    [[nodiscard]] double predict(const Eigen::VectorXd& x, std::size_t k) const {
+        const double v = samples_.velocity[k];
+        const double sign = v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
+        const int g = layout_.group(v, model_.asymmetric);
+        double f = x(layout_.mass) * samples_.acceleration[k] + x(layout_.viscous[g]) * v + x(layout_.coulomb[g]) * sign;
+        if (layout_.delta[g] >= 0) {
+            f += sign * x(layout_.delta[g]) * std::exp(-std::abs(v) / std::exp(x(layout_.log_vs[g])));
+        }
+        if (layout_.offset >= 0) f += x(layout_.offset);
+        return f;
+    }
+
+    const FitSamples& samples_;
+    const CurveModel& model_;
+    const CurveLayout& layout_;
+};
+
+// Variable projection: for fixed v_s per group the model is linear in the rest; solve it by normal equations and
+// return the residual sum of squares, filling the linear parameters of x.
+double solve_linear_part(const FitSamples& samples, const CurveModel& model, const CurveLayout& layout,
+                         Eigen::VectorXd& x) {
+    const int p = layout.size;
+    Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(p, p);
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(p);
+    Eigen::VectorXd row(p);
+    double yy = 0.0;
+    for (std::size_t k = 0; k < samples.size(); ++k) {
+        row.setZero();
+        const double v = samples.velocity[k];
+        const double sign = v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
+        const int g = layout.group(v, model.asymmetric);
+        row(layout.mass) = samples.acceleration[k];
+        row(layout.viscous[g]) = v;
+        row(layout.coulomb[g]) = sign;
+        if (layout.delta[g] >= 0) row(layout.delta[g]) = sign * std::exp(-std::abs(v) / std::exp(x(layout.log_vs[g])));
+        if (layout.offset >= 0) row(layout.offset) = 1.0;
+        normal.selfadjointView<Eigen::Lower>().rankUpdate(row);
+        rhs += row * samples.force[k];
+        yy += samples.force[k] * samples.force[k];
+    }
+    // the ln v_s entries are not linear parameters: pin them (unit diagonal, zero right-hand side)
+    for (int g = 0; g < 2; ++g) {
+        if (layout.log_vs[g] >= 0) {
+            normal.row(layout.log_vs[g]).setZero();
+            normal.col(layout.log_vs[g]).setZero();
+            normal(layout.log_vs[g], layout.log_vs[g]) = 1.0;
+            rhs(layout.log_vs[g]) = 0.0;
+        }
+    }
+    const Eigen::MatrixXd full = normal.selfadjointView<Eigen::Lower>();
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(full);
+    if (ldlt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+    Eigen::VectorXd solution = ldlt.solve(rhs);
+    double rss = yy - 2.0 * solution.dot(rhs) + solution.dot(full * solution);
+    for (int g = 0; g < 2; ++g) {
+        if (layout.log_vs[g] >= 0) solution(layout.log_vs[g]) = x(layout.log_vs[g]);
+    }
+    x = solution;
+    return rss;
+}
+
+}  // namespace
+
+CurveFit fit_friction_curve(const FitSamples& samples, const CurveModel& model, double vs_low, double vs_high) {
+    const CurveLayout layout(model);
+    CurveFit fit;
+    fit.samples = samples.size();
+    const int p = layout.size;
+    if (samples.size() <= static_cast<std::size_t>(p) + 2 || !(vs_low > 0.0) || !(vs_high > vs_low)) return fit;
+
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(p);
+    const double mid = std::sqrt(vs_low * vs_high);
+    for (int g = 0; g < 2; ++g) {
+        if (layout.log_vs[g] >= 0) x(layout.log_vs[g]) = std::log(mid);
+    }
+    // Grid search over ln v_s, one group at a time (twice round for two groups).
+    constexpr int grid_points = 41;
+    const int rounds = model.asymmetric ? 2 : 1;
+    double best_rss = solve_linear_part(samples, model, layout, x);
+    for (int round = 0; round < rounds; ++round) {
+        for (int g = 0; g < 2; ++g) {
+            if (layout.log_vs[g] < 0) continue;
+            Eigen::VectorXd best = x;
+            for (int i = 0; i < grid_points; ++i) {
+                Eigen::VectorXd trial = x;
+                trial(layout.log_vs[g]) =
+                    std::log(vs_low) + (std::log(vs_high) - std::log(vs_low)) * i / (grid_points - 1.0);
+                const double rss = solve_linear_part(samples, model, layout, trial);
+                if (rss < best_rss) {
+                    best_rss = rss;
+                    best = trial;
+                }
+            }
+            x = best;
+        }
+    }
+    if (layout.log_vs[0] < 0 && layout.log_vs[1] < 0) {
+        // linear model: the projection is the answer
+        (void)solve_linear_part(samples, model, layout, x);
+        fit.converged = true;
+    } else {
+        CurveFunctor functor(samples, model, layout);
+        Eigen::LevenbergMarquardt<CurveFunctor> solver(functor);
+        solver.setMaxfev(400);
+        const auto status = solver.minimize(x);
+        fit.iterations = static_cast<int>(solver.nfev());
+        fit.converged = status == Eigen::LevenbergMarquardtSpace::RelativeReductionTooSmall ||
+                        status == Eigen::LevenbergMarquardtSpace::RelativeErrorTooSmall ||
+                        status == Eigen::LevenbergMarquardtSpace::RelativeErrorAndReductionTooSmall ||
+                        status == Eigen::LevenbergMarquardtSpace::CosinusTooSmall;
+        if (!x.allFinite()) fit.converged = false;
+    }
+
+    // Residuals, standard errors from J^T J at the solution.
+    CurveFunctor functor(samples, model, layout);
+    Eigen::VectorXd residual(static_cast<Eigen::Index>(samples.size()));
+    functor(x, residual);
+    Eigen::MatrixXd jacobian(static_cast<Eigen::Index>(samples.size()), p);
+    functor.df(x, jacobian);
+    const double rss = residual.squaredNorm();
+    double yy = 0.0;
+    for (const double f : samples.force) yy += f * f;
+    fit.residual_std = std::sqrt(rss / static_cast<double>(samples.size() - static_cast<std::size_t>(p)));
+    fit.relative_error_pct = yy > 0.0 ? 100.0 * std::sqrt(rss / yy) : 0.0;
+    const Eigen::MatrixXd information = jacobian.transpose() * jacobian;
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(information);
+    Eigen::VectorXd variance = Eigen::VectorXd::Constant(p, std::numeric_limits<double>::infinity());
+    if (qr.rank() == p) variance = fit.residual_std * fit.residual_std * qr.inverse().diagonal();
+    fit.parameters = x;
+    fit.standard_errors = variance.cwiseMax(0.0).cwiseSqrt();
+    for (int g = 0; g < 2; ++g) {
+        if (layout.log_vs[g] >= 0) {
+            const double vs = std::exp(x(layout.log_vs[g]));
+            fit.parameters(layout.log_vs[g]) = vs;
+            fit.standard_errors(layout.log_vs[g]) *= vs;  // delta method: se(v_s) = v_s * se(ln v_s)
+        }
+    }
+    return fit;
+}
+
+}  // namespace feedid::detail

@@ -1,0 +1,78 @@
+#pragma once
+// Step 2 of the identification (internal): the paper's log-linear Stribeck RLS and the nonlinear least-squares fit
+// of the whole friction curve.
+
+#include <cstddef>
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "feedid/rls.hpp"
+
+namespace feedid::detail {
+
+/// Samples for a fit: acceleration, velocity, drive force, all the same length.
+struct FitSamples {
+    std::vector<double> acceleration;
+    std::vector<double> velocity;
+    std::vector<double> force;
+    [[nodiscard]] std::size_t size() const { return velocity.size(); }
+    void push(double a, double v, double f) {
+        acceleration.push_back(a);
+        velocity.push_back(v);
+        force.push_back(f);
+    }
+};
+
+/// The paper's step 2 for one direction (eq. 12-14): F_stri = F - M*a - B*v - F_C*sgn(v) - F_0;
+/// ln|F_stri| = ln|F_B - F_C| - |v|/v_s, by RLS. Samples where F_stri has the wrong sign or lies below the noise
+/// level are excluded and counted.
+struct LogLinearStribeck {
+    std::optional<double> breakaway;          ///< F_B [N]
+    std::optional<double> stribeck_velocity;  ///< v_s [m/s]
+    std::size_t used{0};
+    std::size_t wrong_sign{0};
+    std::size_t below_noise{0};
+};
+LogLinearStribeck fit_log_linear(const FitSamples& samples, double mass, double viscous, double coulomb, double offset,
+                                 double noise_level, const RlsOptions& rls_options);
+
+/// Layout of the nonlinear model: M, then per direction group (one shared group, or forward and reverse)
+/// B, F_C and, where enabled, F_B - F_C and ln v_s; then the offset F_0 where enabled.
+struct CurveModel {
+    bool asymmetric{false};
+    bool stribeck_forward{true};
+    bool stribeck_reverse{true};
+    bool offset{false};
+};
+
+struct CurveFit {
+    bool converged{false};
+    Eigen::VectorXd parameters;   ///< in the layout above, with v_s (not ln v_s)
+    Eigen::VectorXd standard_errors;
+    double residual_std{0.0};
+    double relative_error_pct{0.0};
+    std::size_t samples{0};
+    int iterations{0};
+};
+
+/// Number of parameters and index helpers for a CurveModel.
+struct CurveLayout {
+    explicit CurveLayout(const CurveModel& model);
+    int mass{0};
+    int viscous[2]{-1, -1};
+    int coulomb[2]{-1, -1};
+    int delta[2]{-1, -1};      ///< F_B - F_C
+    int log_vs[2]{-1, -1};
+    int offset{-1};
+    int size{0};
+    /// Direction group of a velocity: 0 forward (or the shared group), 1 reverse.
+    [[nodiscard]] int group(double velocity, bool asymmetric) const { return asymmetric && velocity < 0.0 ? 1 : 0; }
+};
+
+/// Fits the whole friction curve (with mass and offset) by a grid search over v_s (variable projection) followed by
+/// Levenberg-Marquardt. `vs_low`..`vs_high` bound the grid [m/s].
+CurveFit fit_friction_curve(const FitSamples& samples, const CurveModel& model, double vs_low, double vs_high);
+
+}  // namespace feedid::detail
