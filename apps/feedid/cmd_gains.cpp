@@ -1,0 +1,102 @@
+// feedid gains FILE: the position and velocity loop gains of the NC's P-PI controller, identified by RLS.
+#include <cmath>
+#include <cstdio>
+
+#include <fmt/core.h>
+
+#include "cli.hpp"
+#include "gain_arguments.hpp"
+#include "feedid/controller.hpp"
+#include "feedid/error.hpp"
+
+namespace feedid::cli {
+
+namespace {
+
+std::string format_estimate(const Estimate& estimate, const char* unit, double scale = 1.0) {
+    if (!estimate.value) return "—";
+    std::string text = fmt::format("{:.6g}", *estimate.value * scale);
+    if (estimate.standard_error && std::isfinite(*estimate.standard_error)) {
+        text += fmt::format(" ± {:.2g}", *estimate.standard_error * std::abs(scale));
+    }
+    return text + " " + unit;
+}
+
+}  // namespace
+
+namespace {
+
+struct GainsCommand {
+    TraceArguments trace_arguments;
+    DriveArguments drive_arguments;
+    GainArguments gain_arguments;
+    std::string json_path;
+
+    int run() const {
+        const Trace trace = trace_arguments.read();
+        const DriveConstants drive = drive_arguments.constants();
+        const std::vector<double> force = drive_force(trace, drive);
+        const GainOptions options = gain_arguments.options(trace, drive);
+        const GainResult result = identify_gains(trace, force, options);
+        if (!json_path.empty()) {
+            auto document = gains_document(result, options);
+            document["trace"] = {{"path", trace.source_path}, {"samples", trace.samples()}};
+            write_json(document, json_path);
+            if (json_path == "-") return 0;
+        }
+        fmt::print("{}: controller gains ({} samples, {})\n", trace.source_path, result.samples_used,
+                   result.method == "velocity_command" ? "position and velocity loop each from the logged velocity command"
+                                                       : "from reference, position and drive signal");
+        fmt::print("  position loop  K_v   {:<28} ({})\n", format_estimate(result.position_gain_per_s, "1/s"),
+                   format_estimate(result.position_gain_per_s, "(m/min)/mm", 0.06));
+        if (result.velocity_feedforward.value) {
+            fmt::print("                 k_ff  {}\n", format_estimate(result.velocity_feedforward, ""));
+        }
+        fmt::print("  velocity loop  K_p   {:<28}", format_estimate(result.velocity_gain_N_s_per_m, "N*s/m"));
+        if (options.force_per_signal != 0.0) {
+            const std::string unit = (options.signal_unit.empty() ? std::string("signal") : options.signal_unit) + "/(m/s)";
+            Estimate signal = result.velocity_gain_N_s_per_m;
+            fmt::print(" ({})", format_estimate(signal, unit.c_str(), 1.0 / options.force_per_signal));
+        }
+        fmt::print("\n");
+        if (result.velocity_integral_gain_N_per_m.value) {
+            fmt::print("                 K_i   {}\n", format_estimate(result.velocity_integral_gain_N_per_m, "N/m"));
+            fmt::print("                 T_n   {}\n", format_estimate(result.reset_time_s, "ms", 1000.0));
+        } else {
+            fmt::print("                 K_i   — (P-only velocity loop)\n");
+        }
+        fmt::print("  structure      velocity measured as (x_k - x_k-{0})/({0}*T); reference delay {1} samples; "
+                   "current-loop lag {2:.3g} ms\n",
+                   result.velocity_difference_samples, result.reference_delay_samples, result.current_lag_s * 1e3);
+        fmt::print("  fit            relative error {:.3g} % (velocity loop)", result.relative_error_pct);
+        if (result.method == "velocity_command") {
+            fmt::print(", {:.3g} % (position loop)", result.position_loop_relative_error_pct);
+        }
+        fmt::print("\n");
+        for (const auto& diagnostic : result.diagnostics) fmt::print("  note: {}\n", diagnostic);
+        return 0;
+    }
+};
+
+}  // namespace
+
+Action add_gains_command(CLI::App& app) {
+    auto command = std::make_shared<GainsCommand>();
+    auto* sub = app.add_subcommand(
+        "gains", "Identify the P-PI controller gains (position loop K_v, velocity loop K_p and K_i) by RLS");
+    command->trace_arguments.add_to(*sub);
+    command->drive_arguments.add_to(*sub);
+    command->gain_arguments.add_to(*sub);
+    sub->add_option("--json", command->json_path, "Write the gains document to PATH ('-' for stdout)");
+    sub->footer(
+        "Needs the reference position, the position and the drive signal; with a logged velocity command each loop is "
+        "identified on its own, otherwise the known structure F = K_p*(K_v*(x_ref - x) - v) [+ K_i*integral] is "
+        "fitted.\n"
+        "Examples:\n"
+        "  feedid gains ../shared/data/emps/DATA_EMPS.mat --channel position=qm --channel reference_position=qg \\\n"
+        "      --channel current=vir --force-constant gtau --json -\n"
+        "  feedid gains synth.csv --force-constant force_constant_N_per_A");
+    return [command] { return command->run(); };
+}
+
+}  // namespace feedid::cli

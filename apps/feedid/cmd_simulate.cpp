@@ -1,0 +1,134 @@
+// feedid simulate FILE --result RESULT.json: the identified axis in closed loop on the recorded reference (the
+// paper's validation): tracking errors of model and machine side by side, the modelling error, and the EMPS relative
+// errors of position, velocity, acceleration and force.
+#include <cstdio>
+#include <fstream>
+
+#include <fmt/core.h>
+
+#include "cli.hpp"
+#include "feedid/error.hpp"
+#include "feedid/io/csv.hpp"
+#include "feedid/simulate.hpp"
+#include "gain_arguments.hpp"
+
+namespace feedid::cli {
+
+namespace {
+
+struct SimulateCommand {
+    TraceArguments trace_arguments;
+    DriveArguments drive_arguments;
+    GainArguments gain_arguments;
+    std::string result_path;
+    std::string gains_path;
+    std::string json_path;
+    std::string out_path;
+    int substeps{8};
+
+    int run() const {
+        // The documents first: a wrong path fails before the trace is read.
+        const AxisModel axis = axis_from_document(read_json(result_path), result_path);
+        const std::optional<nlohmann::json> gains_document =
+            gains_path.empty() ? std::nullopt : std::optional<nlohmann::json>(read_json(gains_path));
+        const Trace trace = trace_arguments.read();
+        const DriveConstants drive = drive_arguments.constants();
+        const std::vector<double> force = drive_force(trace, drive);
+        const GainOptions gain_options = gain_arguments.options(trace, drive);
+        ControllerModel controller;
+        std::vector<std::string> notes;
+        if (gains_document) {
+            controller = controller_from_document(*gains_document, gains_path);
+            if (gain_options.saturation_N) controller.saturation_N = gain_options.saturation_N;
+            if (gain_options.current_lag_s) controller.current_lag_s = *gain_options.current_lag_s;
+            if (gain_options.velocity_difference_samples) {
+                controller.velocity_difference_samples = *gain_options.velocity_difference_samples;
+            }
+        } else {
+            const GainResult gains = identify_gains(trace, force, gain_options);
+            controller = gains.controller;
+            notes.push_back(fmt::format("gains identified from the trace: K_v {:.6g} 1/s, K_p {:.6g} N*s/m, K_i {:.6g} N/m",
+                                        controller.position_gain_per_s, controller.velocity_gain_N_s_per_m,
+                                        controller.velocity_integral_gain_N_per_m));
+        }
+        const double dt = trace.time_base().sample_time_s;
+        if (controller.position_cycle_s == 0.0) controller.position_cycle_s = dt;
+        if (controller.velocity_cycle_s == 0.0) controller.velocity_cycle_s = controller.position_cycle_s;
+
+        SimulationInput input;
+        input.sample_time_s = dt;
+        input.reference = trace.column(Role::reference_position);
+        if (const auto* external = trace.find(Role::external_force)) input.external_force = external->values;
+        SimulationOptions options;
+        options.substeps = substeps;
+        options.initial_position_m = trace.column(Role::position)[0];
+        const SimulationOutput simulated = simulate(axis, controller, input, options);
+        const ValidationMetrics metrics = validate_simulation(trace, force, simulated);
+
+        if (!out_path.empty()) {
+            std::ofstream out(out_path, std::ios::binary);
+            const std::string text = write_csv(simulation_trace(simulated, trace.rotary));
+            out << text;
+            if (!out) throw InputError(fmt::format("{}: cannot write the file", out_path));
+        }
+        if (!json_path.empty()) {
+            nlohmann::json document = validation_document(metrics);
+            document["trace"] = {{"path", trace.source_path}, {"samples", trace.samples()}, {"sample_time_s", dt}};
+            document["controller"] = {
+                {"position_gain_per_s", controller.position_gain_per_s},
+                {"velocity_gain_N_s_per_m", controller.velocity_gain_N_s_per_m},
+                {"velocity_integral_gain_N_per_m", controller.velocity_integral_gain_N_per_m},
+                {"saturation_N", controller.saturation_N ? nlohmann::json(*controller.saturation_N) : nlohmann::json()},
+                {"current_lag_s", controller.current_lag_s},
+                {"velocity_difference_samples", controller.velocity_difference_samples}};
+            document["diagnostics"] = notes;
+            write_json(document, json_path);
+            if (json_path == "-") return 0;
+        }
+        const char* unit = trace.rotary ? "mrad" : "mm";
+        fmt::print("{}: closed-loop simulation of the identified axis on the recorded reference ({} samples)\n",
+                   trace.source_path, trace.samples());
+        for (const auto& note : notes) fmt::print("  {}\n", note);
+        fmt::print("  {:<32} {:>12} {:>12}\n", "", "model", "machine");
+        fmt::print("  {:<32} {:>12.4g} {:>12.4g}   {}\n", "mean absolute tracking error",
+                   metrics.tracking_error_mae_model_m * 1e3, metrics.tracking_error_mae_machine_m * 1e3, unit);
+        fmt::print("  {:<32} {:>12.4g} {:>12.4g}   {}\n", "largest tracking error", metrics.tracking_error_max_model_m * 1e3,
+                   metrics.tracking_error_max_machine_m * 1e3, unit);
+        fmt::print("  {:<32} {:>12.4g}   {}   (e_m = x_machine - x_model; largest {:.4g} {})\n",
+                   "mean absolute modelling error", metrics.modelling_error_mae_m * 1e3, unit,
+                   metrics.modelling_error_max_m * 1e3, unit);
+        fmt::print("  relative error 100*||y - y_sim||/||y||: position {:.4g} %, velocity {:.4g} %, acceleration {:.4g} %, "
+                   "force {:.4g} %\n",
+                   metrics.position_relative_error_pct, metrics.velocity_relative_error_pct,
+                   metrics.acceleration_relative_error_pct, metrics.force_relative_error_pct);
+        return 0;
+    }
+};
+
+}  // namespace
+
+Action add_simulate_command(CLI::App& app) {
+    auto command = std::make_shared<SimulateCommand>();
+    auto* sub = app.add_subcommand(
+        "simulate", "Simulate the identified axis in closed loop on the trace's reference and compare with the machine");
+    command->trace_arguments.add_to(*sub);
+    command->drive_arguments.add_to(*sub);
+    command->gain_arguments.add_to(*sub);
+    sub->add_option("--result", command->result_path, "The identification result (feedid identify --json)")->required();
+    sub->add_option("--gains", command->gains_path,
+                    "The controller gains (feedid gains --json); default: identified from this trace");
+    sub->add_option("--json", command->json_path, "Write the validation document to PATH ('-' for stdout)");
+    sub->add_option("--out", command->out_path, "Write the simulated signals as CSV");
+    sub->add_option("--substeps", command->substeps, "Integration steps per sample")->default_val(8);
+    sub->footer(
+        "Examples:\n"
+        "  feedid identify DATA_EMPS.mat --channel position=qm --channel current=vir --force-constant gtau --offset \\\n"
+        "      --json result.json\n"
+        "  feedid simulate DATA_EMPS.mat --channel position=qm --channel reference_position=qg --channel current=vir \\\n"
+        "      --force-constant gtau --saturation 10 --result result.json\n"
+        "  feedid simulate synth.csv --force-constant force_constant_N_per_A --result result.json --gains gains.json "
+        "--out sim.csv");
+    return [command] { return command->run(); };
+}
+
+}  // namespace feedid::cli

@@ -1,0 +1,64 @@
+#pragma once
+// Gain-identification options shared by `feedid gains` and `feedid simulate` (which identifies the gains from the
+// trace when no gains document is given).
+#include <cmath>
+#include <optional>
+#include <string>
+
+#include "cli.hpp"
+#include "feedid/controller.hpp"
+#include "feedid/error.hpp"
+
+namespace feedid::cli {
+
+/// Options shared by `feedid gains` and `feedid simulate` (which identifies the gains when none are given).
+struct GainArguments {
+    std::string velocity_loop{"auto"};
+    bool feedforward{false};
+    std::optional<int> velocity_difference;
+    std::optional<double> current_lag_ms;
+    std::optional<double> saturation;
+    double forgetting{1.0};
+
+    void add_to(CLI::App& app) {
+        app.add_option("--velocity-loop", velocity_loop,
+                       "Velocity loop structure: pi, p, or auto (PI, or P when the integral gain is not significant)")
+            ->check(CLI::IsMember({"auto", "p", "pi"}));
+        app.add_flag("--feedforward", feedforward, "Also identify a velocity feed-forward in the position loop");
+        app.add_option("--velocity-difference", velocity_difference,
+                       "The controller measures velocity as (x_k - x_{k-N})/(N*T); default: N chosen from the data");
+        app.add_option("--current-lag-ms", current_lag_ms,
+                       "Current-loop time constant [ms]; default: estimated from the data");
+        app.add_option("--saturation", saturation,
+                       "Limit of the drive signal, in its own units (e.g. 10 for 10 V); samples at the limit are left "
+                       "out and the simulation saturates there");
+        app.add_option("--forgetting", forgetting, "RLS forgetting factor lambda (1 = none: gains are constant)")
+            ->default_val(1.0);
+    }
+
+    [[nodiscard]] GainOptions options(const Trace& trace, const DriveConstants& drive) const {
+        GainOptions options;
+        options.velocity_loop = velocity_loop == "p"    ? VelocityLoopStructure::p
+                                : velocity_loop == "pi" ? VelocityLoopStructure::pi
+                                                        : VelocityLoopStructure::automatic;
+        options.feedforward = feedforward;
+        options.velocity_difference_samples = velocity_difference;
+        if (current_lag_ms) options.current_lag_s = *current_lag_ms * 1e-3;
+        options.rls.forgetting_factor = forgetting;
+        if (!trace.has(Role::force)) {
+            if (const auto factor = drive.force_per_signal(trace)) {
+                options.force_per_signal = *factor;
+                if (const auto* current = trace.find(Role::current)) {
+                    options.signal_unit = current->unit.empty() ? current->source_unit : current->unit;
+                }
+            }
+        }
+        if (saturation) {
+            options.saturation_N = std::abs(*saturation) * (options.force_per_signal != 0.0 ? std::abs(options.force_per_signal) : 1.0);
+        }
+        if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
+        return options;
+    }
+};
+
+}  // namespace feedid::cli

@@ -1,0 +1,93 @@
+#pragma once
+// The digital twin: fixed-step simulation of an identified axis in closed loop with its controller, driven by a
+// reference position (the paper's validation, METHOD.md step 7; the EMPS benchmark's simulation).
+//   M*x'' = F_d + F_ext - F_f(x') - F_0,   F_d = current loop(F_cmd),   F_cmd = controller(x_ref, x)
+// Stick-slip: at rest (x' = 0) the axis stays at rest while the applied force F_a = F_d + F_ext - F_0 lies within
+// [-F_B(reverse), F_B(forward)] (friction takes whatever value holds it), and starts in the direction of F_a when it
+// exceeds the breakaway force. A moving axis whose velocity would pass through zero within a step stops exactly
+// there (the crossing instant is found by linear interpolation) and then obeys the rest condition again: no
+// chattering about zero and no creeping below breakaway.
+
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "feedid/controller.hpp"
+#include "feedid/friction.hpp"
+#include "feedid/trace.hpp"
+
+namespace feedid {
+
+struct SimulationOptions {
+    int substeps{8};                              ///< integration steps per sample of the reference (>= 1)
+    std::optional<double> position_resolution_m;  ///< the controller sees the position quantised to this [m]
+    std::optional<double> initial_position_m;     ///< default: the first reference sample
+    /// Start with the velocity-loop integrator holding the offset F_0 (the axis at rest under its weight).
+    bool hold_offset{true};
+
+    [[nodiscard]] std::string validate() const;
+};
+
+/// What drives the simulation: the reference on a regular sample grid.
+struct SimulationInput {
+    double sample_time_s{0.0};                 ///< T [s] of the reference samples
+    std::span<const double> reference;         ///< x_ref(k*T) [m]
+    std::span<const double> external_force;    ///< F_ext(k*T) [N], acting in +x; empty = none
+};
+
+/// Signals at the sample instants k*T (the controller's state when it has just computed its outputs).
+struct SimulationOutput {
+    std::vector<double> time;              ///< [s], from 0
+    std::vector<double> reference;         ///< x_ref [m]
+    std::vector<double> position;          ///< x [m] (exact; the controller saw it quantised)
+    std::vector<double> measured_position; ///< x as the controller measured it [m]
+    std::vector<double> velocity;          ///< x' [m/s]
+    std::vector<double> acceleration;      ///< x'' [m/s^2] during the first integration step after the sample
+    std::vector<double> velocity_command;  ///< position loop output [m/s]
+    std::vector<double> force_command;     ///< velocity loop output, saturated [N]
+    std::vector<double> force;             ///< drive force F_d after the current loop, one integration step after the
+                                           ///< sample (what a current sensor sampled there would read) [N]
+    std::vector<double> tracking_error;    ///< x_ref - x [m]
+    std::size_t stick_transitions{0};      ///< how often the axis came to rest
+};
+
+/// Simulates the axis in closed loop. Throws InputError for an invalid model, controller or options.
+/// Never allocates inside the time loop (outputs are sized up front).
+SimulationOutput simulate(const AxisModel& axis, const ControllerModel& controller, const SimulationInput& input,
+                          const SimulationOptions& options = {});
+
+/// The axis model from an identification result document (DESIGN.md keys: parameters.mass_kg.value, ...;
+/// per-direction `_forward`/`_reverse` keys; rotary-axis keys). A null breakaway force or Stribeck velocity means no
+/// Stribeck term; a missing offset means 0. Values may also be plain numbers (a drive file). InputError naming
+/// `source` and the key when the mass or a friction level is missing.
+AxisModel axis_from_document(const nlohmann::json& document, const std::string& source);
+
+/// The paper's validation figures and the EMPS relative errors.
+struct ValidationMetrics {
+    double position_relative_error_pct{0.0};      ///< 100*||x - x_sim|| / ||x||
+    double velocity_relative_error_pct{0.0};      ///< against the measured velocity (logged, or filtered differences)
+    double acceleration_relative_error_pct{0.0};  ///< against the measured acceleration (filtered differences)
+    double force_relative_error_pct{0.0};         ///< 100*||F - F_sim|| / ||F||
+    double tracking_error_mae_model_m{0.0};       ///< mean |x_ref - x_sim|
+    double tracking_error_mae_machine_m{0.0};     ///< mean |x_ref - x|
+    double modelling_error_mae_m{0.0};            ///< mean |x - x_sim|  (e_m = x_CNC - x_model)
+    double tracking_error_max_model_m{0.0};
+    double tracking_error_max_machine_m{0.0};
+    double modelling_error_max_m{0.0};
+};
+
+/// Compares a simulation with the trace it reproduces. `measured_force` is the drive force per sample [N].
+ValidationMetrics validate_simulation(const Trace& trace, std::span<const double> measured_force,
+                                      const SimulationOutput& simulated);
+
+/// The simulate document of DESIGN.md.
+nlohmann::json validation_document(const ValidationMetrics& metrics);
+
+/// The simulated signals as a trace (time, reference, position, velocity, acceleration, velocity command, force
+/// command, force, tracking error), for `feedid simulate --out`.
+Trace simulation_trace(const SimulationOutput& output, bool rotary = false);
+
+}  // namespace feedid

@@ -1,0 +1,91 @@
+#!/usr/bin/env bash
+# The main job of `make demo`:
+#   scripts/demo.sh BUILD/feedid            a synthetic trace of the paper's drive (feedid synth), its summary
+#                                           (feedid info), the identified parameters beside the true ones (feedid
+#                                           identify), the controller gains (feedid gains) and the closed-loop
+#                                           validation (feedid simulate)
+#   scripts/demo.sh BUILD/feedid DATA [ARGS...]
+#                                           feedid info and feedid identify on the user's own file; ARGS (or the
+#                                           environment variable FEEDID_ARGS) go to both, e.g. --channel current=iq
+#                                           --kt 1.44 --lead 20
+set -uo pipefail
+
+feedid=${1:?usage: scripts/demo.sh FEEDID [DATA [ARGS...]]}
+data=${2:-}
+shift $(( $# >= 2 ? 2 : 1 ))
+# shellcheck disable=SC2206
+extra=(${FEEDID_ARGS:-} "$@")
+
+if [ -n "$data" ]; then
+  echo "== feedid info $data"
+  "$feedid" info "$data" "${extra[@]}" || exit $?
+  echo
+  echo "== feedid identify $data"
+  "$feedid" identify "$data" "${extra[@]}"
+  status=$?
+  [ $status -ne 0 ] && echo "demo: feedid identify exited with $status (see its message above)" >&2
+  exit $status
+fi
+
+out=$(dirname "$feedid")/demo
+mkdir -p "$out"
+trace=$out/demo-trace.csv
+echo "== feedid synth --out $trace"
+echo "   the paper's drive (M 69.1 kg, B 54.2 N*s/m, F_C 742.8 N, F_B 946.2 N) with v_s 5 mm/s, in closed loop with a"
+echo "   P-PI controller, on the constant-velocity test with slow passes; 10 nm encoder, seeded current noise"
+"$feedid" synth --out "$trace" --seed 1 || exit $?
+echo
+echo "== feedid info $trace"
+"$feedid" info "$trace" || exit $?
+echo
+
+echo "== feedid identify $trace --force-constant force_constant_N_per_A"
+if "$feedid" identify "$trace" --force-constant force_constant_N_per_A --json "$out/demo-result.json" \
+     > "$out/demo-identify.txt" 2>/dev/null; then
+  cat "$out/demo-identify.txt"
+  echo
+  echo "   identified beside the true values:"
+  # The true values are the trace's '# true_... = value' lines; the identified ones the result document's
+  # parameters (pretty-printed JSON: a key line, then its "value" line).
+  awk -v result="$out/demo-result.json" '
+    FNR == NR && /^# true_/ { key = substr($2, 6); truth[key] = $4; next }
+    FNR == NR { next }
+    /"parameters": \{/ { inside = 1; next }
+    inside && /^  \}/ { inside = 0 }
+    inside && /^    "[A-Za-z0-9_]+": \{/ { name = $1; gsub(/[":]/, "", name) }
+    inside && /"value":/ { v = $2; gsub(/,/, "", v); value[name] = v; order[++n] = name }
+    END {
+      printf "   %-36s %14s %14s\n", "parameter", "identified", "true"
+      for (i = 1; i <= n; i++) {
+        k = order[i]; t = ""
+        if (k in truth) t = truth[k]
+        else {
+          # symmetric keys: the true forward value (the demo drive is symmetric)
+          fw = k; sub(/_(N|Ns_per_m|m_per_s)$/, "_forward&", fw)
+          if (fw in truth) t = truth[fw]
+        }
+        if (t == "" && k == "offset_N") t = truth["offset_N"]
+        shown = value[k] == "null" ? "-" : sprintf("%.6g", value[k])
+        printf "   %-36s %14s %14s\n", k, shown, (t == "" ? "-" : sprintf("%.6g", t))
+      }
+    }' "$trace" "$out/demo-result.json"
+else
+  status=$?
+  cat "$out/demo-identify.txt" 2>/dev/null
+  echo "demo: feedid identify exited with $status (see its message above)" >&2
+fi
+echo
+
+echo "== feedid gains $trace --force-constant force_constant_N_per_A"
+"$feedid" gains "$trace" --force-constant force_constant_N_per_A --json "$out/demo-gains.json" 2>/dev/null ||
+  echo "demo: feedid gains exited with $? (see its message above)" >&2
+echo "   true: K_v 33.3333 1/s (2 (m/min)/mm), K_p 40000 N*s/m, K_i 2e+06 N/m (T_n 20 ms)"
+echo
+
+if [ -s "$out/demo-result.json" ] && [ -s "$out/demo-gains.json" ]; then
+  echo "== feedid simulate $trace --result demo-result.json --gains demo-gains.json"
+  "$feedid" simulate "$trace" --force-constant force_constant_N_per_A --result "$out/demo-result.json" \
+    --gains "$out/demo-gains.json" 2>/dev/null ||
+    echo "demo: feedid simulate exited with $? (see its message above)" >&2
+fi
+exit 0

@@ -1,0 +1,293 @@
+// The closed-loop simulation: EMPS reproduced (published model, identified gains), stick-slip through zero velocity,
+// steady-state tracking, and reading the axis from a result document.
+#include <algorithm>
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+#include "feedid/controller.hpp"
+#include "feedid/drive.hpp"
+#include "feedid/error.hpp"
+#include "feedid/io/import.hpp"
+#include "feedid/simulate.hpp"
+#include "testing.hpp"
+
+namespace {
+
+using feedid::testing::run_cli;
+using feedid::testing::shared_data;
+
+// The published IDIM-LS result on DATA_EMPS.mat, symmetric with offset (../shared/data/README.md).
+nlohmann::json published_emps_result() {
+    return nlohmann::json::parse(R"({
+      "model": "symmetric",
+      "parameters": {
+        "mass_kg": {"value": 95.1089, "stderr": 0.1085},
+        "viscous_Ns_per_m": {"value": 203.5034, "stderr": 1.1460},
+        "coulomb_N": {"value": 20.3935, "stderr": 0.1012},
+        "offset_N": {"value": -3.1648, "stderr": 0.0444},
+        "breakaway_N": {"value": null, "stderr": null},
+        "stribeck_velocity_m_per_s": {"value": null, "stderr": null}
+      }})");
+}
+
+// A folder for this test's files. (Not temp_dir(): run_cli() clears that one on every call.)
+std::filesystem::path work_dir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    auto dir = std::filesystem::temp_directory_path() / "feedid-tests" /
+               ("files." + std::string(info->test_suite_name()) + "." + info->name());
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+std::string emps_channels() {
+    return "--channel position=qm --channel reference_position=qg --channel current=vir --force-constant gtau";
+}
+
+TEST(Simulate, EmpsPublishedModelWithIdentifiedGains) {
+    FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
+    feedid::ImportOptions import;
+    import.channels[feedid::Role::position] = "qm";
+    import.channels[feedid::Role::reference_position] = "qg";
+    import.channels[feedid::Role::current] = "vir";
+    const auto trace = feedid::read_trace(shared_data() / "emps/DATA_EMPS.mat", import);
+    feedid::DriveConstants drive;
+    drive.force_constant_name = "gtau";
+    const auto force = feedid::drive_force(trace, drive);
+    const double gtau = trace.constants.at("gtau");
+
+    feedid::GainOptions gain_options;
+    gain_options.force_per_signal = gtau;
+    gain_options.saturation_N = 10.0 * gtau;  // the EMPS controller saturates at 10 V
+    const auto gains = feedid::identify_gains(trace, force, gain_options);
+    const auto axis = feedid::axis_from_document(published_emps_result(), "published");
+
+    feedid::SimulationInput input;
+    input.sample_time_s = trace.time_base().sample_time_s;
+    input.reference = trace.column(feedid::Role::reference_position);
+    feedid::SimulationOptions options;
+    options.initial_position_m = trace.column(feedid::Role::position)[0];
+    const auto simulated = feedid::simulate(axis, gains.controller, input, options);
+    const auto metrics = feedid::validate_simulation(trace, force, simulated);
+    // Acceptance (published: 0.0138 % and 5.85 %).
+    EXPECT_LE(metrics.position_relative_error_pct, 0.05);
+    EXPECT_LE(metrics.force_relative_error_pct, 7.0);
+    // The model tracks like the machine: modelling error far below the tracking error.
+    EXPECT_LT(metrics.modelling_error_mae_m, 0.05 * metrics.tracking_error_mae_machine_m);
+    EXPECT_NEAR(metrics.tracking_error_mae_model_m, metrics.tracking_error_mae_machine_m,
+                0.05 * metrics.tracking_error_mae_machine_m);
+}
+
+TEST(Simulate, EmpsPublishedModelCommandLine) {
+    FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
+    const auto dir = work_dir();
+    feedid::testing::write_text(dir / "result.json", published_emps_result().dump());
+    const auto result = run_cli("simulate '" + (shared_data() / "emps/DATA_EMPS.mat").string() + "' " +
+                                emps_channels() + " --saturation 10 --result '" + (dir / "result.json").string() +
+                                "' --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto document = nlohmann::json::parse(result.out);
+    EXPECT_LE(document["relative_error_pct"]["position"].get<double>(), 0.05);
+    EXPECT_LE(document["relative_error_pct"]["force"].get<double>(), 7.0);
+    EXPECT_TRUE(document["tracking_error_mae_m"]["model"].is_number());
+    EXPECT_TRUE(document["tracking_error_mae_m"]["machine"].is_number());
+    EXPECT_TRUE(document["modelling_error_mae_m"].is_number());
+}
+
+// The whole pipeline, as a user runs it: identify (symmetric with offset), gains, simulate.
+TEST(Simulate, EmpsIdentifyGainsSimulatePipeline) {
+    FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
+    const auto dir = work_dir();
+    const std::string file = "'" + (shared_data() / "emps/DATA_EMPS.mat").string() + "' ";
+    const auto identified = run_cli("identify " + file +
+                                    "--channel position=qm --channel current=vir --force-constant gtau --offset "
+                                    "--json '" + (dir / "result.json").string() + "'");
+    ASSERT_EQ(identified.exit_code, 0) << identified.err;
+    const auto gains = run_cli("gains " + file + emps_channels() + " --saturation 10 --json '" +
+                               (dir / "gains.json").string() + "'");
+    ASSERT_EQ(gains.exit_code, 0) << gains.err;
+    const auto result = run_cli("simulate " + file + emps_channels() + " --result '" +
+                                (dir / "result.json").string() + "' --gains '" + (dir / "gains.json").string() +
+                                "' --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto document = nlohmann::json::parse(result.out);
+    EXPECT_LE(document["relative_error_pct"]["position"].get<double>(), 0.05);
+    EXPECT_LE(document["relative_error_pct"]["force"].get<double>(), 7.0);
+    EXPECT_EQ(document["controller"]["saturation_N"].get<double>(), 10.0 * 35.15065188248547);
+}
+
+feedid::AxisModel stick_slip_axis(double offset) {
+    feedid::FrictionBranch branch;
+    branch.viscous = 50.0;
+    branch.coulomb = 100.0;
+    branch.breakaway = 150.0;
+    branch.stribeck_velocity = 0.002;
+    feedid::AxisModel axis;
+    axis.mass = 20.0;
+    axis.friction = feedid::Friction::symmetric(branch);
+    axis.offset = offset;
+    return axis;
+}
+
+// A P-P loop whose drive force grows with a slowly rising reference while the axis sticks:
+// F_d = K_p*K_v*(x_ref - x) - K_p*v. The axis must not move at all until F_d - F_0 exceeds F_B.
+void expect_breakaway_at_the_breakaway_force(double offset) {
+    const auto axis = stick_slip_axis(offset);
+    feedid::ControllerModel controller;
+    controller.position_gain_per_s = 20.0;
+    controller.velocity_gain_N_s_per_m = 2000.0;  // K_p*K_v = 40 N/mm
+    const double dt = 1e-3;
+    std::vector<double> reference(8000);
+    for (std::size_t k = 0; k < reference.size(); ++k) reference[k] = 1e-6 * static_cast<double>(k);  // 1 mm/s
+    feedid::SimulationInput input;
+    input.sample_time_s = dt;
+    input.reference = reference;
+    const auto out = feedid::simulate(axis, controller, input);
+    const auto first_moving = static_cast<std::size_t>(
+        std::find_if(out.velocity.begin(), out.velocity.end(), [](double v) { return v != 0.0; }) - out.velocity.begin());
+    ASSERT_LT(first_moving, out.velocity.size()) << "the axis never broke away";
+    ASSERT_GT(first_moving, 1u);
+    for (std::size_t k = 0; k < first_moving; ++k) {
+        ASSERT_EQ(out.position[k], reference[0]) << "crept at sample " << k;
+        ASSERT_EQ(out.velocity[k], 0.0);
+    }
+    // While stuck, the drive force stayed within the breakaway force; in the interval where it started, the drive
+    // force exceeded it (F_d rises by 0.04 N per sample).
+    for (std::size_t k = 0; k + 1 < first_moving; ++k) {
+        ASSERT_LE(out.force[k] - offset, 150.0 + 1e-9) << "stuck above breakaway at sample " << k;
+    }
+    EXPECT_GT(out.force[first_moving - 1] - offset, 150.0);
+    EXPECT_LT(out.force[first_moving - 1] - offset, 150.0 + 0.05);
+    // Upwards, in the direction of the net force.
+    EXPECT_GT(out.velocity[first_moving], 0.0);
+}
+
+TEST(Simulate, StaysAtRestBelowBreakawayAndStartsAboveIt) { expect_breakaway_at_the_breakaway_force(0.0); }
+
+TEST(Simulate, VerticalAxisHeldByStaticFrictionStartsAtBreakawayPlusWeight) {
+    // The weight (offset 80 N) is below F_B: static friction holds the axis; it moves up once F_d > F_0 + F_B.
+    expect_breakaway_at_the_breakaway_force(80.0);
+}
+
+TEST(Simulate, NoChatteringAtRestAfterAStop) {
+    // Move, then hold still: after the stop the axis rests (velocity exactly 0) without chattering about zero.
+    const auto axis = stick_slip_axis(0.0);
+    feedid::ControllerModel controller;
+    controller.position_gain_per_s = 30.0;
+    controller.velocity_gain_N_s_per_m = 3000.0;
+    controller.velocity_integral_gain_N_per_m = 3000.0 / 0.02;
+    std::vector<double> reference(6000, 0.0);
+    for (std::size_t k = 0; k < 1000; ++k) reference[k] = 0.01 * static_cast<double>(k) / 1000.0;
+    std::fill(reference.begin() + 1000, reference.end(), 0.01);
+    feedid::SimulationInput input;
+    input.sample_time_s = 1e-3;
+    input.reference = reference;
+    const auto out = feedid::simulate(axis, controller, input);
+    // Integral action against Stribeck friction hunts after the stop (the classic stick-slip limit cycle: the
+    // integrator winds up while the axis sticks, breaks it loose, it overshoots and sticks again), but the axis rests
+    // for long stretches rather than crossing zero velocity every step, and at rest it does not creep.
+    const std::size_t tail = 2000;
+    std::size_t at_rest = 0;
+    for (std::size_t k = out.velocity.size() - tail; k < out.velocity.size(); ++k) at_rest += out.velocity[k] == 0.0;
+    EXPECT_GT(at_rest, tail * 9 / 10);
+    EXPECT_LT(out.stick_transitions, 20u);
+    for (std::size_t k = 1000; k + 1 < out.velocity.size(); ++k) {
+        if (out.velocity[k] == 0.0 && out.velocity[k + 1] == 0.0 && std::abs(out.force[k]) < 150.0) {
+            ASSERT_EQ(out.position[k + 1], out.position[k]) << "crept at rest at sample " << k;
+        }
+    }
+    for (std::size_t k = 1500; k < out.position.size(); ++k) ASSERT_NEAR(out.position[k], 0.01, 2e-4);
+}
+
+TEST(Simulate, FrictionlessRampHasTheFollowingErrorOfAPPositionLoop) {
+    // A P position loop following a ramp of speed v lags by v / K_v in steady state.
+    feedid::AxisModel axis;
+    axis.mass = 50.0;
+    feedid::ControllerModel controller;
+    controller.position_gain_per_s = 25.0;
+    controller.velocity_gain_N_s_per_m = 10000.0;
+    controller.velocity_integral_gain_N_per_m = 10000.0 / 0.01;
+    const double speed = 0.05;
+    std::vector<double> reference(4000);
+    for (std::size_t k = 0; k < reference.size(); ++k) reference[k] = speed * 1e-3 * static_cast<double>(k);
+    feedid::SimulationInput input;
+    input.sample_time_s = 1e-3;
+    input.reference = reference;
+    const auto out = feedid::simulate(axis, controller, input);
+    EXPECT_NEAR(out.tracking_error.back(), speed / 25.0, 1e-3 * speed / 25.0 + 1e-6);
+    EXPECT_NEAR(out.velocity.back(), speed, 1e-6);
+    // With full velocity feed-forward the steady following error vanishes.
+    controller.velocity_feedforward = 1.0;
+    const auto fed = feedid::simulate(axis, controller, input);
+    EXPECT_LT(std::abs(fed.tracking_error.back()), 1e-6);
+}
+
+TEST(Simulate, FasterVelocityLoopThanThePositionLoop) {
+    // Position loop every 2 ms, velocity loop every 125 us, on a 1 kHz reference: still tracks a ramp.
+    feedid::AxisModel axis;
+    axis.mass = 50.0;
+    axis.friction = feedid::Friction::symmetric({100.0, 200.0, std::nullopt, std::nullopt});
+    feedid::ControllerModel controller;
+    controller.position_gain_per_s = 30.0;
+    controller.velocity_gain_N_s_per_m = 20000.0;
+    controller.velocity_integral_gain_N_per_m = 20000.0 / 0.01;
+    controller.position_cycle_s = 2e-3;
+    controller.velocity_cycle_s = 125e-6;
+    controller.current_lag_s = 0.2e-3;
+    std::vector<double> reference(3000);
+    for (std::size_t k = 0; k < reference.size(); ++k) reference[k] = 0.03 * 1e-3 * static_cast<double>(k);
+    feedid::SimulationInput input;
+    input.sample_time_s = 1e-3;
+    input.reference = reference;
+    const auto out = feedid::simulate(axis, controller, input);
+    EXPECT_NEAR(out.velocity.back(), 0.03, 1e-4);
+    EXPECT_NEAR(out.tracking_error.back(), 0.03 / 30.0, 0.1 * 0.03 / 30.0);
+}
+
+TEST(Simulate, AxisFromSymmetricAndAsymmetricDocuments) {
+    const auto symmetric = feedid::axis_from_document(published_emps_result(), "r");
+    EXPECT_DOUBLE_EQ(symmetric.mass, 95.1089);
+    EXPECT_DOUBLE_EQ(symmetric.offset, -3.1648);
+    EXPECT_DOUBLE_EQ(symmetric.friction.reverse.coulomb, 20.3935);
+    EXPECT_FALSE(symmetric.friction.forward.has_stribeck());
+
+    const auto asymmetric = feedid::axis_from_document(nlohmann::json::parse(R"({"parameters": {
+        "mass_kg": {"value": 95.154},
+        "viscous_forward_Ns_per_m": {"value": 166.7061}, "viscous_reverse_Ns_per_m": {"value": 240.4236},
+        "coulomb_forward_N": {"value": 20.144}, "coulomb_reverse_N": {"value": 20.6277},
+        "breakaway_forward_N": {"value": 25.0}, "breakaway_reverse_N": {"value": null},
+        "stribeck_velocity_forward_m_per_s": {"value": 0.004}, "stribeck_velocity_reverse_m_per_s": {"value": null}
+      }})"), "r");
+    EXPECT_DOUBLE_EQ(asymmetric.friction.forward.viscous, 166.7061);
+    EXPECT_DOUBLE_EQ(asymmetric.friction.reverse.viscous, 240.4236);
+    EXPECT_DOUBLE_EQ(asymmetric.friction.reverse.coulomb, 20.6277);
+    EXPECT_TRUE(asymmetric.friction.forward.has_stribeck());
+    EXPECT_FALSE(asymmetric.friction.reverse.has_stribeck());
+    EXPECT_DOUBLE_EQ(asymmetric.friction.breakaway_force(true), 25.0);
+    EXPECT_DOUBLE_EQ(asymmetric.friction.breakaway_force(false), 20.6277);
+}
+
+TEST(Simulate, ResultWithoutMassIsBadInput) {
+    EXPECT_THROW(feedid::axis_from_document(nlohmann::json::parse(R"({"parameters": {"mass_kg": {"value": null},
+        "coulomb_N": {"value": 1}}})"), "r.json"), feedid::InputError);
+    EXPECT_THROW(feedid::axis_from_document(nlohmann::json::parse("[1, 2]"), "r.json"), feedid::InputError);
+    try {
+        feedid::axis_from_document(nlohmann::json::parse(R"({"parameters": {"mass_kg": {"value": 3}}})"), "r.json");
+        FAIL() << "expected an InputError";
+    } catch (const feedid::InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("r.json"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("coulomb"), std::string::npos) << e.what();
+    }
+}
+
+TEST(Simulate, MissingResultFileIsExitCode2) {
+    FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
+    const auto result = run_cli("simulate '" + (shared_data() / "emps/DATA_EMPS.mat").string() + "' " +
+                                emps_channels() + " --unit time=s --unit position=m --unit reference_position=m --unit current=V "
+                                "--result /nonexistent/result.json");
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_EQ(feedid::testing::count_lines(result.err), 1) << result.err;
+}
+
+}  // namespace
