@@ -1,0 +1,291 @@
+// feedid plan: design the axis test, write it as a part program and as a reference trajectory, and predict what the
+// data will identify.
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include <fmt/core.h>
+
+#include "cli.hpp"
+#include "feedid/error.hpp"
+#include "feedid/io/csv.hpp"
+#include "feedid/testplan.hpp"
+#include "feedid/version.hpp"
+
+namespace feedid::cli {
+
+namespace {
+
+constexpr double mm = 1e-3;
+constexpr double mm_per_min = 1e-3 / 60.0;
+
+double parse_number(const std::string& text, const std::string& option) {
+    double value = 0.0;
+    const auto* begin = text.data();
+    const auto* end = begin + text.size();
+    const auto [ptr, error] = std::from_chars(begin, end, value);
+    if (error != std::errc() || ptr != end || !std::isfinite(value))
+        throw InputError(fmt::format("{}: '{}' is not a number.", option, text));
+    return value;
+}
+
+std::vector<std::string> split(const std::string& text, char separator) {
+    std::vector<std::string> parts;
+    std::size_t start = 0;
+    while (true) {
+        const auto at = text.find(separator, start);
+        parts.push_back(text.substr(start, at == std::string::npos ? std::string::npos : at - start));
+        if (at == std::string::npos) break;
+        start = at + 1;
+    }
+    return parts;
+}
+
+std::vector<double> parse_list(const std::string& text, const std::string& option, double scale) {
+    std::vector<double> values;
+    for (const auto& part : split(text, ',')) {
+        if (part.empty()) throw InputError(fmt::format("{}: empty entry in '{}'.", option, text));
+        values.push_back(parse_number(part, option) * scale);
+    }
+    return values;
+}
+
+// "none", "LO:HI" or "LO:HI:N" (log-spaced, mm/min), or a comma-separated list (mm/min).
+std::vector<double> parse_slow_feeds(const std::string& text) {
+    if (text == "none") return {};
+    if (text.find(':') != std::string::npos) {
+        const auto parts = split(text, ':');
+        if (parts.size() < 2 || parts.size() > 3)
+            throw InputError(fmt::format("--slow-feeds: '{}' is not LO:HI or LO:HI:N (mm/min).", text));
+        const double low = parse_number(parts[0], "--slow-feeds");
+        const double high = parse_number(parts[1], "--slow-feeds");
+        const int count = parts.size() == 3 ? static_cast<int>(parse_number(parts[2], "--slow-feeds")) : 7;
+        if (!(low > 0.0) || !(high >= low) || count < 1)
+            throw InputError(fmt::format("--slow-feeds: '{}' needs 0 < LO <= HI and N >= 1.", text));
+        return log_spaced_feeds(low * mm_per_min, high * mm_per_min, count);
+    }
+    return parse_list(text, "--slow-feeds", mm_per_min);
+}
+
+nlohmann::json plan_document(const TestPlan& plan, const IdentifiabilityPrediction& prediction) {
+    nlohmann::json passes = nlohmann::json::array();
+    for (const auto& pass : plan.passes) {
+        passes.push_back({{"center", pass.center + 1},
+                          {"center_m", pass.center_position},
+                          {"feed_m_per_s", pass.feed},
+                          {"feed_mm_per_min", pass.feed / mm_per_min},
+                          {"stroke_m", pass.stroke},
+                          {"slow", pass.slow},
+                          {"duration_s", pass.duration},
+                          {"cruise_time_s", pass.cruise_time}});
+    }
+    nlohmann::json parameters = nlohmann::json::object();
+    for (const auto& p : prediction.parameters) {
+        parameters[p.key] = {{"nominal", p.nominal},
+                             {"stderr", std::isfinite(p.standard_error) ? nlohmann::json(p.standard_error) : nlohmann::json()},
+                             {"identifiable", p.identifiable}};
+    }
+    const auto& o = plan.options;
+    return {{"feedid_version", version},
+            {"axis", o.axis},
+            {"travel_m", {o.travel_min, o.travel_max}},
+            {"centers_m", o.centers},
+            {"duration_s", plan.duration},
+            {"blocks", plan.moves.size()},
+            {"sample_time_s", o.sample_time},
+            {"passes", passes},
+            {"notes", plan.notes},
+            {"prediction",
+             {{"step1_condition_number", std::isfinite(prediction.step1_condition_number)
+                                             ? nlohmann::json(prediction.step1_condition_number)
+                                             : nlohmann::json()},
+              {"step1_samples", prediction.step1_samples},
+              {"step2_levels", prediction.step2_levels},
+              {"slowest_cruise_speed_m_per_s", std::isfinite(prediction.slowest_cruise_speed)
+                                                   ? nlohmann::json(prediction.slowest_cruise_speed)
+                                                   : nlohmann::json()},
+              {"parameters", parameters},
+              {"diagnostics", prediction.diagnostics}}}};
+}
+
+void print_summary(std::FILE* out, const TestPlan& plan, const IdentifiabilityPrediction& prediction,
+                   const PredictionOptions& nominal) {
+    const auto& o = plan.options;
+    std::size_t slow = 0;
+    for (const auto& pass : plan.passes) slow += pass.slow ? 1 : 0;
+    fmt::print(out, "feedid plan: axis {}, {} centre(s), {} passes ({} slow), {} blocks, predicted duration {:.1f} s "
+                    "({:.1f} min)\n",
+               o.axis, o.centers.size(), plan.passes.size(), slow, plan.moves.size(), plan.duration,
+               plan.duration / 60.0);
+    const auto& branch = nominal.drive.friction.forward;
+    fmt::print(out, "identifiability from a nominal drive (M {} kg, B {} N*s/m, F_C {} N, F_B {} N, v_s {} mm/s; force "
+                    "noise {} N):\n",
+               nominal.drive.mass, branch.viscous, branch.coulomb, branch.breakaway.value_or(0.0),
+               branch.stribeck_velocity.value_or(0.0) / mm, nominal.force_noise);
+    fmt::print(out, "  step 1: condition number {:.3g} over {} samples; step 2: {} constant-velocity friction levels\n",
+               prediction.step1_condition_number, prediction.step1_samples, prediction.step2_levels);
+    for (const auto& p : prediction.parameters) {
+        if (std::isfinite(p.standard_error)) {
+            fmt::print(out, "  {:<4} {:>10.4g} {:<6} +- {:<10.3g} ({:6.3g} %)  {}\n", p.symbol, p.nominal, p.unit,
+                       p.standard_error, 100.0 * p.standard_error / std::abs(p.nominal),
+                       p.identifiable ? "identifiable" : "NOT identifiable");
+        } else {
+            fmt::print(out, "  {:<4} {:>10.4g} {:<6} +- {:<10}            {}\n", p.symbol, p.nominal, p.unit, "inf",
+                       "NOT identifiable");
+        }
+    }
+    for (const auto& note : plan.notes) fmt::print(out, "note: {}\n", note);
+    for (const auto& diagnostic : prediction.diagnostics) fmt::print(out, "diagnostic: {}\n", diagnostic);
+}
+
+void write_text_file(const std::string& path, const std::string& text) {
+    if (path == "-") {
+        std::fwrite(text.data(), 1, text.size(), stdout);
+        return;
+    }
+    std::ofstream out(path, std::ios::binary);
+    if (!out) throw InputError(fmt::format("cannot write '{}'.", path));
+    out << text;
+    if (!out) throw InputError(fmt::format("cannot write '{}'.", path));
+}
+
+}  // namespace
+
+Action add_plan_command(CLI::App& app) {
+    auto* sub = app.add_subcommand("plan", "Design the axis test and write it as a part program and a reference");
+    sub->footer(
+        "The test (after the paper, METHOD.md step 5): at each centre, back-and-forth strokes at every feedrate, the\n"
+        "slow Stribeck passes first (strokes shortened to --max-pass-time), then the ladder. Every move ends at rest\n"
+        "(exact stop) with a dwell. A plan that leaves the travel or exceeds --max-feed is refused (exit 2) with the\n"
+        "move named. The summary predicts which parameters the data will identify, from a nominal drive.\n"
+        "\n"
+        "Example (a LinuxCNC program for three places along X, and the reference for `feedid synth`):\n"
+        "  feedid plan --axis X --travel=-400:400 --centers=-300,0,300 --dialect linuxcnc -o test.ngc \\\n"
+        "      --reference ref.csv\n"
+        "  feedid synth --reference ref.csv --out synth.csv        # a dry run of the test\n"
+        "  feedid identify synth.csv --force-constant force_constant_N_per_A --by-location\n"
+        "The paper's ladder alone (no slow passes; F_B and v_s come out not identifiable):\n"
+        "  feedid plan --travel=-400:400 --centers=-300 --slow-feeds none --dialect sinumerik -o TEST.MPF");
+
+    struct Arguments {
+        std::string axis{"X"};
+        std::string travel;
+        std::string centers;
+        double stroke_mm{30.0};
+        std::string feeds;
+        std::string slow_feeds{"10:1000:7"};
+        double max_pass_time_s{8.0};
+        int cycles{2};
+        double acceleration{1.0};
+        std::optional<double> jerk;
+        double dwell_s{0.2};
+        double sample_time_s{0.001};
+        std::optional<double> max_feed_mm_per_min;
+        double positioning_feed_mm_per_min{5000.0};
+        std::optional<double> start_mm;
+        std::string dialect{"iso"};
+        std::string output;
+        std::string reference;
+        std::string json;
+        // nominal drive
+        double mass{69.1};
+        double viscous{54.2};
+        double coulomb{742.8};
+        double breakaway{946.2};
+        double stribeck_mm_per_s{5.0};
+        double force_noise{10.0};
+        double level_error{5.0};
+        double resolution_um{1.0};
+    };
+    auto arguments = std::make_shared<Arguments>();
+    auto& a = *arguments;
+    sub->add_option("--axis", a.axis, "Axis name as the NC knows it (X, Y, Z, A, ...; X1 on SINUMERIK)")->default_val("X");
+    sub->add_option("--travel", a.travel, "Travel limits MIN:MAX [mm] (write --travel=-400:400)")->required();
+    sub->add_option("--centers", a.centers, "Centres of the strokes C1,C2,... [mm] (write --centers=-300,0,300)")
+        ->required();
+    sub->add_option("--stroke", a.stroke_mm, "Stroke of the ladder passes [mm]")->default_val(30.0);
+    sub->add_option("--feeds", a.feeds,
+                    "Ladder feedrates F1,F2,... [mm/min]; default the paper's 1250,2600,3950,5300,6650,8000,9350");
+    sub->add_option("--slow-feeds", a.slow_feeds,
+                    "Slow Stribeck passes: LO:HI[:N] log-spaced, F1,F2,... [mm/min], or none")
+        ->default_val("10:1000:7");
+    sub->add_option("--max-pass-time", a.max_pass_time_s, "Longest slow pass; its stroke is shortened to fit [s]")
+        ->default_val(8.0);
+    sub->add_option("--cycles", a.cycles, "Back-and-forth cycles per feedrate")->default_val(2);
+    sub->add_option("--acceleration", a.acceleration, "Axis acceleration (machine data) [m/s^2]")->default_val(1.0);
+    sub->add_option("--jerk", a.jerk, "Jerk limit [m/s^3] (SINUMERIK SOFT); default none (BRISK)");
+    sub->add_option("--dwell", a.dwell_s, "Dwell at every reversal [s]")->default_val(0.2);
+    sub->add_option("--sample-time", a.sample_time_s, "Trace sample time [s] (the reference file's step)")
+        ->default_val(0.001);
+    sub->add_option("--max-feed", a.max_feed_mm_per_min, "Feedrate limit of the axis [mm/min]; refuse moves above it");
+    sub->add_option("--positioning-feed", a.positioning_feed_mm_per_min, "Feedrate between passes [mm/min]")
+        ->default_val(5000.0);
+    sub->add_option("--start", a.start_mm, "Where the axis stands at the program start [mm]; default the first pass");
+    sub->add_option("--dialect", a.dialect, "Part-program dialect")
+        ->check(CLI::IsMember({"iso", "sinumerik", "linuxcnc"}))
+        ->default_val("iso");
+    sub->add_option("-o,--out", a.output, "Write the part program here ('-' for stdout)");
+    sub->add_option("--reference", a.reference, "Write the reference trajectory (CSV: t [s], x_ref [m]) here");
+    sub->add_option("--json", a.json, "Write the plan and its prediction as JSON ('-' for stdout)");
+    sub->add_option("--mass", a.mass, "Nominal mass for the prediction [kg]")->default_val(69.1);
+    sub->add_option("--viscous", a.viscous, "Nominal viscous friction [N*s/m]")->default_val(54.2);
+    sub->add_option("--coulomb", a.coulomb, "Nominal Coulomb friction [N]")->default_val(742.8);
+    sub->add_option("--breakaway", a.breakaway, "Nominal breakaway friction [N]")->default_val(946.2);
+    sub->add_option("--stribeck-velocity", a.stribeck_mm_per_s, "Nominal Stribeck velocity [mm/s]")->default_val(5.0);
+    sub->add_option("--force-noise", a.force_noise, "Expected force noise per sample [N]")->default_val(10.0);
+    sub->add_option("--level-error", a.level_error, "Expected error of one pass's friction level [N]")
+        ->default_val(5.0);
+    sub->add_option("--position-resolution", a.resolution_um, "Position measurement resolution [um]")
+        ->default_val(1.0);
+
+    return [arguments]() -> int {
+        const auto& a = *arguments;
+        TestPlanOptions options;
+        options.axis = a.axis;
+        const auto travel = split(a.travel, ':');
+        if (travel.size() != 2) throw InputError(fmt::format("--travel: '{}' is not MIN:MAX [mm].", a.travel));
+        options.travel_min = parse_number(travel[0], "--travel") * mm;
+        options.travel_max = parse_number(travel[1], "--travel") * mm;
+        options.centers = parse_list(a.centers, "--centers", mm);
+        options.stroke = a.stroke_mm * mm;
+        if (!a.feeds.empty()) options.feeds = a.feeds == "none" ? std::vector<double>{} : parse_list(a.feeds, "--feeds", mm_per_min);
+        options.slow_feeds = parse_slow_feeds(a.slow_feeds);
+        options.max_pass_time = a.max_pass_time_s;
+        options.cycles = a.cycles;
+        options.acceleration = a.acceleration;
+        options.jerk = a.jerk;
+        options.dwell = a.dwell_s;
+        options.sample_time = a.sample_time_s;
+        if (a.max_feed_mm_per_min) options.max_feed = *a.max_feed_mm_per_min * mm_per_min;
+        options.positioning_feed = a.positioning_feed_mm_per_min * mm_per_min;
+        if (a.start_mm) options.start_position = *a.start_mm * mm;
+        const auto dialect = parse_dialect(a.dialect).value_or(Dialect::iso);
+
+        const TestPlan plan = make_test_plan(options);
+
+        PredictionOptions nominal;
+        FrictionBranch branch;
+        branch.viscous = a.viscous;
+        branch.coulomb = a.coulomb;
+        branch.breakaway = a.breakaway;
+        branch.stribeck_velocity = a.stribeck_mm_per_s * mm;
+        nominal.drive.mass = a.mass;
+        nominal.drive.friction = Friction::symmetric(branch);
+        nominal.force_noise = a.force_noise;
+        nominal.level_error = a.level_error;
+        nominal.position_resolution = a.resolution_um * 1e-6;
+        const auto prediction = predict_identifiability(plan, nominal);
+
+        if (!a.output.empty()) write_text_file(a.output, emit_part_program(plan, dialect));
+        if (!a.reference.empty()) write_text_file(a.reference, write_csv(reference_trajectory(plan)));
+        if (!a.json.empty()) write_json(plan_document(plan, prediction), a.json);
+        const bool stdout_taken = a.output == "-" || a.reference == "-" || a.json == "-";
+        print_summary(stdout_taken ? stderr : stdout, plan, prediction, nominal);
+        return 0;
+    };
+}
+
+}  // namespace feedid::cli

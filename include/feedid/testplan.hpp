@@ -1,0 +1,152 @@
+#pragma once
+// Test-procedure design (METHOD.md, step 5): constant-velocity back-and-forth strokes at several centres along the
+// axis at rising feedrates (the paper's ladder, 1250 to 9350 mm/min), plus slow passes for the Stribeck curve
+// (log-spaced, strokes shortened so that each pass stays brief). A plan is a list of moves the NC executes; from it
+// come the part program (ISO, SINUMERIK 840D, LinuxCNC), the reference trajectory an ideal NC would command, the
+// predicted duration and a prediction of which parameters the data will identify and how well.
+//
+// All quantities in SI (m, m/s, m/s^2, s); the emitters convert to mm and mm/min.
+
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "feedid/friction.hpp"
+#include "feedid/trace.hpp"
+
+namespace feedid {
+
+enum class Dialect { iso, sinumerik, linuxcnc };
+
+/// "iso", "sinumerik", "linuxcnc".
+std::string_view dialect_name(Dialect dialect);
+/// The inverse of dialect_name; nullopt for an unknown name.
+std::optional<Dialect> parse_dialect(std::string_view name);
+
+/// The paper's feedrate ladder: 1250 to 9350 mm/min in six equal steps of 1350 mm/min [m/s].
+std::vector<double> paper_feed_ladder();
+
+/// `count` feedrates log-spaced from `lowest` to `highest` [m/s], each rounded to two significant digits in mm/min
+/// (10, 22, 46, 100, ... mm/min) so that the part program reads well; duplicates after rounding are dropped.
+std::vector<double> log_spaced_feeds(double lowest, double highest, int count);
+
+struct TestPlanOptions {
+    std::string axis{"X"};                 ///< axis letter as the NC knows it (X, Y, Z, A, ..., X1 on SINUMERIK)
+    double travel_min{0.0};                ///< lower travel limit (software limit switch) [m]
+    double travel_max{0.0};                ///< upper travel limit [m]
+    std::vector<double> centers;           ///< centres of the strokes along the axis [m]
+    double stroke{0.030};                  ///< stroke of the ladder passes (the paper: 30 mm) [m]
+    std::vector<double> feeds{paper_feed_ladder()};  ///< ladder feedrates [m/s]
+    /// Slow feedrates for the Stribeck curve [m/s]; default 10 to 1000 mm/min, log-spaced, 7 values.
+    std::vector<double> slow_feeds{log_spaced_feeds(10.0 / 60000.0, 1000.0 / 60000.0, 7)};
+    double max_pass_time{8.0};             ///< a slow pass takes at most this long: its stroke is shortened [s]
+    int cycles{2};                         ///< back-and-forth cycles per feedrate
+    double acceleration{1.0};              ///< path acceleration the NC uses (machine data) [m/s^2]
+    std::optional<double> jerk;            ///< jerk limit [m/s^3]; none = trapezoidal velocity (BRISK)
+    double dwell{0.2};                     ///< dwell at every reversal [s]
+    double sample_time{0.001};             ///< trace sample time (servo trace / reference file) [s]
+    std::optional<double> max_feed;        ///< feedrate limit of the axis [m/s]; none = not checked
+    double positioning_feed{5000.0 / 60000.0};  ///< feedrate of the moves between passes and centres [m/s]
+    /// Where the axis stands when the program starts [m]; none = at the first pass's start (the reference trajectory
+    /// then begins there).
+    std::optional<double> start_position;
+
+    /// What is wrong with these options ("" when nothing). Does not check the travel (make_test_plan does, per move).
+    [[nodiscard]] std::string validate() const;
+};
+
+enum class MoveKind { feed, dwell };
+
+/// One block of the part program.
+struct Move {
+    MoveKind kind{MoveKind::feed};
+    double target{0.0};  ///< end position of a feed move [m]
+    double feed{0.0};    ///< feedrate of a feed move [m/s]
+    double dwell{0.0};   ///< dwell time [s]
+    int center{-1};      ///< index of the centre this move belongs to
+    int pass{-1};        ///< index of the pass (into TestPlan::passes); -1 for positioning moves
+    std::string description;  ///< "centre 2 (-300 mm), 1250 mm/min, cycle 1, stroke +" (names it in messages)
+};
+
+/// One pass: `cycles` back-and-forth strokes at one feedrate around one centre.
+struct Pass {
+    int center{0};
+    double center_position{0.0};  ///< [m]
+    double feed{0.0};             ///< [m/s]
+    double stroke{0.0};           ///< [m] (shortened for slow passes)
+    bool slow{false};             ///< one of the Stribeck passes
+    double duration{0.0};         ///< including its dwells [s]
+    double cruise_time{0.0};      ///< time at constant feedrate, both directions together [s]
+};
+
+struct TestPlan {
+    TestPlanOptions options;
+    std::vector<Move> moves;
+    std::vector<Pass> passes;
+    double duration{0.0};            ///< predicted test duration (start to end of the program) [s]
+    std::vector<std::string> notes;  ///< what the design changed or warns about (shortened strokes, unreached feeds)
+};
+
+/// Designs the test. Throws InputError for invalid options, or naming the first move that leaves the travel (and by
+/// how much) or exceeds the feedrate limit.
+TestPlan make_test_plan(const TestPlanOptions& options);
+
+/// Duration of a rest-to-rest move of `distance` [m] at feedrate `feed` [m/s] with acceleration [m/s^2] and an
+/// optional jerk limit [m/s^3] (trapezoidal or jerk-limited seven-phase velocity profile).
+double move_duration(double distance, double feed, double acceleration, std::optional<double> jerk);
+
+/// What an ideal NC commands: the plan's moves as rest-to-rest profiles (every move ends at rest: the programs use
+/// exact stop), sampled at the plan's sample time. Channels `t` [s] (time) and `x_ref` [m] (reference_position).
+Trace reference_trajectory(const TestPlan& plan);
+
+/// The part program in a dialect: absolute positions (G90), mm and mm/min (G94), exact stop, G4 dwells, and a header
+/// comment with the plan's parameters and the feedid version. SINUMERIK gets servo-trace start/stop lines the user
+/// can enable.
+std::string emit_part_program(const TestPlan& plan, Dialect dialect);
+
+// ---- identifiability prediction ----
+
+/// The demo drive used as the nominal model: M 69.1 kg, B 54.2 N*s/m, F_C 742.8 N, F_B 946.2 N (the paper's
+/// values) with a ball-screw Stribeck velocity v_s = 5 mm/s instead of the paper's 0.864 m/s.
+AxisModel nominal_demo_drive();
+
+struct PredictionOptions {
+    AxisModel drive{nominal_demo_drive()};  ///< nominal drive model
+    double force_noise{10.0};           ///< white noise on the drive force per sample (current noise * K) [N]
+    double position_resolution{1e-6};   ///< position quantisation [m]
+    /// Error of one pass's friction level beyond white noise (friction varying along the stroke, force ripple) [N]:
+    /// what limits the Stribeck fit, which sees each constant-velocity pass as one point of the friction curve.
+    double level_error{5.0};
+    std::optional<double> split_velocity;  ///< step 1 above this speed [m/s]; default 5 * nominal v_s
+    double identifiable_relative_error{0.10};  ///< a parameter counts as identifiable below this relative std. error
+};
+
+struct ParameterPrediction {
+    std::string key;       ///< result-document key ("mass_kg", "breakaway_N", ...)
+    std::string symbol;    ///< "M", "F_B", ...
+    std::string unit;
+    double nominal{0.0};
+    double standard_error{0.0};  ///< expected standard error [unit of the parameter]; inf when not determined
+    bool identifiable{false};
+};
+
+struct IdentifiabilityPrediction {
+    double step1_condition_number{0.0};  ///< of the step-1 regressor [x'', x', sgn x'] as the trace will give it
+    std::size_t step1_samples{0};
+    std::size_t step2_levels{0};         ///< constant-velocity friction levels (passes x directions) for step 2
+    double slowest_cruise_speed{0.0};    ///< [m/s]
+    std::vector<ParameterPrediction> parameters;
+    std::vector<std::string> diagnostics;
+
+    [[nodiscard]] const ParameterPrediction* find(const std::string& key) const;
+};
+
+/// Predicts what the plan's data can identify. Step 1 (M, B, F_C): the regressors [x'', x', sgn x'] of the ideal
+/// trajectory above the split speed, with the force noise plus the acceleration noise that differentiating the
+/// quantised position adds; standard errors sigma*sqrt(diag((Phi^T Phi)^-1)). Step 2 (B, F_C, F_B, v_s): one friction
+/// level per constant-velocity pass and direction, weighted by its error, fitted with the nominal friction curve's
+/// Jacobian (Gauss-Newton covariance).
+IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const PredictionOptions& options = {});
+
+}  // namespace feedid

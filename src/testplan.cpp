@@ -1,0 +1,579 @@
+#include "feedid/testplan.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include <Eigen/Dense>
+#include <fmt/core.h>
+
+#include "feedid/error.hpp"
+#include "testplan_profile.hpp"
+
+namespace feedid {
+
+namespace {
+
+constexpr double mm = 1e-3;
+constexpr double mm_per_min = 1e-3 / 60.0;
+
+double to_mm(double metres) { return metres / mm; }
+double to_mm_per_min(double metres_per_second) { return metres_per_second / mm_per_min; }
+
+bool all_finite(const std::vector<double>& values) {
+    return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
+}
+
+// Longest stroke s <= longest whose pass (2*cycles strokes, each followed by a dwell) fits in max_time:
+// 2*cycles*(move_duration(s) + dwell) <= max_time. move_duration grows with s, so bisect.
+double stroke_for_time(double longest, double feed, int cycles, double dwell, double max_time, double acceleration,
+                       std::optional<double> jerk) {
+    const double per_stroke = max_time / (2.0 * cycles) - dwell;
+    if (per_stroke <= 0.0) return 0.0;
+    if (move_duration(longest, feed, acceleration, jerk) <= per_stroke) return longest;
+    double low = 0.0;
+    double high = longest;
+    for (int iteration = 0; iteration < 100; ++iteration) {
+        const double middle = 0.5 * (low + high);
+        (move_duration(middle, feed, acceleration, jerk) <= per_stroke ? low : high) = middle;
+    }
+    // Round down to 0.01 mm so that the part program carries the same stroke exactly.
+    return std::floor(low / (0.01 * mm)) * (0.01 * mm);
+}
+
+std::string describe_center(int index, double position) {
+    return fmt::format("centre {} at {:.3f} mm", index + 1, to_mm(position));
+}
+
+}  // namespace
+
+// ---- velocity profiles ----
+
+namespace detail {
+
+// Acceleration phase of a jerk-limited profile from rest to speed v: constant-jerk ramps of T_j = a/j around a
+// constant-acceleration part when v >= a^2/j, otherwise two ramps of sqrt(v/j) with a peak acceleration below a.
+// By symmetry the distance covered is v * T_acc / 2.
+struct AccelerationPhase {
+    double ramp{0.0};      // T_j [s]
+    double constant{0.0};  // constant-acceleration time [s]
+    double peak{0.0};      // peak acceleration [m/s^2]
+    [[nodiscard]] double time() const { return 2.0 * ramp + constant; }
+};
+
+AccelerationPhase acceleration_phase(double speed, double acceleration, std::optional<double> jerk) {
+    AccelerationPhase phase;
+    if (!jerk) {
+        phase.constant = speed / acceleration;
+        phase.peak = acceleration;
+        return phase;
+    }
+    const double j = *jerk;
+    if (speed >= acceleration * acceleration / j) {
+        phase.ramp = acceleration / j;
+        phase.constant = speed / acceleration - acceleration / j;
+        phase.peak = acceleration;
+    } else {
+        phase.ramp = std::sqrt(speed / j);
+        phase.peak = j * phase.ramp;
+    }
+    return phase;
+}
+
+Profile make_profile(double distance, double feed, double acceleration, std::optional<double> jerk) {
+    Profile profile;
+    if (distance <= 0.0 || feed <= 0.0) return profile;
+    const auto accelerating_distance = [&](double speed) {
+        return speed * acceleration_phase(speed, acceleration, jerk).time() / 2.0;
+    };
+    double peak_speed = feed;
+    if (2.0 * accelerating_distance(feed) > distance) {
+        // Too short to reach the feedrate: the largest peak speed whose acceleration and braking fit the distance.
+        double low = 0.0;
+        double high = feed;
+        for (int iteration = 0; iteration < 200; ++iteration) {
+            const double middle = 0.5 * (low + high);
+            (2.0 * accelerating_distance(middle) <= distance ? low : high) = middle;
+        }
+        peak_speed = low;
+    }
+    const auto phase = acceleration_phase(peak_speed, acceleration, jerk);
+    const double cruise = std::max(0.0, (distance - 2.0 * accelerating_distance(peak_speed)) / peak_speed);
+    profile.peak_speed = peak_speed;
+    profile.cruise_time = cruise;
+
+    // Pieces of constant jerk; the trapezoid sets its acceleration at each piece start (infinite jerk).
+    struct Spec {
+        double duration;
+        double jerk;
+        std::optional<double> set_acceleration;
+    };
+    std::vector<Spec> specs;
+    if (!jerk) {
+        specs = {{phase.constant, 0.0, phase.peak}, {cruise, 0.0, 0.0}, {phase.constant, 0.0, -phase.peak}};
+    } else {
+        const double j = *jerk;
+        specs = {{phase.ramp, j, 0.0},     {phase.constant, 0.0, {}}, {phase.ramp, -j, {}}, {cruise, 0.0, 0.0},
+                 {phase.ramp, -j, {}},     {phase.constant, 0.0, {}}, {phase.ramp, j, {}}};
+    }
+    double x = 0.0;
+    double v = 0.0;
+    double a = 0.0;
+    for (const auto& spec : specs) {
+        if (spec.set_acceleration) a = *spec.set_acceleration;
+        if (spec.duration <= 0.0) continue;
+        profile.pieces.push_back({spec.duration, x, v, a, spec.jerk});
+        const double t = spec.duration;
+        x += v * t + a * t * t / 2.0 + spec.jerk * t * t * t / 6.0;
+        v += a * t + spec.jerk * t * t / 2.0;
+        a += spec.jerk * t;
+        profile.duration += t;
+    }
+    profile.distance = distance;
+    return profile;
+}
+
+ProfileState Profile::at(double t) const {
+    if (pieces.empty() || t >= duration) return {distance, 0.0, 0.0};
+    if (t <= 0.0) return {0.0, 0.0, 0.0};
+    for (const auto& piece : pieces) {
+        if (t <= piece.duration) {
+            const double x = piece.x0 + piece.v0 * t + piece.a0 * t * t / 2.0 + piece.jerk * t * t * t / 6.0;
+            const double v = piece.v0 + piece.a0 * t + piece.jerk * t * t / 2.0;
+            const double a = piece.a0 + piece.jerk * t;
+            return {std::min(x, distance), std::max(v, 0.0), a};
+        }
+        t -= piece.duration;
+    }
+    return {distance, 0.0, 0.0};
+}
+
+Timeline make_timeline(const TestPlan& plan) {
+    Timeline timeline;
+    const auto& options = plan.options;
+    double position = options.start_position.value_or(plan.moves.empty() ? 0.0 : plan.moves.front().target);
+    double time = 0.0;
+    for (const auto& move : plan.moves) {
+        TimelineSegment segment;
+        segment.start_time = time;
+        segment.start_position = position;
+        segment.move = &move;
+        if (move.kind == MoveKind::dwell) {
+            segment.duration = move.dwell;
+        } else {
+            const double distance = move.target - position;
+            segment.direction = distance >= 0.0 ? 1.0 : -1.0;
+            segment.profile = make_profile(std::abs(distance), move.feed, options.acceleration, options.jerk);
+            segment.duration = segment.profile.duration;
+            position = move.target;
+        }
+        time += segment.duration;
+        timeline.segments.push_back(std::move(segment));
+    }
+    timeline.duration = time;
+    timeline.end_position = position;
+    return timeline;
+}
+
+std::vector<ProfileState> sample_timeline(const Timeline& timeline, double sample_time, double rest_before,
+                                          double rest_after) {
+    const double total = rest_before + timeline.duration + rest_after;
+    const auto count = static_cast<std::size_t>(std::floor(total / sample_time + 1e-9)) + 1;
+    std::vector<ProfileState> samples(count);
+    const double first_position =
+        timeline.segments.empty() ? timeline.end_position : timeline.segments.front().start_position;
+    std::size_t segment_index = 0;
+    for (std::size_t k = 0; k < count; ++k) {
+        const double t = static_cast<double>(k) * sample_time - rest_before;
+        if (t < 0.0 || timeline.segments.empty()) {
+            samples[k] = {first_position, 0.0, 0.0};
+            continue;
+        }
+        while (segment_index + 1 < timeline.segments.size() &&
+               t >= timeline.segments[segment_index].start_time + timeline.segments[segment_index].duration) {
+            ++segment_index;
+        }
+        const auto& segment = timeline.segments[segment_index];
+        const double local = t - segment.start_time;
+        if (local >= segment.duration) {  // after the last segment
+            samples[k] = {timeline.end_position, 0.0, 0.0};
+            continue;
+        }
+        if (segment.move->kind == MoveKind::dwell) {
+            samples[k] = {segment.start_position, 0.0, 0.0};
+        } else {
+            const auto state = segment.profile.at(local);
+            samples[k] = {segment.start_position + segment.direction * state.position, segment.direction * state.velocity,
+                          segment.direction * state.acceleration};
+        }
+    }
+    return samples;
+}
+
+}  // namespace detail
+
+double move_duration(double distance, double feed, double acceleration, std::optional<double> jerk) {
+    return detail::make_profile(std::abs(distance), feed, acceleration, jerk).duration;
+}
+
+// ---- names ----
+
+std::string_view dialect_name(Dialect dialect) {
+    switch (dialect) {
+        case Dialect::iso: return "iso";
+        case Dialect::sinumerik: return "sinumerik";
+        case Dialect::linuxcnc: return "linuxcnc";
+    }
+    return "iso";
+}
+
+std::optional<Dialect> parse_dialect(std::string_view name) {
+    for (const auto dialect : {Dialect::iso, Dialect::sinumerik, Dialect::linuxcnc}) {
+        if (dialect_name(dialect) == name) return dialect;
+    }
+    return std::nullopt;
+}
+
+std::vector<double> paper_feed_ladder() {
+    // METHOD.md step 5: 1250 mm/min up to about 9350 mm/min; 1250 + 6 * 1350 = 9350.
+    std::vector<double> feeds;
+    for (int step = 0; step <= 6; ++step) feeds.push_back((1250.0 + 1350.0 * step) * mm_per_min);
+    return feeds;
+}
+
+std::vector<double> log_spaced_feeds(double lowest, double highest, int count) {
+    std::vector<double> feeds;
+    if (count <= 0 || !(lowest > 0.0) || !(highest >= lowest)) return feeds;
+    for (int k = 0; k < count; ++k) {
+        const double fraction = count == 1 ? 0.0 : static_cast<double>(k) / (count - 1);
+        const double value = to_mm_per_min(lowest) * std::pow(highest / lowest, fraction);
+        // Two significant digits in mm/min.
+        const double scale = std::pow(10.0, std::floor(std::log10(value)) - 1.0);
+        const double rounded = std::round(value / scale) * scale * mm_per_min;
+        if (feeds.empty() || std::abs(rounded - feeds.back()) > 1e-12) feeds.push_back(rounded);
+    }
+    return feeds;
+}
+
+AxisModel nominal_demo_drive() {
+    AxisModel model;
+    model.mass = 69.1;
+    FrictionBranch branch;
+    branch.viscous = 54.2;
+    branch.coulomb = 742.8;
+    branch.breakaway = 946.2;
+    branch.stribeck_velocity = 0.005;
+    model.friction = Friction::symmetric(branch);
+    return model;
+}
+
+std::string TestPlanOptions::validate() const {
+    if (axis.empty() || !std::isalpha(static_cast<unsigned char>(axis.front())))
+        return fmt::format("axis '{}' is not an axis name (a letter such as X, Y, Z, A, or X1)", axis);
+    for (const char c : axis) {
+        if (!std::isalnum(static_cast<unsigned char>(c)))
+            return fmt::format("axis '{}' is not an axis name (letters and digits only)", axis);
+    }
+    if (!std::isfinite(travel_min) || !std::isfinite(travel_max) || !(travel_min < travel_max))
+        return fmt::format("travel {:.3f}:{:.3f} mm is not a range MIN:MAX with MIN < MAX", to_mm(travel_min),
+                           to_mm(travel_max));
+    if (centers.empty()) return "no centres given: state where along the axis to test (--centers C1,C2,...)";
+    if (!all_finite(centers)) return "a centre is not a finite number";
+    if (!(stroke > 0.0) || !std::isfinite(stroke)) return fmt::format("stroke {} mm must be positive", to_mm(stroke));
+    if (feeds.empty() && slow_feeds.empty()) return "no feedrates: give ladder feeds (--feeds) or slow feeds";
+    for (const auto* list : {&feeds, &slow_feeds}) {
+        for (const double feed : *list) {
+            if (!(feed > 0.0) || !std::isfinite(feed))
+                return fmt::format("feedrate {} mm/min must be positive", to_mm_per_min(feed));
+        }
+    }
+    if (cycles < 1) return fmt::format("cycles {} must be at least 1", cycles);
+    if (!(acceleration > 0.0) || !std::isfinite(acceleration))
+        return fmt::format("acceleration {} m/s^2 must be positive", acceleration);
+    if (jerk && (!(*jerk > 0.0) || !std::isfinite(*jerk))) return fmt::format("jerk {} m/s^3 must be positive", *jerk);
+    if (!(dwell >= 0.0) || !std::isfinite(dwell)) return fmt::format("dwell {} s must not be negative", dwell);
+    if (!(sample_time > 0.0) || !std::isfinite(sample_time))
+        return fmt::format("sample time {} s must be positive", sample_time);
+    if (!(max_pass_time > 0.0)) return fmt::format("maximum pass time {} s must be positive", max_pass_time);
+    if (!slow_feeds.empty() && 2.0 * cycles * dwell >= max_pass_time)
+        return fmt::format("the dwells alone ({} x 2 x {} s) fill the maximum pass time {} s of a slow pass", cycles,
+                           dwell, max_pass_time);
+    if (!(positioning_feed > 0.0)) return "positioning feedrate must be positive";
+    if (max_feed && !(*max_feed > 0.0)) return "feedrate limit must be positive";
+    if (start_position && !std::isfinite(*start_position)) return "start position is not a finite number";
+    return {};
+}
+
+TestPlan make_test_plan(const TestPlanOptions& options) {
+    if (auto problem = options.validate(); !problem.empty()) throw InputError("test plan: " + problem + ".");
+    TestPlan plan;
+    plan.options = options;
+    double positioning_feed = options.positioning_feed;
+    if (options.max_feed && positioning_feed > *options.max_feed) {
+        positioning_feed = *options.max_feed;
+        plan.notes.push_back(fmt::format("positioning moves run at the feedrate limit {:.0f} mm/min",
+                                         to_mm_per_min(positioning_feed)));
+    }
+
+    struct Feed {
+        double value;
+        bool slow;
+    };
+    std::vector<Feed> sequence;
+    for (const double feed : options.slow_feeds) sequence.push_back({feed, true});
+    for (const double feed : options.feeds) sequence.push_back({feed, false});
+
+    double position = std::numeric_limits<double>::quiet_NaN();
+    for (std::size_t c = 0; c < options.centers.size(); ++c) {
+        const int center = static_cast<int>(c);
+        const double center_position = options.centers[c];
+        for (const auto& feed : sequence) {
+            Pass pass;
+            pass.center = center;
+            pass.center_position = center_position;
+            pass.feed = feed.value;
+            pass.slow = feed.slow;
+            pass.stroke = options.stroke;
+            if (feed.slow) {
+                pass.stroke = stroke_for_time(options.stroke, feed.value, options.cycles, options.dwell,
+                                              options.max_pass_time, options.acceleration, options.jerk);
+                if (pass.stroke < 0.01 * mm) {
+                    throw InputError(fmt::format(
+                        "test plan: at {:.4g} mm/min a stroke that fits the maximum pass time {} s is shorter than "
+                        "0.01 mm; allow a longer pass (--max-pass-time) or fewer cycles.",
+                        to_mm_per_min(feed.value), options.max_pass_time));
+                }
+            }
+            const int pass_index = static_cast<int>(plan.passes.size());
+            const double low = center_position - pass.stroke / 2.0;
+            const double high = center_position + pass.stroke / 2.0;
+            const std::string what = fmt::format("{}, {:.4g} mm/min", describe_center(center, center_position),
+                                                 to_mm_per_min(feed.value));
+            if (!(std::abs(position - low) < 1e-12)) {
+                plan.moves.push_back({MoveKind::feed, low, positioning_feed, 0.0, center, -1,
+                                      fmt::format("{}: move to the start of the pass", what)});
+                if (options.dwell > 0.0) plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, -1,
+                                      fmt::format("{}: dwell before the pass", what)});
+                position = low;
+            }
+            for (int cycle = 1; cycle <= options.cycles; ++cycle) {
+                plan.moves.push_back({MoveKind::feed, high, feed.value, 0.0, center, pass_index,
+                                      fmt::format("{}, cycle {}, stroke +", what, cycle)});
+                if (options.dwell > 0.0) plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, pass_index,
+                                      fmt::format("{}, cycle {}, dwell at +", what, cycle)});
+                plan.moves.push_back({MoveKind::feed, low, feed.value, 0.0, center, pass_index,
+                                      fmt::format("{}, cycle {}, stroke -", what, cycle)});
+                if (options.dwell > 0.0) plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, pass_index,
+                                      fmt::format("{}, cycle {}, dwell at -", what, cycle)});
+            }
+            const auto profile = detail::make_profile(pass.stroke, feed.value, options.acceleration, options.jerk);
+            pass.duration = 2.0 * options.cycles * (profile.duration + options.dwell);
+            pass.cruise_time = 2.0 * options.cycles * profile.cruise_time;
+            if (profile.cruise_time <= 0.0) {
+                plan.notes.push_back(fmt::format(
+                    "{}: the {:.3f} mm stroke is too short to reach the feedrate at {} m/s^2 (peak {:.4g} mm/min); "
+                    "this pass holds no constant-velocity data",
+                    what, to_mm(pass.stroke), options.acceleration, to_mm_per_min(profile.peak_speed)));
+            }
+            plan.passes.push_back(pass);
+        }
+    }
+    // Shortened slow strokes, one note per distinct feed.
+    for (const auto& feed : options.slow_feeds) {
+        for (const auto& pass : plan.passes) {
+            if (pass.slow && pass.feed == feed && pass.stroke < options.stroke) {
+                plan.notes.push_back(fmt::format("slow pass at {:.4g} mm/min: stroke shortened to {:.2f} mm to keep "
+                                                 "the pass within {} s",
+                                                 to_mm_per_min(feed), to_mm(pass.stroke), options.max_pass_time));
+                break;
+            }
+        }
+    }
+
+    // Safety: every move inside the travel and within the feedrate limit; the first offender is named.
+    const double tolerance = 1e-9;
+    if (options.start_position &&
+        (*options.start_position < options.travel_min - tolerance || *options.start_position > options.travel_max + tolerance)) {
+        throw InputError(fmt::format("test plan: the start position {:.3f} mm lies outside the travel {:.3f}:{:.3f} mm.",
+                                     to_mm(*options.start_position), to_mm(options.travel_min),
+                                     to_mm(options.travel_max)));
+    }
+    for (std::size_t k = 0; k < plan.moves.size(); ++k) {
+        const auto& move = plan.moves[k];
+        if (move.kind != MoveKind::feed) continue;
+        if (move.target > options.travel_max + tolerance) {
+            throw InputError(fmt::format(
+                "test plan: move {} ({}) goes to {:.3f} mm, {:.3f} mm beyond the travel maximum {:.3f} mm.", k + 1,
+                move.description, to_mm(move.target), to_mm(move.target - options.travel_max),
+                to_mm(options.travel_max)));
+        }
+        if (move.target < options.travel_min - tolerance) {
+            throw InputError(fmt::format(
+                "test plan: move {} ({}) goes to {:.3f} mm, {:.3f} mm beyond the travel minimum {:.3f} mm.", k + 1,
+                move.description, to_mm(move.target), to_mm(options.travel_min - move.target),
+                to_mm(options.travel_min)));
+        }
+        if (options.max_feed && move.feed > *options.max_feed * (1.0 + 1e-12)) {
+            throw InputError(fmt::format(
+                "test plan: move {} ({}) runs at {:.4g} mm/min, {:.4g} mm/min above the feedrate limit {:.4g} mm/min.",
+                k + 1, move.description, to_mm_per_min(move.feed), to_mm_per_min(move.feed - *options.max_feed),
+                to_mm_per_min(*options.max_feed)));
+        }
+    }
+
+    plan.duration = detail::make_timeline(plan).duration;
+    return plan;
+}
+
+Trace reference_trajectory(const TestPlan& plan) {
+    // Half a second at rest before and after the program, as a trace started before the cycle start would hold.
+    constexpr double rest = 0.5;
+    const auto timeline = detail::make_timeline(plan);
+    const auto samples = detail::sample_timeline(timeline, plan.options.sample_time, rest, rest);
+    std::vector<double> time(samples.size());
+    std::vector<double> position(samples.size());
+    for (std::size_t k = 0; k < samples.size(); ++k) {
+        time[k] = static_cast<double>(k) * plan.options.sample_time;
+        position[k] = samples[k].position;
+    }
+    Trace trace;
+    trace.format = "reference";
+    trace.set("t", Role::time, "s", std::move(time));
+    trace.set("x_ref", Role::reference_position, "m", std::move(position));
+    return trace;
+}
+
+// ---- identifiability prediction ----
+
+const ParameterPrediction* IdentifiabilityPrediction::find(const std::string& key) const {
+    for (const auto& parameter : parameters) {
+        if (parameter.key == key) return &parameter;
+    }
+    return nullptr;
+}
+
+IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const PredictionOptions& options) {
+    IdentifiabilityPrediction prediction;
+    const auto& drive = options.drive;
+    const auto& branch = drive.friction.forward;
+    const double mass = drive.mass;
+    const double viscous = branch.viscous;
+    const double coulomb = branch.coulomb;
+    const double breakaway = branch.breakaway.value_or(branch.coulomb);
+    const double stribeck_velocity = branch.stribeck_velocity.value_or(0.0);
+    if (!(mass > 0.0) || !(stribeck_velocity > 0.0) || !(breakaway > coulomb))
+        throw InputError("identifiability prediction: the nominal drive needs M > 0, v_s > 0 and F_B > F_C.");
+    const double split = options.split_velocity.value_or(5.0 * stribeck_velocity);
+    const double dt = plan.options.sample_time;
+    const double infinity = std::numeric_limits<double>::infinity();
+
+    // Step 1. Differentiating the quantised position (uniform error, variance q^2/12) through a low-pass of cut-off
+    // f_c (the identification's default min(100 Hz, 0.1 f_s)) leaves acceleration noise of variance
+    //   sigma_a^2 = sigma_x^2 * (2/f_s) * integral_0^f_c (2 pi f)^4 df = sigma_x^2 * 2 (2 pi)^4 f_c^5 / (5 f_s),
+    // which enters the equation as force noise M * sigma_a beside the current noise.
+    const double sample_rate = 1.0 / dt;
+    const double cutoff = std::min(100.0, 0.1 * sample_rate);
+    const double position_variance = options.position_resolution * options.position_resolution / 12.0;
+    const double acceleration_variance =
+        position_variance * 2.0 * std::pow(2.0 * M_PI, 4) * std::pow(cutoff, 5) / (5.0 * sample_rate);
+    const double sigma = std::sqrt(options.force_noise * options.force_noise + mass * mass * acceleration_variance);
+
+    const auto timeline = detail::make_timeline(plan);
+    const auto samples = detail::sample_timeline(timeline, dt, 0.0, 0.0);
+    Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+    for (const auto& s : samples) {
+        if (std::abs(s.velocity) < split) continue;
+        const Eigen::Vector3d phi(s.acceleration, s.velocity, s.velocity > 0.0 ? 1.0 : -1.0);
+        information += phi * phi.transpose();
+        ++prediction.step1_samples;
+    }
+    Eigen::Vector3d step1_error = Eigen::Vector3d::Constant(infinity);
+    if (prediction.step1_samples >= 3) {
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(information);
+        const double smallest = eigen.eigenvalues().minCoeff();
+        const double largest = eigen.eigenvalues().maxCoeff();
+        // cond(Phi) = sqrt(cond(Phi^T Phi)).
+        prediction.step1_condition_number = smallest > 0.0 ? std::sqrt(largest / smallest) : infinity;
+        if (smallest > 1e-12 * largest) {
+            const Eigen::Matrix3d covariance = sigma * sigma * information.inverse();
+            step1_error = covariance.diagonal().cwiseSqrt();
+        }
+    } else {
+        prediction.diagnostics.push_back(fmt::format(
+            "no samples above the split speed {:.4g} mm/s: M, B and F_C cannot be identified (add ladder passes)",
+            split / mm));
+    }
+
+    // Step 2. Each constant-velocity pass gives, per direction, one point of the friction curve
+    //   F(v) = B v + F_C + (F_B - F_C) exp(-v / v_s),
+    // with error sigma_level^2 = sigma^2 / n + level_error^2 (n samples at constant velocity). Gauss-Newton
+    // covariance (J^T W J)^-1 with J = dF/d[B, F_C, F_B, v_s], computed in relative parameters (scaled by the
+    // nominal values) so that the conditioning reflects the data, not the units.
+    const Eigen::Vector4d nominal(viscous > 0.0 ? viscous : 1.0, coulomb, breakaway, stribeck_velocity);
+    Eigen::Matrix4d level_information = Eigen::Matrix4d::Zero();
+    prediction.slowest_cruise_speed = infinity;
+    for (const auto& pass : plan.passes) {
+        if (pass.cruise_time <= 0.0) continue;
+        const double v = pass.feed;
+        prediction.slowest_cruise_speed = std::min(prediction.slowest_cruise_speed, v);
+        const double per_direction = pass.cruise_time / 2.0;
+        const double n = std::max(1.0, per_direction / dt);
+        const double variance = sigma * sigma / n + options.level_error * options.level_error;
+        const double decay = std::exp(-v / stribeck_velocity);
+        Eigen::Vector4d jacobian(v, 1.0 - decay, decay,
+                                 (breakaway - coulomb) * decay * v / (stribeck_velocity * stribeck_velocity));
+        jacobian = jacobian.cwiseProduct(nominal);
+        level_information += 2.0 * jacobian * jacobian.transpose() / variance;  // both directions
+        prediction.step2_levels += 2;
+    }
+    Eigen::Vector4d step2_relative = Eigen::Vector4d::Constant(infinity);
+    if (prediction.step2_levels >= 4) {
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eigen(level_information);
+        const double smallest = eigen.eigenvalues().minCoeff();
+        const double largest = eigen.eigenvalues().maxCoeff();
+        if (smallest > 1e-14 * largest) step2_relative = level_information.inverse().diagonal().cwiseSqrt();
+    }
+
+    const auto add = [&](std::string key, std::string symbol, std::string unit, double value, double error) {
+        ParameterPrediction parameter;
+        parameter.key = std::move(key);
+        parameter.symbol = std::move(symbol);
+        parameter.unit = std::move(unit);
+        parameter.nominal = value;
+        parameter.standard_error = error;
+        parameter.identifiable =
+            std::isfinite(error) && std::abs(error) <= options.identifiable_relative_error * std::abs(value);
+        prediction.parameters.push_back(std::move(parameter));
+    };
+    add("mass_kg", "M", "kg", mass, step1_error(0));
+    add("viscous_Ns_per_m", "B", "N*s/m", viscous, step1_error(1));
+    add("coulomb_N", "F_C", "N", coulomb, step1_error(2));
+    add("breakaway_N", "F_B", "N", breakaway, step2_relative(2) * breakaway);
+    add("stribeck_velocity_m_per_s", "v_s", "m/s", stribeck_velocity, step2_relative(3) * stribeck_velocity);
+
+    if (!std::isfinite(prediction.slowest_cruise_speed)) {
+        prediction.diagnostics.push_back("no pass reaches a constant velocity: the friction curve is not sampled");
+    } else if (prediction.slowest_cruise_speed > 3.0 * stribeck_velocity) {
+        prediction.diagnostics.push_back(fmt::format(
+            "the slowest constant-velocity pass runs at {:.3g} mm/s = {:.3g} v_s (nominal v_s {:.3g} mm/s): the Stribeck "
+            "term is below {:.2g} % of F_B - F_C there, so F_B and v_s are not identifiable; add slow passes "
+            "(e.g. --slow-feeds 10:1000 mm/min)",
+            prediction.slowest_cruise_speed / mm, prediction.slowest_cruise_speed / stribeck_velocity,
+            stribeck_velocity / mm, 100.0 * std::exp(-prediction.slowest_cruise_speed / stribeck_velocity)));
+    }
+    for (const auto& parameter : prediction.parameters) {
+        if (parameter.identifiable) continue;
+        prediction.diagnostics.push_back(
+            std::isfinite(parameter.standard_error)
+                ? fmt::format("{} is not identifiable from this plan: expected standard error {:.3g} {} = {:.3g} % of "
+                              "the nominal {:.4g} {} (limit {:.3g} %)",
+                              parameter.symbol, parameter.standard_error, parameter.unit,
+                              100.0 * parameter.standard_error / std::abs(parameter.nominal), parameter.nominal,
+                              parameter.unit, 100.0 * options.identifiable_relative_error)
+                : fmt::format("{} is not identifiable from this plan: the data do not determine it", parameter.symbol));
+    }
+    return prediction;
+}
+
+}  // namespace feedid

@@ -1,0 +1,172 @@
+// Friction along the axis: a synthetic three-centre test whose middle centre has 30 % more Coulomb (and breakaway)
+// friction. Position-dependent friction is made by synthesising the plan's reference piece by piece, each centre
+// with its own drive, and joining the pieces in the dwell before each centre's first pass, where the axis is at rest;
+// the result is one continuous trace of the whole test.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "feedid/error.hpp"
+#include "feedid/friction_map.hpp"
+#include "feedid/synth.hpp"
+#include "feedid/testplan.hpp"
+
+namespace {
+
+constexpr double mm_per_min = 1e-3 / 60.0;
+const std::vector<double> centers{-0.25, 0.0, 0.25};
+
+feedid::TestPlan three_centre_plan() {
+    feedid::TestPlanOptions options;
+    options.travel_min = -0.4;
+    options.travel_max = 0.4;
+    options.centers = centers;
+    options.slow_feeds = feedid::log_spaced_feeds(10 * mm_per_min, 1000 * mm_per_min, 3);
+    options.max_pass_time = 4.0;
+    return feedid::make_test_plan(options);
+}
+
+// Sample index (in the reference trajectory, which starts 0.5 s before the program) of the middle of the dwell that
+// follows the positioning move to `center`.
+std::size_t join_index(const feedid::TestPlan& plan, int center) {
+    double time = 0.5;
+    double position = plan.moves.front().target;
+    for (std::size_t k = 0; k < plan.moves.size(); ++k) {
+        const auto& move = plan.moves[k];
+        if (move.kind == feedid::MoveKind::dwell) {
+            if (move.center == center && move.pass < 0) return static_cast<std::size_t>((time + move.dwell / 2) / plan.options.sample_time);
+            time += move.dwell;
+        } else {
+            time += feedid::move_duration(std::abs(move.target - position), move.feed, plan.options.acceleration,
+                                          plan.options.jerk);
+            position = move.target;
+        }
+    }
+    ADD_FAILURE() << "no dwell before centre " << center;
+    return 0;
+}
+
+feedid::Trace multi_centre_trace(double worn_factor) {
+    const auto plan = three_centre_plan();
+    const auto reference = feedid::reference_trajectory(plan);
+    const auto x_ref = reference.column(feedid::Role::reference_position);
+    std::vector<std::size_t> cuts{0, join_index(plan, 1), join_index(plan, 2), x_ref.size()};
+
+    feedid::Trace joined;
+    for (std::size_t piece = 0; piece + 1 < cuts.size(); ++piece) {
+        auto spec = feedid::demo_spec();
+        spec.seed = 11 + piece;
+        spec.sensors.sample_time_s = plan.options.sample_time;
+        if (piece == 1) {
+            for (auto* branch : {&spec.axis.friction.forward, &spec.axis.friction.reverse}) {
+                branch->coulomb *= worn_factor;
+                if (branch->breakaway) *branch->breakaway *= worn_factor;
+            }
+        }
+        const std::vector<double> part(x_ref.begin() + static_cast<std::ptrdiff_t>(cuts[piece]),
+                                       x_ref.begin() + static_cast<std::ptrdiff_t>(cuts[piece + 1]));
+        const auto trace = feedid::synthesize(spec, part);
+        if (piece == 0) {
+            joined = trace;
+            continue;
+        }
+        const double offset = joined.column(feedid::Role::time).back() + plan.options.sample_time;
+        for (auto& channel : joined.channels) {
+            const auto* source = trace.find(std::string_view(channel.name));
+            EXPECT_NE(source, nullptr) << channel.name;
+            if (source == nullptr) continue;
+            for (double value : source->values) channel.values.push_back(channel.role == feedid::Role::time ? value + offset : value);
+        }
+    }
+    joined.source_path = "three-centre synthetic trace";
+    return joined;
+}
+
+feedid::FrictionMapOptions map_options() {
+    feedid::FrictionMapOptions options;
+    options.identify.drive.force_constant_name = "force_constant_N_per_A";
+    return options;
+}
+
+double value_of(const feedid::LocationResult& location, const std::string& key) {
+    const auto* parameter = location.result.find(key);
+    return parameter != nullptr && parameter->estimate.value ? *parameter->estimate.value : std::nan("");
+}
+
+bool stands_out(const nlohmann::json& entry, const std::string& key) {
+    const auto& list = entry.at("stands_out");
+    return std::find(list.begin(), list.end(), key) != list.end();
+}
+
+TEST(FrictionMap, DetectsTheCentresOfTheStrokes) {
+    const auto plan = three_centre_plan();
+    const auto found = feedid::detect_centers(feedid::reference_trajectory(plan), map_options());
+    ASSERT_EQ(found.size(), centers.size());
+    for (std::size_t k = 0; k < centers.size(); ++k) EXPECT_NEAR(found[k], centers[k], 1e-9);
+}
+
+TEST(FrictionMap, HigherCoulombFrictionShowsAtItsCentreOnly) {
+    const double worn = 1.3;
+    const auto trace = multi_centre_trace(worn);
+    const auto map = feedid::friction_map(trace, map_options());
+    ASSERT_TRUE(map.centers_detected);
+    ASSERT_EQ(map.locations.size(), 3u);
+    const double true_coulomb = feedid::demo_spec().axis.friction.forward.coulomb;
+    for (std::size_t k = 0; k < 3; ++k) {
+        const auto& location = map.locations[k];
+        EXPECT_NEAR(location.center, centers[k], 1e-4);
+        ASSERT_FALSE(location.error.has_value()) << *location.error;
+        const double expected = k == 1 ? worn * true_coulomb : true_coulomb;
+        EXPECT_NEAR(value_of(location, "coulomb_N"), expected, 0.02 * expected) << "centre " << k + 1;
+        const auto& entry = map.document.at("locations").at(k);
+        EXPECT_EQ(stands_out(entry, "coulomb_N"), k == 1) << entry.dump();
+    }
+    const auto& middle = map.document.at("locations").at(1);
+    EXPECT_NEAR(middle.at("deviation_pct").at("coulomb_N").get<double>(), 30.0, 3.0);
+    const bool named = std::any_of(map.findings.begin(), map.findings.end(), [](const std::string& f) {
+        return f.find("centre 0.000 mm: F_C") != std::string::npos && f.find("above") != std::string::npos;
+    });
+    EXPECT_TRUE(named) << map.document.at("findings").dump();
+    for (const auto& finding : map.findings) {
+        if (finding.find("F_C = ") != std::string::npos) {
+            EXPECT_NE(finding.find("centre 0.000 mm"), std::string::npos) << finding;
+        }
+    }
+}
+
+TEST(FrictionMap, GivenCentresAndRefusals) {
+    const auto plan = three_centre_plan();
+    auto options = map_options();
+    options.centers = {0.25, -0.25, 0.0};  // any order
+    auto reference = feedid::reference_trajectory(plan);
+    // The reference alone has no drive signal: every location fails with a message, no exception.
+    const auto map = feedid::friction_map(reference, options);
+    ASSERT_EQ(map.locations.size(), 3u);
+    EXPECT_NEAR(map.locations.front().center, -0.25, 1e-12);
+    for (const auto& location : map.locations) EXPECT_TRUE(location.error.has_value());
+
+    // A trace that never strokes: no centre.
+    feedid::Trace still;
+    still.set("t", feedid::Role::time, "s", {0.0, 0.001, 0.002, 0.003});
+    still.set("x", feedid::Role::position, "m", {0.1, 0.1, 0.1, 0.1});
+    EXPECT_THROW((void)feedid::friction_map(still, map_options()), feedid::InputError);
+
+    // Visiting a centre twice.
+    auto twice = feedid::TestPlanOptions{};
+    twice.travel_min = -0.4;
+    twice.travel_max = 0.4;
+    twice.centers = {-0.25, 0.25, -0.25};
+    twice.slow_feeds.clear();
+    const auto revisit = feedid::reference_trajectory(feedid::make_test_plan(twice));
+    try {
+        (void)feedid::friction_map(revisit, map_options());
+        ADD_FAILURE() << "expected an InputError";
+    } catch (const feedid::InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("returns to centre -250.000 mm"), std::string::npos) << e.what();
+    }
+}
+
+}  // namespace

@@ -1,0 +1,114 @@
+// feedid plan on the command line: outputs, refusals with exit code 2, the JSON plan and its prediction.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "testing.hpp"
+
+namespace {
+
+using feedid::testing::run_cli;
+
+// A folder of our own: run_cli() wipes the test's temp_dir().
+std::filesystem::path work_dir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    const auto dir = std::filesystem::temp_directory_path() / "feedid-tests" /
+                     (std::string(info->test_suite_name()) + "." + info->name() + "-work");
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+std::string quoted(const std::filesystem::path& path) { return "'" + path.string() + "'"; }
+
+TEST(PlanCli, HelpShowsAWorkedExample) {
+    const auto result = run_cli("plan --help");
+    EXPECT_EQ(result.exit_code, 0);
+    EXPECT_NE(result.out.find("Example"), std::string::npos);
+    EXPECT_NE(result.out.find("feedid plan --axis X --travel=-400:400 --centers=-300,0,300"), std::string::npos);
+    EXPECT_NE(result.out.find("feedid synth --reference ref.csv"), std::string::npos);
+}
+
+TEST(PlanCli, WritesProgramReferenceAndJson) {
+    const auto dir = work_dir();
+    for (const std::string dialect : {"iso", "sinumerik", "linuxcnc"}) {
+        const auto program = dir / ("test." + dialect);
+        const auto json = dir / ("plan-" + dialect + ".json");
+        const auto result = run_cli("plan --axis X --travel=-400:400 --centers=-300,0,300 --dialect " + dialect +
+                                    " -o " + quoted(program) + " --json " + quoted(json) + " --reference " +
+                                    quoted(dir / "ref.csv"));
+        ASSERT_EQ(result.exit_code, 0) << result.err;
+        const auto text = feedid::testing::read_text(program);
+        EXPECT_NE(text.find("feedid "), std::string::npos);
+        const auto document = nlohmann::json::parse(feedid::testing::read_text(json));
+        EXPECT_EQ(document.at("centers_m").size(), 3u);
+        EXPECT_EQ(document.at("passes").size(), 3u * 14u);
+        EXPECT_GT(document.at("duration_s").get<double>(), 200.0);
+        EXPECT_LT(document.at("duration_s").get<double>(), 300.0);
+        for (const auto* key : {"mass_kg", "viscous_Ns_per_m", "coulomb_N", "breakaway_N", "stribeck_velocity_m_per_s"}) {
+            EXPECT_TRUE(document.at("prediction").at("parameters").at(key).at("identifiable").get<bool>()) << key;
+        }
+        // The summary goes to stdout when no output is on stdout.
+        EXPECT_NE(result.out.find("predicted duration"), std::string::npos);
+    }
+    // The reference reads back with its roles guessed from the names.
+    const auto info = run_cli("info " + quoted(dir / "ref.csv") + " --json -");
+    ASSERT_EQ(info.exit_code, 0) << info.err;
+    const auto document = nlohmann::json::parse(info.out);
+    ASSERT_EQ(document.at("channels").size(), 2u);
+    EXPECT_EQ(document.at("channels").at(0).at("role"), "time");
+    EXPECT_EQ(document.at("channels").at(1).at("role"), "reference_position");
+    EXPECT_EQ(document.at("channels").at(1).at("unit"), "m");
+    EXPECT_NEAR(document.at("sample_time_s").get<double>(), 0.001, 1e-12);
+}
+
+TEST(PlanCli, ProgramOnStdoutSummaryOnStderr) {
+    const auto result = run_cli("plan --travel=-400:400 --centers=-300 --slow-feeds none --dialect linuxcnc -o -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    EXPECT_EQ(result.out.rfind("(feedid ", 0), 0u);
+    EXPECT_NE(result.out.find("\nM2\n"), std::string::npos);
+    EXPECT_NE(result.err.find("predicted duration"), std::string::npos);
+}
+
+TEST(PlanCli, RefusesAPlanThatLeavesTheTravel) {
+    const auto result = run_cli("plan --travel=-400:400 --centers=0,390 --slow-feeds none -o /dev/null");
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_EQ(feedid::testing::count_lines(result.err), 1) << result.err;
+    EXPECT_NE(result.err.find("move 61 (centre 2 at 390.000 mm, 1250 mm/min, cycle 1, stroke +) goes to 405.000 mm, "
+                              "5.000 mm beyond the travel maximum 400.000 mm"),
+              std::string::npos)
+        << result.err;
+    EXPECT_TRUE(result.out.empty());
+}
+
+TEST(PlanCli, RefusesFeedsAboveTheLimitAndBadArguments) {
+    auto result = run_cli("plan --travel=-400:400 --centers=0 --max-feed 6000 -o /dev/null");
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.err.find("6650 mm/min, 650 mm/min above the feedrate limit 6000 mm/min"), std::string::npos)
+        << result.err;
+    for (const std::string arguments :
+         {"--travel=400:-400 --centers=0", "--travel=abc --centers=0", "--travel=-400:400 --centers=0,x",
+          "--travel=-400:400 --centers=0 --dialect fanuc", "--travel=-400:400 --centers=0 --slow-feeds 10:",
+          "--travel=-400:400 --centers=0 --cycles 0", "--centers=0"}) {
+        result = run_cli("plan " + arguments + " -o /dev/null");
+        EXPECT_EQ(result.exit_code, 2) << arguments;
+        EXPECT_FALSE(result.err.empty()) << arguments;
+    }
+}
+
+TEST(PlanCli, PapersLadderAlonePredictsNoStribeck) {
+    const auto result = run_cli("plan --travel=-400:400 --centers=-300 --slow-feeds none --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto document = nlohmann::json::parse(result.out);
+    const auto& parameters = document.at("prediction").at("parameters");
+    EXPECT_TRUE(parameters.at("coulomb_N").at("identifiable").get<bool>());
+    EXPECT_FALSE(parameters.at("breakaway_N").at("identifiable").get<bool>());
+    EXPECT_FALSE(parameters.at("stribeck_velocity_m_per_s").at("identifiable").get<bool>());
+    EXPECT_NE(result.err.find("F_B and v_s are not identifiable"), std::string::npos) << result.err;
+    EXPECT_NE(result.err.find("NOT identifiable"), std::string::npos);
+}
+
+}  // namespace

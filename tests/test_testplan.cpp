@@ -1,0 +1,219 @@
+// Test design: the ladder, slow passes, profiles, refusals, the reference trajectory and the identifiability
+// prediction.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "feedid/error.hpp"
+#include "feedid/io/csv.hpp"
+#include "feedid/io/import.hpp"
+#include "feedid/testplan.hpp"
+
+namespace {
+
+constexpr double mm = 1e-3;
+constexpr double mm_per_min = 1e-3 / 60.0;
+
+feedid::TestPlanOptions options_at(std::vector<double> centers) {
+    feedid::TestPlanOptions options;
+    options.travel_min = -0.4;
+    options.travel_max = 0.4;
+    options.centers = std::move(centers);
+    return options;
+}
+
+std::string message_of(const feedid::TestPlanOptions& options) {
+    try {
+        (void)feedid::make_test_plan(options);
+    } catch (const feedid::InputError& e) {
+        return e.what();
+    }
+    return {};
+}
+
+TEST(TestPlan, PaperLadderAndSlowFeeds) {
+    const auto ladder = feedid::paper_feed_ladder();
+    ASSERT_EQ(ladder.size(), 7u);
+    EXPECT_NEAR(ladder.front() / mm_per_min, 1250.0, 1e-9);
+    EXPECT_NEAR(ladder.back() / mm_per_min, 9350.0, 1e-9);
+    const auto slow = feedid::log_spaced_feeds(10 * mm_per_min, 1000 * mm_per_min, 7);
+    const std::vector<double> expected{10, 22, 46, 100, 220, 460, 1000};
+    ASSERT_EQ(slow.size(), expected.size());
+    for (std::size_t k = 0; k < slow.size(); ++k) EXPECT_NEAR(slow[k] / mm_per_min, expected[k], 1e-9);
+}
+
+TEST(TestPlan, MoveDurationsMatchTheClosedForms) {
+    const double a = 1.0;
+    // Trapezoid reaching the feed: T = D/v + v/a.
+    const double v = 1250 * mm_per_min;
+    EXPECT_NEAR(feedid::move_duration(0.030, v, a, std::nullopt), 0.030 / v + v / a, 1e-12);
+    // Too short to reach the feed: triangle, T = 2 sqrt(D/a).
+    EXPECT_NEAR(feedid::move_duration(1e-4, 0.15, a, std::nullopt), 2.0 * std::sqrt(1e-4 / a), 1e-9);
+    // Jerk-limited, v >= a^2/j: T = D/v + v/a + a/j.
+    const double j = 20.0;
+    const double fast = 9350 * mm_per_min;
+    EXPECT_NEAR(feedid::move_duration(0.100, fast, a, j), 0.100 / fast + fast / a + a / j, 1e-9);
+    // Jerk-limited, v < a^2/j: T = D/v + 2 sqrt(v/j).
+    EXPECT_NEAR(feedid::move_duration(0.030, v, a, 2.0), 0.030 / v + 2.0 * std::sqrt(v / 2.0), 1e-9);
+}
+
+TEST(TestPlan, StructureOfAMultiCentrePlan) {
+    auto options = options_at({-0.3, 0.0, 0.3});
+    const auto plan = feedid::make_test_plan(options);
+    const std::size_t per_center = options.feeds.size() + options.slow_feeds.size();
+    ASSERT_EQ(plan.passes.size(), 3 * per_center);
+    for (const auto& pass : plan.passes) {
+        EXPECT_LE(pass.stroke, options.stroke + 1e-15);
+        if (pass.slow) {
+            EXPECT_LE(pass.duration, options.max_pass_time + 1e-9) << pass.feed / mm_per_min << " mm/min";
+            EXPECT_GT(pass.cruise_time, 0.0);
+        } else {
+            EXPECT_DOUBLE_EQ(pass.stroke, options.stroke);
+        }
+    }
+    // Every stroke of a pass is symmetric about its centre; every move stays in the travel.
+    for (const auto& move : plan.moves) {
+        if (move.kind != feedid::MoveKind::feed) continue;
+        EXPECT_GE(move.target, options.travel_min);
+        EXPECT_LE(move.target, options.travel_max);
+        if (move.pass >= 0) {
+            const auto& pass = plan.passes[static_cast<std::size_t>(move.pass)];
+            EXPECT_NEAR(std::abs(move.target - pass.center_position), pass.stroke / 2.0, 1e-12);
+            EXPECT_DOUBLE_EQ(move.feed, pass.feed);
+        }
+    }
+    // The duration is the sum of the move durations (rest to rest) and dwells, the first positioning move excluded.
+    double duration = 0.0;
+    double position = plan.moves.front().target;
+    for (const auto& move : plan.moves) {
+        if (move.kind == feedid::MoveKind::dwell) {
+            duration += move.dwell;
+        } else {
+            duration += feedid::move_duration(std::abs(move.target - position), move.feed, options.acceleration,
+                                              options.jerk);
+            position = move.target;
+        }
+    }
+    EXPECT_NEAR(plan.duration, duration, 1e-9);
+    EXPECT_GT(plan.duration, 60.0);
+    EXPECT_LT(plan.duration, 600.0);
+}
+
+TEST(TestPlan, RefusesMovesOutsideTheTravelNamingTheMove) {
+    auto options = options_at({-0.39});
+    options.slow_feeds.clear();
+    const auto message = message_of(options);
+    ASSERT_FALSE(message.empty());
+    EXPECT_NE(message.find("move 1 "), std::string::npos) << message;  // the very first positioning move
+    EXPECT_NE(message.find("5.000 mm beyond the travel minimum -400.000 mm"), std::string::npos) << message;
+
+    options = options_at({0.39});
+    options.slow_feeds.clear();
+    const auto upper = message_of(options);
+    EXPECT_NE(upper.find("move 3 "), std::string::npos) << upper;  // positioning, dwell, first stroke +
+    EXPECT_NE(upper.find("stroke +"), std::string::npos) << upper;
+    EXPECT_NE(upper.find("goes to 405.000 mm, 5.000 mm beyond the travel maximum 400.000 mm"), std::string::npos)
+        << upper;
+}
+
+TEST(TestPlan, RefusesFeedsAboveTheLimitNamingTheMove) {
+    auto options = options_at({0.0});
+    options.max_feed = 9000 * mm_per_min;
+    const auto message = message_of(options);
+    EXPECT_NE(message.find("9350 mm/min, 350 mm/min above the feedrate limit 9000 mm/min"), std::string::npos)
+        << message;
+    EXPECT_NE(message.find("move "), std::string::npos);
+}
+
+TEST(TestPlan, RefusesInvalidOptions) {
+    auto options = options_at({});
+    EXPECT_NE(message_of(options).find("no centres"), std::string::npos);
+    options = options_at({0.0});
+    options.travel_max = options.travel_min;
+    EXPECT_NE(message_of(options).find("travel"), std::string::npos);
+    options = options_at({0.0});
+    options.cycles = 0;
+    EXPECT_NE(message_of(options).find("cycles"), std::string::npos);
+    options = options_at({0.0});
+    options.feeds = {-1.0};
+    EXPECT_NE(message_of(options).find("feedrate"), std::string::npos);
+}
+
+TEST(TestPlan, ReferenceTrajectoryFollowsTheMovesWithinTheLimits) {
+    for (const std::optional<double> jerk : {std::optional<double>{}, std::optional<double>{40.0}}) {
+        auto options = options_at({-0.2, 0.1});
+        options.slow_feeds = feedid::log_spaced_feeds(10 * mm_per_min, 1000 * mm_per_min, 3);
+        options.jerk = jerk;
+        const auto plan = feedid::make_test_plan(options);
+        const auto trace = feedid::reference_trajectory(plan);
+        const auto t = trace.column(feedid::Role::time);
+        const auto x = trace.column(feedid::Role::reference_position);
+        const double dt = options.sample_time;
+        EXPECT_NEAR(t.back(), plan.duration + 1.0, dt);  // 0.5 s at rest before and after
+        EXPECT_DOUBLE_EQ(x.front(), plan.moves.front().target);
+        double peak_speed = 0.0;
+        double peak_acceleration = 0.0;
+        for (std::size_t k = 1; k + 1 < x.size(); ++k) {
+            peak_speed = std::max(peak_speed, std::abs(x[k + 1] - x[k - 1]) / (2 * dt));
+            peak_acceleration = std::max(peak_acceleration, std::abs(x[k + 1] - 2 * x[k] + x[k - 1]) / (dt * dt));
+        }
+        EXPECT_LE(peak_speed, 9350 * mm_per_min * (1 + 1e-9));
+        EXPECT_GE(peak_speed, 9350 * mm_per_min * 0.999);
+        // A second difference across an acceleration step averages it, so the bound holds for both profiles.
+        EXPECT_LE(peak_acceleration, options.acceleration * (1 + 1e-6));
+        // Each move's target is reached and held through its dwell.
+        for (const auto& move : plan.moves) {
+            if (move.kind != feedid::MoveKind::feed) continue;
+            const bool reached = std::any_of(x.begin(), x.end(), [&](double p) { return std::abs(p - move.target) < 1e-12; });
+            EXPECT_TRUE(reached) << move.description;
+        }
+    }
+}
+
+TEST(TestPlan, ReferenceFileReadsBackWithGuessedRoles) {
+    auto options = options_at({0.0});
+    options.slow_feeds.clear();
+    options.feeds = {2000 * mm_per_min};
+    const auto plan = feedid::make_test_plan(options);
+    const auto text = feedid::write_csv(feedid::reference_trajectory(plan));
+    auto trace = feedid::parse_csv(text, "ref.csv");
+    feedid::prepare_trace(trace, {});
+    ASSERT_TRUE(trace.has(feedid::Role::time));
+    ASSERT_TRUE(trace.has(feedid::Role::reference_position));
+    EXPECT_EQ(trace.find(feedid::Role::reference_position)->unit, "m");
+    EXPECT_NEAR(trace.time_base().sample_time_s, options.sample_time, 1e-12);
+}
+
+TEST(TestPlan, PredictionWithSlowPassesIdentifiesEveryParameter) {
+    const auto plan = feedid::make_test_plan(options_at({-0.3}));
+    const auto prediction = feedid::predict_identifiability(plan);
+    for (const auto* key : {"mass_kg", "viscous_Ns_per_m", "coulomb_N", "breakaway_N", "stribeck_velocity_m_per_s"}) {
+        const auto* p = prediction.find(key);
+        ASSERT_NE(p, nullptr) << key;
+        EXPECT_TRUE(p->identifiable) << key << " +- " << p->standard_error;
+    }
+    EXPECT_GT(prediction.step1_condition_number, 1.0);
+    EXPECT_TRUE(std::isfinite(prediction.step1_condition_number));
+    EXPECT_LT(prediction.find("breakaway_N")->standard_error, 0.05 * 946.2);
+    EXPECT_LT(prediction.find("stribeck_velocity_m_per_s")->standard_error, 0.15 * 0.005);
+}
+
+TEST(TestPlan, PredictionForThePapersLadderAloneRefusesStribeck) {
+    auto options = options_at({-0.3});
+    options.slow_feeds.clear();
+    const auto prediction = feedid::predict_identifiability(feedid::make_test_plan(options));
+    EXPECT_TRUE(prediction.find("mass_kg")->identifiable);
+    EXPECT_TRUE(prediction.find("coulomb_N")->identifiable);
+    EXPECT_FALSE(prediction.find("breakaway_N")->identifiable);
+    EXPECT_FALSE(prediction.find("stribeck_velocity_m_per_s")->identifiable);
+    EXPECT_NEAR(prediction.slowest_cruise_speed, 1250 * mm_per_min, 1e-12);
+    const bool says_why = std::any_of(prediction.diagnostics.begin(), prediction.diagnostics.end(), [](const auto& d) {
+        return d.find("F_B and v_s are not identifiable") != std::string::npos &&
+               d.find("slow passes") != std::string::npos;
+    });
+    EXPECT_TRUE(says_why);
+}
+
+}  // namespace
