@@ -1,0 +1,285 @@
+// feedid history: list the recorded runs, their trends against the baseline, and check for drift (nightly job).
+#include <cstdio>
+#include <fstream>
+#include <set>
+
+#include <fmt/core.h>
+
+#include "cli.hpp"
+#include "feedid/error.hpp"
+#include "feedid/history/store.hpp"
+#include "feedid/history/trend.hpp"
+#include "feedid/progress.hpp"
+
+namespace feedid::cli {
+namespace {
+
+struct HistoryArguments {
+    std::string database;
+    history::RunFilter filter;
+    std::string json_path;
+    std::string csv_path;
+    bool check{false};
+    std::vector<std::string> add;
+    std::string trace;
+    std::string recorded_at;
+    std::optional<std::int64_t> pin;
+    std::optional<std::int64_t> baseline_from;
+    history::TrendOptions trend;
+};
+
+std::string format_estimate(const history::StoredEstimate& estimate) {
+    if (!estimate.value) return "null";
+    if (!estimate.standard_error) return fmt::format("{:.5g}", *estimate.value);
+    return fmt::format("{:.5g} ± {:.2g}", *estimate.value, *estimate.standard_error);
+}
+
+std::string csv_field(const std::string& text) {
+    if (text.find_first_of(",\"\n") == std::string::npos) return text;
+    std::string quoted = "\"";
+    for (const char c : text) {
+        if (c == '"') quoted += '"';
+        quoted += c;
+    }
+    return quoted + "\"";
+}
+
+void write_text(const std::string& text, const std::string& path) {
+    if (path == "-") {
+        std::fwrite(text.data(), 1, text.size(), stdout);
+        std::fflush(stdout);
+        return;
+    }
+    std::ofstream out(path, std::ios::binary);
+    out << text;
+    if (!out) throw InputError(fmt::format("{}: cannot write the file", path));
+}
+
+/// Wide CSV: one row per run, two columns (value, stderr) per parameter key found in any listed run.
+std::string runs_csv(const std::vector<history::RunRecord>& runs) {
+    std::set<std::string> keys;
+    for (const auto& run : runs)
+        for (const auto& [key, estimate] : run.parameters) keys.insert(key);
+    std::string text = "run,recorded_at,machine,axis,location,model,status,feedid_version,trace_sha256,trace_path";
+    for (const auto& key : keys) text += fmt::format(",{},{}_stderr", key, key);
+    text += ",relative_error_pct,condition_number,samples_used\n";
+    const auto number = [](const std::optional<double>& value) {
+        return value ? fmt::format("{:.10g}", *value) : std::string();
+    };
+    const auto fit_value = [](const nlohmann::json& fit, const char* key) {
+        return fit.contains(key) && fit[key].is_number() ? fmt::format("{:.10g}", fit[key].get<double>())
+                                                         : std::string();
+    };
+    for (const auto& run : runs) {
+        text += fmt::format("{},{},{},{},{},{},{},{},{},{}", run.id, run.recorded_at, csv_field(run.machine),
+                            csv_field(run.axis), csv_field(run.location), run.model, run.status, run.feedid_version,
+                            run.trace_sha256, csv_field(run.trace_path));
+        for (const auto& key : keys) {
+            const auto found = run.parameters.find(key);
+            if (found == run.parameters.end()) text += ",,";
+            else
+                text += fmt::format(",{},{}", number(found->second.value), number(found->second.standard_error));
+        }
+        text += fmt::format(",{},{},{}\n", fit_value(run.fit, "relative_error_pct"),
+                            fit_value(run.fit, "condition_number"), fit_value(run.fit, "samples_used"));
+    }
+    return text;
+}
+
+void print_table(const std::vector<history::RunRecord>& runs, const std::vector<history::SeriesTrend>& trends) {
+    for (const auto& series : trends) {
+        std::vector<const history::RunRecord*> series_runs;
+        for (const auto& run : runs)
+            if (run.machine == series.machine && run.axis == series.axis) series_runs.push_back(&run);
+        std::set<std::string> keys;
+        for (const auto* run : series_runs)
+            for (const auto& [key, estimate] : run->parameters) keys.insert(key);
+        fmt::print("machine '{}' axis '{}': {} run(s); baseline: ", series.machine, series.axis, series_runs.size());
+        if (series.baseline_run_ids.empty()) fmt::print("none\n");
+        else
+            fmt::print("run(s) #{}..#{}{}\n", series.baseline_run_ids.front(), series.baseline_run_ids.back(),
+                       series.pinned_run ? fmt::format(" (pinned at #{})", *series.pinned_run) : "");
+        fmt::print("{:>5}  {:<24} {:<10}", "run", "recorded_at", "model");
+        for (const auto& key : keys) fmt::print("  {:>24}", key);
+        fmt::print("\n");
+        for (const auto* run : series_runs) {
+            fmt::print("{:>5}  {:<24} {:<10}", fmt::format("#{}", run->id), run->recorded_at, run->model);
+            for (const auto& key : keys) {
+                const auto found = run->parameters.find(key);
+                std::string cell = found == run->parameters.end() ? "-" : format_estimate(found->second);
+                // Mark values in alarm with '!' so that a glance finds them.
+                for (const auto& parameter : series.parameters)
+                    if (parameter.key == key)
+                        for (const auto& point : parameter.points)
+                            if (point.run_id == run->id && point.alarm) cell += " !";
+                fmt::print("  {:>24}", cell);
+            }
+            fmt::print("\n");
+        }
+        for (const auto& note : series.notes) fmt::print("note: {}\n", note);
+        for (const auto& alarm : series.alarms) fmt::print("{}\n", alarm.message());
+        fmt::print("\n");
+    }
+}
+
+int run_history(HistoryArguments& arguments) {
+    if (const auto problem = arguments.trend.validate(); !problem.empty()) throw InputError(problem);
+    if (arguments.baseline_from) arguments.trend.pinned_run = arguments.baseline_from;
+    const bool writes = !arguments.add.empty() || arguments.pin;
+    if (!arguments.trace.empty() && arguments.add.size() != 1)
+        throw InputError("--trace goes with exactly one --add RESULT.json");
+    if (!arguments.recorded_at.empty() && arguments.add.size() != 1)
+        throw InputError("--recorded-at goes with exactly one --add RESULT.json");
+
+    // Everything that can fail on the inputs is checked before the database is opened for writing, so that a failed
+    // command leaves the file as it was.
+    std::vector<history::RunRecord> prepared;
+    if (!arguments.add.empty()) {
+        if (arguments.filter.machine.empty() || arguments.filter.axis.empty())
+            throw InputError("--add needs --machine NAME and --axis X to file the run under");
+        Progress progress("reading results", arguments.add.size());
+        for (std::size_t i = 0; i < arguments.add.size(); ++i) {
+            const auto& path = arguments.add[i];
+            const nlohmann::json result = read_json(path);
+            std::filesystem::path trace = arguments.trace;
+            if (trace.empty()) {
+                if (!result.is_object() || !result.contains("trace") || !result["trace"].is_object() ||
+                    !result["trace"].contains("path") || !result["trace"]["path"].is_string())
+                    (void)history::run_from_result(result, path);  // the clearer message for a wrong document
+                if (result.contains("trace") && result["trace"].contains("path") &&
+                    result["trace"]["path"].is_string())
+                    trace = result["trace"]["path"].get<std::string>();
+                // A relative trace path is relative to where identify ran; fall back to the result's folder.
+                if (!trace.empty() && trace.is_relative() && !std::filesystem::exists(trace))
+                    trace = std::filesystem::path(path).parent_path() / trace;
+                if (trace.empty())
+                    throw InputError(fmt::format("{}: the result names no trace file; give it with --trace FILE", path));
+            }
+            history::RecordContext context;
+            context.machine = arguments.filter.machine;
+            context.axis = arguments.filter.axis;
+            context.location = arguments.filter.location;
+            context.trace = trace;
+            context.recorded_at = arguments.recorded_at;
+            if (result.contains("options") && result["options"].is_object()) context.options = result["options"];
+            prepared.push_back(history::prepare_run(result, path, context));
+            progress.update(i + 1);
+        }
+    }
+
+    history::SqliteOpenOptions open_options;
+    open_options.read_only = !writes;
+    auto store = history::open_sqlite_store(arguments.database, open_options);
+    {
+        Progress progress("recording runs", prepared.size());
+        for (std::size_t i = 0; i < prepared.size(); ++i) {
+            const auto outcome = store->add_run(prepared[i]);
+            if (outcome.inserted)
+                fmt::print(stderr, "feedid: recorded {} as run #{}\n", arguments.add[i], outcome.id);
+            else
+                fmt::print(stderr, "feedid: {} is already recorded as run #{} (same trace, same options); not added\n",
+                           arguments.add[i], outcome.id);
+            progress.update(i + 1);
+        }
+    }
+    if (arguments.pin) {
+        const auto all = store->runs({});
+        const auto found = std::find_if(all.begin(), all.end(), [&](const auto& run) { return run.id == *arguments.pin; });
+        if (found == all.end()) throw InputError(fmt::format("{}: there is no run #{}", arguments.database, *arguments.pin));
+        store->pin_baseline(found->machine, found->axis, found->id);
+        fmt::print(stderr, "feedid: the baseline of machine '{}' axis '{}' now starts at run #{}\n", found->machine,
+                   found->axis, found->id);
+    }
+
+    const auto runs = store->runs(arguments.filter);
+    const auto trends = history::analyse_trends(runs, store->pins(), arguments.trend);
+    std::size_t alarms = 0;
+    for (const auto& series : trends) alarms += series.alarms.size();
+
+    if (!arguments.json_path.empty()) {
+        nlohmann::json document;
+        document["database"] = arguments.database;
+        document["schema_version"] = store->schema_version();
+        document["runs"] = nlohmann::json::array();
+        for (const auto& run : runs) document["runs"].push_back(history::to_json(run));
+        document["trends"] = nlohmann::json::array();
+        for (const auto& series : trends) document["trends"].push_back(history::to_json(series));
+        document["trend_options"] = {{"baseline_runs", arguments.trend.baseline_runs},
+                                     {"cusum_k", arguments.trend.cusum_k},
+                                     {"cusum_h", arguments.trend.cusum_h}};
+        document["alarm"] = alarms > 0;
+        write_json(document, arguments.json_path);
+    }
+    if (!arguments.csv_path.empty()) write_text(runs_csv(runs), arguments.csv_path);
+
+    if (arguments.check) {
+        if (arguments.json_path != "-" && arguments.csv_path != "-") {
+            for (const auto& series : trends)
+                for (const auto& alarm : series.alarms) fmt::print("{}\n", alarm.message());
+            if (alarms == 0)
+                fmt::print("no drift alarm: {} run(s) of {} axis/axes checked\n", runs.size(), trends.size());
+        }
+        return alarms > 0 ? 1 : 0;
+    }
+    if (arguments.json_path.empty() && arguments.csv_path.empty() && !writes) {
+        if (runs.empty()) fmt::print("no runs recorded{}\n", arguments.filter.machine.empty() && arguments.filter.axis.empty()
+                                                                 ? ""
+                                                                 : " for this machine/axis");
+        print_table(runs, trends);
+    }
+    return 0;
+}
+
+}  // namespace
+
+Action add_history_command(CLI::App& app) {
+    auto arguments = std::make_shared<HistoryArguments>();
+    auto* sub = app.add_subcommand("history", "List, record and check the parameter history of machines and axes");
+    sub->add_option("DB", arguments->database, "The history database (SQLite file)")->required();
+    sub->add_option("--machine", arguments->filter.machine, "Only this machine (with --add: the machine to file under)");
+    sub->add_option("--axis", arguments->filter.axis, "Only this axis (with --add: the axis to file under)");
+    sub->add_option("--location", arguments->filter.location, "Only this location / site (with --add: its site)");
+    auto* json = sub->add_option("--json", arguments->json_path, "Write runs and trends as JSON to PATH (- or no value: "
+                                                                  "stdout)")
+                     ->expected(0, 1);
+    auto* csv = sub->add_option("--csv", arguments->csv_path, "Write the runs as CSV, one row per run, to PATH (- or no "
+                                                               "value: stdout)")
+                    ->expected(0, 1);
+    sub->add_flag("--check", arguments->check,
+                  "Check for drift: print every alarm (machine, axis, parameter, run) and exit 1 when there is one, 0 "
+                  "otherwise");
+    sub->add_option("--add", arguments->add,
+                    "Record identify result documents (feedid identify --json) as runs; needs --machine and --axis")
+        ->take_all()
+        ->allow_extra_args(false);
+    sub->add_option("--trace", arguments->trace, "With --add: the trace file (default: the path in the result)");
+    sub->add_option("--recorded-at", arguments->recorded_at,
+                    "With --add: when the trace was recorded, ISO 8601 UTC (default: the trace file's modification "
+                    "time)");
+    sub->add_option("--pin", arguments->pin,
+                    "Store a new baseline for the run's machine and axis starting at run ID (e.g. after maintenance)");
+    sub->add_option("--baseline-from", arguments->baseline_from,
+                    "For this listing only: the baseline starts at run ID");
+    sub->add_option("--baseline-runs", arguments->trend.baseline_runs, "Runs in the baseline")->default_val(8);
+    sub->add_option("--cusum-k", arguments->trend.cusum_k, "CUSUM allowance [combined standard errors]")
+        ->default_val(1.0);
+    sub->add_option("--cusum-h", arguments->trend.cusum_h, "CUSUM alarm threshold [combined standard errors]")
+        ->default_val(6.0);
+    sub->footer(
+        "Trend: each run's change against the baseline (mean of the first --baseline-runs runs of the axis, or of the\n"
+        "runs from a pinned one) in units of the combined standard error, where a run's error is the larger of its\n"
+        "reported standard error and the baseline runs' own scatter; a two-sided CUSUM per parameter raises the alarm.\n"
+        "Examples:\n"
+        "  feedid identify x.csv --json - --record shop.db --machine DMU50 --axis X\n"
+        "  feedid history shop.db --add result.json --machine DMU50 --axis X --recorded-at 2026-11-23T09:00:00Z\n"
+        "  feedid history shop.db --machine DMU50 --axis X\n"
+        "  feedid history shop.db --check          # nightly: exit 1 and name machine, axis, parameter, run on drift\n"
+        "  feedid history shop.db --pin 42        # after maintenance: baseline starts again at run 42");
+    return [arguments, json, csv] {
+        if (json->count() > 0 && arguments->json_path.empty()) arguments->json_path = "-";
+        if (csv->count() > 0 && arguments->csv_path.empty()) arguments->csv_path = "-";
+        return run_history(*arguments);
+    };
+}
+
+}  // namespace feedid::cli

@@ -1,0 +1,269 @@
+// Baselines, changes in units of the combined standard error, and the two-sided CUSUM (see trend.hpp for the
+// equations and the choice of defaults).
+
+#include "feedid/history/trend.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+
+#include <fmt/core.h>
+
+namespace feedid::history {
+namespace {
+
+// z of the 25 % quantile of the standard normal distribution: the chi-square quantile below uses it to give a 75 %
+// upper confidence bound of a standard deviation.
+constexpr double z_25_percent = -0.6744897501960817;
+
+/// sqrt(nu / chi2_{0.25}(nu)) with Wilson and Hilferty's (1931) cube-root approximation
+/// chi2_p(nu) ~ nu * (1 - 2/(9 nu) + z_p sqrt(2/(9 nu)))^3, accurate to a few per cent even for nu = 1.
+double scatter_upper_factor(int nu) {
+    if (nu < 1) return 1.0;
+    const double a = 2.0 / (9.0 * nu);
+    const double cube = 1.0 - a + z_25_percent * std::sqrt(a);
+    const double quantile = nu * cube * cube * cube;
+    return std::sqrt(nu / quantile);
+}
+
+nlohmann::json optional_json(const std::optional<double>& value) {
+    return value && std::isfinite(*value) ? nlohmann::json(*value) : nlohmann::json(nullptr);
+}
+
+const char* role_name(RunRole role) {
+    switch (role) {
+        case RunRole::before_baseline: return "before_baseline";
+        case RunRole::baseline: return "baseline";
+        case RunRole::checked: return "checked";
+    }
+    return "checked";
+}
+
+}  // namespace
+
+std::string TrendOptions::validate() const {
+    if (baseline_runs < 1) return fmt::format("--baseline-runs must be at least 1 (got {})", baseline_runs);
+    if (!(cusum_k >= 0.0) || !std::isfinite(cusum_k))
+        return fmt::format("--cusum-k must be a finite number >= 0 (got {})", cusum_k);
+    if (!(cusum_h > 0.0) || !std::isfinite(cusum_h))
+        return fmt::format("--cusum-h must be a finite number > 0 (got {})", cusum_h);
+    return {};
+}
+
+std::string Alarm::message() const {
+    return fmt::format("drift alarm: machine '{}' axis '{}' parameter {} at run #{} (recorded {}): {} by {:+.4g} "
+                       "({:+.1f} %, {:+.1f} combined standard errors), CUSUM {:.1f}",
+                       machine, axis, parameter, run_id, recorded_at, direction == "up" ? "rose" : "fell", change,
+                       change_pct, z, cusum);
+}
+
+SeriesTrend analyse_series(const std::string& machine, const std::string& axis, const std::vector<RunRecord>& runs,
+                           const TrendOptions& options) {
+    SeriesTrend series;
+    series.machine = machine;
+    series.axis = axis;
+    series.pinned_run = options.pinned_run;
+
+    // Where the baseline starts: the first run, or the pinned one.
+    std::size_t start = 0;
+    if (options.pinned_run) {
+        const auto pinned = std::find_if(runs.begin(), runs.end(),
+                                         [&](const RunRecord& run) { return run.id == *options.pinned_run; });
+        if (pinned == runs.end()) {
+            series.notes.push_back(fmt::format("pinned run #{} is not among this axis's runs; the baseline starts at "
+                                               "the first run",
+                                               *options.pinned_run));
+            series.pinned_run.reset();
+        } else {
+            start = static_cast<std::size_t>(pinned - runs.begin());
+        }
+    }
+    const std::size_t baseline_end = std::min(runs.size(), start + static_cast<std::size_t>(options.baseline_runs));
+    for (std::size_t i = start; i < baseline_end; ++i) series.baseline_run_ids.push_back(runs[i].id);
+    series.baseline_complete = baseline_end - start == static_cast<std::size_t>(options.baseline_runs);
+    if (!series.baseline_complete)
+        series.notes.push_back(fmt::format("the baseline is still forming ({} of {} runs); nothing is checked yet",
+                                           baseline_end - start, options.baseline_runs));
+
+    const auto role_of = [&](std::size_t i) {
+        if (i < start) return RunRole::before_baseline;
+        if (i < baseline_end) return RunRole::baseline;
+        return RunRole::checked;
+    };
+
+    // Options differing between runs make values incomparable; say so rather than guess.
+    std::set<std::string> option_sets;
+    for (std::size_t i = start; i < runs.size(); ++i) option_sets.insert(runs[i].options.dump());
+    if (option_sets.size() > 1)
+        series.notes.push_back("the runs were identified with different options; their values may not be comparable");
+
+    std::set<std::string> keys;
+    for (const auto& run : runs)
+        for (const auto& [key, estimate] : run.parameters)
+            if (estimate.value) keys.insert(key);
+
+    for (const auto& key : keys) {
+        ParameterTrend trend;
+        trend.key = key;
+        std::vector<double> values;
+        std::vector<double> errors;
+        for (std::size_t i = start; i < baseline_end; ++i) {
+            const auto found = runs[i].parameters.find(key);
+            if (found == runs[i].parameters.end() || !found->second.value) continue;
+            values.push_back(*found->second.value);
+            if (found->second.standard_error) errors.push_back(*found->second.standard_error);
+        }
+        const std::size_t n = values.size();
+        double mean = 0.0;
+        double scatter = 0.0;
+        double stderr_rms = 0.0;
+        if (n > 0) {
+            for (const double v : values) mean += v;
+            mean /= static_cast<double>(n);
+            trend.baseline_mean = mean;
+        }
+        if (n > 1) {
+            for (const double v : values) scatter += (v - mean) * (v - mean);
+            scatter = std::sqrt(scatter / static_cast<double>(n - 1));
+            trend.baseline_scatter = scatter;
+            trend.scatter_factor = scatter_upper_factor(static_cast<int>(n) - 1);
+        }
+        if (!errors.empty()) {
+            for (const double e : errors) stderr_rms += e * e;
+            stderr_rms = std::sqrt(stderr_rms / static_cast<double>(errors.size()));
+            trend.baseline_stderr_rms = stderr_rms;
+        }
+        const double scatter_bound = trend.scatter_factor * scatter;
+        const double sigma_mean = n > 0 ? std::max(stderr_rms, scatter_bound) / std::sqrt(static_cast<double>(n)) : 0.0;
+        if (n == 0) trend.note = "no baseline run has this parameter";
+        else if (std::max(stderr_rms, scatter_bound) <= 0.0)
+            trend.note = "neither a standard error nor a run-to-run scatter is known; no change can be judged";
+
+        double up = 0.0;
+        double down = 0.0;
+        bool in_alarm = false;
+        for (std::size_t i = 0; i < runs.size(); ++i) {
+            const auto found = runs[i].parameters.find(key);
+            if (found == runs[i].parameters.end() || !found->second.value) continue;
+            TrendPoint point;
+            point.run_id = runs[i].id;
+            point.recorded_at = runs[i].recorded_at;
+            point.role = role_of(i);
+            point.value = found->second.value;
+            point.standard_error = found->second.standard_error;
+            if (trend.note.empty()) {
+                const double reported = found->second.standard_error.value_or(stderr_rms);
+                const double sigma_run = std::max(reported, scatter_bound);
+                const double sigma = std::sqrt(sigma_run * sigma_run + sigma_mean * sigma_mean);
+                point.change = *point.value - mean;
+                point.sigma = sigma;
+                if (sigma > 0.0) point.z = *point.change / sigma;
+            }
+            if (point.role == RunRole::checked && series.baseline_complete && point.z) {
+                up = std::max(0.0, up + *point.z - options.cusum_k);
+                down = std::max(0.0, down - *point.z - options.cusum_k);
+                point.cusum_up = up;
+                point.cusum_down = down;
+                const bool alarm = up > options.cusum_h || down > options.cusum_h;
+                point.alarm = alarm;
+                if (alarm && !in_alarm) {
+                    Alarm fired;
+                    fired.machine = machine;
+                    fired.axis = axis;
+                    fired.parameter = key;
+                    fired.run_id = point.run_id;
+                    fired.recorded_at = point.recorded_at;
+                    fired.direction = up > options.cusum_h ? "up" : "down";
+                    fired.cusum = std::max(up, down);
+                    fired.change = *point.change;
+                    fired.change_pct = mean != 0.0 ? 100.0 * *point.change / std::abs(mean) : 0.0;
+                    fired.z = *point.z;
+                    series.alarms.push_back(fired);
+                }
+                // Once fired, a parameter stays in alarm until a new baseline is pinned: drift from wear does not
+                // heal by itself, and a nightly check must keep saying so.
+                in_alarm = in_alarm || alarm;
+                point.alarm = in_alarm;
+            }
+            trend.points.push_back(point);
+        }
+        series.parameters.push_back(std::move(trend));
+    }
+    std::stable_sort(series.alarms.begin(), series.alarms.end(),
+                     [&](const Alarm& a, const Alarm& b) { return a.run_id < b.run_id; });
+    return series;
+}
+
+std::vector<SeriesTrend> analyse_trends(const std::vector<RunRecord>& runs, const std::vector<BaselinePin>& pins,
+                                        const TrendOptions& options) {
+    std::map<std::pair<std::string, std::string>, std::vector<RunRecord>> groups;
+    for (const auto& run : runs) groups[{run.machine, run.axis}].push_back(run);
+    std::vector<SeriesTrend> result;
+    for (auto& [key, series_runs] : groups) {
+        std::stable_sort(series_runs.begin(), series_runs.end(), [](const RunRecord& a, const RunRecord& b) {
+            return a.recorded_at != b.recorded_at ? a.recorded_at < b.recorded_at : a.id < b.id;
+        });
+        TrendOptions series_options = options;
+        if (options.pinned_run) {
+            const bool holds = std::any_of(series_runs.begin(), series_runs.end(),
+                                           [&](const RunRecord& run) { return run.id == *options.pinned_run; });
+            if (!holds) series_options.pinned_run.reset();
+        } else {
+            for (const auto& pin : pins)
+                if (pin.machine == key.first && pin.axis == key.second) series_options.pinned_run = pin.run_id;
+        }
+        result.push_back(analyse_series(key.first, key.second, series_runs, series_options));
+    }
+    return result;
+}
+
+nlohmann::json to_json(const SeriesTrend& trend) {
+    nlohmann::json parameters = nlohmann::json::object();
+    for (const auto& parameter : trend.parameters) {
+        nlohmann::json points = nlohmann::json::array();
+        for (const auto& point : parameter.points) {
+            points.push_back({{"run", point.run_id},
+                              {"recorded_at", point.recorded_at},
+                              {"role", role_name(point.role)},
+                              {"value", optional_json(point.value)},
+                              {"stderr", optional_json(point.standard_error)},
+                              {"change", optional_json(point.change)},
+                              {"sigma", optional_json(point.sigma)},
+                              {"z", optional_json(point.z)},
+                              {"cusum_up", point.cusum_up},
+                              {"cusum_down", point.cusum_down},
+                              {"alarm", point.alarm}});
+        }
+        parameters[parameter.key] = {{"baseline_mean", optional_json(parameter.baseline_mean)},
+                                     {"baseline_scatter", optional_json(parameter.baseline_scatter)},
+                                     {"baseline_stderr_rms", optional_json(parameter.baseline_stderr_rms)},
+                                     {"scatter_factor", parameter.scatter_factor},
+                                     {"note", parameter.note},
+                                     {"points", points}};
+    }
+    nlohmann::json alarms = nlohmann::json::array();
+    for (const auto& alarm : trend.alarms) {
+        alarms.push_back({{"machine", alarm.machine},
+                          {"axis", alarm.axis},
+                          {"parameter", alarm.parameter},
+                          {"run", alarm.run_id},
+                          {"recorded_at", alarm.recorded_at},
+                          {"direction", alarm.direction},
+                          {"cusum", alarm.cusum},
+                          {"change", alarm.change},
+                          {"change_pct", alarm.change_pct},
+                          {"z", alarm.z},
+                          {"message", alarm.message()}});
+    }
+    return {{"machine", trend.machine},
+            {"axis", trend.axis},
+            {"baseline_runs", trend.baseline_run_ids},
+            {"baseline_complete", trend.baseline_complete},
+            {"pinned_run", trend.pinned_run ? nlohmann::json(*trend.pinned_run) : nlohmann::json(nullptr)},
+            {"parameters", parameters},
+            {"alarms", alarms},
+            {"notes", trend.notes}};
+}
+
+}  // namespace feedid::history
