@@ -248,8 +248,9 @@ Action add_history_command(CLI::App& app) {
     sub->add_flag("--check", arguments->check,
                   "Check for drift: print every alarm (machine, axis, parameter, run) and exit 1 when there is one, 0 "
                   "otherwise");
-    sub->add_option("--add", arguments->add,
-                    "Record identify result documents (feedid identify --json) as runs; needs --machine and --axis")
+    sub->add_option("--add,--record", arguments->add,
+                    "Record identify result documents (feedid identify --json) as runs, each in one transaction; needs "
+                    "--machine and --axis")
         ->take_all()
         ->allow_extra_args(false);
     sub->add_option("--trace", arguments->trace, "With --add: the trace file (default: the path in the result)");

@@ -1,19 +1,84 @@
-// feedid report (placeholder until its issue lands: it says so and exits 2).
+// feedid report RESULT.json|DB -o report.html: one self-contained HTML file with the plots people look at.
 #include <cstdio>
+#include <fstream>
 
 #include <fmt/core.h>
 
 #include "cli.hpp"
+#include "feedid/error.hpp"
+#include "feedid/history/store.hpp"
+#include "feedid/history/trend.hpp"
+#include "feedid/report.hpp"
 
 namespace feedid::cli {
+namespace {
+
+struct ReportArguments {
+    std::string input;
+    std::string out_path;
+    history::RunFilter filter;
+    history::TrendOptions trend;
+};
+
+int run_report(const ReportArguments& arguments) {
+    if (const auto problem = arguments.trend.validate(); !problem.empty()) throw InputError(problem);
+    if (!std::filesystem::is_regular_file(arguments.input))
+        throw InputError(fmt::format("{}: no such file (give an identify result document or a history database)",
+                                     arguments.input));
+    std::string html;
+    if (history::looks_like_sqlite(arguments.input)) {
+        history::SqliteOpenOptions options;
+        options.read_only = true;
+        const auto store = history::open_sqlite_store(arguments.input, options);
+        const auto runs = store->runs(arguments.filter);
+        if (runs.empty())
+            throw InputError(fmt::format("{}: no runs recorded{}", arguments.input,
+                                         arguments.filter.machine.empty() && arguments.filter.axis.empty()
+                                             ? ""
+                                             : " for this machine/axis"));
+        const auto trends = history::analyse_trends(runs, store->pins(), arguments.trend);
+        html = report::history_report_html(runs, trends, arguments.trend, arguments.input);
+    } else {
+        html = report::result_report_html(read_json(arguments.input), arguments.input);
+    }
+    if (arguments.out_path == "-") {
+        std::fwrite(html.data(), 1, html.size(), stdout);
+        std::fflush(stdout);
+    } else {
+        std::ofstream out(arguments.out_path, std::ios::binary);
+        out << html;
+        if (!out) throw InputError(fmt::format("{}: cannot write the report", arguments.out_path));
+        fmt::print(stderr, "feedid: wrote {}\n", arguments.out_path);
+    }
+    return 0;
+}
+
+}  // namespace
 
 Action add_report_command(CLI::App& app) {
-    auto* sub = app.add_subcommand("report", "(not yet available)");
-    sub->allow_extras();
-    return [] {
-        fmt::print(stderr, "feedid: 'report' is not available in this build yet\n");
-        return 2;
-    };
+    auto arguments = std::make_shared<ReportArguments>();
+    auto* sub = app.add_subcommand("report", "Write one self-contained HTML report with plots of an identify result or "
+                                             "of a parameter history");
+    sub->add_option("INPUT", arguments->input,
+                    "An identify result document (feedid identify --json) or a history database (SQLite file)")
+        ->required();
+    sub->add_option("-o,--out", arguments->out_path, "Where to write the HTML file ('-' for stdout)")->required();
+    sub->add_option("--machine", arguments->filter.machine, "History: only this machine");
+    sub->add_option("--axis", arguments->filter.axis, "History: only this axis");
+    sub->add_option("--location", arguments->filter.location, "History: only this location / site");
+    sub->add_option("--baseline-runs", arguments->trend.baseline_runs, "History: runs in the baseline")->default_val(8);
+    sub->add_option("--cusum-k", arguments->trend.cusum_k, "History: CUSUM allowance [combined standard errors]")
+        ->default_val(1.0);
+    sub->add_option("--cusum-h", arguments->trend.cusum_h, "History: CUSUM alarm threshold [combined standard errors]")
+        ->default_val(6.0);
+    sub->footer(
+        "From a result: the RLS estimates over time with the end of the transient, and the friction curve per\n"
+        "direction. From a history: per axis and parameter, each run's value with its uncertainty band, the baseline,\n"
+        "the alarm limits and the CUSUM, and the latest run's friction curve. The file needs no network to view.\n"
+        "Examples:\n"
+        "  feedid identify x.csv --json result.json && feedid report result.json -o x.html\n"
+        "  feedid report shop.db --machine DMU50 -o health.html");
+    return [arguments] { return run_report(*arguments); };
 }
 
 }  // namespace feedid::cli

@@ -49,6 +49,8 @@ const char* const migrations[] = {
     "CREATE TABLE baselines ("
     "  machine TEXT NOT NULL, axis TEXT NOT NULL, run_id INTEGER NOT NULL REFERENCES runs (id),"
     "  pinned_at TEXT NOT NULL, PRIMARY KEY (machine, axis));",
+    // 3: the result document (without the RLS history) for the report's friction curve
+    "ALTER TABLE runs ADD COLUMN result_json TEXT NOT NULL DEFAULT '{}';",
 };
 static_assert(std::size(migrations) == sqlite_schema_version);
 
@@ -180,21 +182,29 @@ public:
         const std::string options_json = run.options.dump();
         const std::string fit_json = run.fit.dump();
         const std::string diagnostics_json = nlohmann::json(run.diagnostics).dump();
+        const std::string result_json = run.result.is_object() ? run.result.dump() : std::string("{}");
         const std::string stored_at = run.stored_at.empty() ? now_utc() : run.stored_at;
         return write_transaction([&] {
             Statement existing(db_, "SELECT id FROM runs WHERE trace_sha256 = ?1 AND options_json = ?2", path_);
             existing.bind(1, run.trace_sha256).bind(2, options_json);
             if (existing.step()) return AddOutcome{existing.integer(0), false};
 
+            // A file kept at an older schema (tests of the migrations) has no result_json column.
+            const bool with_result = schema_version_ >= 3;
             Statement insert(db_,
-                             "INSERT INTO runs (machine, axis, location, recorded_at, trace_path, trace_sha256, "
-                             "feedid_version, model, status, options_json, fit_json, diagnostics_json, stored_at) "
-                             "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)",
+                             with_result
+                                 ? "INSERT INTO runs (machine, axis, location, recorded_at, trace_path, trace_sha256, "
+                                   "feedid_version, model, status, options_json, fit_json, diagnostics_json, stored_at, "
+                                   "result_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)"
+                                 : "INSERT INTO runs (machine, axis, location, recorded_at, trace_path, trace_sha256, "
+                                   "feedid_version, model, status, options_json, fit_json, diagnostics_json, stored_at) "
+                                   "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)",
                              path_);
             insert.bind(1, run.machine).bind(2, run.axis).bind(3, run.location).bind(4, run.recorded_at);
             insert.bind(5, run.trace_path).bind(6, run.trace_sha256).bind(7, run.feedid_version).bind(8, run.model);
             insert.bind(9, run.status).bind(10, options_json).bind(11, fit_json).bind(12, diagnostics_json);
             insert.bind(13, stored_at);
+            if (with_result) insert.bind(14, result_json);
             insert.step();
             count_write_statement();
             const std::int64_t id = sqlite3_last_insert_rowid(db_);
@@ -220,7 +230,8 @@ public:
             Statement select(db_,
                              (std::string("SELECT r.id, r.machine, r.axis, r.location, r.recorded_at, r.trace_path, "
                                           "r.trace_sha256, r.feedid_version, r.model, r.status, r.options_json, "
-                                          "r.fit_json, r.diagnostics_json, r.stored_at FROM runs r") +
+                                          "r.fit_json, r.diagnostics_json, r.stored_at, ") +
+                                  (schema_version_ >= 3 ? "r.result_json" : "'{}'") + " FROM runs r" +
                               where + " ORDER BY r.recorded_at, r.id")
                                  .c_str(),
                              path_);
@@ -245,6 +256,7 @@ public:
                     for (const auto& line : diagnostics)
                         if (line.is_string()) run.diagnostics.push_back(line.get<std::string>());
                 run.stored_at = select.text(13);
+                run.result = parse_stored_json(select.text(14), run.id);
                 index[run.id] = result.size();
                 result.push_back(std::move(run));
             }
@@ -481,6 +493,8 @@ RunRecord run_from_result(const nlohmann::json& result, const std::string& sourc
     if (result.contains("diagnostics") && result["diagnostics"].is_array())
         for (const auto& line : result["diagnostics"])
             if (line.is_string()) run.diagnostics.push_back(line.get<std::string>());
+    run.result = result;
+    if (run.result.contains("rls") && run.result["rls"].is_object()) run.result["rls"].erase("history");
     return run;
 }
 

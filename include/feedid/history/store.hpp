@@ -46,6 +46,9 @@ struct RunRecord {
     nlohmann::json fit = nlohmann::json::object();      ///< {relative_error_pct, condition_number, samples_used}
     std::vector<std::string> diagnostics;
     std::string stored_at;          ///< when the store wrote it, ISO 8601 UTC
+    /// The result document as recorded, without the bulky RLS history (keeps the friction curve, selection and
+    /// Stribeck fit for the report); an empty object for runs stored before schema version 3.
+    nlohmann::json result = nlohmann::json::object();
 };
 
 /// Which runs to list; empty fields match everything.
@@ -86,7 +89,7 @@ public:
 };
 
 /// The newest schema this build writes (PRAGMA user_version of the SQLite file).
-inline constexpr int sqlite_schema_version = 2;
+inline constexpr int sqlite_schema_version = 3;
 
 struct SqliteOpenOptions {
     bool read_only{false};   ///< open for reading only; the file must exist and is never written

@@ -1,0 +1,105 @@
+#pragma once
+// The report people look at: SVG plots written by feedid itself and one self-contained HTML file (no script, no font,
+// no stylesheet from the network) that holds them.
+//
+// From an identify result document: the RLS estimates over time with the detected transient (the paper's Fig. 3 and
+// 4) and the measured friction against speed with the fitted curve per direction (Fig. 5). From a history: per axis
+// and parameter, the values of every run with their uncertainty band (value +- 2 standard errors), the baseline
+// mean, the one-run alarm limits and the runs in alarm, and the CUSUM with its decision interval; plus the latest
+// run's friction curve when the stored result holds one.
+//
+// Every plot has a title and both axes labelled with their unit; each SVG is well-formed XML on its own.
+
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "feedid/history/store.hpp"
+#include "feedid/history/trend.hpp"
+
+namespace feedid::report {
+
+/// One data series of a plot.
+struct Series {
+    enum class Style { line, points, line_and_points, step };
+    std::string name;                 ///< legend entry ("" = not in the legend)
+    std::vector<double> x;
+    std::vector<double> y;            ///< same length as x; non-finite values are gaps
+    std::vector<double> band;         ///< empty, or half-widths: a shaded band y +- band
+    Style style{Style::line};
+    std::string colour{"#1f77b4"};
+    bool dashed{false};
+    std::vector<std::string> tooltips;  ///< empty, or one per point (an SVG <title> on each marker)
+};
+
+/// A horizontal line across the plot (a baseline, a limit, a final value).
+struct HorizontalLine {
+    std::string label;
+    double y{0.0};
+    std::string colour{"#555555"};
+    bool dashed{true};
+};
+
+/// A vertical line (the end of the RLS transient).
+struct VerticalLine {
+    std::string label;
+    double x{0.0};
+    std::string colour{"#555555"};
+};
+
+/// A highlighted point (a run in alarm).
+struct Highlight {
+    double x{0.0};
+    double y{0.0};
+    std::string label;  ///< tooltip
+};
+
+struct Plot {
+    std::string id;       ///< element id of the <svg> (letters, digits, '-')
+    std::string title;    ///< shown above the plot and as the SVG's <title>
+    std::string x_label;  ///< with the unit: "time [s]"
+    std::string y_label;  ///< with the unit: "Coulomb friction F_C [N]"
+    std::vector<Series> series;
+    std::vector<HorizontalLine> horizontal;
+    std::vector<VerticalLine> vertical;
+    std::vector<Highlight> highlights;
+    bool log_x{false};    ///< logarithmic x axis (every x must be > 0)
+    double width{760.0};  ///< [px]
+    double height{340.0};  ///< [px]
+};
+
+/// The plot as a standalone SVG element (well-formed XML, the SVG namespace declared).
+std::string render_svg(const Plot& plot);
+
+/// Escapes &, <, >, " and ' for XML text and attribute values.
+std::string escape_xml(std::string_view text);
+
+/// Human name and unit of a result-document parameter key: "coulomb_forward_N" -> {"Coulomb friction F_C+", "N"}.
+struct ParameterLabel {
+    std::string name;
+    std::string unit;
+};
+ParameterLabel parameter_label(const std::string& key);
+
+/// Plots of an identify result document: RLS histories (one per parameter, with the transient end and the batch
+/// value) and the friction curve. InputError naming `source` when the document is not an identify result.
+std::vector<Plot> result_plots(const nlohmann::json& result, const std::string& source);
+
+/// Plots of a history: for each axis and parameter with a trend, the values with their band, baseline, one-run alarm
+/// limits and alarms, and the CUSUM; the latest run's friction curve of each axis when stored.
+std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
+                                const std::vector<history::SeriesTrend>& trends,
+                                const history::TrendOptions& options);
+
+/// The whole HTML page of an identify result document (parameter table, diagnostics, plots).
+std::string result_report_html(const nlohmann::json& result, const std::string& source);
+
+/// The whole HTML page of a history (per axis: runs, alarms, trend and CUSUM plots, latest friction curve).
+std::string history_report_html(const std::vector<history::RunRecord>& runs,
+                                const std::vector<history::SeriesTrend>& trends,
+                                const history::TrendOptions& options, const std::string& source);
+
+}  // namespace feedid::report

@@ -1,0 +1,459 @@
+// The plots of an identify result and of a history, and the self-contained HTML pages that hold them.
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <filesystem>
+#include <limits>
+#include <cmath>
+#include <map>
+#include <set>
+
+#include <fmt/core.h>
+
+#include "feedid/error.hpp"
+#include "feedid/report.hpp"
+#include "feedid/version.hpp"
+
+namespace feedid::report {
+namespace {
+
+constexpr const char* blue = "#1f77b4";
+constexpr const char* orange = "#ff7f0e";
+constexpr const char* green = "#2ca02c";
+constexpr const char* red = "#d62728";
+constexpr const char* grey = "#555555";
+
+// Plots of RLS histories hold at most this many points: enough for the shape of a transient, small enough for a
+// browser to draw dozens of plots at once.
+constexpr std::size_t max_plot_points = 800;
+
+std::string slug(const std::string& text) {
+    std::string out;
+    for (const char c : text) {
+        if (std::isalnum(static_cast<unsigned char>(c))) out += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        else if (!out.empty() && out.back() != '-') out += '-';
+    }
+    while (!out.empty() && out.back() == '-') out.pop_back();
+    return out.empty() ? "plot" : out;
+}
+
+std::vector<double> numbers(const nlohmann::json& array) {
+    std::vector<double> out;
+    if (!array.is_array()) return out;
+    out.reserve(array.size());
+    for (const auto& value : array) out.push_back(value.is_number() ? value.get<double>() : std::nan(""));
+    return out;
+}
+
+std::optional<double> number_at(const nlohmann::json& object, const char* key) {
+    if (object.is_object() && object.contains(key) && object[key].is_number()) return object[key].get<double>();
+    return std::nullopt;
+}
+
+std::string with_unit(const ParameterLabel& label) { return fmt::format("{} [{}]", label.name, label.unit); }
+
+std::string format_estimate(const std::optional<double>& value, const std::optional<double>& error,
+                            const std::string& unit) {
+    if (!value) return "—";
+    if (!error) return fmt::format("{:.5g} {}", *value, unit);
+    return fmt::format("{:.5g} ± {:.2g} {}", *value, *error, unit);
+}
+
+/// The friction curve of a result document (measured bins and the fitted model per direction), if it holds one.
+std::optional<Plot> friction_curve_plot(const nlohmann::json& result, const std::string& id, const std::string& title) {
+    if (!result.is_object() || !result.contains("friction_curve") || !result["friction_curve"].is_object())
+        return std::nullopt;
+    const auto& curve = result["friction_curve"];
+    const bool rotary = result.value("rotary", false);
+    const std::string velocity_key = rotary ? "velocity_rad_per_s" : "velocity_m_per_s";
+    const std::string force_key = rotary ? "torque_Nm" : "force_N";
+    Plot plot;
+    plot.id = id;
+    plot.title = title;
+    plot.x_label = rotary ? "speed |ω| [rad/s]" : "speed |v| [m/s]";
+    plot.y_label = rotary ? "friction torque [N·m]" : "friction force [N]";
+    double low = std::numeric_limits<double>::infinity();
+    double high = 0.0;
+    const std::array<std::pair<const char*, const char*>, 2> directions{{{"forward", blue}, {"reverse", orange}}};
+    for (const auto& [direction, colour] : directions) {
+        if (!curve.contains(direction) || !curve[direction].is_object()) continue;
+        const auto& branch = curve[direction];
+        Series measured;
+        measured.name = fmt::format("{}: measured (binned)", direction);
+        measured.x = numbers(branch.value(velocity_key, nlohmann::json::array()));
+        measured.y = numbers(branch.value(force_key, nlohmann::json::array()));
+        measured.style = Series::Style::points;
+        measured.colour = colour;
+        Series fitted;
+        fitted.name = fmt::format("{}: fitted model", direction);
+        fitted.x = measured.x;
+        fitted.y = numbers(branch.value("fitted_" + force_key, nlohmann::json::array()));
+        fitted.colour = colour;
+        for (const double v : measured.x)
+            if (std::isfinite(v) && v > 0.0) {
+                low = std::min(low, v);
+                high = std::max(high, v);
+            }
+        if (measured.x.empty()) continue;
+        plot.series.push_back(std::move(measured));
+        if (!fitted.y.empty()) plot.series.push_back(std::move(fitted));
+    }
+    if (plot.series.empty()) return std::nullopt;
+    // The Stribeck region lives at low speed: a logarithmic speed axis when the data span more than a decade and a
+    // half.
+    plot.log_x = high > 0.0 && high / low > 30.0;
+    return plot;
+}
+
+}  // namespace
+
+ParameterLabel parameter_label(const std::string& key) {
+    // Unit suffixes of the result document's keys, longest first where one ends another.
+    static const std::array<std::pair<const char*, const char*>, 8> units{{{"_Nms_per_rad", "N·m·s/rad"},
+                                                                           {"_Ns_per_m", "N·s/m"},
+                                                                           {"_rad_per_s", "rad/s"},
+                                                                           {"_m_per_s", "m/s"},
+                                                                           {"_kgm2", "kg·m²"},
+                                                                           {"_kg", "kg"},
+                                                                           {"_Nm", "N·m"},
+                                                                           {"_N", "N"}}};
+    static const std::map<std::string, std::pair<const char*, const char*>> names{
+        {"mass", {"Mass", "M"}},
+        {"inertia", {"Inertia", "J"}},
+        {"viscous", {"Viscous friction", "B"}},
+        {"coulomb", {"Coulomb friction", "F_C"}},
+        {"breakaway", {"Breakaway friction", "F_B"}},
+        {"stribeck_velocity", {"Stribeck velocity", "v_s"}},
+        {"offset", {"Offset", "F_0"}},
+    };
+    std::string stem = key;
+    std::string unit = "1";
+    for (const auto& [suffix, display] : units) {
+        const std::string_view s(suffix);
+        if (stem.size() > s.size() && stem.compare(stem.size() - s.size(), s.size(), s) == 0) {
+            stem.resize(stem.size() - s.size());
+            unit = display;
+            break;
+        }
+    }
+    std::string direction;
+    for (const char* d : {"forward", "reverse"}) {
+        const std::string suffix = std::string("_") + d;
+        if (stem.size() > suffix.size() && stem.compare(stem.size() - suffix.size(), suffix.size(), suffix) == 0) {
+            stem.resize(stem.size() - suffix.size());
+            direction = d;
+        }
+    }
+    const auto found = names.find(stem);
+    if (found == names.end()) return {key, unit};
+    std::string name = fmt::format("{} {}", found->second.first, found->second.second);
+    if (!direction.empty()) name += fmt::format("{} ({})", direction == "forward" ? "+" : "−", direction);
+    return {name, unit};
+}
+
+std::vector<Plot> result_plots(const nlohmann::json& result, const std::string& source) {
+    (void)history::run_from_result(result, source);  // InputError when it is not an identify result
+    std::vector<Plot> plots;
+    if (result.contains("rls") && result["rls"].is_object() && result["rls"].contains("history") &&
+        result["rls"]["history"].is_object()) {
+        const auto& rls = result["rls"];
+        const auto& recorded = rls["history"];
+        const auto time = numbers(recorded.value("time_s", nlohmann::json::array()));
+        const std::size_t stride = std::max<std::size_t>(1, (time.size() + max_plot_points - 1) / max_plot_points);
+        const auto transient_end = number_at(rls, "transient_end_s");
+        for (const auto& [key, values_json] : recorded.items()) {
+            if (key == "time_s") continue;
+            const auto values = numbers(values_json);
+            const auto label = parameter_label(key);
+            Plot plot;
+            plot.id = "rls-" + slug(key);
+            plot.title = fmt::format("RLS estimate of {} over time", label.name);
+            plot.x_label = "time [s]";
+            plot.y_label = with_unit(label);
+            Series series;
+            series.name = "RLS estimate";
+            for (std::size_t i = 0; i < time.size() && i < values.size(); i += stride) {
+                series.x.push_back(time[i]);
+                series.y.push_back(values[i]);
+            }
+            plot.series.push_back(std::move(series));
+            if (result["parameters"].contains(key)) {
+                const auto& parameter = result["parameters"][key];
+                if (const auto value = number_at(parameter, "value")) {
+                    plot.horizontal.push_back({"batch least-squares value", *value, green, true});
+                    if (const auto error = number_at(parameter, "stderr"); error && *error > 0.0) {
+                        plot.horizontal.push_back({"± 2 standard errors", *value + 2.0 * *error, "#98df8a", true});
+                        plot.horizontal.push_back({"", *value - 2.0 * *error, "#98df8a", true});
+                    }
+                }
+            }
+            if (transient_end) plot.vertical.push_back({"transient ends", *transient_end, red});
+            plots.push_back(std::move(plot));
+        }
+    }
+    if (auto curve = friction_curve_plot(result, "friction-curve", "Friction against speed, measured and fitted"))
+        plots.push_back(std::move(*curve));
+    return plots;
+}
+
+std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
+                                const std::vector<history::SeriesTrend>& trends,
+                                const history::TrendOptions& options) {
+    std::vector<Plot> plots;
+    for (const auto& trend : trends) {
+        // Runs of this axis in recording order; the plots' x axis is the position in that order.
+        std::vector<const history::RunRecord*> series_runs;
+        for (const auto& run : runs)
+            if (run.machine == trend.machine && run.axis == trend.axis) series_runs.push_back(&run);
+        std::stable_sort(series_runs.begin(), series_runs.end(), [](const auto* a, const auto* b) {
+            return a->recorded_at != b->recorded_at ? a->recorded_at < b->recorded_at : a->id < b->id;
+        });
+        std::map<std::int64_t, double> ordinal;
+        for (std::size_t i = 0; i < series_runs.size(); ++i) ordinal[series_runs[i]->id] = static_cast<double>(i + 1);
+        const std::string where = fmt::format("machine '{}' axis '{}'", trend.machine, trend.axis);
+        const std::string prefix = slug(trend.machine + "-" + trend.axis);
+        std::optional<double> baseline_end;
+        if (!trend.baseline_run_ids.empty() && ordinal.count(trend.baseline_run_ids.back()))
+            baseline_end = ordinal[trend.baseline_run_ids.back()] + 0.5;
+
+        for (const auto& parameter : trend.parameters) {
+            const auto label = parameter_label(parameter.key);
+            Plot values;
+            values.id = fmt::format("trend-{}-{}", prefix, slug(parameter.key));
+            values.title = fmt::format("{} — {}", label.name, where);
+            values.x_label = "run (recording order)";
+            values.y_label = with_unit(label);
+            Series series;
+            series.name = "value ± 2 standard errors";
+            series.style = Series::Style::line_and_points;
+            Series upper;
+            upper.name = fmt::format("one-run alarm limit: baseline ± (h + k) σ = ± {:g} σ",
+                                     options.cusum_h + options.cusum_k);
+            upper.style = Series::Style::step;
+            upper.colour = red;
+            upper.dashed = true;
+            Series lower = upper;
+            lower.name.clear();
+            for (const auto& point : parameter.points) {
+                if (!point.value || !ordinal.count(point.run_id)) continue;
+                const double x = ordinal[point.run_id];
+                series.x.push_back(x);
+                series.y.push_back(*point.value);
+                series.band.push_back(point.standard_error ? 2.0 * *point.standard_error : 0.0);
+                series.tooltips.push_back(fmt::format("run #{} recorded {}: {}", point.run_id, point.recorded_at,
+                                                      format_estimate(point.value, point.standard_error, label.unit)));
+                if (point.role != history::RunRole::before_baseline && point.sigma && parameter.baseline_mean) {
+                    const double limit = (options.cusum_h + options.cusum_k) * *point.sigma;
+                    upper.x.push_back(x);
+                    upper.y.push_back(*parameter.baseline_mean + limit);
+                    lower.x.push_back(x);
+                    lower.y.push_back(*parameter.baseline_mean - limit);
+                }
+                if (point.alarm)
+                    values.highlights.push_back(
+                        {x, *point.value, fmt::format("drift alarm at run #{} ({})", point.run_id, point.recorded_at)});
+            }
+            values.series.push_back(std::move(series));
+            if (!upper.x.empty()) {
+                values.series.push_back(std::move(upper));
+                values.series.push_back(std::move(lower));
+            }
+            if (parameter.baseline_mean)
+                values.horizontal.push_back({"baseline mean", *parameter.baseline_mean, green, false});
+            if (baseline_end) values.vertical.push_back({"baseline ends", *baseline_end, grey});
+            plots.push_back(std::move(values));
+
+            if (!parameter.note.empty() || !trend.baseline_complete) continue;
+            Plot cusum;
+            cusum.id = fmt::format("cusum-{}-{}", prefix, slug(parameter.key));
+            cusum.title = fmt::format("CUSUM of {} — {}", label.name, where);
+            cusum.x_label = "run (recording order)";
+            cusum.y_label = "CUSUM [combined standard errors]";
+            Series up;
+            up.name = "S+ (rise)";
+            up.style = Series::Style::line_and_points;
+            up.colour = red;
+            Series down;
+            down.name = "S− (fall)";
+            down.style = Series::Style::line_and_points;
+            down.colour = blue;
+            for (const auto& point : parameter.points) {
+                if (point.role != history::RunRole::checked || !point.z || !ordinal.count(point.run_id)) continue;
+                const double x = ordinal[point.run_id];
+                up.x.push_back(x);
+                up.y.push_back(point.cusum_up);
+                down.x.push_back(x);
+                down.y.push_back(point.cusum_down);
+                if (point.alarm)
+                    cusum.highlights.push_back({x, std::max(point.cusum_up, point.cusum_down),
+                                                fmt::format("drift alarm at run #{}", point.run_id)});
+            }
+            if (up.x.empty()) continue;
+            cusum.series.push_back(std::move(up));
+            cusum.series.push_back(std::move(down));
+            cusum.horizontal.push_back({fmt::format("decision interval h = {:g}", options.cusum_h), options.cusum_h, red,
+                                        true});
+            plots.push_back(std::move(cusum));
+        }
+
+        // The latest run whose stored result holds a friction curve.
+        for (auto run = series_runs.rbegin(); run != series_runs.rend(); ++run) {
+            auto curve = friction_curve_plot(
+                (*run)->result, fmt::format("friction-{}", prefix),
+                fmt::format("Friction against speed — {}, latest run #{} ({})", where, (*run)->id, (*run)->recorded_at));
+            if (curve) {
+                plots.push_back(std::move(*curve));
+                break;
+            }
+        }
+    }
+    return plots;
+}
+
+namespace {
+
+constexpr const char* page_style = R"(
+body { font-family: sans-serif; margin: 2em auto; max-width: 1000px; color: #222; }
+h1 { font-size: 1.5em; } h2 { font-size: 1.25em; margin-top: 2em; border-bottom: 1px solid #ccc; }
+table { border-collapse: collapse; margin: 1em 0; font-size: 0.9em; }
+th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; }
+th { background: #f3f3f3; } td.text, th.text { text-align: left; }
+figure { margin: 1.5em 0; } figcaption { font-size: 0.85em; color: #555; }
+.alarm { color: #b00; font-weight: bold; } .note { color: #555; }
+)";
+
+std::string page(const std::string& title, const std::string& body) {
+    return fmt::format("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{}</title>\n"
+                       "<style>{}</style>\n</head>\n<body>\n<h1>{}</h1>\n{}<p class=\"note\">Written by feedid {}.</p>\n"
+                       "</body>\n</html>\n",
+                       escape_xml(title), page_style, escape_xml(title), body, feedid::version);
+}
+
+std::string figure(const Plot& plot, const std::string& caption) {
+    return fmt::format("<figure>\n{}<figcaption>{}</figcaption>\n</figure>\n", render_svg(plot), escape_xml(caption));
+}
+
+}  // namespace
+
+std::string result_report_html(const nlohmann::json& result, const std::string& source) {
+    const auto plots = result_plots(result, source);
+    std::string body;
+    std::string trace_path = source;
+    if (result.contains("trace") && result["trace"].is_object() && result["trace"].contains("path") &&
+        result["trace"]["path"].is_string())
+        trace_path = result["trace"]["path"].get<std::string>();
+    body += fmt::format("<p>Trace <code>{}</code>; model <b>{}</b>; status <b>{}</b>.</p>\n", escape_xml(trace_path),
+                        escape_xml(result.value("model", std::string())),
+                        escape_xml(result.value("status", std::string("—"))));
+    body += "<table>\n<tr><th class=\"text\">parameter</th><th>value</th><th>standard error</th>"
+            "<th class=\"text\">unit</th></tr>\n";
+    for (const auto& [key, entry] : result["parameters"].items()) {
+        const auto label = parameter_label(key);
+        const auto value = number_at(entry, "value");
+        const auto error = number_at(entry, "stderr");
+        body += fmt::format("<tr><td class=\"text\">{}</td><td>{}</td><td>{}</td><td class=\"text\">{}</td></tr>\n",
+                            escape_xml(label.name), value ? fmt::format("{:.6g}", *value) : "—",
+                            error ? fmt::format("{:.3g}", *error) : "—", escape_xml(label.unit));
+    }
+    body += "</table>\n";
+    if (result.contains("fit") && result["fit"].is_object()) {
+        const auto& fit = result["fit"];
+        body += fmt::format("<p>Step-1 batch least squares: relative error {} %, condition number {}, {} samples.</p>\n",
+                            number_at(fit, "relative_error_pct") ? fmt::format("{:.3g}", *number_at(fit, "relative_error_pct")) : "—",
+                            number_at(fit, "condition_number") ? fmt::format("{:.3g}", *number_at(fit, "condition_number")) : "—",
+                            number_at(fit, "samples_used") ? fmt::format("{:.0f}", *number_at(fit, "samples_used")) : "—");
+    }
+    if (result.contains("diagnostics") && result["diagnostics"].is_array() && !result["diagnostics"].empty()) {
+        body += "<h2>Diagnostics</h2>\n<ul>\n";
+        for (const auto& line : result["diagnostics"])
+            if (line.is_string()) body += fmt::format("<li>{}</li>\n", escape_xml(line.get<std::string>()));
+        body += "</ul>\n";
+    }
+    body += "<h2>Plots</h2>\n";
+    if (plots.empty()) body += "<p class=\"note\">The result holds neither an RLS history nor a friction curve.</p>\n";
+    for (const auto& plot : plots) {
+        const bool rls = plot.id.rfind("rls-", 0) == 0;
+        body += figure(plot, rls ? "The recursive estimate against time; the dashed red line marks where the RLS "
+                                   "transient ends (estimates within 2 % or 3 standard errors of their final value), "
+                                   "the green line is the batch least-squares value of the same samples."
+                                 : "Quasi-static friction binned by speed, per direction, with the fitted model "
+                                   "(viscous, Coulomb and, where identified, Stribeck terms).");
+    }
+    body += "<p class=\"note\">Tracking-error plots need a simulation (feedid simulate); they are not part of an "
+            "identify result.</p>\n";
+    return page(fmt::format("feedid identification report: {}", std::filesystem::path(trace_path).filename().string()),
+                body);
+}
+
+std::string history_report_html(const std::vector<history::RunRecord>& runs,
+                                const std::vector<history::SeriesTrend>& trends,
+                                const history::TrendOptions& options, const std::string& source) {
+    std::string body;
+    std::size_t alarm_count = 0;
+    for (const auto& trend : trends) alarm_count += trend.alarms.size();
+    body += fmt::format("<p>History <code>{}</code>: {} run(s) of {} axis/axes. Baseline: the first {} runs of each "
+                        "axis (or from a pinned run); CUSUM allowance k = {:g}, decision interval h = {:g} "
+                        "(combined standard errors).</p>\n",
+                        escape_xml(source), runs.size(), trends.size(), options.baseline_runs, options.cusum_k,
+                        options.cusum_h);
+    body += alarm_count == 0 ? std::string("<p>No drift alarm.</p>\n")
+                             : fmt::format("<p class=\"alarm\">{} drift alarm(s).</p>\n", alarm_count);
+    for (const auto& trend : trends) {
+        body += fmt::format("<h2>Machine {} — axis {}</h2>\n", escape_xml(trend.machine), escape_xml(trend.axis));
+        if (!trend.alarms.empty()) {
+            body += "<ul>\n";
+            for (const auto& alarm : trend.alarms)
+                body += fmt::format("<li class=\"alarm\">{}</li>\n", escape_xml(alarm.message()));
+            body += "</ul>\n";
+        }
+        for (const auto& note : trend.notes) body += fmt::format("<p class=\"note\">{}</p>\n", escape_xml(note));
+        // Table of runs.
+        std::set<std::string> keys;
+        std::vector<const history::RunRecord*> series_runs;
+        for (const auto& run : runs)
+            if (run.machine == trend.machine && run.axis == trend.axis) {
+                series_runs.push_back(&run);
+                for (const auto& [key, estimate] : run.parameters) keys.insert(key);
+            }
+        body += "<table>\n<tr><th>run</th><th class=\"text\">recorded at</th><th class=\"text\">location</th>";
+        for (const auto& key : keys) body += fmt::format("<th>{}</th>", escape_xml(with_unit(parameter_label(key))));
+        body += "</tr>\n";
+        for (const auto* run : series_runs) {
+            body += fmt::format("<tr><td>#{}</td><td class=\"text\">{}</td><td class=\"text\">{}</td>", run->id,
+                                escape_xml(run->recorded_at), escape_xml(run->location));
+            for (const auto& key : keys) {
+                const auto found = run->parameters.find(key);
+                std::string cell = "—";
+                if (found != run->parameters.end() && found->second.value)
+                    cell = found->second.standard_error
+                               ? fmt::format("{:.5g} ± {:.2g}", *found->second.value, *found->second.standard_error)
+                               : fmt::format("{:.5g}", *found->second.value);
+                bool in_alarm = false;
+                for (const auto& parameter : trend.parameters)
+                    if (parameter.key == key)
+                        for (const auto& point : parameter.points) in_alarm |= point.run_id == run->id && point.alarm;
+                body += in_alarm ? fmt::format("<td class=\"alarm\">{} !</td>", escape_xml(cell))
+                                 : fmt::format("<td>{}</td>", escape_xml(cell));
+            }
+            body += "</tr>\n";
+        }
+        body += "</table>\n";
+        for (const auto& plot : history_plots(runs, {trend}, options)) {
+            std::string caption;
+            if (plot.id.rfind("trend-", 0) == 0)
+                caption = "Each run's value with a band of ± 2 standard errors, the baseline mean, and the change that "
+                          "raises the alarm in a single run; a red ring marks a run in alarm.";
+            else if (plot.id.rfind("cusum-", 0) == 0)
+                caption = "Two-sided CUSUM of the change in combined standard errors over the runs after the baseline; "
+                          "the alarm fires when it crosses h.";
+            else
+                caption = "Quasi-static friction of the latest run with a stored friction curve, per direction, with "
+                          "the fitted model.";
+            body += figure(plot, caption);
+        }
+    }
+    return page(fmt::format("feedid health report: {}", std::filesystem::path(source).filename().string()), body);
+}
+
+}  // namespace feedid::report
