@@ -162,9 +162,17 @@ Session read_session(std::string_view xml, const std::string& source) {
                                      parsed.description()));
     }
     const auto session_node = document.child("traceSession");
-    if (!session_node) throw InputError(fmt::format("{}: no <traceSession> element: not a SINUMERIK trace", source));
+    if (!session_node) {
+        const auto root = document.document_element();
+        if (!root) throw InputError(fmt::format("{}: no <traceSession> element: not a SINUMERIK trace", source));
+        throw InputError(fmt::format("{}: line {}: the root element is <{}>, not <traceSession>: not a SINUMERIK trace",
+                                     source, line_of_node(xml, root), root.name()));
+    }
     const auto data = session_node.child("traceData");
-    if (!data) throw InputError(fmt::format("{}: <traceSession> holds no <traceData> element", source));
+    if (!data) {
+        throw InputError(fmt::format("{}: line {}: <traceSession> holds no <traceData> element", source,
+                                     line_of_node(xml, session_node)));
+    }
     const auto frame = data.child("dataFrame");
     if (!frame) throw InputError(fmt::format("{}: line {}: <traceData> holds no <dataFrame>", source, line_of_node(xml, data)));
 
