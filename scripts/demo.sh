@@ -40,8 +40,10 @@ echo "== feedid info $trace"
 echo
 
 echo "== feedid identify $trace --force-constant force_constant_N_per_A"
+failed=0
+rm -f "$out/demo-result.json" "$out/demo-gains.json"
 if "$feedid" identify "$trace" --force-constant force_constant_N_per_A --json "$out/demo-result.json" \
-     > "$out/demo-identify.txt" 2>/dev/null; then
+     > "$out/demo-identify.txt" 2> "$out/demo-identify.err"; then
   cat "$out/demo-identify.txt"
   echo
   echo "   identified beside the true values:"
@@ -72,20 +74,38 @@ if "$feedid" identify "$trace" --force-constant force_constant_N_per_A --json "$
 else
   status=$?
   cat "$out/demo-identify.txt" 2>/dev/null
+  cat "$out/demo-identify.err" >&2
   echo "demo: feedid identify exited with $status (see its message above)" >&2
+  failed=$status
 fi
 echo
 
 echo "== feedid gains $trace --force-constant force_constant_N_per_A"
-"$feedid" gains "$trace" --force-constant force_constant_N_per_A --json "$out/demo-gains.json" 2>/dev/null ||
-  echo "demo: feedid gains exited with $? (see its message above)" >&2
-echo "   true: K_v 33.3333 1/s (2 (m/min)/mm), K_p 40000 N*s/m, K_i 2e+06 N/m (T_n 20 ms)"
+# (stderr only on failure: it holds the notes on channel roles guessed from their names, which feedid info showed)
+"$feedid" gains "$trace" --force-constant force_constant_N_per_A --json "$out/demo-gains.json" 2> "$out/demo-gains.err"
+status=$?
+if [ $status -ne 0 ]; then
+  cat "$out/demo-gains.err" >&2
+  echo "demo: feedid gains exited with $status (see its message above)" >&2
+  [ $failed -eq 0 ] && failed=$status
+fi
+# The true gains: the trace's '# true_... = value' lines.
+awk '/^# true_position_gain_per_s / { kv = $4 } /^# true_velocity_gain_N_s_per_m / { kp = $4 }
+     /^# true_velocity_integral_gain_N_per_m / { ki = $4 }
+     END { printf "   true: K_v %.6g 1/s (%.4g (m/min)/mm), K_p %.6g N*s/m, K_i %.6g N/m", kv, kv * 0.06, kp, ki
+           if (ki > 0) printf " (T_n %.4g ms)", 1000 * kp / ki
+           printf "\n" }' "$trace"
 echo
 
 if [ -s "$out/demo-result.json" ] && [ -s "$out/demo-gains.json" ]; then
   echo "== feedid simulate $trace --result demo-result.json --gains demo-gains.json"
   "$feedid" simulate "$trace" --force-constant force_constant_N_per_A --result "$out/demo-result.json" \
-    --gains "$out/demo-gains.json" 2>/dev/null ||
-    echo "demo: feedid simulate exited with $? (see its message above)" >&2
+    --gains "$out/demo-gains.json" 2> "$out/demo-simulate.err"
+  status=$?
+  if [ $status -ne 0 ]; then
+    cat "$out/demo-simulate.err" >&2
+    echo "demo: feedid simulate exited with $status (see its message above)" >&2
+    [ $failed -eq 0 ] && failed=$status
+  fi
 fi
-exit 0
+exit $failed

@@ -9,10 +9,14 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "feedid/error.hpp"
 #include "feedid/friction_map.hpp"
+#include "feedid/io/csv.hpp"
 #include "feedid/synth.hpp"
 #include "feedid/testplan.hpp"
+#include "testing.hpp"
 
 namespace {
 
@@ -135,6 +139,58 @@ TEST(FrictionMap, HigherCoulombFrictionShowsAtItsCentreOnly) {
             EXPECT_NE(finding.find("centre 0.000 mm"), std::string::npos) << finding;
         }
     }
+}
+
+// The same through the command line, as a maintenance engineer runs it on the recorded trace:
+// `feedid identify FILE --by-location` shows the worn centre, and only that one.
+TEST(FrictionMap, IdentifyByLocationOnTheCommandLine) {
+    const double worn = 1.3;
+    const auto trace = multi_centre_trace(worn);
+    const auto dir = std::filesystem::temp_directory_path() / "feedid-tests" / "files.FrictionMap.ByLocationCli";
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    const auto csv = dir / "three-centres.csv";
+    feedid::testing::write_text(csv, feedid::write_csv(trace));
+    const std::string file = "'" + csv.string() + "'";
+    const double true_coulomb = feedid::demo_spec().axis.friction.forward.coulomb;
+
+    const auto result = feedid::testing::run_cli("identify " + file +
+                                                 " --force-constant force_constant_N_per_A --by-location --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto document = nlohmann::json::parse(result.out);
+    EXPECT_TRUE(document.at("centers_detected").get<bool>());
+    const auto& locations = document.at("locations");
+    ASSERT_EQ(locations.size(), 3u);
+    for (std::size_t k = 0; k < 3; ++k) {
+        const auto& entry = locations.at(k);
+        EXPECT_NEAR(entry.at("center_m").get<double>(), centers[k], 1e-4);
+        const double expected = k == 1 ? worn * true_coulomb : true_coulomb;
+        EXPECT_NEAR(entry.at("parameters").at("coulomb_N").at("value").get<double>(), expected, 0.02 * expected)
+            << "centre " << k + 1;
+        EXPECT_EQ(stands_out(entry, "coulomb_N"), k == 1) << entry.dump();
+    }
+
+    // The table: one row per centre, the worn one marked, and the finding in words.
+    const auto printed = feedid::testing::run_cli("identify " + file +
+                                                  " --force-constant force_constant_N_per_A --by-location");
+    ASSERT_EQ(printed.exit_code, 0) << printed.err;
+    EXPECT_NE(printed.out.find("3 locations"), std::string::npos) << printed.out;
+    EXPECT_NE(printed.out.find("centre 0.000 mm: F_C"), std::string::npos) << printed.out;
+    EXPECT_EQ(printed.out.find("centre -250.000 mm: F_C"), std::string::npos) << printed.out;
+    EXPECT_EQ(printed.out.find("centre 250.000 mm: F_C"), std::string::npos) << printed.out;
+
+    // Given centres (mm) instead of detected ones; --centers alone is a usage error.
+    const auto given = feedid::testing::run_cli("identify " + file +
+                                                " --force-constant force_constant_N_per_A --by-location "
+                                                "--centers=250,-250,0 --json -");
+    ASSERT_EQ(given.exit_code, 0) << given.err;
+    const auto given_document = nlohmann::json::parse(given.out);
+    EXPECT_FALSE(given_document.at("centers_detected").get<bool>());
+    EXPECT_TRUE(stands_out(given_document.at("locations").at(1), "coulomb_N"));
+    const auto alone = feedid::testing::run_cli("identify " + file + " --force-constant force_constant_N_per_A "
+                                                "--centers=0");
+    EXPECT_EQ(alone.exit_code, 2);
+    EXPECT_EQ(feedid::testing::count_lines(alone.err), 1) << alone.err;
 }
 
 TEST(FrictionMap, GivenCentresAndRefusals) {

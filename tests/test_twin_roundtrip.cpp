@@ -2,6 +2,8 @@
 // `feedid identify` and `feedid gains` on its output recover them; `feedid simulate` prints the paper's validation
 // table. For a symmetric drive, an asymmetric one and a vertical axis with an offset.
 #include <cmath>
+#include <sstream>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -181,10 +183,46 @@ TEST(TwinRoundTrip, ValidationTablePrintedSideBySide) {
     ASSERT_EQ(json.exit_code, 0) << json.err;
     const auto document = nlohmann::json::parse(json.out);
     const double machine = document["tracking_error_mae_m"]["machine"].get<double>();
+    const double model = document["tracking_error_mae_m"]["model"].get<double>();
+    const double modelling = document["modelling_error_mae_m"].get<double>();
     EXPECT_GT(machine, 1e-4);  // the ladder at K_v = 2 (m/min)/mm lags by up to 4.7 mm
-    EXPECT_NEAR(document["tracking_error_mae_m"]["model"].get<double>(), machine, 0.01 * machine);
-    EXPECT_LT(document["modelling_error_mae_m"].get<double>(), 0.01 * machine);
+    EXPECT_NEAR(model, machine, 0.01 * machine);
+    EXPECT_LT(modelling, 0.01 * machine);
     EXPECT_LT(document["relative_error_pct"]["position"].get<double>(), 0.05);
+
+    // The printed rows hold the same figures, in mm: model and machine side by side on one row, then the modelling
+    // error.
+    const auto numbers_after = [&](const std::string& label) {
+        std::vector<double> numbers;
+        const auto at = printed.out.find(label);
+        if (at == std::string::npos) return numbers;
+        std::istringstream row(printed.out.substr(at + label.size(), printed.out.find('\n', at) - at - label.size()));
+        double value = 0.0;
+        while (row >> value) numbers.push_back(value);
+        return numbers;
+    };
+    const auto tracking = numbers_after("mean absolute tracking error");
+    ASSERT_EQ(tracking.size(), 2u) << printed.out;
+    EXPECT_NEAR(tracking[0], model * 1e3, 1e-3 * model * 1e3) << printed.out;
+    EXPECT_NEAR(tracking[1], machine * 1e3, 1e-3 * machine * 1e3) << printed.out;
+    const auto modelling_row = numbers_after("mean absolute modelling error");
+    ASSERT_GE(modelling_row.size(), 1u) << printed.out;
+    EXPECT_NEAR(modelling_row[0], modelling * 1e3, 1e-3 * modelling * 1e3 + 1e-7) << printed.out;
+    const auto header = printed.out.find("model");
+    EXPECT_LT(header, printed.out.find("machine")) << "model column first, machine beside it";
+}
+
+}  // namespace
+
+namespace {
+
+TEST(TwinCli, HelpShowsAWorkedExampleForEachCommand) {
+    for (const std::string command : {"gains", "simulate", "synth"}) {
+        const auto help = feedid::testing::run_cli(command + " --help");
+        EXPECT_EQ(help.exit_code, 0) << command;
+        EXPECT_NE(help.out.find("Examples:"), std::string::npos) << command << ":\n" << help.out;
+        EXPECT_NE(help.out.find("\n  feedid " + command + " "), std::string::npos) << command << ":\n" << help.out;
+    }
 }
 
 }  // namespace

@@ -1,11 +1,14 @@
 // feedid identify FILE: mass and friction of the axis, with uncertainty (the paper's two-step RLS, done right).
+#include <algorithm>
 #include <cstdio>
 #include <memory>
+#include <vector>
 
 #include <fmt/core.h>
 
 #include "cli.hpp"
 #include "feedid/error.hpp"
+#include "feedid/friction_map.hpp"
 #include "feedid/identify.hpp"
 
 namespace feedid::cli {
@@ -23,6 +26,8 @@ struct IdentifyCommand {
     std::optional<double> cutoff, from, to, split, moving;
     std::optional<std::size_t> edge;
     std::string json_path;
+    bool by_location{false};
+    std::vector<double> centers_mm;
 
     void add_to(CLI::App& sub) {
         trace_arguments.add_to(sub);
@@ -33,6 +38,14 @@ struct IdentifyCommand {
         sub.add_flag("--offset", options.offset, "Also estimate a constant force offset (gravity, sensor offset)");
         sub.add_flag("--no-stribeck", no_stribeck, "Skip step 2 (breakaway friction and Stribeck velocity)");
         sub.add_option("--json", json_path, "Write the result document to PATH ('-' for stdout)");
+        auto* location = sub.add_option_group("Friction along the axis");
+        location->add_flag("--by-location", by_location,
+                           "Cut a multi-centre test (feedid plan --centers ...) by centre and identify each segment on "
+                           "its own: a friction map, in which a worn stretch of the screw stands out");
+        location->add_option("--centers", centers_mm,
+                             "Centres of the strokes C1,C2,... [mm] for --by-location (write --centers=-300,0,300); "
+                             "default: found from the strokes in the trace")
+            ->delimiter(',');
         auto* pre = sub.add_option_group("Preprocessing");
         pre->add_option("--differentiation", differentiation,
                         "How velocity and acceleration are obtained from position: butterworth (zero-phase low-pass, "
@@ -89,7 +102,9 @@ struct IdentifyCommand {
     int run() const {
         const IdentifyOptions o = resolved();
         if (const auto problem = o.validate(); !problem.empty()) throw InputError(problem);
+        if (!centers_mm.empty() && !by_location) throw InputError("--centers needs --by-location");
         const Trace trace = trace_arguments.read();
+        if (by_location) return run_by_location(trace, o);
         const IdentifyResult result = identify(trace, o);
         if (!json_path.empty()) write_json(result.document, json_path);
         if (json_path != "-") print_table(result);
@@ -101,6 +116,70 @@ struct IdentifyCommand {
             for (const auto& d : result.diagnostics) fmt::print(stderr, "feedid: {}\n", d);
         }
         return 0;
+    }
+
+    int run_by_location(const Trace& trace, const IdentifyOptions& o) const {
+        FrictionMapOptions map_options;
+        map_options.identify = o;
+        for (const double c : centers_mm) map_options.centers.push_back(c * 1e-3);
+        const FrictionMap map = friction_map(trace, map_options);
+        if (!json_path.empty()) write_json(map.document, json_path);
+        const bool any = std::any_of(map.locations.begin(), map.locations.end(),
+                                     [](const LocationResult& l) { return l.result.status != "failed"; });
+        if (json_path != "-") print_map(trace, map);
+        if (!any) {
+            std::string why;
+            for (const auto& location : map.locations) {
+                const std::string reason = location.error ? *location.error
+                                           : location.result.diagnostics.empty() ? std::string("not identified")
+                                                                                 : location.result.diagnostics.front();
+                why += fmt::format("{}centre {:.3f} mm: {}", why.empty() ? "" : "; ", location.center * 1e3, reason);
+            }
+            fmt::print(stderr, "feedid: no location could be identified ({})\n", why);
+            return 1;
+        }
+        return 0;
+    }
+
+    static void print_map(const Trace& trace, const FrictionMap& map) {
+        fmt::print("{}: friction along the axis, {} location{} ({})\n", trace.source_path, map.locations.size(),
+                   map.locations.size() == 1 ? "" : "s",
+                   map.centers_detected ? "centres found from the strokes" : "centres as given");
+        // Columns: every parameter that some location identified, in the pipeline's order.
+        std::vector<const Parameter*> columns;
+        for (const auto& location : map.locations) {
+            for (const auto& p : location.result.parameters) {
+                const bool seen = std::any_of(columns.begin(), columns.end(),
+                                              [&](const Parameter* c) { return c->key == p.key; });
+                if (!seen) columns.push_back(&p);
+            }
+        }
+        fmt::print("\n  {:>12} {:>17}", "centre [mm]", "time [s]");
+        for (const auto* c : columns) fmt::print(" {:>14}", fmt::format("{} [{}]", c->symbol, c->unit));
+        fmt::print("\n");
+        for (std::size_t l = 0; l < map.locations.size(); ++l) {
+            const auto& location = map.locations[l];
+            const auto& outstanding = map.document["locations"][l]["stands_out"];
+            fmt::print("  {:>12.3f} {:>17}", location.center * 1e3,
+                       fmt::format("{:.1f}..{:.1f}", location.from_s, location.to_s));
+            for (const auto* c : columns) {
+                const auto* p = location.result.find(c->key);
+                std::string cell = "—";
+                if (p != nullptr && p->estimate.value) {
+                    const bool marked = std::find(outstanding.begin(), outstanding.end(), c->key) != outstanding.end();
+                    cell = fmt::format("{:.5g}{}", *p->estimate.value, marked ? " *" : "");
+                }
+                fmt::print(" {:>14}", cell);
+            }
+            if (location.error) fmt::print("   ({})", *location.error);
+            fmt::print("\n");
+        }
+        fmt::print("\n");
+        if (map.findings.empty()) {
+            fmt::print("  no location stands out from the others\n");
+        } else {
+            for (const auto& finding : map.findings) fmt::print("  * {}\n", finding);
+        }
     }
 
     static void print_table(const IdentifyResult& result) {
@@ -153,6 +232,7 @@ Action add_identify_command(CLI::App& app) {
         "  feedid identify ../shared/data/emps/DATA_EMPS.mat --channel position=qm --channel current=vir \\\n"
         "      --force-constant gtau --offset --json -\n"
         "  feedid identify trace.csv --kt 1.45 --lead 10 --model asymmetric\n"
+        "  feedid identify multi-centre.csv --kt 1.45 --lead 10 --by-location --json map.json\n"
         "Exit codes: 0 identified (possibly with some parameters null: see diagnostics), 1 the data cannot identify "
         "the model (the message says why and what data would), 2 bad usage or bad input.");
     return [command] { return command->run(); };
