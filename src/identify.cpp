@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <deque>
+#include <functional>
 #include <numeric>
 
 #include <Eigen/Dense>
@@ -45,6 +47,29 @@ const Parameter* IdentifyResult::find(const std::string& key) const {
 namespace {
 
 using Json = nlohmann::json;
+
+/// The minimum (with std::less) or maximum (std::greater) of x over [k - half, k + half], for every k, in O(n)
+/// with a monotonic queue of indices.
+template <class Compare>
+std::vector<double> running_extreme(const std::vector<double>& x, std::size_t half, Compare better) {
+    const std::size_t n = x.size();
+    std::vector<double> out(n);
+    std::deque<std::size_t> queue;
+    std::size_t next = 0;  // the next index to enter the window
+    for (std::size_t k = 0; k < n; ++k) {
+        const std::size_t last = std::min(n - 1, k + half);
+        for (; next <= last; ++next) {
+            while (!queue.empty() && !better(x[queue.back()], x[next])) queue.pop_back();
+            queue.push_back(next);
+        }
+        while (queue.front() + half < k) queue.pop_front();
+        out[k] = x[queue.front()];
+    }
+    return out;
+}
+
+/// Fewer quasi-static samples than this below the split speed cannot determine F_B and v_s.
+constexpr std::size_t kMinimumSlowSamples = 20;
 
 // ---------------------------------------------------------------------------------------------------------------
 // Names: the result document's keys and units, linear or rotary, symmetric or per direction.
@@ -450,11 +475,20 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     selection.notes.push_back(fmt::format("{} samples at rest (|v| <= {:.3g} {}, 5x the velocity noise floor {:.3g})",
                                           n - moving.size(), threshold * naming.display_velocity_scale(),
                                           naming.display_velocity_unit(), noise_v * naming.display_velocity_scale()));
-    // Quasi-static samples: the velocity changes by less than a quarter within 50 ms (constant-velocity passes, not
-    // the ramps through reversals). Step 2 and the friction curve use only these.
-    auto steady = [&](std::size_t k) {
-        return std::abs(a_dec[k]) * 0.05 <= 0.25 * std::abs(v_dec[k]) + 3.0 * noise_v;
-    };
+    // Quasi-static samples: within 50 ms around them the velocity keeps its sign and stays within a quarter of its
+    // value (constant-velocity passes; not the ramps through reversals, nor stick-slip, where the velocity drops to
+    // zero and the friction is anywhere between the static limits). Step 2 and the friction curve use only these.
+    const std::vector<char> steady_flags = [&] {
+        const auto half = static_cast<std::size_t>(std::max(1.0, std::round(0.025 / (dt * decimation))));
+        const auto low = running_extreme(v_dec, half, std::less<>{});
+        const auto high = running_extreme(v_dec, half, std::greater<>{});
+        std::vector<char> flags(n, 0);
+        for (std::size_t k = 0; k < n; ++k) {
+            flags[k] = (low[k] > 0.0 || high[k] < 0.0) && high[k] - low[k] <= 0.25 * std::abs(v_dec[k]) + 6.0 * noise_v;
+        }
+        return flags;
+    }();
+    auto steady = [&](std::size_t k) { return steady_flags[k] != 0; };
     std::vector<double> steady_speeds;
     for (const auto k : moving) {
         if (steady(k)) steady_speeds.push_back(std::abs(v_dec[k]));
@@ -462,6 +496,7 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     const double typical_speed = percentile(steady_speeds.empty() ? std::vector<double>{max_speed} : steady_speeds, 0.95);
     double split = options.split_velocity.value_or(options.stribeck ? 0.1 * typical_speed : 0.0);
     split = std::max(split, threshold);
+    const double slow_band = split;  // the speeds below which step 2 looks for quasi-static samples
     selection.split_velocity = split;
 
     std::vector<std::size_t> step1, step2;
@@ -503,14 +538,57 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     }
 
     // ---- step 1: batch least squares (the certified reference) and RLS (the paper)
-    Eigen::MatrixXd phi(static_cast<Eigen::Index>(step1.size()), static_cast<Eigen::Index>(p));
-    Eigen::VectorXd y1(static_cast<Eigen::Index>(step1.size()));
-    std::vector<double> t1(step1.size());
-    for (std::size_t i = 0; i < step1.size(); ++i) {
-        for (std::size_t c = 0; c < p; ++c) phi(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(c)) = regressors[c][step1[i]];
-        y1(static_cast<Eigen::Index>(i)) = y[step1[i]];
-        t1[i] = t_dec[step1[i]];
+    auto regressor_matrix = [&](const std::vector<std::size_t>& rows) {
+        Eigen::MatrixXd m(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(p));
+        for (std::size_t i = 0; i < rows.size(); ++i) {
+            for (std::size_t c = 0; c < p; ++c) m(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(c)) = regressors[c][rows[i]];
+        }
+        return m;
+    };
+    auto output_vector = [&](const std::vector<std::size_t>& rows) {
+        Eigen::VectorXd out(static_cast<Eigen::Index>(rows.size()));
+        for (std::size_t i = 0; i < rows.size(); ++i) out(static_cast<Eigen::Index>(i)) = y[rows[i]];
+        return out;
+    };
+    if (!options.split_velocity && step2.size() < kMinimumSlowSamples && split > threshold) {
+        // Holding the slow samples back from step 1 pays only when step 2 can use them. Without quasi-static samples
+        // (no slow constant-velocity passes) the slow samples are the ramps through reversals: step 1 takes them too
+        // (the IDIM practice) unless they show a friction rise above the step-1 model, a Stribeck effect that would
+        // bias B and F_C.
+        std::vector<std::size_t> slow;
+        for (const auto k : moving) {
+            if (std::abs(v_dec[k]) < split) slow.push_back(k);
+        }
+        const LeastSquaresResult fast_fit = solve_least_squares(regressor_matrix(step1), output_vector(step1));
+        if (slow.size() >= kMinimumSlowSamples && !fast_fit.rank_deficient) {
+            const Eigen::VectorXd residual = output_vector(slow) - regressor_matrix(slow) * fast_fit.estimate;
+            double rise = 0.0;
+            for (std::size_t i = 0; i < slow.size(); ++i) rise += (v_dec[slow[i]] > 0 ? 1.0 : -1.0) * residual(static_cast<Eigen::Index>(i));
+            rise /= static_cast<double>(slow.size());
+            const bool consistent = rise <= fast_fit.residual_std;  // a Stribeck effect only ever adds friction
+            selection.notes.push_back(fmt::format(
+                "{} slow samples below {:.3g} {} (ramps, no quasi-static passes): friction above the fast-sample model "
+                "{:.3g} {} (residual std {:.3g}): {}",
+                slow.size(), split * naming.display_velocity_scale(), naming.display_velocity_unit(), rise,
+                naming.force_unit(), fast_fit.residual_std,
+                consistent ? "no Stribeck rise, step 1 uses them" : "a Stribeck rise, left out of step 1"));
+            if (consistent) {
+                step1.insert(step1.end(), slow.begin(), slow.end());
+                std::sort(step1.begin(), step1.end());
+                split = threshold;
+                selection.split_velocity = split;
+                selection.step1 = step1.size();
+                selection.notes.push_back(fmt::format("step 1 now: {} moving samples at |v| >= {:.3g} {}", step1.size(),
+                                                      split * naming.display_velocity_scale(),
+                                                      naming.display_velocity_unit()));
+            }
+            document["selection"] = selection_json();
+        }
     }
+    const Eigen::MatrixXd phi = regressor_matrix(step1);
+    const Eigen::VectorXd y1 = output_vector(step1);
+    std::vector<double> t1(step1.size());
+    for (std::size_t i = 0; i < step1.size(); ++i) t1[i] = t_dec[step1[i]];
     const LeastSquaresResult batch = solve_least_squares(phi, y1);
     Json batch_json = Json::object();
     for (std::size_t c = 0; c < p; ++c) {
@@ -645,7 +723,7 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
         for (std::size_t i = 0; i < step1.size(); i += stride) samples.push(a_dec[step1[i]], v_dec[step1[i]], y[step1[i]]);
         for (const auto k : step2) samples.push(a_dec[k], v_dec[k], y[k]);
         detail::CurveModel model{asymmetric, true, asymmetric, options.offset};
-        constexpr std::size_t minimum_slow = 20;
+        constexpr std::size_t minimum_slow = kMinimumSlowSamples;
         if (asymmetric) {
             model.stribeck_forward = slow_count[0] >= minimum_slow;
             model.stribeck_reverse = slow_count[1] >= minimum_slow;
@@ -727,9 +805,10 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
         }
         if (!model.stribeck_forward && !model.stribeck_reverse && slow_count[0] + slow_count[1] < minimum_slow) {
             diagnostics.push_back(fmt::format(
-                "Stribeck: only {} quasi-static samples below {:.3g} {} (the slowest constant-velocity pass): F_B and "
-                "v_s cannot be determined; add slow constant-velocity passes (e.g. 10 to 1000 mm/min, see feedid plan)",
-                slow_count[0] + slow_count[1], split * display, naming.display_velocity_unit()));
+                "Stribeck: only {} quasi-static samples below {:.3g} {} (a tenth of the typical constant-velocity speed): "
+                "F_B and v_s cannot be determined; add slow constant-velocity passes (e.g. 10 to 1000 mm/min, "
+                "see feedid plan)",
+                slow_count[0] + slow_count[1], slow_band * display, naming.display_velocity_unit()));
         }
     } else {
         diagnostics.push_back("Stribeck step skipped (--no-stribeck): F_B and v_s not estimated");

@@ -63,19 +63,22 @@ public:
             const Vector gain = p_phi / (lambda + r);
             theta_ += gain * error;
             covariance_ = (covariance_ - gain * p_phi.transpose()) / lambda;
-            if (!covariance_.allFinite() || covariance_.diagonal().maxCoeff() > wind_up_limit) wound_up_ = true;
+            // P is positive semi-definite, so its trace bounds every entry; NaN fails the comparison too
+            if (!(covariance_.trace() <= wind_up_limit)) wound_up_ = true;
             ++updates_;
             return RlsUpdate::updated;
         }
         // Directional forgetting. With R_new = R + eps*phi*phi^T, eps = 1 - (1 - lambda)/r:
         //   P_new = P - eps/(lambda + r) * (P*phi)(P*phi)^T,   P_new*phi = P*phi/(lambda + r) = L (eq. 8).
-        const double scale = covariance_.diagonal().cwiseAbs().maxCoeff();
+        const double scale = covariance_.trace();  // >= the largest eigenvalue of P
         if (!(r > 1e-14 * scale * phi.squaredNorm()) || !(r > 0.0)) return RlsUpdate::no_excitation;
         const double eps = 1.0 - (1.0 - lambda) / r;
         const Vector gain = p_phi / (lambda + r);
         theta_ += gain * error;
-        covariance_.noalias() -= (eps / (lambda + r)) * (p_phi * p_phi.transpose());
-        covariance_ = 0.5 * (covariance_ + covariance_.transpose()).eval();
+        // The outer product a*a^T is exactly symmetric in floating point (a_i*a_j == a_j*a_i), so P stays exactly
+        // symmetric without re-symmetrising.
+        const Matrix outer = p_phi * p_phi.transpose();
+        covariance_ -= (eps / (lambda + r)) * outer;
         ++updates_;
         return RlsUpdate::updated;
     }

@@ -1,0 +1,178 @@
+// RLS against batch least squares, the robust variant's covariance over 10^8 poorly exciting updates, the paper's
+// variant winding up on the same data, and no heap allocation in the update path.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdlib>
+#include <new>
+#include <random>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Core>
+
+#include "feedid/least_squares.hpp"
+#include "feedid/rls.hpp"
+
+// Counts heap allocations while `counting` is set: the per-sample update must make none. The replacement operator
+// new allocates with malloc, so its delete frees with free (GCC cannot see that they pair).
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+#endif
+namespace {
+std::atomic<bool> counting{false};
+std::atomic<long> allocations{0};
+}  // namespace
+
+void* operator new(std::size_t size) {
+    if (counting.load(std::memory_order_relaxed)) allocations.fetch_add(1, std::memory_order_relaxed);
+    if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+    throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace {
+
+using feedid::Rls;
+using feedid::RlsOptions;
+using feedid::RlsUpdate;
+using feedid::RlsVariant;
+
+// A drive excited in every direction: y = M*a + B*v + F_C*sgn(v) + F_0 + noise.
+struct Sample {
+    Eigen::Vector4d phi;
+    double y;
+};
+
+std::vector<Sample> exciting_data(std::size_t n, unsigned seed) {
+    std::mt19937 random(seed);
+    std::normal_distribution<double> noise(0.0, 2.0);
+    const Eigen::Vector4d truth(95.0, 203.0, 20.4, -3.2);
+    std::vector<Sample> data(n);
+    for (std::size_t k = 0; k < n; ++k) {
+        const double t = 1e-3 * static_cast<double>(k);
+        const double v = 0.1 * std::sin(2.0 * t) + 0.05 * std::sin(7.3 * t);
+        const double a = 0.2 * std::cos(2.0 * t) + 0.365 * std::cos(7.3 * t);
+        data[k].phi = Eigen::Vector4d(a, v, v > 0 ? 1.0 : -1.0, 1.0);
+        data[k].y = data[k].phi.dot(truth) + noise(random);
+    }
+    return data;
+}
+
+feedid::LeastSquaresResult batch_of(const std::vector<Sample>& data) {
+    Eigen::MatrixXd phi(static_cast<Eigen::Index>(data.size()), 4);
+    Eigen::VectorXd y(static_cast<Eigen::Index>(data.size()));
+    for (std::size_t k = 0; k < data.size(); ++k) {
+        phi.row(static_cast<Eigen::Index>(k)) = data[k].phi.transpose();
+        y(static_cast<Eigen::Index>(k)) = data[k].y;
+    }
+    return feedid::solve_least_squares(phi, y);
+}
+
+class RlsEqualsBatch : public ::testing::TestWithParam<RlsVariant> {};
+
+TEST_P(RlsEqualsBatch, WithoutForgettingAndALargeInitialCovariance) {
+    const auto data = exciting_data(20000, 1);
+    Rls<4> rls(RlsOptions{1.0, 1e8, GetParam()});
+    for (const auto& s : data) ASSERT_EQ(rls.update(s.phi, s.y), RlsUpdate::updated);
+    const auto batch = batch_of(data);
+    for (int i = 0; i < 4; ++i) {
+        EXPECT_NEAR(rls.estimate()(i), batch.estimate(i), 1e-6 * std::abs(batch.estimate(i))) << "parameter " << i;
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(BothVariants, RlsEqualsBatch,
+                         ::testing::Values(RlsVariant::exponential, RlsVariant::directional),
+                         [](const auto& info) {
+                             return info.param == RlsVariant::exponential ? std::string("Paper")
+                                                                          : std::string("Directional");
+                         });
+
+TEST(Rls, BatchLeastSquaresRecoversAKnownModel) {
+    const auto data = exciting_data(20000, 2);
+    const auto batch = batch_of(data);
+    const Eigen::Vector4d truth(95.0, 203.0, 20.4, -3.2);
+    for (int i = 0; i < 4; ++i) {
+        // 4 standard errors: a 1-in-15000 chance per parameter of a false alarm with correct code
+        EXPECT_NEAR(batch.estimate(i), truth(i), 4.0 * batch.standard_error(i)) << "parameter " << i;
+    }
+    EXPECT_NEAR(batch.residual_std, 2.0, 0.05);
+    EXPECT_FALSE(batch.rank_deficient);
+}
+
+// A constant-velocity test, back and forth: no acceleration, no offset excitation beyond sgn(v) - the regressor
+// spans one direction of the three-dimensional parameter space.
+Eigen::Vector3d constant_velocity_regressor(std::uint64_t k) {
+    const double v = (k / 5000) % 2 == 0 ? 0.1 : -0.1;
+    return {0.0, v, v > 0 ? 1.0 : -1.0};
+}
+
+TEST(Rls, DirectionalForgettingStaysBoundedOverOneHundredMillionPoorlyExcitingUpdates) {
+    Rls<3> rls(RlsOptions{0.99995, 1e6, RlsVariant::directional});
+    const Eigen::Vector3d truth(70.0, 54.0, 740.0);
+    std::uint64_t updated = 0;
+    for (std::uint64_t k = 0; k < 100'000'000; ++k) {
+        const Eigen::Vector3d phi = constant_velocity_regressor(k);
+        updated += rls.update(phi, phi.dot(truth)) == RlsUpdate::updated;
+    }
+    const Eigen::Matrix3d& p = rls.covariance();
+    ASSERT_TRUE(p.allFinite());
+    ASSERT_TRUE(rls.estimate().allFinite());
+    EXPECT_LT((p - p.transpose()).cwiseAbs().maxCoeff(), 1e-12 * p.cwiseAbs().maxCoeff());
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(p);
+    EXPECT_GT(eigen.eigenvalues().minCoeff(), 0.0) << eigen.eigenvalues().transpose();
+    // bounded: nothing grows past P(0) in the directions the data never excites
+    EXPECT_LE(eigen.eigenvalues().maxCoeff(), 1e6 * (1.0 + 1e-9));
+    EXPECT_FALSE(rls.wound_up());
+    EXPECT_GT(updated, 0u);
+    // what is excited is learnt: the prediction along the regressor is exact
+    const Eigen::Vector3d phi = constant_velocity_regressor(0);
+    EXPECT_NEAR(phi.dot(rls.estimate()), phi.dot(truth), 1e-6 * std::abs(phi.dot(truth)));
+}
+
+TEST(Rls, ThePapersForgettingWindsUpOnTheSameDataAndSaysSo) {
+    Rls<3> rls(RlsOptions{0.99995, 1e6, RlsVariant::exponential});
+    const Eigen::Vector3d truth(70.0, 54.0, 740.0);
+    std::uint64_t k = 0;
+    for (; k < 100'000'000 && !rls.wound_up(); ++k) {
+        const Eigen::Vector3d phi = constant_velocity_regressor(k);
+        rls.update(phi, phi.dot(truth));
+    }
+    // P grows as lambda^-k in the unexcited directions: past 1e150 after about ln(1e144)/5e-5 = 6.6e6 samples
+    EXPECT_TRUE(rls.wound_up());
+    EXPECT_LT(k, 10'000'000u);
+}
+
+TEST(Rls, IgnoresNonFiniteSamplesAndNothingToLearn) {
+    Rls<3> rls;
+    const Eigen::Vector3d before = rls.estimate();
+    EXPECT_EQ(rls.update(Eigen::Vector3d(NAN, 1.0, 1.0), 1.0), RlsUpdate::non_finite);
+    EXPECT_EQ(rls.update(Eigen::Vector3d(1.0, 1.0, 1.0), INFINITY), RlsUpdate::non_finite);
+    EXPECT_EQ(rls.update(Eigen::Vector3d::Zero(), 1.0), RlsUpdate::no_excitation);
+    EXPECT_EQ(rls.estimate(), before);
+    EXPECT_EQ(rls.updates(), 0u);
+}
+
+TEST(Rls, UpdateNeverAllocates) {
+    const auto data = exciting_data(1000, 3);
+    Rls<4> four(RlsOptions{0.99995, 1e6, RlsVariant::directional});
+    Rls<4> paper(RlsOptions{0.99995, 1e6, RlsVariant::exponential});
+    Rls<3> three;
+    allocations = 0;
+    counting = true;
+    for (const auto& s : data) {
+        four.update(s.phi, s.y);
+        paper.update(s.phi, s.y);
+        three.update(s.phi.head<3>(), s.y);
+    }
+    counting = false;
+    EXPECT_EQ(allocations.load(), 0);
+    // the counter works (a direct call of operator new cannot be elided, unlike a new-expression)
+    counting = true;
+    ::operator delete(::operator new(16));
+    counting = false;
+    EXPECT_GT(allocations.load(), 0);
+}
+
+}  // namespace
