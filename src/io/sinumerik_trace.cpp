@@ -17,6 +17,7 @@
 #include <map>
 #include <optional>
 #include <unordered_map>
+#include <unordered_set>
 
 #include <fmt/core.h>
 #include <pugixml.hpp>
@@ -39,7 +40,6 @@ struct Signal {
     std::string description;  // "Position actual value meas.system 2 (64 bit)"
     double interval_s{not_a_number};
     long long datapoint_count{-1};
-    std::size_t line{0};
     std::vector<double> times;   // sparse events: when the value was written [s]
     std::vector<double> values;  // ... and the value, in the source unit
 };
@@ -199,13 +199,14 @@ Session read_session(std::string_view xml, const std::string& source) {
         }
     }
 
+    std::unordered_set<std::string> ids;
     for (const auto& node : frame.children("dataSignal")) {
         Signal signal;
-        signal.line = line_of_node(xml, node);
+        auto line = [&] { return line_of_node(xml, node); };  // only on the error path: it counts lines
         signal.id = node.attribute("id").value();
         signal.key = node.attribute("key").value();
         if (signal.id.empty()) {
-            throw InputError(fmt::format("{}: line {}: <dataSignal> without an id", source, signal.line));
+            throw InputError(fmt::format("{}: line {}: <dataSignal> without an id", source, line()));
         }
         split_signal_name(node.attribute("name").value(), signal.variable, signal.axis);
         if (signal.variable.empty()) signal.variable = signal.key.empty() ? signal.id : signal.key;
@@ -217,20 +218,18 @@ Session read_session(std::string_view xml, const std::string& source) {
         }
         const auto interval = node.attribute("interval");
         if (!interval) {
-            throw InputError(fmt::format("{}: line {}: <dataSignal id=\"{}\"> has no interval", source, signal.line,
+            throw InputError(fmt::format("{}: line {}: <dataSignal id=\"{}\"> has no interval", source, line(),
                                          signal.id));
         }
         signal.interval_s = parse_attribute_number(xml, source, node, interval);
         if (!(signal.interval_s > 0.0)) {
             throw InputError(fmt::format("{}: line {}: <dataSignal id=\"{}\">: interval {} is not positive", source,
-                                         signal.line, signal.id, interval.value()));
+                                         line(), signal.id, interval.value()));
         }
         if (const auto count = node.attribute("datapointCount")) signal.datapoint_count = count.as_llong(-1);
-        for (const auto& other : session.signals) {
-            if (other.id == signal.id) {
-                throw InputError(fmt::format("{}: line {}: <dataSignal id=\"{}\"> is declared twice", source,
-                                             signal.line, signal.id));
-            }
+        if (!ids.insert(signal.id).second) {
+            throw InputError(fmt::format("{}: line {}: <dataSignal id=\"{}\"> is declared twice", source, line(),
+                                         signal.id));
         }
         session.signals.push_back(std::move(signal));
     }
@@ -325,8 +324,19 @@ std::vector<RoleGuess> guess_roles(const std::vector<Signal>& signals, const std
     return guesses;
 }
 
-Trace build_axis(const Session& session, const std::string& axis, const std::string& source) {
+// What a few bytes of a hostile file may make us compute and allocate, in cells (samples x channels, plus one per
+// signal scanned for each axis): a real trace writes a record for nearly every fine sample, so cells far beyond the
+// file size mean a broken time or interval attribute, or a flood of axes.
+double cell_budget(const Session& session) { return std::max(16.0e6, 2.0 * static_cast<double>(session.input_bytes)); }
+
+Trace build_axis(const Session& session, const std::string& axis, const std::string& source, double& budget) {
     const auto& signals = session.signals;
+    budget -= static_cast<double>(signals.size());
+    if (budget < 0.0) {
+        throw InputError(fmt::format("{}: the trace declares more axes and signals than its records could fill "
+                                     "({} signals)",
+                                     source, signals.size()));
+    }
     std::vector<std::size_t> members;
     for (std::size_t k = 0; k < signals.size(); ++k) {
         if (signals[k].axis == axis || signals[k].axis.empty()) members.push_back(k);
@@ -356,12 +366,13 @@ Trace build_axis(const Session& session, const std::string& axis, const std::str
     // time or interval attribute.
     const double span = session.last_time - session.first_time;
     const double count_real = std::floor(span / step + 1e-6) + 1.0;
-    const double cell_limit = std::max(16.0e6, 2.0 * static_cast<double>(session.input_bytes));
-    if (!(count_real >= 1.0) || count_real * static_cast<double>(kept.size() + 1) > cell_limit) {
+    const double cells = count_real * static_cast<double>(kept.size() + 1);
+    if (!(count_real >= 1.0) || !(cells <= budget)) {
         throw InputError(fmt::format("{}: records from {} s to {} s at an interval of {} s would make {:.0f} samples, "
                                      "far more than the file holds records for",
                                      source, session.first_time, session.last_time, step, count_real));
     }
+    budget -= cells;
     const auto n = static_cast<std::size_t>(count_real);
 
     std::vector<double> time(n);
@@ -448,12 +459,20 @@ Trace build_axis(const Session& session, const std::string& axis, const std::str
     return trace;
 }
 
+// "1, 2, 3" (the first twenty, then how many more).
+std::string list_of(const std::vector<std::string>& axes) {
+    std::string list;
+    const std::size_t shown = std::min<std::size_t>(axes.size(), 20);
+    for (std::size_t k = 0; k < shown; ++k) list += (k == 0 ? "" : ", ") + axes[k];
+    if (axes.size() > shown) list += fmt::format(" and {} more", axes.size() - shown);
+    return list;
+}
+
 std::vector<std::string> axes_of(const Session& session) {
     std::vector<std::string> axes;
+    std::unordered_set<std::string> seen;
     for (const auto& signal : session.signals) {
-        if (!signal.axis.empty() && std::find(axes.begin(), axes.end(), signal.axis) == axes.end()) {
-            axes.push_back(signal.axis);
-        }
+        if (!signal.axis.empty() && seen.insert(signal.axis).second) axes.push_back(signal.axis);
     }
     if (axes.empty()) axes.emplace_back();
     return axes;
@@ -472,18 +491,16 @@ Trace parse_sinumerik_trace(std::string_view xml, const std::string& source, con
             if (equals_ci(candidate, axis)) chosen = candidate;
         }
         if (chosen.empty()) {
-            std::string list;
-            for (const auto& candidate : axes) list += (list.empty() ? "" : ", ") + candidate;
             throw InputError(fmt::format("{}: --axis {}: the trace holds no such axis (it holds: {})", source, axis,
-                                         list.empty() ? std::string("none named") : list));
+                                         axes.front().empty() ? std::string("none named") : list_of(axes)));
         }
     }
-    Trace trace = build_axis(session, chosen, source);
+    double budget = cell_budget(session);
+    Trace trace = build_axis(session, chosen, source, budget);
     if (axes.size() > 1) {
-        std::string list;
-        for (const auto& candidate : axes) list += (list.empty() ? "" : ", ") + candidate;
-        trace.findings.insert(trace.findings.begin(),
-                              fmt::format("the trace holds axes {}; read axis {} (choose with --axis)", list, chosen));
+        trace.findings.insert(trace.findings.begin(), fmt::format("the trace holds axes {}; read axis {} (choose with "
+                                                                  "--axis)",
+                                                                  list_of(axes), chosen));
     }
     return trace;
 }
@@ -491,7 +508,8 @@ Trace parse_sinumerik_trace(std::string_view xml, const std::string& source, con
 std::vector<Trace> parse_sinumerik_trace_axes(std::string_view xml, const std::string& source) {
     const Session session = read_session(xml, source);
     std::vector<Trace> traces;
-    for (const auto& axis : axes_of(session)) traces.push_back(build_axis(session, axis, source));
+    double budget = cell_budget(session);  // shared by all axes
+    for (const auto& axis : axes_of(session)) traces.push_back(build_axis(session, axis, source, budget));
     return traces;
 }
 

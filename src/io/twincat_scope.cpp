@@ -112,28 +112,41 @@ std::optional<std::vector<std::string>> row_cells(std::string_view row, std::str
         auto& tokens = per_group[g];
         const std::size_t wanted = groups[g].channel_columns.size();
         // A token in parentheses belongs to the one before it ("dV (Voltage)", "test space (1)"), unless that one is
-        // itself complete in parentheses ("(None)").
-        for (std::size_t t = 1; t < tokens.size() && tokens.size() > wanted;) {
-            if (tokens[t].front() == '(' && tokens[t - 1].back() != ')') {
-                tokens[t - 1] += " " + tokens[t];
-                tokens.erase(tokens.begin() + static_cast<std::ptrdiff_t>(t));
-            } else {
-                ++t;
+        // itself complete in parentheses ("(None)"). Then symbol names (MAIN.var_REAL, var_INT8) hold no spaces and
+        // free-text names are plain words: adjacent plain words are joined until the count fits. Each pass is one
+        // sweep (a header line of many thousand tokens must not take quadratic time).
+        auto join_while = [&](auto&& belongs_to_previous) {
+            if (tokens.size() <= wanted) return;
+            std::size_t excess = tokens.size() - wanted;
+            std::vector<std::string> joined;
+            joined.reserve(tokens.size());
+            for (auto& token : tokens) {
+                const bool belongs = belongs_to_previous(joined.empty() ? nullptr : &joined.back(), token);
+                if (belongs && excess > 0) {
+                    joined.back() += ' ';
+                    joined.back() += token;
+                    --excess;
+                } else {
+                    joined.push_back(std::move(token));
+                }
             }
-        }
-        // Symbol names (MAIN.var_REAL, var_INT8) hold no spaces; free-text names are plain words: join adjacent
-        // plain words until the count fits.
+            tokens = std::move(joined);
+        };
+        join_while([](const std::string* previous, const std::string& token) {
+            return previous != nullptr && token.front() == '(' && previous->back() != ')';
+        });
         auto plain = [](const std::string& token) {
             return token.find('_') == std::string::npos && token.find('.') == std::string::npos;
         };
-        for (std::size_t t = 1; t < tokens.size() && tokens.size() > wanted;) {
-            if (plain(tokens[t - 1]) && plain(tokens[t])) {
-                tokens[t - 1] += " " + tokens[t];
-                tokens.erase(tokens.begin() + static_cast<std::ptrdiff_t>(t));
-            } else {
-                ++t;
-            }
-        }
+        // Whether the last token so far is plain, kept as a flag: plain words joined stay plain, and rescanning a
+        // growing joined token would be quadratic.
+        bool previous_plain = false;
+        join_while([&](const std::string* previous, const std::string& token) {
+            const bool is_plain = plain(token);
+            const bool join = previous != nullptr && previous_plain && is_plain;
+            if (!join) previous_plain = is_plain;
+            return join;
+        });
         if (tokens.size() != wanted) return std::nullopt;
         for (auto& token : tokens) out.push_back(std::move(token));
     }
