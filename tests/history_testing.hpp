@@ -18,8 +18,10 @@ inline CliResult run_shell(const std::string& command_line, const std::filesyste
     const int n = counter++;
     const auto out_path = scratch / fmt::format("shell-out-{}-{}.txt", ::getpid(), n);
     const auto err_path = scratch / fmt::format("shell-err-{}-{}.txt", ::getpid(), n);
+    // The shell's own streams are redirected too, so that its note about a child killed by a signal (the durability
+    // test's forced abort) lands in the captured stderr, not in the test's output.
     const std::string command =
-        "( " + command_line + " ) >'" + out_path.string() + "' 2>'" + err_path.string() + "' </dev/null";
+        "exec >'" + out_path.string() + "' 2>'" + err_path.string() + "' </dev/null; " + command_line;
     const int status = std::system(command.c_str());
     CliResult result;
     result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
@@ -61,7 +63,7 @@ inline std::vector<std::filesystem::path> write_small_results(const std::filesys
     std::vector<std::filesystem::path> results;
     for (int i = 1; i <= count; ++i) {
         const auto trace = folder / fmt::format("{}-{}.csv", stem, i);
-        write_text(trace, fmt::format("t [s],x [mm]\n0,{}\n0.001,{}\n", i, i + 1));
+        write_text(trace, fmt::format("# {}\nt [s],x [mm]\n0,{}\n0.001,{}\n", trace.filename().string(), i, i + 1));
         const auto result = folder / fmt::format("{}-{}.json", stem, i);
         write_text(result, small_result(trace, 740.0 + 0.1 * i).dump(1));
         results.push_back(result);

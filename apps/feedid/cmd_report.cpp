@@ -39,7 +39,15 @@ int run_report(const ReportArguments& arguments) {
         const auto trends = history::analyse_trends(runs, store->pins(), arguments.trend);
         html = report::history_report_html(runs, trends, arguments.trend, arguments.input);
     } else {
-        html = report::result_report_html(read_json(arguments.input), arguments.input);
+        nlohmann::json document;
+        try {
+            document = read_json(arguments.input);
+        } catch (const InputError&) {
+            throw InputError(fmt::format("{}: neither an identify result document (JSON) nor a history database "
+                                         "(SQLite)",
+                                         arguments.input));
+        }
+        html = report::result_report_html(document, arguments.input);
     }
     if (arguments.out_path == "-") {
         std::fwrite(html.data(), 1, html.size(), stdout);

@@ -378,8 +378,13 @@ private:
         } catch (const SqliteError&) {
             throw InputError(fmt::format("{}: the history database is corrupt (not a readable SQLite file)", path_));
         }
-        if (check != "ok")
+        if (check != "ok") {
+            // One line: SQLite lists its findings on several.
+            for (auto& c : check)
+                if (c == '\n') c = ' ';
+            if (check.size() > 200) check = check.substr(0, 200) + "...";
             throw InputError(fmt::format("{}: the history database is corrupt (SQLite's check: {})", path_, check));
+        }
         const int found_application = pragma_integer("PRAGMA application_id");
         schema_version_ = pragma_integer("PRAGMA user_version");
         const int tables = pragma_integer("SELECT count(*) FROM sqlite_master");

@@ -1,0 +1,271 @@
+// The SQLite history store: round trip, duplicates, migrations, durability under a forced abort between statements,
+// and two processes recording at the same time.
+
+#include <gtest/gtest.h>
+
+#include <sqlite3.h>
+
+#include <csignal>
+#include <set>
+
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include "feedid/error.hpp"
+#include "feedid/history/store.hpp"
+#include "history_testing.hpp"
+#include "testing.hpp"
+
+namespace {
+
+using namespace feedid::testing;
+namespace history = feedid::history;
+
+history::RunRecord sample_run(const std::string& sha, double coulomb) {
+    history::RunRecord run;
+    run.machine = "DMU 50";
+    run.axis = "X";
+    run.location = "Aachen";
+    run.recorded_at = "2026-03-01T06:00:00.000Z";
+    run.trace_path = "x.csv";
+    run.trace_sha256 = sha;
+    run.feedid_version = "0.1.0";
+    run.model = "symmetric";
+    run.status = "partial";
+    run.options = {{"model", "symmetric"}};
+    run.parameters["coulomb_N"] = {coulomb, 0.4};
+    run.parameters["mass_kg"] = {69.1, 0.3};
+    run.parameters["breakaway_N"] = {std::nullopt, std::nullopt};
+    run.fit = {{"relative_error_pct", 1.7}};
+    run.diagnostics = {"Stribeck: no slow passes"};
+    run.result = {{"friction_curve", {{"forward", {{"velocity_m_per_s", {0.01, 0.1}}, {"force_N", {750.0, 752.0}}}}}}};
+    return run;
+}
+
+/// PRAGMA integrity_check of a file, through SQLite itself (read-only).
+std::string integrity(const std::filesystem::path& path) {
+    sqlite3* db = nullptr;
+    if (sqlite3_open_v2(path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) != SQLITE_OK) {
+        sqlite3_close(db);
+        return "cannot open";
+    }
+    sqlite3_stmt* statement = nullptr;
+    std::string result = "cannot check";
+    if (sqlite3_prepare_v2(db, "PRAGMA integrity_check", -1, &statement, nullptr) == SQLITE_OK &&
+        sqlite3_step(statement) == SQLITE_ROW)
+        result = reinterpret_cast<const char*>(sqlite3_column_text(statement, 0));
+    sqlite3_finalize(statement);
+    sqlite3_close(db);
+    return result;
+}
+
+TEST(HistoryStore, RoundTripKeepsEveryField) {
+    const auto folder = temp_dir();
+    const auto path = folder / "h.db";
+    {
+        auto store = history::open_sqlite_store(path);
+        EXPECT_EQ(store->schema_version(), history::sqlite_schema_version);
+        const auto outcome = store->add_run(sample_run("aa", 742.0));
+        EXPECT_TRUE(outcome.inserted);
+    }
+    history::SqliteOpenOptions read_only;
+    read_only.read_only = true;
+    const auto store = history::open_sqlite_store(path, read_only);
+    const auto runs = store->runs();
+    ASSERT_EQ(runs.size(), 1u);
+    const auto& run = runs[0];
+    EXPECT_EQ(run.machine, "DMU 50");
+    EXPECT_EQ(run.axis, "X");
+    EXPECT_EQ(run.location, "Aachen");
+    EXPECT_EQ(run.recorded_at, "2026-03-01T06:00:00.000Z");
+    EXPECT_EQ(run.trace_sha256, "aa");
+    EXPECT_EQ(run.status, "partial");
+    EXPECT_EQ(run.options, (nlohmann::json{{"model", "symmetric"}}));
+    ASSERT_EQ(run.parameters.size(), 3u);
+    EXPECT_DOUBLE_EQ(*run.parameters.at("coulomb_N").value, 742.0);
+    EXPECT_DOUBLE_EQ(*run.parameters.at("coulomb_N").standard_error, 0.4);
+    EXPECT_FALSE(run.parameters.at("breakaway_N").value);
+    EXPECT_FALSE(run.parameters.at("breakaway_N").standard_error);
+    EXPECT_EQ(run.fit["relative_error_pct"], 1.7);
+    EXPECT_EQ(run.diagnostics, std::vector<std::string>{"Stribeck: no slow passes"});
+    EXPECT_EQ(run.result["friction_curve"]["forward"]["force_N"][1], 752.0);
+    EXPECT_FALSE(run.stored_at.empty());
+    EXPECT_THROW(store->add_run(sample_run("bb", 1.0)), feedid::InputError);  // opened read-only
+}
+
+TEST(HistoryStore, SameTraceWithSameOptionsIsNotAddedTwice) {
+    const auto folder = temp_dir();
+    auto store = history::open_sqlite_store(folder / "h.db");
+    const auto first = store->add_run(sample_run("aa", 742.0));
+    const auto again = store->add_run(sample_run("aa", 742.0));
+    EXPECT_FALSE(again.inserted);
+    EXPECT_EQ(again.id, first.id);
+    auto other_options = sample_run("aa", 742.0);
+    other_options.options = {{"model", "asymmetric"}};
+    EXPECT_TRUE(store->add_run(other_options).inserted);
+    EXPECT_EQ(store->runs().size(), 2u);
+}
+
+TEST(HistoryStore, PinsCheckMachineAndAxis) {
+    const auto folder = temp_dir();
+    auto store = history::open_sqlite_store(folder / "h.db");
+    const auto id = store->add_run(sample_run("aa", 742.0)).id;
+    EXPECT_THROW(store->pin_baseline("DMU 50", "Y", id), feedid::InputError);
+    EXPECT_THROW(store->pin_baseline("DMU 50", "X", id + 100), feedid::InputError);
+    store->pin_baseline("DMU 50", "X", id);
+    ASSERT_EQ(store->pins().size(), 1u);
+    EXPECT_EQ(store->pins()[0].run_id, id);
+}
+
+TEST(HistoryStore, MigratesAnOlderFileAndKeepsItsRuns) {
+    const auto folder = temp_dir();
+    const auto path = folder / "h.db";
+    {
+        history::SqliteOpenOptions old;
+        old.target_schema_version = 2;
+        auto store = history::open_sqlite_store(path, old);
+        EXPECT_EQ(store->schema_version(), 2);
+        store->add_run(sample_run("aa", 742.0));
+        EXPECT_TRUE(store->runs()[0].result.empty());  // schema 2 keeps no result document
+    }
+    {
+        history::SqliteOpenOptions read_only;
+        read_only.read_only = true;
+        const auto store = history::open_sqlite_store(path, read_only);  // reading does not migrate
+        EXPECT_EQ(store->schema_version(), 2);
+        EXPECT_EQ(store->runs().size(), 1u);
+    }
+    auto store = history::open_sqlite_store(path);
+    EXPECT_EQ(store->schema_version(), 3);
+    store->add_run(sample_run("bb", 743.0));
+    const auto runs = store->runs();
+    ASSERT_EQ(runs.size(), 2u);
+    EXPECT_DOUBLE_EQ(*runs[0].parameters.at("coulomb_N").value, 742.0);
+    EXPECT_TRUE(runs[0].result.empty());
+    EXPECT_EQ(runs[1].result["friction_curve"]["forward"]["force_N"][0], 750.0);
+    EXPECT_EQ(integrity(path), "ok");
+}
+
+TEST(HistoryStore, ResultDocumentIsStoredWithoutTheRlsHistory) {
+    auto document = small_result("x.csv", 742.0);
+    document["rls"] = {{"final", {{"coulomb_N", 742.0}}}, {"history", {{"time_s", {0.0, 0.1}}}}};
+    const auto run = history::run_from_result(document, "r.json");
+    EXPECT_TRUE(run.result["rls"].contains("final"));
+    EXPECT_FALSE(run.result["rls"].contains("history"));
+    EXPECT_EQ(run.parameters.size(), 5u);
+}
+
+/// Records `results` one command each into `database`; expects success.
+void record_all(const std::filesystem::path& folder, const std::filesystem::path& database,
+                const std::vector<std::filesystem::path>& results) {
+    for (std::size_t i = 0; i < results.size(); ++i) {
+        const auto r = run_shell(fmt::format("{} history {} --record {} --machine M1 --axis X "
+                                             "--recorded-at 2026-03-{:02}T06:00:00Z",
+                                             cli(), quoted(database), quoted(results[i]), i + 1),
+                                 folder);
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+    }
+}
+
+// A process killed between any two statements of --record (FEEDID_TEST_ABORT_AFTER_STATEMENT=N aborts right after
+// the N-th write statement: BEGIN, the run, each parameter, COMMIT) leaves a file that opens, holds every earlier run
+// whole, and holds the interrupted run whole (aborted after COMMIT) or not at all.
+TEST(HistoryDurability, AbortBetweenStatementsLeavesEveryEarlierRunAndTheNewOneWholeOrAbsent) {
+    const auto folder = temp_dir();
+    const auto results = write_small_results(folder, "run", 4);
+    int aborted = 0;
+    int whole = 0;
+    for (int n = 1;; ++n) {
+        ASSERT_LE(n, 30) << "the abort hook never let --record finish";
+        const auto database = folder / fmt::format("abort-{}.db", n);
+        record_all(folder, database, {results[0], results[1], results[2]});
+        const auto r = run_shell(fmt::format("FEEDID_TEST_ABORT_AFTER_STATEMENT={} {} history {} --record {} --machine "
+                                             "M1 --axis X --recorded-at 2026-03-04T06:00:00Z",
+                                             n, cli(), quoted(database), quoted(results[3])),
+                                 folder);
+        if (r.exit_code == 0) break;  // n is past the last statement: the recording ran to its end
+        ASSERT_EQ(r.exit_code, 128 + SIGABRT) << "n = " << n << ": " << r.err;
+        ++aborted;
+
+        // The file opens (through feedid and through SQLite's own check) ...
+        EXPECT_EQ(integrity(database), "ok") << "n = " << n;
+        const auto listing = run_shell(fmt::format("{} history {} --json -", cli(), quoted(database)), folder);
+        ASSERT_EQ(listing.exit_code, 0) << "n = " << n << ": " << listing.err;
+        const auto document = nlohmann::json::parse(listing.out);
+        // ... with every earlier run, whole ...
+        const auto& runs = document["runs"];
+        ASSERT_GE(runs.size(), 3u) << "n = " << n;
+        ASSERT_LE(runs.size(), 4u) << "n = " << n;
+        for (std::size_t i = 0; i < runs.size(); ++i) {
+            EXPECT_EQ(runs[i]["parameters"].size(), 5u) << "n = " << n << ", run " << i + 1;
+            EXPECT_DOUBLE_EQ(runs[i]["parameters"]["coulomb_N"]["value"].get<double>(), 740.0 + 0.1 * (i + 1.0));
+        }
+        // ... and the interrupted one whole (counted) or absent.
+        if (runs.size() == 4u) ++whole;
+        // It can still be recorded afterwards (or is found to be there already).
+        const auto again = run_shell(fmt::format("{} history {} --record {} --machine M1 --axis X "
+                                                 "--recorded-at 2026-03-04T06:00:00Z",
+                                                 cli(), quoted(database), quoted(results[3])),
+                                     folder);
+        EXPECT_EQ(again.exit_code, 0) << again.err;
+        const auto after = run_shell(fmt::format("{} history {} --json -", cli(), quoted(database)), folder);
+        EXPECT_EQ(nlohmann::json::parse(after.out)["runs"].size(), 4u) << "n = " << n;
+    }
+    // BEGIN, the run's row, five parameters and COMMIT: 8 places to die; only the abort after COMMIT keeps the run.
+    EXPECT_EQ(aborted, 8);
+    EXPECT_EQ(whole, 1);
+}
+
+// Two processes, each recording 50 runs (one command per run) into the same file at the same time, starting without
+// the file: both create and migrate it, then contend for the write lock 50 times each.
+TEST(HistoryDurability, TwoProcessesRecordingAtOnceLoseNothing) {
+    const auto folder = temp_dir();
+    const auto first = write_small_results(folder, "a", 50);
+    const auto second = write_small_results(folder, "b", 50);
+    const auto database = folder / "shared.db";
+    const auto loop = [&](const std::string& stem) {
+        return fmt::format("fail=0; for i in $(seq 1 50); do {} history {} --record {}/{}-$i.json --machine M1 --axis "
+                           "X || fail=1; done; exit $fail",
+                           cli(), quoted(database), quoted(folder), stem);
+    };
+    const auto r = run_shell(fmt::format("( {} ) & a=$!; ( {} ) & b=$!; wait $a; ra=$?; wait $b; rb=$?; "
+                                         "echo \"$ra $rb\"; [ $ra -eq 0 ] && [ $rb -eq 0 ]",
+                                         loop("a"), loop("b")),
+                             folder);
+    EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+    EXPECT_EQ(integrity(database), "ok");
+    history::SqliteOpenOptions read_only;
+    read_only.read_only = true;
+    const auto runs = history::open_sqlite_store(database, read_only)->runs();
+    ASSERT_EQ(runs.size(), 100u);
+    std::set<std::string> traces;
+    for (const auto& run : runs) {
+        EXPECT_EQ(run.parameters.size(), 5u);
+        traces.insert(run.trace_path);
+    }
+    EXPECT_EQ(traces.size(), 100u);
+}
+
+// The same with each process recording its 50 runs in one command (50 transactions back to back).
+TEST(HistoryDurability, TwoProcessesWithFiftyRunsPerCommandLoseNothing) {
+    const auto folder = temp_dir();
+    write_small_results(folder, "a", 50);
+    write_small_results(folder, "b", 50);
+    const auto database = folder / "shared.db";
+    const auto command = [&](const std::string& stem) {
+        std::string files;
+        for (int i = 1; i <= 50; ++i) files += " --record " + quoted(folder / fmt::format("{}-{}.json", stem, i));
+        return fmt::format("{} history {} --machine M1 --axis X{}", cli(), quoted(database), files);
+    };
+    const auto r = run_shell(fmt::format("{} & a=$!; {} & b=$!; wait $a; ra=$?; wait $b; rb=$?; "
+                                         "[ $ra -eq 0 ] && [ $rb -eq 0 ]",
+                                         command("a"), command("b")),
+                             folder);
+    EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
+    history::SqliteOpenOptions read_only;
+    read_only.read_only = true;
+    EXPECT_EQ(history::open_sqlite_store(database, read_only)->runs().size(), 100u);
+    EXPECT_EQ(integrity(database), "ok");
+}
+
+}  // namespace
