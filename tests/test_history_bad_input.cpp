@@ -81,6 +81,9 @@ protected:
                         name, says);
         expect_rejected(fmt::format("history {} --pin 1", db), database, name, says);
         expect_rejected(fmt::format("report {} -o {}", db, quoted(folder_ / "report.html")), database, name, says);
+        // identify --record checks the database before it identifies (the trace here is not even read).
+        expect_rejected(fmt::format("identify {} --record {} --machine M1 --axis X", quoted(folder_ / "run-1.csv"), db),
+                        database, name, says);
     }
 
     fs::path folder_;

@@ -269,3 +269,56 @@ TEST(HistoryDurability, TwoProcessesWithFiftyRunsPerCommandLoseNothing) {
 }
 
 }  // namespace
+
+namespace {
+
+// feedid identify --record files the run as it is made; the result document it writes carries the options, so that
+// recording that document again (feedid history --record) is recognised as the same run.
+TEST(HistoryRecord, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
+    const auto folder = temp_dir();
+    const auto drive = folder / "drive.json";
+    write_text(drive, R"({"seed": 9, "slow_passes": false, "test": {"feedrates_mm_per_min": [1500, 3000, 4500, 6000],
+                          "stroke_mm": 20}})");
+    const auto trace = folder / "x.csv";
+    ASSERT_EQ(run_shell(fmt::format("{} synth --drive {} --out {}", cli(), quoted(drive), quoted(trace)), folder).exit_code,
+              0);
+    const auto database = folder / "shop.db";
+    const auto result = folder / "result.json";
+    const auto identify = run_shell(fmt::format("{} identify {} --force-constant force_constant_N_per_A --json {} "
+                                                "--record {} --machine 'DMU 50' --axis X --location Aachen "
+                                                "--recorded-at 2026-03-01T06:00:00Z",
+                                                cli(), quoted(trace), quoted(result), quoted(database)),
+                                    folder);
+    ASSERT_EQ(identify.exit_code, 0) << identify.err;
+    EXPECT_NE(identify.err.find("recorded as run #1 of machine 'DMU 50' axis 'X'"), std::string::npos) << identify.err;
+
+    history::SqliteOpenOptions read_only;
+    read_only.read_only = true;
+    auto runs = history::open_sqlite_store(database, read_only)->runs();
+    ASSERT_EQ(runs.size(), 1u);
+    const auto document = nlohmann::json::parse(read_text(result));
+    EXPECT_EQ(runs[0].location, "Aachen");
+    EXPECT_EQ(runs[0].recorded_at, "2026-03-01T06:00:00Z");
+    EXPECT_EQ(runs[0].trace_sha256, history::sha256_file(trace));
+    EXPECT_EQ(runs[0].options, document["options"]);
+    EXPECT_EQ(runs[0].options["drive"]["force_constant"], "force_constant_N_per_A");
+    EXPECT_DOUBLE_EQ(*runs[0].parameters.at("coulomb_N").value, document["parameters"]["coulomb_N"]["value"].get<double>());
+    EXPECT_TRUE(runs[0].result.contains("friction_curve"));
+
+    const auto again = run_shell(fmt::format("{} history {} --record {} --machine 'DMU 50' --axis X", cli(),
+                                             quoted(database), quoted(result)),
+                                 folder);
+    EXPECT_EQ(again.exit_code, 0) << again.err;
+    EXPECT_NE(again.err.find("already recorded as run #1"), std::string::npos) << again.err;
+    EXPECT_EQ(history::open_sqlite_store(database, read_only)->runs().size(), 1u);
+
+    // Other options make another run of the same trace.
+    const auto other = run_shell(fmt::format("{} identify {} --force-constant force_constant_N_per_A --offset "
+                                             "--record {} --machine 'DMU 50' --axis X",
+                                             cli(), quoted(trace), quoted(database)),
+                                 folder);
+    EXPECT_EQ(other.exit_code, 0) << other.err;
+    EXPECT_EQ(history::open_sqlite_store(database, read_only)->runs().size(), 2u);
+}
+
+}  // namespace

@@ -10,6 +10,7 @@
 #include "feedid/error.hpp"
 #include "feedid/friction_map.hpp"
 #include "feedid/identify.hpp"
+#include "record_arguments.hpp"
 
 namespace feedid::cli {
 
@@ -28,6 +29,7 @@ struct IdentifyCommand {
     std::string json_path;
     bool by_location{false};
     std::vector<double> centers_mm;
+    RecordArguments record;
 
     void add_to(CLI::App& sub) {
         trace_arguments.add_to(sub);
@@ -38,6 +40,7 @@ struct IdentifyCommand {
         sub.add_flag("--offset", options.offset, "Also estimate a constant force offset (gravity, sensor offset)");
         sub.add_flag("--no-stribeck", no_stribeck, "Skip step 2 (breakaway friction and Stribeck velocity)");
         sub.add_option("--json", json_path, "Write the result document to PATH ('-' for stdout)");
+        record.add_to(sub);
         auto* location = sub.add_option_group("Friction along the axis");
         location->add_flag("--by-location", by_location,
                            "Cut a multi-centre test (feedid plan --centers ...) by centre and identify each segment on "
@@ -99,19 +102,58 @@ struct IdentifyCommand {
         return o;
     }
 
+    /// The options that shape the result (canonical key order), stored with a recorded run: the same trace with
+    /// other options is another run.
+    nlohmann::json options_json() const {
+        const auto optional = [](const auto& value) { return value ? nlohmann::json(*value) : nlohmann::json(nullptr); };
+        return {{"model", model},
+                {"offset", options.offset},
+                {"stribeck", !no_stribeck},
+                {"differentiation", differentiation},
+                {"filter_order", options.filter_order},
+                {"cutoff_hz", optional(cutoff)},
+                {"savitzky_golay_window", options.savitzky_golay_window},
+                {"savitzky_golay_order", options.savitzky_golay_order},
+                {"decimation", options.decimation},
+                {"edge_samples", optional(edge)},
+                {"from_s", optional(from)},
+                {"to_s", optional(to)},
+                {"split_velocity", optional(split)},
+                {"moving_threshold", optional(moving)},
+                {"rls", {{"variant", rls_variant},
+                         {"forgetting_factor", options.rls.forgetting_factor},
+                         {"initial_covariance", options.rls.initial_covariance}}},
+                {"drive", {{"kt_Nm_per_A", optional(drive_arguments.kt)},
+                           {"lead_mm", optional(drive_arguments.lead_mm)},
+                           {"gear_ratio", drive_arguments.gear_ratio},
+                           {"force_constant", drive_arguments.force_constant}}},
+                {"channels", trace_arguments.channel_assignments},
+                {"units", trace_arguments.unit_assignments},
+                {"axis", trace_arguments.axis},
+                {"format", trace_arguments.format},
+                {"rated", optional(trace_arguments.rated)}};
+    }
+
     int run() const {
         const IdentifyOptions o = resolved();
         if (const auto problem = o.validate(); !problem.empty()) throw InputError(problem);
         if (!centers_mm.empty() && !by_location) throw InputError("--centers needs --by-location");
+        if (by_location && record.enabled()) throw InputError("--record takes one result; not with --by-location");
+        record.check(trace_arguments.axis);
         const Trace trace = trace_arguments.read();
         if (by_location) return run_by_location(trace, o);
         const IdentifyResult result = identify(trace, o);
-        if (!json_path.empty()) write_json(result.document, json_path);
+        // The options go into the document too, so that recording it later (feedid history --record) gives the
+        // same run as --record here.
+        nlohmann::json document = result.document;
+        document["options"] = options_json();
+        if (!json_path.empty()) write_json(document, json_path);
         if (json_path != "-") print_table(result);
         if (result.status == "failed") {
             for (const auto& d : result.diagnostics) fmt::print(stderr, "feedid: {}\n", d);
             return 1;
         }
+        if (record.enabled()) record.record(document, trace_arguments.file, trace_arguments.axis, document["options"]);
         if (json_path == "-") {
             for (const auto& d : result.diagnostics) fmt::print(stderr, "feedid: {}\n", d);
         }
@@ -232,6 +274,7 @@ Action add_identify_command(CLI::App& app) {
         "  feedid identify ../shared/data/emps/DATA_EMPS.mat --channel position=qm --channel current=vir \\\n"
         "      --force-constant gtau --offset --json -\n"
         "  feedid identify trace.csv --kt 1.45 --lead 10 --model asymmetric\n"
+        "  feedid identify x.csv --kt 1.45 --lead 10 --record shop.db --machine DMU50 --axis X   # weekly test\n"
         "  feedid identify multi-centre.csv --kt 1.45 --lead 10 --by-location --json map.json\n"
         "Exit codes: 0 identified (possibly with some parameters null: see diagnostics), 1 the data cannot identify "
         "the model (the message says why and what data would), 2 bad usage or bad input.");
