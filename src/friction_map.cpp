@@ -169,6 +169,18 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
         }
         spans[s].last = spans[s + 1].first;  // the samples between two visits go to the earlier segment
     }
+    // Each segment from its first to its last turning point: the positioning moves from and to the other centres
+    // are left out. They are the fastest motion in a segment, so they would weigh most on the viscous friction, and
+    // they run over stretches of the axis that belong to no centre's strokes.
+    const auto turns = turning_points(x, options.turning_hysteresis);
+    for (auto& span : spans) {
+        const auto first = std::lower_bound(turns.begin(), turns.end(), span.first);
+        const auto end = std::lower_bound(turns.begin(), turns.end(), span.last);
+        if (end - first >= 2) {
+            span.first = *first;
+            span.last = *(end - 1) + 1;
+        }
+    }
 
     const auto time = trace.column(Role::time);
     for (const auto& span : spans) {

@@ -15,6 +15,14 @@ std::string SimulationOptions::validate() const {
     if (position_resolution_m && !(*position_resolution_m > 0.0 && std::isfinite(*position_resolution_m))) {
         return "the position resolution must be a positive length";
     }
+    for (const auto& zone : friction_zones) {
+        if (!(std::isfinite(zone.from_m) && std::isfinite(zone.to_m) && zone.from_m < zone.to_m)) {
+            return "a friction zone needs finite limits with from < to";
+        }
+        if (!(zone.coulomb_factor > 0.0 && std::isfinite(zone.coulomb_factor))) {
+            return "a friction zone's Coulomb factor must be a positive number";
+        }
+    }
     return {};
 }
 
@@ -86,6 +94,24 @@ SimulationOutput simulate(const AxisModel& axis, const ControllerModel& model, c
     };
     const Branch forward = unpack(axis.friction.forward);
     const Branch reverse = unpack(axis.friction.reverse);
+    // Friction zones: the same branches with Coulomb and breakaway scaled (sized here, not in the loop).
+    struct Zone {
+        double from, to;
+        Branch forward, reverse;
+        Breakaway breakaway;
+    };
+    std::vector<Zone> zones;
+    zones.reserve(options.friction_zones.size());
+    for (const auto& zone : options.friction_zones) {
+        const double f = zone.coulomb_factor;
+        const auto scaled = [f](Branch b) {
+            b.coulomb *= f;
+            b.stribeck_rise *= f;
+            return b;
+        };
+        zones.push_back({zone.from_m, zone.to_m, scaled(forward), scaled(reverse),
+                         {breakaway.forward * f, breakaway.reverse * f}});
+    }
     const auto friction_magnitude = [](const Branch& b, double speed) {
         double value = b.viscous * speed + b.coulomb;
         if (b.stribeck_rise != 0.0) value += b.stribeck_rise * std::exp(-speed * b.inverse_stribeck_velocity);
@@ -140,20 +166,32 @@ SimulationOutput simulate(const AxisModel& axis, const ControllerModel& model, c
             const double v_sample = v;
 
             // Plant over one step [t, t+h] with the drive force held.
+            const Branch* forward_branch = &forward;
+            const Branch* reverse_branch = &reverse;
+            const Breakaway* static_friction = &breakaway;
+            for (const auto& zone : zones) {
+                if (x >= zone.from && x <= zone.to) {
+                    forward_branch = &zone.forward;
+                    reverse_branch = &zone.reverse;
+                    static_friction = &zone.breakaway;
+                    break;
+                }
+            }
             const double applied = drive_force + external - axis.offset;
             double acceleration = 0.0;
             if (v == 0.0) {
-                if (applied > breakaway.forward) {
-                    acceleration = (applied - breakaway.forward) * inverse_mass;
-                } else if (applied < -breakaway.reverse) {
-                    acceleration = (applied + breakaway.reverse) * inverse_mass;
+                if (applied > static_friction->forward) {
+                    acceleration = (applied - static_friction->forward) * inverse_mass;
+                } else if (applied < -static_friction->reverse) {
+                    acceleration = (applied + static_friction->reverse) * inverse_mass;
                 }
                 // else: static friction balances the applied force; the axis stays exactly where it is.
                 const double v_next = acceleration * h;
                 x += 0.5 * v_next * h;
                 v = v_next;
             } else {
-                const double friction = v > 0.0 ? friction_magnitude(forward, v) : -friction_magnitude(reverse, -v);
+                const double friction =
+                    v > 0.0 ? friction_magnitude(*forward_branch, v) : -friction_magnitude(*reverse_branch, -v);
                 acceleration = (applied - friction) * inverse_mass;
                 const double v_next = v + acceleration * h;
                 if ((v > 0.0 && v_next <= 0.0) || (v < 0.0 && v_next >= 0.0)) {

@@ -54,6 +54,9 @@ std::string SynthSpec::validate() const {
     if (auto problem = controller.validate(); !problem.empty()) return problem;
     if (auto problem = sensors.validate(); !problem.empty()) return problem;
     if (auto problem = test.validate(); !problem.empty()) return problem;
+    SimulationOptions zones;
+    zones.friction_zones = friction_zones;
+    if (auto problem = zones.validate(); !problem.empty()) return problem;
     return {};
 }
 
@@ -206,6 +209,23 @@ SynthSpec spec_from_json(const nlohmann::json& document, const std::string& sour
         t.reject_unknown();
     }
     top.accept("test");
+    if (top.has("friction_zones")) {
+        const auto& list = document["friction_zones"];
+        if (!list.is_array()) throw InputError(fmt::format("{}: friction_zones must be a list of objects", source));
+        spec.friction_zones.clear();
+        for (std::size_t k = 0; k < list.size(); ++k) {
+            Section z(list[k], fmt::format("friction_zones[{}]", k), source);
+            const auto from = z.number("from_mm");
+            const auto to = z.number("to_mm");
+            const auto factor = z.number("coulomb_factor");
+            z.reject_unknown();
+            if (!from || !to || !factor) {
+                throw InputError(fmt::format("{}: friction_zones[{}] needs from_mm, to_mm and coulomb_factor", source, k));
+            }
+            spec.friction_zones.push_back({*from * 1e-3, *to * 1e-3, *factor});
+        }
+    }
+    top.accept("friction_zones");
     if (const auto v = top.boolean("slow_passes")) spec.test.slow_passes = *v;
     if (const auto v = top.number("seed")) {
         if (*v < 0.0) throw InputError(fmt::format("{}: seed must be >= 0", source));
@@ -284,6 +304,10 @@ nlohmann::json spec_to_json(const SynthSpec& spec) {
                               {"velocity_difference_samples", c.velocity_difference_samples}};
     const auto& s = spec.sensors;
     const auto& t = spec.test;
+    nlohmann::json zones = nlohmann::json::array();
+    for (const auto& zone : spec.friction_zones) {
+        zones.push_back({{"from_mm", zone.from_m * 1e3}, {"to_mm", zone.to_m * 1e3}, {"coulomb_factor", zone.coulomb_factor}});
+    }
     return {{"axis", axis},
             {"controller", controller},
             {"drive", {{"kt_Nm_per_A", spec.kt_Nm_per_A}, {"lead_mm", spec.lead_m * 1e3}, {"gear_ratio", spec.gear_ratio}}},
@@ -305,6 +329,7 @@ nlohmann::json spec_to_json(const SynthSpec& spec) {
               {"acceleration_m_per_s2", t.acceleration_m_per_s2},
               {"dwell_s", t.dwell_s},
               {"start_mm", t.start_m * 1e3}}},
+            {"friction_zones", zones},
             {"seed", spec.seed}};
 }
 
@@ -391,6 +416,7 @@ Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>
     SimulationOptions options;
     options.substeps = spec.sensors.substeps;
     if (spec.sensors.position_resolution_m > 0.0) options.position_resolution_m = spec.sensors.position_resolution_m;
+    options.friction_zones = spec.friction_zones;
     const SimulationOutput simulated = simulate(spec.axis, controller, input, options);
 
     // Sensors: a local generator, seeded, so that a trace is reproducible.
@@ -440,6 +466,12 @@ Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>
             constants["true_breakaway_" + direction + "_N"] = *branch->breakaway;
             constants["true_stribeck_velocity_" + direction + "_m_per_s"] = *branch->stribeck_velocity;
         }
+    }
+    for (std::size_t z = 0; z < spec.friction_zones.size(); ++z) {
+        const auto& zone = spec.friction_zones[z];
+        constants[fmt::format("true_friction_zone{}_from_m", z + 1)] = zone.from_m;
+        constants[fmt::format("true_friction_zone{}_to_m", z + 1)] = zone.to_m;
+        constants[fmt::format("true_friction_zone{}_coulomb_factor", z + 1)] = zone.coulomb_factor;
     }
     constants["true_position_gain_per_s"] = controller.position_gain_per_s;
     constants["true_velocity_gain_N_s_per_m"] = controller.velocity_gain_N_s_per_m;

@@ -1,7 +1,6 @@
-// Friction along the axis: a synthetic three-centre test whose middle centre has 30 % more Coulomb (and breakaway)
-// friction. Position-dependent friction is made by synthesising the plan's reference piece by piece, each centre
-// with its own drive, and joining the pieces in the dwell before each centre's first pass, where the axis is at rest;
-// the result is one continuous trace of the whole test.
+// Friction along the axis: a synthetic three-centre test whose middle centre lies in a stretch of the axis with 30 %
+// more Coulomb (and breakaway) friction, a worn part of the screw. The simulator makes the friction depend on where
+// the axis is (SimulationOptions::friction_zones), so the trace is one continuous closed-loop run of the whole test.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,7 +12,6 @@
 
 #include "feedid/error.hpp"
 #include "feedid/friction_map.hpp"
-#include "feedid/io/csv.hpp"
 #include "feedid/synth.hpp"
 #include "feedid/testplan.hpp"
 #include "testing.hpp"
@@ -33,60 +31,21 @@ feedid::TestPlan three_centre_plan() {
     return feedid::make_test_plan(options);
 }
 
-// Sample index (in the reference trajectory, which starts 0.5 s before the program) of the middle of the dwell that
-// follows the positioning move to `center`.
-std::size_t join_index(const feedid::TestPlan& plan, int center) {
-    double time = 0.5;
-    double position = plan.moves.front().target;
-    for (std::size_t k = 0; k < plan.moves.size(); ++k) {
-        const auto& move = plan.moves[k];
-        if (move.kind == feedid::MoveKind::dwell) {
-            if (move.center == center && move.pass < 0) return static_cast<std::size_t>((time + move.dwell / 2) / plan.options.sample_time);
-            time += move.dwell;
-        } else {
-            time += feedid::move_duration(std::abs(move.target - position), move.feed, plan.options.acceleration,
-                                          plan.options.jerk);
-            position = move.target;
-        }
-    }
-    ADD_FAILURE() << "no dwell before centre " << center;
-    return 0;
-}
+// The worn stretch: centre 2 and its strokes (+-15 mm), well clear of the other centres at +-250 mm.
+constexpr double worn_from = -0.1;
+constexpr double worn_to = 0.1;
 
 feedid::Trace multi_centre_trace(double worn_factor) {
     const auto plan = three_centre_plan();
     const auto reference = feedid::reference_trajectory(plan);
     const auto x_ref = reference.column(feedid::Role::reference_position);
-    std::vector<std::size_t> cuts{0, join_index(plan, 1), join_index(plan, 2), x_ref.size()};
-
-    feedid::Trace joined;
-    for (std::size_t piece = 0; piece + 1 < cuts.size(); ++piece) {
-        auto spec = feedid::demo_spec();
-        spec.seed = 11 + piece;
-        spec.sensors.sample_time_s = plan.options.sample_time;
-        if (piece == 1) {
-            for (auto* branch : {&spec.axis.friction.forward, &spec.axis.friction.reverse}) {
-                branch->coulomb *= worn_factor;
-                if (branch->breakaway) *branch->breakaway *= worn_factor;
-            }
-        }
-        const std::vector<double> part(x_ref.begin() + static_cast<std::ptrdiff_t>(cuts[piece]),
-                                       x_ref.begin() + static_cast<std::ptrdiff_t>(cuts[piece + 1]));
-        const auto trace = feedid::synthesize(spec, part);
-        if (piece == 0) {
-            joined = trace;
-            continue;
-        }
-        const double offset = joined.column(feedid::Role::time).back() + plan.options.sample_time;
-        for (auto& channel : joined.channels) {
-            const auto* source = trace.find(std::string_view(channel.name));
-            EXPECT_NE(source, nullptr) << channel.name;
-            if (source == nullptr) continue;
-            for (double value : source->values) channel.values.push_back(channel.role == feedid::Role::time ? value + offset : value);
-        }
-    }
-    joined.source_path = "three-centre synthetic trace";
-    return joined;
+    auto spec = feedid::demo_spec();
+    spec.seed = 11;
+    spec.sensors.sample_time_s = plan.options.sample_time;
+    spec.friction_zones = {{worn_from, worn_to, worn_factor}};
+    auto trace = feedid::synthesize(spec, std::vector<double>(x_ref.begin(), x_ref.end()));
+    trace.source_path = "three-centre synthetic trace";
+    return trace;
 }
 
 feedid::FrictionMapOptions map_options() {
@@ -134,28 +93,40 @@ TEST(FrictionMap, HigherCoulombFrictionShowsAtItsCentreOnly) {
         return f.find("centre 0.000 mm: F_C") != std::string::npos && f.find("above") != std::string::npos;
     });
     EXPECT_TRUE(named) << map.document.at("findings").dump();
-    for (const auto& finding : map.findings) {
-        if (finding.find("F_C = ") != std::string::npos) {
-            EXPECT_NE(finding.find("centre 0.000 mm"), std::string::npos) << finding;
-        }
-    }
+    // Only the worn centre stands out, and there the friction levels do: nothing at the other two.
+    for (const auto& finding : map.findings) EXPECT_NE(finding.find("centre 0.000 mm"), std::string::npos) << finding;
+    EXPECT_TRUE(map.document.at("locations").at(0).at("stands_out").empty()) << map.document.at("locations").at(0).dump();
+    EXPECT_TRUE(map.document.at("locations").at(2).at("stands_out").empty()) << map.document.at("locations").at(2).dump();
+    EXPECT_TRUE(stands_out(middle, "breakaway_N")) << middle.dump();
 }
 
-// The same through the command line, as a maintenance engineer runs it on the recorded trace:
-// `feedid identify FILE --by-location` shows the worn centre, and only that one.
+TEST(FrictionMap, UniformFrictionStandsOutNowhere) {
+    const auto map = feedid::friction_map(multi_centre_trace(1.0), map_options());
+    ASSERT_EQ(map.locations.size(), 3u);
+    EXPECT_TRUE(map.findings.empty()) << map.document.at("findings").dump();
+}
+
+// The same through the command line, as a maintenance engineer runs it: feedid plan writes the three-centre test,
+// feedid synth plays it on a drive whose screw is worn around the middle centre (a drive file with a friction zone),
+// and `feedid identify FILE --by-location` shows the worn centre, and only that one.
 TEST(FrictionMap, IdentifyByLocationOnTheCommandLine) {
-    const double worn = 1.3;
-    const auto trace = multi_centre_trace(worn);
     const auto dir = std::filesystem::temp_directory_path() / "feedid-tests" / "files.FrictionMap.ByLocationCli";
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
-    const auto csv = dir / "three-centres.csv";
-    feedid::testing::write_text(csv, feedid::write_csv(trace));
-    const std::string file = "'" + csv.string() + "'";
+    const auto path = [&](const char* name) { return "'" + (dir / name).string() + "'"; };
+    using feedid::testing::run_cli;
+    const auto plan = run_cli("plan --travel=-400:400 --centers=-250,0,250 --slow-feeds 10:1000:3 --max-pass-time 4 "
+                              "-o /dev/null --reference " + path("ref.csv"));
+    ASSERT_EQ(plan.exit_code, 0) << plan.err;
+    feedid::testing::write_text(dir / "worn.json",
+                                R"({"friction_zones": [{"from_mm": -100, "to_mm": 100, "coulomb_factor": 1.3}]})");
+    const auto synth = run_cli("synth --drive " + path("worn.json") + " --reference " + path("ref.csv") + " --out " +
+                               path("trace.csv"));
+    ASSERT_EQ(synth.exit_code, 0) << synth.err;
+    const std::string identify = "identify " + path("trace.csv") + " --force-constant force_constant_N_per_A ";
     const double true_coulomb = feedid::demo_spec().axis.friction.forward.coulomb;
 
-    const auto result = feedid::testing::run_cli("identify " + file +
-                                                 " --force-constant force_constant_N_per_A --by-location --json -");
+    const auto result = run_cli(identify + "--by-location --json -");
     ASSERT_EQ(result.exit_code, 0) << result.err;
     const auto document = nlohmann::json::parse(result.out);
     EXPECT_TRUE(document.at("centers_detected").get<bool>());
@@ -164,31 +135,30 @@ TEST(FrictionMap, IdentifyByLocationOnTheCommandLine) {
     for (std::size_t k = 0; k < 3; ++k) {
         const auto& entry = locations.at(k);
         EXPECT_NEAR(entry.at("center_m").get<double>(), centers[k], 1e-4);
-        const double expected = k == 1 ? worn * true_coulomb : true_coulomb;
+        const double expected = k == 1 ? 1.3 * true_coulomb : true_coulomb;
         EXPECT_NEAR(entry.at("parameters").at("coulomb_N").at("value").get<double>(), expected, 0.02 * expected)
             << "centre " << k + 1;
         EXPECT_EQ(stands_out(entry, "coulomb_N"), k == 1) << entry.dump();
+        if (k != 1) {
+            EXPECT_TRUE(entry.at("stands_out").empty()) << entry.dump();
+        }
     }
 
-    // The table: one row per centre, the worn one marked, and the finding in words.
-    const auto printed = feedid::testing::run_cli("identify " + file +
-                                                  " --force-constant force_constant_N_per_A --by-location");
+    // The table: one row per centre and the finding in words, at the worn centre only.
+    const auto printed = run_cli(identify + "--by-location");
     ASSERT_EQ(printed.exit_code, 0) << printed.err;
     EXPECT_NE(printed.out.find("3 locations"), std::string::npos) << printed.out;
     EXPECT_NE(printed.out.find("centre 0.000 mm: F_C"), std::string::npos) << printed.out;
-    EXPECT_EQ(printed.out.find("centre -250.000 mm: F_C"), std::string::npos) << printed.out;
-    EXPECT_EQ(printed.out.find("centre 250.000 mm: F_C"), std::string::npos) << printed.out;
+    EXPECT_EQ(printed.out.find("centre -250.000 mm:"), std::string::npos) << printed.out;
+    EXPECT_EQ(printed.out.find("centre 250.000 mm:"), std::string::npos) << printed.out;
 
-    // Given centres (mm) instead of detected ones; --centers alone is a usage error.
-    const auto given = feedid::testing::run_cli("identify " + file +
-                                                " --force-constant force_constant_N_per_A --by-location "
-                                                "--centers=250,-250,0 --json -");
+    // Given centres (mm, any order) instead of detected ones; --centers alone is a usage error.
+    const auto given = run_cli(identify + "--by-location --centers=250,-250,0 --json -");
     ASSERT_EQ(given.exit_code, 0) << given.err;
     const auto given_document = nlohmann::json::parse(given.out);
     EXPECT_FALSE(given_document.at("centers_detected").get<bool>());
     EXPECT_TRUE(stands_out(given_document.at("locations").at(1), "coulomb_N"));
-    const auto alone = feedid::testing::run_cli("identify " + file + " --force-constant force_constant_N_per_A "
-                                                "--centers=0");
+    const auto alone = run_cli(identify + "--centers=0");
     EXPECT_EQ(alone.exit_code, 2);
     EXPECT_EQ(feedid::testing::count_lines(alone.err), 1) << alone.err;
 }

@@ -2,6 +2,7 @@
 // steady-state tracking, and reading the axis from a result document.
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 
 #include <nlohmann/json.hpp>
 
@@ -168,6 +169,35 @@ TEST(Simulate, StaysAtRestBelowBreakawayAndStartsAboveIt) { expect_breakaway_at_
 TEST(Simulate, VerticalAxisHeldByStaticFrictionStartsAtBreakawayPlusWeight) {
     // The weight (offset 80 N) is below F_B: static friction holds the axis; it moves up once F_d > F_0 + F_B.
     expect_breakaway_at_the_breakaway_force(80.0);
+}
+
+TEST(Simulate, FrictionZoneRaisesTheBreakawayForceWhereTheAxisStands) {
+    // The same ramp of drive force, the axis standing in a stretch with 1.3 times the Coulomb and breakaway friction:
+    // it breaks away at 1.3 * F_B = 195 N, not at 150 N; outside the stretch the axis model's friction holds.
+    const auto axis = stick_slip_axis(0.0);
+    feedid::ControllerModel controller;
+    controller.position_gain_per_s = 20.0;
+    controller.velocity_gain_N_s_per_m = 2000.0;
+    std::vector<double> reference(8000);
+    for (std::size_t k = 0; k < reference.size(); ++k) reference[k] = 1e-6 * static_cast<double>(k);
+    feedid::SimulationInput input;
+    input.sample_time_s = 1e-3;
+    input.reference = reference;
+    for (const auto& [from, to, breakaway] : {std::tuple{-0.01, 0.01, 195.0}, std::tuple{0.02, 0.03, 150.0}}) {
+        feedid::SimulationOptions options;
+        options.friction_zones = {{from, to, 1.3}};
+        const auto out = feedid::simulate(axis, controller, input, options);
+        const auto first_moving = static_cast<std::size_t>(
+            std::find_if(out.velocity.begin(), out.velocity.end(), [](double v) { return v != 0.0; }) -
+            out.velocity.begin());
+        ASSERT_LT(first_moving, out.velocity.size()) << "the axis never broke away";
+        for (std::size_t k = 0; k + 1 < first_moving; ++k) ASSERT_LE(out.force[k], breakaway + 1e-9) << k;
+        EXPECT_GT(out.force[first_moving - 1], breakaway);
+        EXPECT_LT(out.force[first_moving - 1], breakaway + 0.05);
+    }
+    feedid::SimulationOptions reversed;
+    reversed.friction_zones = {{0.01, -0.01, 1.3}};
+    EXPECT_THROW((void)feedid::simulate(axis, controller, input, reversed), feedid::InputError);
 }
 
 TEST(Simulate, NoChatteringAtRestAfterAStop) {

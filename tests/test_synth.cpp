@@ -187,6 +187,27 @@ TEST(Synth, DriveFileOverridesTheDemoAndRejectsUnknownKeys) {
                  feedid::InputError);
 }
 
+TEST(Synth, DriveFileFrictionZones) {
+    const auto spec = feedid::spec_from_json(
+        nlohmann::json::parse(R"({"friction_zones": [{"from_mm": -100, "to_mm": 50, "coulomb_factor": 1.3}]})"), "d");
+    ASSERT_EQ(spec.friction_zones.size(), 1u);
+    EXPECT_DOUBLE_EQ(spec.friction_zones[0].from_m, -0.1);
+    EXPECT_DOUBLE_EQ(spec.friction_zones[0].to_m, 0.05);
+    EXPECT_DOUBLE_EQ(spec.friction_zones[0].coulomb_factor, 1.3);
+    EXPECT_EQ(feedid::spec_to_json(feedid::spec_from_json(feedid::spec_to_json(spec), "printed")),
+              feedid::spec_to_json(spec));
+    try {
+        feedid::spec_from_json(nlohmann::json::parse(R"({"friction_zones": [{"from_mm": 0, "to_mm": 1, "factor": 2}]})"),
+                               "drive.json");
+        FAIL() << "expected an InputError";
+    } catch (const feedid::InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("friction_zones[0]"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(feedid::spec_from_json(nlohmann::json::parse(
+                     R"({"friction_zones": [{"from_mm": 5, "to_mm": 1, "coulomb_factor": 2}]})"), "d"),
+                 feedid::InputError);
+}
+
 TEST(Synth, CommandLineWritesATraceThatInfoReads) {
     const auto dir = work_dir();
     const auto out = dir / "synth.csv";

@@ -21,12 +21,23 @@
 
 namespace feedid {
 
+/// A stretch of the axis whose friction differs from the rest (a worn or a tight part of the screw): while the axis
+/// is inside [from_m, to_m], the Coulomb and breakaway friction of both directions are `coulomb_factor` times the
+/// axis model's (so the Stribeck rise F_B - F_C scales with them); viscous friction and mass are unchanged.
+struct FrictionZone {
+    double from_m{0.0};          ///< [m]
+    double to_m{0.0};            ///< [m], > from_m
+    double coulomb_factor{1.0};  ///< > 0
+};
+
 struct SimulationOptions {
     int substeps{8};                              ///< integration steps per sample of the reference (>= 1)
     std::optional<double> position_resolution_m;  ///< the controller sees the position quantised to this [m]
     std::optional<double> initial_position_m;     ///< default: the first reference sample
     /// Start with the velocity-loop integrator holding the offset F_0 (the axis at rest under its weight).
     bool hold_offset{true};
+    /// Friction along the axis (synthetic wear); the first zone that holds the position applies. Empty = uniform.
+    std::vector<FrictionZone> friction_zones;
 
     [[nodiscard]] std::string validate() const;
 };

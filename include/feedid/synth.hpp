@@ -59,6 +59,8 @@ struct SynthSpec {
     double gear_ratio{1.0};      ///< motor revolutions per screw revolution
     SensorModel sensors;
     TestReference test;
+    /// Friction along the axis: stretches with scaled Coulomb and breakaway friction (a worn part of the screw).
+    std::vector<FrictionZone> friction_zones;
     std::uint64_t seed{1};
 
     /// Force per ampere [N/A] = K_t * g * 2*pi / lead (eq. 2).
