@@ -253,6 +253,55 @@ TEST(Simulate, FrictionlessRampHasTheFollowingErrorOfAPPositionLoop) {
     EXPECT_LT(std::abs(fed.tracking_error.back()), 1e-6);
 }
 
+TEST(Simulate, ExternalForcePushesAPLoopOffByForceOverStiffness) {
+    // P-P cascade on a frictionless axis, held at a fixed reference against a constant external force F: at rest
+    // K_p*K_v*(x_ref - x) = -F, so the axis settles F/(K_p*K_v) away from the reference, in the direction of F.
+    feedid::AxisModel axis;
+    axis.mass = 40.0;
+    feedid::ControllerModel controller;
+    controller.position_gain_per_s = 20.0;
+    controller.velocity_gain_N_s_per_m = 2000.0;
+    const std::vector<double> reference(4000, 0.1);
+    const std::vector<double> external(reference.size(), 100.0);
+    feedid::SimulationInput input;
+    input.sample_time_s = 1e-3;
+    input.reference = reference;
+    input.external_force = external;
+    const auto out = feedid::simulate(axis, controller, input);
+    EXPECT_NEAR(out.tracking_error.back(), -100.0 / (20.0 * 2000.0), 1e-7);
+    EXPECT_NEAR(out.force.back(), -100.0, 1e-3);
+    const std::vector<double> short_force(10, 1.0);
+    input.external_force = short_force;
+    EXPECT_THROW((void)feedid::simulate(axis, controller, input), feedid::InputError);
+}
+
+TEST(Simulate, CommandLineWritesTheSimulatedSignals) {
+    // feedid simulate --out: the simulated signals as CSV, read back with their roles and units; with the true drive
+    // as the "identified" one the simulated position follows the synthetic machine's.
+    const auto dir = work_dir();
+    const std::string trace = "'" + (dir / "synth.csv").string() + "'";
+    ASSERT_EQ(run_cli("synth --no-slow-passes --out " + trace).exit_code, 0);
+    feedid::testing::write_text(dir / "result.json", R"({"parameters": {
+        "mass_kg": {"value": 69.1}, "viscous_Ns_per_m": {"value": 54.2}, "coulomb_N": {"value": 742.8},
+        "breakaway_N": {"value": 946.2}, "stribeck_velocity_m_per_s": {"value": 0.005}}})");
+    const auto result = run_cli("simulate " + trace + " --force-constant force_constant_N_per_A --result '" +
+                                (dir / "result.json").string() + "' --out '" + (dir / "sim.csv").string() + "'");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto simulated = feedid::read_trace(dir / "sim.csv");
+    const auto machine = feedid::read_trace(dir / "synth.csv");
+    ASSERT_EQ(simulated.samples(), machine.samples());
+    for (const auto role : {feedid::Role::time, feedid::Role::reference_position, feedid::Role::position,
+                            feedid::Role::velocity, feedid::Role::velocity_command, feedid::Role::force}) {
+        EXPECT_TRUE(simulated.has(role)) << static_cast<int>(role);
+    }
+    const auto x = simulated.column(feedid::Role::position);
+    const auto x_machine = machine.column(feedid::Role::position);
+    double largest = 0.0;
+    for (std::size_t k = 0; k < x.size(); ++k) largest = std::max(largest, std::abs(x[k] - x_machine[k]));
+    EXPECT_LT(largest, 1e-4) << "the true model tracks the synthetic machine";
+    EXPECT_EQ(simulated.find(feedid::Role::position)->unit, "m");
+}
+
 TEST(Simulate, FasterVelocityLoopThanThePositionLoop) {
     // Position loop every 2 ms, velocity loop every 125 us, on a 1 kHz reference: still tracks a ramp.
     feedid::AxisModel axis;
