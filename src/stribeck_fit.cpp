@@ -164,10 +164,16 @@ CurveFit fit_friction_curve(const FitSamples& samples, const CurveModel& model, 
     for (int g = 0; g < 2; ++g) {
         if (layout.log_vs[g] >= 0) x(layout.log_vs[g]) = std::log(mid);
     }
-    // Grid search over ln v_s, one group at a time (twice round for two groups).
+    // Grid search over ln v_s, one group at a time (twice round for two groups), on an evenly spread subsample of at
+    // most 20000 samples: it only has to find the basin for Levenberg-Marquardt, which then uses every sample.
+    FitSamples coarse;
+    const std::size_t coarse_stride = std::max<std::size_t>(1, samples.size() / 20000);
+    for (std::size_t k = 0; k < samples.size(); k += coarse_stride) {
+        coarse.push(samples.acceleration[k], samples.velocity[k], samples.force[k]);
+    }
     constexpr int grid_points = 41;
     const int rounds = model.asymmetric ? 2 : 1;
-    double best_rss = solve_linear_part(samples, model, layout, x);
+    double best_rss = solve_linear_part(coarse, model, layout, x);
     for (int round = 0; round < rounds; ++round) {
         for (int g = 0; g < 2; ++g) {
             if (layout.log_vs[g] < 0) continue;
@@ -176,7 +182,7 @@ CurveFit fit_friction_curve(const FitSamples& samples, const CurveModel& model, 
                 Eigen::VectorXd trial = x;
                 trial(layout.log_vs[g]) =
                     std::log(vs_low) + (std::log(vs_high) - std::log(vs_low)) * i / (grid_points - 1.0);
-                const double rss = solve_linear_part(samples, model, layout, trial);
+                const double rss = solve_linear_part(coarse, model, layout, trial);
                 if (rss < best_rss) {
                     best_rss = rss;
                     best = trial;

@@ -60,9 +60,10 @@ public:
         const double error = y - phi.dot(theta_);
         if (options_.variant == RlsVariant::exponential) {
             // eq. (8): L = P*phi / (lambda + phi^T*P*phi); eq. (7); eq. (9): P = (I - L*phi^T)*P / lambda
-            const Vector gain = p_phi / (lambda + r);
+            const double inverse_denominator = 1.0 / (lambda + r);
+            const Vector gain = p_phi * inverse_denominator;
             theta_ += gain * error;
-            covariance_ = (covariance_ - gain * p_phi.transpose()) / lambda;
+            covariance_ = (covariance_ - gain * p_phi.transpose()) * inverse_lambda_;
             // P is positive semi-definite, so its trace bounds every entry; NaN fails the comparison too
             if (!(covariance_.trace() <= wind_up_limit)) wound_up_ = true;
             ++updates_;
@@ -73,12 +74,13 @@ public:
         const double scale = covariance_.trace();  // >= the largest eigenvalue of P
         if (!(r > 1e-14 * scale * phi.squaredNorm()) || !(r > 0.0)) return RlsUpdate::no_excitation;
         const double eps = 1.0 - (1.0 - lambda) / r;
-        const Vector gain = p_phi / (lambda + r);
+        const double inverse_denominator = 1.0 / (lambda + r);
+        const Vector gain = p_phi * inverse_denominator;
         theta_ += gain * error;
         // The outer product a*a^T is exactly symmetric in floating point (a_i*a_j == a_j*a_i), so P stays exactly
         // symmetric without re-symmetrising.
         const Matrix outer = p_phi * p_phi.transpose();
-        covariance_ -= (eps / (lambda + r)) * outer;
+        covariance_ -= (eps * inverse_denominator) * outer;
         ++updates_;
         return RlsUpdate::updated;
     }
@@ -94,6 +96,7 @@ public:
 
 private:
     RlsOptions options_;
+    double inverse_lambda_{1.0 / options_.forgetting_factor};
     Vector theta_;
     Matrix covariance_;
     std::size_t updates_{0};
