@@ -267,6 +267,25 @@ TEST(IdentifySynthetic, ThePapersLadderAloneLeavesBreakawayAndStribeckNull) {
     EXPECT_WITHIN_PCT(estimate(r, "coulomb_reverse_N"), 110.0, 2.0);
 }
 
+TEST(IdentifySynthetic, ARotaryAxisReportsInertiaAndTorques) {
+    // the same numbers read as a rotary table: rad, rad/s, N*m, kg*m^2
+    const Drive drive{0.8, {0.5, 12.0, 15.0, 0.02}, {0.5, 12.0, 15.0, 0.02}};
+    std::vector<double> feeds;
+    for (const double f : slow_and_fast) feeds.push_back(10.0 * f);  // rad/s
+    auto trace = synthetic_trace(drive, feeds, 13);
+    trace.rotary = true;
+    trace.find(feedid::Role::position)->unit = "rad";
+    const auto r = feedid::identify(trace, options_for(feedid::FrictionModelKind::symmetric));
+    ASSERT_NE(r.status, "failed") << r.document.dump(1);
+    EXPECT_TRUE(r.document.at("rotary").get<bool>());
+    EXPECT_WITHIN_PCT(estimate(r, "inertia_kgm2"), 0.8, 2.0);
+    EXPECT_WITHIN_PCT(estimate(r, "viscous_Nms_per_rad"), 0.5, 2.0);
+    EXPECT_WITHIN_PCT(estimate(r, "coulomb_Nm"), 12.0, 2.0);
+    EXPECT_WITHIN_PCT(estimate(r, "breakaway_Nm"), 15.0, 5.0);
+    EXPECT_WITHIN_PCT(estimate(r, "stribeck_velocity_rad_per_s"), 0.02, 15.0);
+    EXPECT_FALSE(r.document.at("parameters").contains("mass_kg"));
+}
+
 TEST(IdentifySynthetic, TheDocumentHasTheContractsKeys) {
     const auto trace = synthetic_trace(asymmetric_drive, slow_and_fast, 5);
     const auto r = feedid::identify(trace, options_for(feedid::FrictionModelKind::symmetric));
