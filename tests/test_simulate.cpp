@@ -200,6 +200,27 @@ TEST(Simulate, FrictionZoneRaisesTheBreakawayForceWhereTheAxisStands) {
     EXPECT_THROW((void)feedid::simulate(axis, controller, input, reversed), feedid::InputError);
 }
 
+TEST(Simulate, ReusedOutputHoldsTheSameRunAsAFreshOne) {
+    const auto axis = stick_slip_axis(0.0);
+    feedid::ControllerModel controller;
+    controller.position_gain_per_s = 30.0;
+    controller.velocity_gain_N_s_per_m = 3000.0;
+    std::vector<double> reference(3000);
+    for (std::size_t k = 0; k < reference.size(); ++k) reference[k] = 0.02 * std::sin(1e-3 * static_cast<double>(k));
+    feedid::SimulationInput input;
+    input.sample_time_s = 1e-3;
+    input.reference = reference;
+    feedid::SimulationOutput reused;
+    feedid::simulate(axis, controller, input, {}, reused);  // a longer run first ...
+    input.reference = std::span<const double>(reference).first(1000);
+    feedid::simulate(axis, controller, input, {}, reused);  // ... then a shorter one into the same output
+    const auto fresh = feedid::simulate(axis, controller, input);
+    EXPECT_EQ(reused.position, fresh.position);
+    EXPECT_EQ(reused.force, fresh.force);
+    EXPECT_EQ(reused.time.size(), 1000u);
+    EXPECT_EQ(reused.stick_transitions, fresh.stick_transitions);
+}
+
 TEST(Simulate, NoChatteringAtRestAfterAStop) {
     // Move, then hold still: after the stop the axis rests (velocity exactly 0) without chattering about zero.
     const auto axis = stick_slip_axis(0.0);

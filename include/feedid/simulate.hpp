@@ -70,6 +70,11 @@ struct SimulationOutput {
 SimulationOutput simulate(const AxisModel& axis, const ControllerModel& controller, const SimulationInput& input,
                           const SimulationOptions& options = {});
 
+/// The same into an output that is reused: its columns keep their memory, so repeated simulations (a parameter
+/// sweep, a benchmark) allocate nothing and touch no fresh pages once the output has held as many samples.
+void simulate(const AxisModel& axis, const ControllerModel& controller, const SimulationInput& input,
+              const SimulationOptions& options, SimulationOutput& out);
+
 /// The axis model from an identification result document (DESIGN.md keys: parameters.mass_kg.value, ...;
 /// per-direction `_forward`/`_reverse` keys; rotary-axis keys). A null breakaway force or Stribeck velocity means no
 /// Stribeck term; a missing offset means 0. Values may also be plain numbers (a drive file). InputError naming
