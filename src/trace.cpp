@@ -98,7 +98,19 @@ TimeBase Trace::time_base() const {
     for (std::size_t k = 0; k + 1 < time.size(); ++k) steps[k] = time[k + 1] - time[k];
     auto middle = steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2);
     std::nth_element(steps.begin(), middle, steps.end());
-    base.sample_time_s = *middle;
+    const double median = *middle;
+    // The sample time is the mean of the regular steps (within half a median step of it): the median alone is biased
+    // when time stamps are rounded (EMPS's t steps by 0.99998 ms and 1.00002 ms, and the median picks one of them),
+    // and the plain mean is pulled by gaps of dropped samples.
+    double sum = 0.0;
+    std::size_t regular = 0;
+    for (const double step : steps) {
+        if (std::abs(step - median) <= 0.5 * std::abs(median)) {
+            sum += step;
+            ++regular;
+        }
+    }
+    base.sample_time_s = regular > 0 ? sum / static_cast<double>(regular) : median;
     for (std::size_t k = 0; k + 1 < time.size(); ++k) {
         base.max_deviation_s = std::max(base.max_deviation_s, std::abs(time[k + 1] - time[k] - base.sample_time_s));
     }
@@ -136,7 +148,7 @@ void Trace::validate() {
     if (n >= 2) {
         const TimeBase base = time_base();
         if (base.jittery) {
-            findings.push_back(fmt::format("jittery time base: median sample time {:.6g} s, largest deviation {:.3g} s "
+            findings.push_back(fmt::format("jittery time base: sample time {:.6g} s, largest deviation {:.3g} s "
                                            "({:.1f} % of a sample)",
                                            base.sample_time_s, base.max_deviation_s,
                                            100.0 * base.max_deviation_s / base.sample_time_s));

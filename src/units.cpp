@@ -178,11 +178,11 @@ std::optional<UnitConversion> parse_unit(std::string_view unit, const UnitContex
     const std::string key = normalise(unit);
     if (key.empty() || key == "-" || key == "1") return UnitConversion{Quantity::dimensionless, 1.0, 0.0, ""};
     if (key == "rpm" || key == "rps") {
+        // Motor revolutions become table travel only through the lead; without it the conversion would be a guess
+        // (motor or load side? gear?), so it is refused.
+        if (!context.lead_m) return std::nullopt;
         const double revolutions_per_second = key == "rpm" ? 1.0 / 60.0 : 1.0;
-        if (context.lead_m) {
-            return UnitConversion{Quantity::velocity, revolutions_per_second * *context.lead_m, 0.0, "m/s"};
-        }
-        return UnitConversion{Quantity::angular_velocity, revolutions_per_second * 2.0 * pi, 0.0, "rad/s"};
+        return UnitConversion{Quantity::velocity, revolutions_per_second * *context.lead_m, 0.0, "m/s"};
     }
     if (key == "%") {
         if (!context.rated_value_si || !context.rated_quantity) return std::nullopt;
@@ -200,6 +200,11 @@ std::optional<UnitConversion> parse_unit(std::string_view unit, const UnitContex
 UnitConversion parse_unit_or_throw(std::string_view unit, std::string_view channel, const UnitContext& context) {
     if (auto conversion = parse_unit(unit, context)) return *conversion;
     const std::string key = normalise(unit);
+    if (key == "rpm" || key == "rps") {
+        throw InputError(fmt::format("channel '{}': unit '{}' needs the ball-screw lead to become a table velocity "
+                                     "(--lead MM per revolution)",
+                                     channel, unit));
+    }
     if (key == "%") {
         throw InputError(fmt::format("channel '{}': unit '%' needs the rated value it is a percentage of "
                                      "(--rated VALUE in SI units)",

@@ -81,3 +81,36 @@ TEST(Trace, ColumnOfMissingRoleNamesTheRole) {
         EXPECT_NE(std::string(e.what()).find("current"), std::string::npos);
     }
 }
+
+TEST(Trace, SampleTimeIsNotBiasedByRoundedTimeStamps) {
+    // time stamps rounded to single precision, as a logger with float time writes them: the steps alternate between
+    // two values either side of 1 ms, and the median alone would pick one of them
+    std::vector<double> time;
+    std::vector<double> position;
+    for (int k = 0; k <= 30000; ++k) {
+        time.push_back(static_cast<double>(static_cast<float>(k * 0.001)));
+        position.push_back(0.0);
+    }
+    Trace trace = make_trace(time, position);
+    trace.validate();
+    const auto base = trace.time_base();
+    EXPECT_NEAR(base.sample_time_s, 0.001, 1e-9);       // (30 s - 0 s) / 30000 steps, to float rounding of 30 s
+    EXPECT_NEAR(base.duration_s, 30.0, 1e-6);
+    EXPECT_FALSE(base.jittery);                           // float steps deviate by < 2e-6 s, far below 1 %
+}
+
+TEST(Trace, SampleTimeIgnoresAGapButTheGapIsReported) {
+    // 1 ms samples with one sample missing after 0.1 s
+    std::vector<double> time;
+    for (int k = 0; k <= 200; ++k) {
+        if (k != 101) time.push_back(k * 0.001);
+    }
+    Trace trace = make_trace(time, std::vector<double>(time.size(), 0.0));
+    trace.validate();
+    const auto base = trace.time_base();
+    EXPECT_NEAR(base.sample_time_s, 0.001, 1e-15);
+    EXPECT_NEAR(base.max_deviation_s, 0.001, 1e-12);  // the 2 ms step
+    EXPECT_TRUE(base.jittery);
+    ASSERT_EQ(trace.findings.size(), 1u);
+    EXPECT_NE(trace.findings[0].find("0.001"), std::string::npos) << trace.findings[0];
+}

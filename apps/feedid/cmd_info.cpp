@@ -1,6 +1,10 @@
 // feedid info FILE: what a trace holds (channels, roles, units, sample time, findings).
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <optional>
+#include <utility>
+#include <vector>
 
 #include <fmt/core.h>
 
@@ -9,6 +13,18 @@
 namespace feedid::cli {
 
 namespace {
+// Smallest and largest finite value (a channel no analysis uses may hold NaN for missing cells).
+std::optional<std::pair<double, double>> finite_range(const std::vector<double>& values) {
+    std::optional<std::pair<double, double>> range;
+    for (const double value : values) {
+        if (!std::isfinite(value)) continue;
+        if (!range) range = std::pair{value, value};
+        range->first = std::min(range->first, value);
+        range->second = std::max(range->second, value);
+    }
+    return range;
+}
+
 struct InfoCommand {
     TraceArguments trace_arguments;
     std::string json_path;
@@ -28,9 +44,9 @@ struct InfoCommand {
                                  {"role", role_name(channel.role)},
                                  {"unit", channel.unit},
                                  {"source_unit", channel.source_unit}};
-            const auto [low, high] = std::minmax_element(channel.values.begin(), channel.values.end());
-            entry["min"] = channel.values.empty() ? nlohmann::json() : nlohmann::json(*low);
-            entry["max"] = channel.values.empty() ? nlohmann::json() : nlohmann::json(*high);
+            const auto range = finite_range(channel.values);
+            entry["min"] = range ? nlohmann::json(range->first) : nlohmann::json();
+            entry["max"] = range ? nlohmann::json(range->second) : nlohmann::json();
             document["channels"].push_back(entry);
         }
         document["constants"] = trace.constants;
@@ -49,10 +65,12 @@ struct InfoCommand {
         fmt::print("  channels\n");
         fmt::print("    {:<28} {:<20} {:<8} {:<10} {:>14} {:>14}\n", "name", "role", "unit", "source", "min", "max");
         for (const auto& channel : trace.channels) {
-            const auto [low, high] = std::minmax_element(channel.values.begin(), channel.values.end());
-            fmt::print("    {:<28} {:<20} {:<8} {:<10} {:>14.6g} {:>14.6g}\n", channel.name, role_name(channel.role),
+            const auto range = finite_range(channel.values);
+            fmt::print("    {:<28} {:<20} {:<8} {:<10} {:>14} {:>14}\n", channel.name, role_name(channel.role),
                        channel.unit.empty() ? "-" : channel.unit,
-                       channel.source_unit.empty() ? "-" : channel.source_unit, *low, *high);
+                       channel.source_unit.empty() ? "-" : channel.source_unit,
+                       range ? fmt::format("{:.6g}", range->first) : "-",
+                       range ? fmt::format("{:.6g}", range->second) : "-");
         }
         if (!trace.constants.empty()) {
             fmt::print("  constants\n");
@@ -72,6 +90,8 @@ Action add_info_command(CLI::App& app) {
     auto* sub = app.add_subcommand("info", "Show what a trace holds: channels, roles, units, sample time, findings");
     command->trace_arguments.add_to(*sub);
     sub->add_option("--json", command->json_path, "Write the info document to PATH ('-' for stdout)");
+    sub->add_option("--lead", command->trace_arguments.lead_mm,
+                    "Ball-screw lead [mm per revolution]: converts channels in rpm to table velocity");
     sub->footer("Example:\n  feedid info ../shared/data/emps/DATA_EMPS.mat\n"
                 "  feedid info trace.csv --channel position=x_act --unit current=A --json -");
     return [command] { return command->run(); };

@@ -39,8 +39,8 @@ struct Channel {
 
 /// Statistics of the time base: the sample time and how regular it is.
 struct TimeBase {
-    double sample_time_s{0.0};        ///< Median time between samples [s].
-    double max_deviation_s{0.0};      ///< Largest |dt - median| [s].
+    double sample_time_s{0.0};        ///< Mean of the regular steps (within half the median step of it) [s].
+    double max_deviation_s{0.0};      ///< Largest |dt - sample_time_s| over all steps, gaps included [s].
     double duration_s{0.0};           ///< Last minus first time stamp [s].
     bool jittery{false};              ///< max deviation above 1 % of the sample time.
 };

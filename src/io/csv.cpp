@@ -2,14 +2,22 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <functional>
 #include <limits>
 #include <map>
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <fast_float/fast_float.h>
 #include <fmt/core.h>
 #include <fmt/format.h>
 
 #include "feedid/error.hpp"
+#include "feedid/io/import.hpp"
 
 namespace feedid {
 
@@ -68,6 +76,75 @@ char detect_separator(std::string_view header) {
     return best;
 }
 
+// A cell as it may appear in a one-line message: control bytes escaped, at most 40 characters.
+std::string printable(std::string_view cell) {
+    std::string out;
+    for (const char c : cell.substr(0, 40)) {
+        const auto byte = static_cast<unsigned char>(c);
+        if (byte < 0x20 || byte == 0x7F) out += fmt::format("\\x{:02X}", byte);
+        else out += c;
+    }
+    if (cell.size() > 40) out += "...";
+    return out;
+}
+
+// Text exports never hold control bytes other than tab, CR, LF and form feed; anything else in the first 64 KiB
+// means the file is binary (an image, a compressed archive, a binary scope format) and not a CSV at all.
+void reject_binary(std::string_view text, const std::string& source) {
+    if (text.starts_with("\xFF\xFE") || text.starts_with("\xFE\xFF")) {
+        throw InputError(fmt::format("{}: UTF-16 text (as Excel's \"Unicode text\" writes it); save it as UTF-8 CSV",
+                                     source));
+    }
+    const auto head = text.substr(0, 65536);
+    for (std::size_t k = 0; k < head.size(); ++k) {
+        const auto byte = static_cast<unsigned char>(head[k]);
+        if ((byte < 0x20 && byte != '\t' && byte != '\n' && byte != '\r' && byte != '\f') || byte == 0x7F) {
+            throw InputError(fmt::format("{}: not a text file (byte {} is the control character 0x{:02X}); a CSV "
+                                         "trace is text with a header row like 'time [s],x [mm],i [A]'",
+                                         source, k + 1, byte));
+        }
+    }
+}
+
+// Rows left in text[position, end): exact for small files, otherwise from the mean line length of windows spread
+// over the file (the number of digits in a time stamp grows along a recording, so the start alone underestimates).
+std::size_t estimate_rows(std::string_view text, std::size_t position) {
+    const std::string_view rest = text.substr(std::min(position, text.size()));
+    constexpr std::size_t window = 1U << 16;
+    constexpr std::size_t windows = 8;
+    if (rest.size() <= window * windows) {
+        return static_cast<std::size_t>(std::count(rest.begin(), rest.end(), '\n')) + 1;
+    }
+    std::size_t lines = 0;
+    for (std::size_t w = 0; w < windows; ++w) {
+        const std::size_t start = (rest.size() - window) / (windows - 1) * w;
+        const auto part = rest.substr(start, window);
+        lines += static_cast<std::size_t>(std::count(part.begin(), part.end(), '\n'));
+    }
+    const double mean_length = static_cast<double>(window * windows) / static_cast<double>(std::max<std::size_t>(lines, 1));
+    return static_cast<std::size_t>(static_cast<double>(rest.size()) / mean_length * 1.03) + 16;
+}
+
+// Appends with a growth of 25 % instead of doubling, should the estimate fall short: the columns are the largest
+// thing import holds, and doubling them all at once would double peak memory.
+inline void append(std::vector<double>& column, double value) {
+    if (column.size() == column.capacity()) column.reserve(column.capacity() + column.capacity() / 4 + 64);
+    column.push_back(value);
+}
+
+// A quoted number ("1.5"), as some exports write every cell.
+bool parse_quoted(std::string_view cell, const fast_float::parse_options& options, double& value) {
+    if (cell.size() < 3 || cell.front() != '"' || cell.back() != '"') return false;
+    cell = trim(cell.substr(1, cell.size() - 2));
+    if (!cell.empty() && cell.front() == '+') cell.remove_prefix(1);
+    if (cell.empty()) {
+        value = missing;
+        return true;
+    }
+    const auto parsed = fast_float::from_chars_advanced(cell.data(), cell.data() + cell.size(), value, options);
+    return parsed.ec == std::errc() && parsed.ptr == cell.data() + cell.size();
+}
+
 bool is_comment_or_blank(std::string_view line) {
     line = trim(line);
     return line.empty() || line.front() == '#';
@@ -84,10 +161,16 @@ void read_constant(std::string_view line, std::map<std::string, double>& constan
     auto value_text = trim(line.substr(equals + 1));
     if (name.empty() || name.find_first_of(" \t") != std::string_view::npos) return;
     if (!value_text.empty() && value_text.front() == '+') value_text.remove_prefix(1);
-    double value = 0.0;
-    const auto parsed = fast_float::from_chars(value_text.data(), value_text.data() + value_text.size(), value);
-    if (parsed.ec == std::errc() && parsed.ptr == value_text.data() + value_text.size()) {
-        constants[std::string(name)] = value;
+    // the decimal mark is not known yet (the separator comes with the header): a point, else a comma
+    for (const char decimal_point : {'.', ','}) {
+        double value = 0.0;
+        const fast_float::parse_options options{fast_float::chars_format::general, decimal_point};
+        const auto parsed = fast_float::from_chars_advanced(value_text.data(), value_text.data() + value_text.size(),
+                                                            value, options);
+        if (parsed.ec == std::errc() && parsed.ptr == value_text.data() + value_text.size()) {
+            constants[std::string(name)] = value;
+            return;
+        }
     }
 }
 
@@ -109,12 +192,18 @@ std::pair<std::string, std::string> split_name_unit(std::string_view cell) {
     return {std::string(cell), ""};
 }
 
-Trace parse_csv(std::string_view text, const std::string& source) {
+namespace {
+
+// The parser proper. `release(upto)` is called now and then with a pointer below which the text is no longer read,
+// so a memory-mapped file can hand those pages back (read_csv); parse_csv passes a no-op.
+Trace parse_csv_text(std::string_view text, const std::string& source,
+                     const std::function<void(const char*)>& release) {
     // Skip a UTF-8 byte-order mark.
     if (text.size() >= 3 && text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
-    if (text.find('\0') != std::string_view::npos) {
-        throw InputError(fmt::format("{}: not a text file (it contains NUL bytes)", source));
+    if (text.find_first_not_of(" \t\r\n") == std::string_view::npos) {
+        throw InputError(fmt::format("{}: empty file", source));
     }
+    reject_binary(text, source);
 
     std::size_t position = 0;
     std::size_t line_number = 0;
@@ -131,17 +220,26 @@ Trace parse_csv(std::string_view text, const std::string& source) {
     std::string_view line;
     bool have_header = false;
     std::map<std::string, double> constants;
+    char stated_separator = '\0';
     while (next_line(line)) {
+        // Excel's "sep=;" line states the separator
+        if (const auto stated = trim(line); stated.size() == 5 && stated.starts_with("sep=") && line_number == 1) {
+            stated_separator = stated[4];
+            continue;
+        }
         if (!is_comment_or_blank(line)) {
             have_header = true;
             break;
         }
         read_constant(line, constants);
     }
-    if (!have_header) throw InputError(fmt::format("{}: empty file (no header row)", source));
+    if (!have_header) throw InputError(fmt::format("{}: no header row (only comments or blank lines)", source));
 
-    const char separator = detect_separator(line);
-    const auto header = split_header(line, separator);
+    const char separator = stated_separator != '\0' ? stated_separator : detect_separator(line);
+    auto header = split_header(line, separator);
+    // A separator at the end of every line (some exports write one) makes an empty last column: not a channel.
+    const bool trailing_separator = header.size() > 1 && header.back().empty();
+    if (trailing_separator) header.pop_back();
     const std::size_t columns = header.size();
     const std::size_t header_line = line_number;
 
@@ -171,13 +269,9 @@ Trace parse_csv(std::string_view text, const std::string& source) {
         trace.channels.push_back(Channel{name, Role::other, "", unit, {}});
     }
 
-    // Reserve from the size of the rest of the file and the length of the first data line.
-    const std::size_t rest = text.size() - std::min(position, text.size());
     {
-        const auto end = text.find('\n', position);
-        const std::size_t first_length = (end == std::string_view::npos ? text.size() : end) - position + 1;
-        const std::size_t estimate = first_length > 1 ? rest / first_length + 16 : 16;
-        for (auto& channel : trace.channels) channel.values.reserve(estimate + estimate / 8);
+        const std::size_t estimate = estimate_rows(text, position);
+        for (auto& channel : trace.channels) channel.values.reserve(estimate);
     }
 
     // Decimal comma: only with ';' or tab separators, decided on the first data line holding a ',' in a number.
@@ -186,8 +280,24 @@ Trace parse_csv(std::string_view text, const std::string& source) {
     const fast_float::parse_options dot_options{fast_float::chars_format::general, '.'};
     const fast_float::parse_options comma_options{fast_float::chars_format::general, ','};
 
+    constexpr std::size_t release_every = std::size_t{8} << 20;
+    std::size_t next_release = release_every;
     std::size_t data_rows = 0;
+    auto not_a_number = [&](std::size_t c, const char* cell_start, const char* end) {
+        const char* cell_end = std::find(cell_start, end, separator);
+        const auto cell = trim(std::string_view(cell_start, static_cast<std::size_t>(cell_end - cell_start)));
+        if (c >= columns) {
+            return InputError(fmt::format("{}:{}: row has more cells than the header's {} columns", source,
+                                          line_number, columns));
+        }
+        return InputError(fmt::format("{}:{}: column {} ('{}') holds '{}', which is not a number", source,
+                                      line_number, c + 1, trace.channels[c].name, printable(cell)));
+    };
     while (next_line(line)) {
+        if (position >= next_release) {
+            release(line.data());
+            next_release = position + release_every;
+        }
         if (line.empty() || line.front() == '#' || is_comment_or_blank(line)) continue;
         if (!decided) {
             if (line.find(',') != std::string_view::npos) {
@@ -209,33 +319,36 @@ Trace parse_csv(std::string_view text, const std::string& source) {
             if (p < end && *p != separator && *p != '\r') {
                 const auto parsed = fast_float::from_chars_advanced(p, end, value, options);
                 if (parsed.ec != std::errc() || parsed.ptr == p) {
-                    const char* cell_end = std::find(cell_start, end, separator);
-                    std::string_view cell = trim(std::string_view(cell_start, static_cast<std::size_t>(cell_end - cell_start)));
-                    if (cell == "NaN" || cell == "nan" || cell == "NA") {
+                    // the slow path: a quoted number, a spelled-out missing value, or an error
+                    const char* cell_end = *cell_start == '"' ? std::find(cell_start + 1, end, '"') + 1
+                                                              : std::find(cell_start, end, separator);
+                    cell_end = std::min(cell_end, end);
+                    const auto cell = trim(std::string_view(cell_start, static_cast<std::size_t>(cell_end - cell_start)));
+                    if (cell == "NA" || cell == "N/A" || cell == "n/a" || cell == "-" || cell == "\"\"") {
                         value = missing;
-                        p = cell_end;
-                    } else {
-                        throw InputError(fmt::format("{}:{}: column '{}' holds '{}', which is not a number", source,
-                                                     line_number, c < columns ? trace.channels[c].name : "?", cell));
+                    } else if (!parse_quoted(cell, options, value)) {
+                        throw not_a_number(c, cell_start, end);
                     }
+                    p = cell_end;
                 } else {
                     p = parsed.ptr;
                 }
             }
             while (p < end && (*p == ' ' || *p == '\t' || *p == '\r') && *p != separator) ++p;
             if (c >= columns) {
-                throw InputError(fmt::format("{}:{}: row has more cells than the header's {} columns", source,
-                                             line_number, columns));
+                // one empty cell after a trailing separator is no extra column
+                const bool empty_cell = std::isnan(value) &&
+                                        trim(std::string_view(cell_start, static_cast<std::size_t>(p - cell_start))).empty();
+                if (!(c == columns && empty_cell && p >= end)) {
+                    throw InputError(fmt::format("{}:{}: row has more cells than the header's {} columns", source,
+                                                 line_number, columns));
+                }
+                break;
             }
-            trace.channels[c].values.push_back(value);
+            append(trace.channels[c].values, value);
             ++c;
             if (p >= end) break;
-            if (*p != separator) {
-                const char* cell_end = std::find(cell_start, end, separator);
-                throw InputError(fmt::format("{}:{}: column '{}' holds '{}', which is not a number", source,
-                                             line_number, trace.channels[c - 1].name,
-                                             trim(std::string_view(cell_start, static_cast<std::size_t>(cell_end - cell_start)))));
-            }
+            if (*p != separator) throw not_a_number(c - 1, cell_start, end);
             ++p;  // past the separator
         }
         if (c != columns) {
@@ -251,21 +364,77 @@ Trace parse_csv(std::string_view text, const std::string& source) {
     return trace;
 }
 
+class MappedFile {
+public:
+    explicit MappedFile(const std::filesystem::path& path) {
+        descriptor_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+        if (descriptor_ < 0) return;
+        struct stat status {};
+        if (::fstat(descriptor_, &status) != 0 || !S_ISREG(status.st_mode) || status.st_size <= 0) return;
+        size_ = static_cast<std::size_t>(status.st_size);
+        void* address = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, descriptor_, 0);
+        if (address == MAP_FAILED) {
+            size_ = 0;
+            return;
+        }
+        data_ = static_cast<const char*>(address);
+        ::madvise(address, size_, MADV_SEQUENTIAL);
+    }
+    MappedFile(const MappedFile&) = delete;
+    MappedFile& operator=(const MappedFile&) = delete;
+    ~MappedFile() {
+        if (data_ != nullptr) ::munmap(const_cast<char*>(data_), size_);
+        if (descriptor_ >= 0) ::close(descriptor_);
+    }
+    [[nodiscard]] bool mapped() const { return data_ != nullptr; }
+    [[nodiscard]] std::string_view text() const { return {data_, size_}; }
+    /// Drops the pages below `upto` from memory (they read back from the file should they be touched again).
+    void release(const char* upto) const {
+        static const auto page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
+        const std::size_t length = static_cast<std::size_t>(upto - data_) / page * page;
+        if (length > 0) ::madvise(const_cast<char*>(data_), length, MADV_DONTNEED);
+    }
+
+private:
+    int descriptor_{-1};
+    const char* data_{nullptr};
+    std::size_t size_{0};
+};
+
+}  // namespace
+
+Trace parse_csv(std::string_view text, const std::string& source) {
+    return parse_csv_text(text, source, [](const char*) {});
+}
+
+Trace read_csv(const std::filesystem::path& path) {
+    const std::string source = path.string();
+    const MappedFile file(path);
+    if (file.mapped()) return parse_csv_text(file.text(), source, [&file](const char* upto) { file.release(upto); });
+    // Not a regular file that can be mapped (a pipe, an empty file): read it whole.
+    const std::string bytes = read_file_bytes(path);
+    return parse_csv(bytes, source);
+}
+
 std::string write_csv(const Trace& trace) {
     fmt::memory_buffer out;
     for (const auto& [name, value] : trace.constants) fmt::format_to(std::back_inserter(out), "# {} = {}\n", name, value);
     for (std::size_t c = 0; c < trace.channels.size(); ++c) {
         const auto& channel = trace.channels[c];
         if (c > 0) out.push_back(',');
-        if (channel.unit.empty()) fmt::format_to(std::back_inserter(out), "{}", channel.name);
-        else fmt::format_to(std::back_inserter(out), "{} [{}]", channel.name, channel.unit);
+        // a name holding the separator is quoted so that it reads back as one column
+        const char* quote = channel.name.find(',') != std::string::npos ? "\"" : "";
+        if (channel.unit.empty()) fmt::format_to(std::back_inserter(out), "{}{}{}", quote, channel.name, quote);
+        else fmt::format_to(std::back_inserter(out), "{}{} [{}]{}", quote, channel.name, channel.unit, quote);
     }
     out.push_back('\n');
     const std::size_t n = trace.samples();
     for (std::size_t k = 0; k < n; ++k) {
         for (std::size_t c = 0; c < trace.channels.size(); ++c) {
             if (c > 0) out.push_back(',');
-            fmt::format_to(std::back_inserter(out), "{}", trace.channels[c].values[k]);
+            // "{}" is the shortest text that reads back to the same double; a shorter column leaves its cell empty
+            const auto& values = trace.channels[c].values;
+            if (k < values.size()) fmt::format_to(std::back_inserter(out), "{}", values[k]);
         }
         out.push_back('\n');
     }

@@ -135,7 +135,11 @@ void convert_units(Trace& trace, const ImportOptions& options) {
         }
         std::optional<UnitConversion> conversion;
         if (channel.role != Role::other) {
-            conversion = parse_unit_or_throw(channel.source_unit, channel.name, options.unit_context);
+            try {
+                conversion = parse_unit_or_throw(channel.source_unit, channel.name, options.unit_context);
+            } catch (const InputError& e) {
+                throw InputError(fmt::format("{}: {}", where(trace), e.what()));
+            }
             if (!compatible(channel.role, conversion->quantity)) {
                 throw InputError(fmt::format("{}: channel '{}' is used as {} but its unit '{}' is not one for that "
                                              "role",
@@ -144,8 +148,12 @@ void convert_units(Trace& trace, const ImportOptions& options) {
         } else {
             conversion = parse_unit(channel.source_unit, options.unit_context);
             if (!conversion) {
-                trace.findings.push_back(fmt::format("channel '{}': unit '{}' is not known; values left as they are",
-                                                     channel.name, channel.source_unit));
+                // Not an error for a channel no analysis uses: say why it stays in its source unit.
+                try {
+                    (void)parse_unit_or_throw(channel.source_unit, channel.name, options.unit_context);
+                } catch (const InputError& e) {
+                    trace.findings.push_back(fmt::format("{}; values left as they are", e.what()));
+                }
                 continue;
             }
         }
@@ -235,11 +243,12 @@ Trace read_trace(const std::filesystem::path& path, const ImportOptions& options
     Trace trace;
     if (format == "mat") {
         trace = read_mat(path);
+    } else if (format == "csv") {
+        trace = read_csv(path);
     } else {
         const std::string bytes = read_file_bytes(path);
         if (bytes.empty()) throw InputError(fmt::format("{}: empty file", path.string()));
-        if (format == "csv") trace = parse_csv(bytes, path.string());
-        else if (format == "sinumerik-trace") trace = parse_sinumerik_trace(bytes, path.string(), options.axis);
+        if (format == "sinumerik-trace") trace = parse_sinumerik_trace(bytes, path.string(), options.axis);
         else if (format == "twincat-scope") trace = parse_twincat_scope(bytes, path.string());
         else if (format == "halscope") trace = parse_halscope(bytes, path.string(), options.sample_time_s);
         else throw InputError(fmt::format("--format {}: unknown format (csv, mat, sinumerik-trace, twincat-scope, halscope)", format));

@@ -4,7 +4,11 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
+#include <cstdint>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "feedid/error.hpp"
 
@@ -17,6 +21,43 @@ struct MatCloser {
 struct VarFreer {
     void operator()(matvar_t* variable) const { Mat_VarFree(variable); }
 };
+
+// libmatio reports problems through a log function that by default prints to stderr; feedid says what went wrong
+// itself, in one sentence, so the library's own lines are kept (the last one) for that sentence instead.
+std::string& last_matio_message() {
+    thread_local std::string message;
+    return message;
+}
+void keep_matio_message(int /*log_level*/, char* message) {
+    if (message != nullptr) last_matio_message() = message;
+}
+void install_matio_log() {
+    static const bool installed = [] {
+        Mat_LogInitFunc("feedid", keep_matio_message);
+        return true;
+    }();
+    (void)installed;
+}
+
+std::string_view class_name(matio_classes class_type) {
+    switch (class_type) {
+        case MAT_C_CELL: return "cell array";
+        case MAT_C_STRUCT: return "struct";
+        case MAT_C_OBJECT: return "object";
+        case MAT_C_CHAR: return "char array";
+        case MAT_C_SPARSE: return "sparse matrix";
+        case MAT_C_FUNCTION: return "function handle";
+        case MAT_C_OPAQUE: return "opaque object";
+        case MAT_C_EMPTY: return "empty value";
+        default: return "numeric array";
+    }
+}
+
+std::string dimensions(const matvar_t& variable) {
+    std::string text;
+    for (int k = 0; k < variable.rank; ++k) text += (k > 0 ? "x" : "") + std::to_string(variable.dims[k]);
+    return text;
+}
 
 template <typename T>
 void append_as_double(const void* data, std::size_t count, std::vector<double>& out) {
@@ -45,37 +86,65 @@ bool to_doubles(const matvar_t& variable, std::size_t count, std::vector<double>
 
 Trace read_mat(const std::filesystem::path& path) {
     const std::string source = path.string();
+    install_matio_log();
+    last_matio_message().clear();
     std::unique_ptr<mat_t, MatCloser> file(Mat_Open(source.c_str(), MAT_ACC_RDONLY));
     if (!file) throw InputError(fmt::format("{}: not a MATLAB .mat file libmatio can read", source));
 
     Trace trace;
     trace.source_path = source;
     trace.format = "mat";
-    std::vector<std::string> skipped;
+    // Variables that cannot be a channel or a constant are left out and each is named in a finding: a cell, struct
+    // or char array, a complex value, or a matrix (which column would be which signal is not for import to guess).
+    std::vector<std::string> left_out;
+    std::string previous = "(none)";
     while (true) {
+        last_matio_message().clear();
         std::unique_ptr<matvar_t, VarFreer> info(Mat_VarReadNextInfo(file.get()));
-        if (!info) break;
+        if (!info) {
+            // the end of the variables, or a file cut short: libmatio tells them apart only by its log
+            if (!last_matio_message().empty()) {
+                throw InputError(fmt::format("{}: the file is damaged or truncated after variable '{}' ({})", source,
+                                             previous, last_matio_message()));
+            }
+            break;
+        }
         if (info->name == nullptr) continue;
         const std::string name = info->name;
-        if (info->rank != 2 || info->isComplex || info->class_type == MAT_C_CELL || info->class_type == MAT_C_STRUCT ||
-            info->class_type == MAT_C_CHAR || info->class_type == MAT_C_SPARSE || info->class_type == MAT_C_OBJECT ||
-            info->class_type == MAT_C_FUNCTION || info->class_type == MAT_C_EMPTY) {
-            skipped.push_back(name);
+        previous = name;
+        const bool numeric = info->class_type >= MAT_C_DOUBLE && info->class_type <= MAT_C_UINT64;
+        if (!numeric || info->isComplex) {
+            const std::string_view what = info->isComplex ? "complex array" : class_name(info->class_type);
+            left_out.push_back(fmt::format("variable '{}' is a {} {}, not a real numeric vector or scalar: left out",
+                                           name, dimensions(*info), what));
             continue;
         }
-        const std::size_t rows = info->dims[0];
-        const std::size_t cols = info->dims[1];
-        if (rows == 0 || cols == 0) continue;
-        const bool vector = rows == 1 || cols == 1;
-        if (!vector) {
-            skipped.push_back(name);
+        std::size_t elements = 1;
+        std::size_t longest_dimension = 0;
+        for (int k = 0; k < info->rank; ++k) {
+            elements *= info->dims[k];
+            longest_dimension = std::max(longest_dimension, info->dims[k]);
+        }
+        if (elements == 0) {
+            left_out.push_back(fmt::format("variable '{}' is empty ({}): left out", name, dimensions(*info)));
             continue;
         }
+        if (elements != longest_dimension) {
+            left_out.push_back(fmt::format("variable '{}' is a {} matrix, not a vector: left out (save each signal "
+                                           "as a vector of its own)",
+                                           name, dimensions(*info)));
+            continue;
+        }
+        last_matio_message().clear();
         std::unique_ptr<matvar_t, VarFreer> variable(Mat_VarRead(file.get(), name.c_str()));
-        if (!variable) throw InputError(fmt::format("{}: variable '{}' cannot be read (truncated file?)", source, name));
+        if (!variable || variable->data == nullptr) {
+            throw InputError(fmt::format("{}: variable '{}' cannot be read{}", source, name,
+                                         last_matio_message().empty() ? std::string(" (a truncated file?)")
+                                                                      : " (" + last_matio_message() + ")"));
+        }
         std::vector<double> values;
-        if (!to_doubles(*variable, rows * cols, values)) {
-            skipped.push_back(name);
+        if (!to_doubles(*variable, elements, values)) {
+            left_out.push_back(fmt::format("variable '{}' holds a number type feedid does not read: left out", name));
             continue;
         }
         if (values.size() == 1) {
@@ -85,7 +154,9 @@ Trace read_mat(const std::filesystem::path& path) {
         }
     }
     if (trace.channels.empty()) {
-        throw InputError(fmt::format("{}: the .mat file holds no numeric vector to use as a channel", source));
+        std::string held;
+        for (const auto& finding : left_out) held += "; " + finding;
+        throw InputError(fmt::format("{}: the .mat file holds no numeric vector to use as a channel{}", source, held));
     }
     // Channels of a different length than the longest cannot share its time base: keep them apart as findings.
     std::size_t longest = 0;
@@ -96,9 +167,7 @@ Trace read_mat(const std::filesystem::path& path) {
                                              channel.values.size(), longest));
         return true;
     });
-    for (const auto& name : skipped) {
-        trace.findings.push_back(fmt::format("variable '{}' is not a numeric vector or scalar: left out", name));
-    }
+    trace.findings.insert(trace.findings.end(), left_out.begin(), left_out.end());
     return trace;
 }
 

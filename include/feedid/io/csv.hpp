@@ -1,7 +1,10 @@
 #pragma once
 // Delimited text traces: a header row of `name [unit]` (also `name (unit)` and `name/unit`), comma, semicolon or
-// tab separated, `#` comment lines, decimal comma with `;`. Values are parsed with fast_float; missing cells are NaN.
+// tab separated, `#` comment lines, decimal comma with `;`. Values are parsed with fast_float; missing cells (empty,
+// NaN, NA, -) are NaN, left for Trace::validate() to refuse in a role channel. A separator at the end of each line is
+// accepted; quoted header cells may hold the separator, and quoted numbers are read.
 
+#include <filesystem>
 #include <string>
 #include <string_view>
 
@@ -13,6 +16,10 @@ namespace feedid {
 /// of the form `# name = number` become trace constants. `source` names the file in error messages. Throws InputError
 /// with the line number on a malformed file.
 Trace parse_csv(std::string_view text, const std::string& source);
+
+/// Reads a CSV file as parse_csv does, with memory bounded by the columns it produces: the file is mapped, not
+/// copied, and the pages already parsed are handed back as parsing goes. InputError naming the file on failure.
+Trace read_csv(const std::filesystem::path& path);
 
 /// Splits a header cell into name and unit: "x [mm]" -> {"x", "mm"}, "v (mm/min)" -> {"v", "mm/min"},
 /// "i/A" -> {"i", "A"}, "time" -> {"time", ""}.

@@ -1,0 +1,473 @@
+// CSV import: the edge cases real exports produce, the SI conversion as the CLI reports it, and one clear message
+// with exit code 2 for each kind of bad file. Expected values are written out by hand from the file text.
+#include "feedid/io/csv.hpp"
+
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numbers>
+#include <random>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "feedid/error.hpp"
+#include "feedid/io/import.hpp"
+#include "testing.hpp"
+
+using namespace feedid;
+using feedid::testing::count_lines;
+using feedid::testing::run_cli;
+using feedid::testing::write_text;
+
+namespace {
+
+// A folder of its own for each test's files (testing::temp_dir() is emptied again by run_cli()).
+std::filesystem::path work_dir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    auto dir = std::filesystem::temp_directory_path() / "feedid-tests" /
+               ("files." + std::string(info->test_suite_name()) + "." + info->name());
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
+std::string error_of(std::string_view text, const std::string& source = "data.csv") {
+    try {
+        (void)parse_csv(text, source);
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    ADD_FAILURE() << "no InputError for:\n" << text;
+    return {};
+}
+
+const Channel& channel(const Trace& trace, std::string_view name) {
+    const auto* found = trace.find(name);
+    if (found == nullptr) throw std::runtime_error("no channel " + std::string(name));
+    return *found;
+}
+
+bool contains(const std::string& text, std::string_view part) { return text.find(part) != std::string::npos; }
+
+}  // namespace
+
+TEST(Csv, SplitsNameAndUnitInEveryNotation) {
+    EXPECT_EQ(split_name_unit("x [mm]"), (std::pair<std::string, std::string>{"x", "mm"}));
+    EXPECT_EQ(split_name_unit("v (mm/min)"), (std::pair<std::string, std::string>{"v", "mm/min"}));
+    EXPECT_EQ(split_name_unit("i/A"), (std::pair<std::string, std::string>{"i", "A"}));
+    EXPECT_EQ(split_name_unit("v/mm/min"), (std::pair<std::string, std::string>{"v", "mm/min"}));
+    EXPECT_EQ(split_name_unit("time"), (std::pair<std::string, std::string>{"time", ""}));
+    EXPECT_EQ(split_name_unit(" \"x_act [um]\" "), (std::pair<std::string, std::string>{"x_act", "um"}));
+    EXPECT_EQ(split_name_unit("pos (axis 1) [mm]"), (std::pair<std::string, std::string>{"pos (axis 1)", "mm"}));
+}
+
+TEST(Csv, CommaSeparatedWithUnitsInAllThreeNotations) {
+    const auto trace = parse_csv("t [s],x (mm),i/A\n0,1.5,-2\n0.001,2.25,3e-1\n", "a.csv");
+    ASSERT_EQ(trace.channels.size(), 3u);
+    EXPECT_EQ(trace.format, "csv");
+    EXPECT_EQ(trace.source_path, "a.csv");
+    EXPECT_EQ(channel(trace, "t").source_unit, "s");
+    EXPECT_EQ(channel(trace, "x").source_unit, "mm");
+    EXPECT_EQ(channel(trace, "i").source_unit, "A");
+    EXPECT_EQ(channel(trace, "t").values, (std::vector<double>{0.0, 0.001}));
+    EXPECT_EQ(channel(trace, "x").values, (std::vector<double>{1.5, 2.25}));
+    EXPECT_EQ(channel(trace, "i").values, (std::vector<double>{-2.0, 0.3}));
+}
+
+TEST(Csv, SemicolonWithDecimalComma) {
+    const auto trace = parse_csv("Zeit [s];Position [mm];Strom [A]\n0;0;0\n0,001;12,5;-1,25\n0,002;-0,75;3\n",
+                                 "de.csv");
+    ASSERT_EQ(trace.channels.size(), 3u);
+    EXPECT_EQ(channel(trace, "Zeit").values, (std::vector<double>{0.0, 0.001, 0.002}));
+    EXPECT_EQ(channel(trace, "Position").values, (std::vector<double>{0.0, 12.5, -0.75}));
+    EXPECT_EQ(channel(trace, "Strom").values, (std::vector<double>{0.0, -1.25, 3.0}));
+}
+
+TEST(Csv, SemicolonWithDecimalPoint) {
+    const auto trace = parse_csv("t;x\n0;1\n0.5;2.5\n", "s.csv");
+    EXPECT_EQ(channel(trace, "t").values, (std::vector<double>{0.0, 0.5}));
+    EXPECT_EQ(channel(trace, "x").values, (std::vector<double>{1.0, 2.5}));
+}
+
+TEST(Csv, ExcelSeparatorLine) {
+    // "sep=" states the separator; here a single column would leave nothing to detect it from
+    const auto trace = parse_csv("sep=;\r\nt [s]\r\n0\r\n0,5\r\n", "excel.csv");
+    ASSERT_EQ(trace.channels.size(), 1u);
+    EXPECT_EQ(trace.channels[0].values, (std::vector<double>{0.0, 0.5}));
+}
+
+TEST(Csv, TabSeparated) {
+    const auto trace = parse_csv("time [s]\tx [mm]\tv [mm/min]\n0\t1.5\t600\n0.002\t  2\t-1200\n", "tab.txt");
+    ASSERT_EQ(trace.channels.size(), 3u);
+    EXPECT_EQ(channel(trace, "v").source_unit, "mm/min");
+    EXPECT_EQ(channel(trace, "time").values, (std::vector<double>{0.0, 0.002}));
+    EXPECT_EQ(channel(trace, "x").values, (std::vector<double>{1.5, 2.0}));
+    EXPECT_EQ(channel(trace, "v").values, (std::vector<double>{600.0, -1200.0}));
+}
+
+TEST(Csv, CommentsAndConstants) {
+    const auto trace = parse_csv(
+        "# recorded on the test rig, axis X\n"
+        "# gtau = 35.15\n"
+        "#kt=1.45\n"
+        "# lead_mm = 10\n"
+        "# note = not a number\n"
+        "# with spaces = 3\n"
+        "\n"
+        "t [s],x [mm]\n"
+        "# a comment between data rows\n"
+        "0,1\n"
+        "\n"
+        "0.001,2\n",
+        "c.csv");
+    EXPECT_EQ(trace.constants.size(), 3u);
+    EXPECT_EQ(trace.constants.at("gtau"), 35.15);
+    EXPECT_EQ(trace.constants.at("kt"), 1.45);
+    EXPECT_EQ(trace.constants.at("lead_mm"), 10.0);
+    EXPECT_EQ(channel(trace, "x").values, (std::vector<double>{1.0, 2.0}));
+}
+
+TEST(Csv, ConstantWithDecimalComma) {
+    const auto trace = parse_csv("# gtau = 35,15\nt;x\n0;1\n", "c.csv");
+    EXPECT_EQ(trace.constants.at("gtau"), 35.15);
+}
+
+TEST(Csv, QuotedHeadersMayHoldTheSeparator) {
+    const auto trace = parse_csv("\"time [s]\",\"pos, actual [mm]\",\"i (A)\"\n0,1.5,2\n0.001,1.75,-2\n", "q.csv");
+    ASSERT_EQ(trace.channels.size(), 3u);
+    EXPECT_EQ(trace.channels[0].name, "time");
+    EXPECT_EQ(trace.channels[1].name, "pos, actual");
+    EXPECT_EQ(trace.channels[1].source_unit, "mm");
+    EXPECT_EQ(trace.channels[2].name, "i");
+    EXPECT_EQ(trace.channels[2].source_unit, "A");
+    EXPECT_EQ(trace.channels[1].values, (std::vector<double>{1.5, 1.75}));
+}
+
+TEST(Csv, QuotedNumbersAreRead) {
+    const auto trace = parse_csv("\"t\";\"x\"\n\"0\";\"1,5\"\n\"0,001\";\"-2\"\n", "q.csv");
+    EXPECT_EQ(channel(trace, "t").values, (std::vector<double>{0.0, 0.001}));
+    EXPECT_EQ(channel(trace, "x").values, (std::vector<double>{1.5, -2.0}));
+}
+
+TEST(Csv, MissingValuesAreNaN) {
+    const auto trace = parse_csv("t,x,note\n0,1,\n0.001,,5\n0.002,NaN,NA\n0.003,4,-\n", "m.csv");
+    const auto& x = channel(trace, "x").values;
+    const auto& note = channel(trace, "note").values;
+    ASSERT_EQ(x.size(), 4u);
+    EXPECT_EQ(x[0], 1.0);
+    EXPECT_TRUE(std::isnan(x[1]));
+    EXPECT_TRUE(std::isnan(x[2]));
+    EXPECT_EQ(x[3], 4.0);
+    EXPECT_TRUE(std::isnan(note[0]));
+    EXPECT_EQ(note[1], 5.0);
+    EXPECT_TRUE(std::isnan(note[2]));
+    EXPECT_TRUE(std::isnan(note[3]));
+}
+
+TEST(Csv, MissingValueInARoleChannelIsRefusedWithChannelAndSample) {
+    const auto dir = work_dir();
+    write_text(dir / "gap.csv", "t [s],x [mm],note\n0,1,\n0.001,,5\n0.002,3,\n");
+    try {
+        (void)read_trace(dir / "gap.csv");
+        FAIL() << "a missing position value was accepted";
+    } catch (const InputError& e) {
+        const std::string message = e.what();
+        EXPECT_TRUE(contains(message, (dir / "gap.csv").string())) << message;
+        EXPECT_TRUE(contains(message, "'x'")) << message;
+        EXPECT_TRUE(contains(message, "position")) << message;
+        EXPECT_TRUE(contains(message, "sample 2")) << message;
+    }
+    // ... while gaps in a channel no analysis uses are kept as NaN
+    write_text(dir / "note.csv", "t [s],x [mm],note\n0,1,\n0.001,2,5\n0.002,3,\n");
+    const auto trace = read_trace(dir / "note.csv");
+    EXPECT_TRUE(std::isnan(channel(trace, "note").values[0]));
+    EXPECT_EQ(channel(trace, "note").values[1], 5.0);
+}
+
+TEST(Csv, RaggedRowsNameTheLine) {
+    const std::string short_row = error_of("t,x,i\n0,1,2\n0.001,1\n0.002,1,2\n");
+    EXPECT_TRUE(contains(short_row, "data.csv:3:")) << short_row;
+    EXPECT_TRUE(contains(short_row, "2 cells")) << short_row;
+    EXPECT_TRUE(contains(short_row, "3 columns")) << short_row;
+
+    const std::string long_row = error_of("# comment\nt,x,i\n0,1,2\n0.001,1,2\n0.002,1,2,7\n");
+    EXPECT_TRUE(contains(long_row, "data.csv:5:")) << long_row;
+    EXPECT_TRUE(contains(long_row, "more cells")) << long_row;
+}
+
+TEST(Csv, TrailingSeparatorIsNoExtraColumn) {
+    const auto trace = parse_csv("t;x;\n0;1,5;\n0,001;2;\n", "t.csv");
+    ASSERT_EQ(trace.channels.size(), 2u);
+    EXPECT_EQ(channel(trace, "x").values, (std::vector<double>{1.5, 2.0}));
+}
+
+TEST(Csv, CrLfLineEndingsAndByteOrderMark) {
+    const auto trace = parse_csv("\xEF\xBB\xBF# k = 2\r\ntime [s],x [mm]\r\n0,1\r\n0.001,2.5\r\n\r\n", "w.csv");
+    ASSERT_EQ(trace.channels.size(), 2u);
+    EXPECT_EQ(trace.channels[0].name, "time");
+    EXPECT_EQ(trace.channels[1].name, "x");
+    EXPECT_EQ(trace.channels[1].source_unit, "mm");
+    EXPECT_EQ(trace.constants.at("k"), 2.0);
+    EXPECT_EQ(trace.channels[0].values, (std::vector<double>{0.0, 0.001}));
+    EXPECT_EQ(trace.channels[1].values, (std::vector<double>{1.0, 2.5}));
+    // the same without a final line break, and CRLF with semicolons and decimal commas
+    const auto last = parse_csv("t;x\r\n0;1,5\r\n0,001;2", "w.csv");
+    EXPECT_EQ(last.channels[1].values, (std::vector<double>{1.5, 2.0}));
+}
+
+TEST(Csv, NonNumericCellNamesLineColumnAndCell) {
+    const std::string message = error_of("t,x,i\n0,1,2\n0.001,1,2\n0.002,abc,2\n");
+    EXPECT_TRUE(contains(message, "data.csv:4:")) << message;
+    EXPECT_TRUE(contains(message, "column 2")) << message;
+    EXPECT_TRUE(contains(message, "'x'")) << message;
+    EXPECT_TRUE(contains(message, "'abc'")) << message;
+    // a number followed by junk is not a number either
+    const std::string junk = error_of("t,x\n0,1.5mm\n");
+    EXPECT_TRUE(contains(junk, "data.csv:2:")) << junk;
+    EXPECT_TRUE(contains(junk, "'1.5mm'")) << junk;
+}
+
+TEST(Csv, BinaryIsNotText) {
+    EXPECT_TRUE(contains(error_of(std::string("t,x\n0,1\n\0\0\x01", 11)), "not a text file"));
+    EXPECT_TRUE(contains(error_of("\x1F\x8B\x08\x00garbage"), "not a text file"));  // a gzip header
+}
+
+TEST(Csv, Utf16IsNamed) {
+    const std::string utf16le("\xFF\xFEt\0,\0x\0\n\0", 10);
+    EXPECT_TRUE(contains(error_of(utf16le), "UTF-16")) << error_of(utf16le);
+}
+
+TEST(Csv, HeaderProblems) {
+    EXPECT_TRUE(contains(error_of(""), "empty file"));
+    EXPECT_TRUE(contains(error_of(" \n\r\n"), "empty file"));
+    EXPECT_TRUE(contains(error_of("# only a comment\n"), "no header row"));
+    EXPECT_TRUE(contains(error_of("t,x\n"), "no data rows"));
+    EXPECT_TRUE(contains(error_of("0,1\n0.001,2\n"), "holds numbers, not a header"));
+    EXPECT_TRUE(contains(error_of("t,x,t\n0,1,2\n"), "'t' appears twice"));
+    EXPECT_TRUE(contains(error_of("t,,x\n0,1,2\n"), "column 2 has no name"));
+}
+
+TEST(Csv, WriteThenParseIsExact) {
+    Trace original;
+    original.constants["gtau"] = 35.15;
+    original.constants["tiny"] = 1e-300;
+    original.constants["third"] = 1.0 / 3.0;
+    std::vector<double> time;
+    std::vector<double> position;
+    std::mt19937_64 generator(42);
+    std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+    for (int k = 0; k < 500; ++k) {
+        time.push_back(k * 0.001);
+        position.push_back(uniform(generator) * std::pow(10.0, k % 40 - 20));
+    }
+    // values whose shortest decimal form is tricky: extremes, subnormals, negative zero
+    const std::vector<double> special{0.1,
+                                      -0.0,
+                                      std::numeric_limits<double>::denorm_min(),
+                                      std::numeric_limits<double>::max(),
+                                      std::numeric_limits<double>::lowest(),
+                                      std::numeric_limits<double>::min(),
+                                      std::numbers::pi,
+                                      123456789012345680.0,
+                                      2.5e-7,
+                                      std::numeric_limits<double>::quiet_NaN(),
+                                      std::numeric_limits<double>::infinity(),
+                                      -std::numeric_limits<double>::infinity()};
+    std::vector<double> other(time.size(), 0.5);
+    for (std::size_t k = 0; k < special.size(); ++k) other[k * 7] = special[k];
+    original.set("t", Role::time, "s", time);
+    original.set("x", Role::position, "m", position);
+    original.set("pos, raw", Role::other, "", other);
+
+    const auto text = write_csv(original);
+    const auto back = parse_csv(text, "roundtrip.csv");
+    ASSERT_EQ(back.channels.size(), 3u);
+    EXPECT_EQ(back.constants, original.constants);
+    for (std::size_t c = 0; c < 3; ++c) {
+        const auto& a = original.channels[c];
+        const auto& b = back.channels[c];
+        EXPECT_EQ(b.name, a.name);
+        EXPECT_EQ(b.source_unit, a.unit);
+        ASSERT_EQ(b.values.size(), a.values.size());
+        for (std::size_t k = 0; k < a.values.size(); ++k) {
+            // bit for bit: NaN compares by its bits, -0.0 differs from 0.0
+            EXPECT_EQ(std::bit_cast<std::uint64_t>(b.values[k]), std::bit_cast<std::uint64_t>(a.values[k]))
+                << a.name << "[" << k << "] = " << a.values[k] << " read back as " << b.values[k];
+        }
+    }
+}
+
+TEST(Csv, WrittenTextIsTheExpectedCsv) {
+    Trace trace;
+    trace.constants["kt"] = 1.45;
+    trace.set("t", Role::time, "s", {0.0, 0.001});
+    trace.set("x", Role::position, "m", {-0.25, 1e-6});
+    EXPECT_EQ(write_csv(trace), "# kt = 1.45\nt [s],x [m]\n0,-0.25\n0.001,1e-06\n");
+}
+
+TEST(Csv, ReadCsvFromAFileMatchesParse) {
+    const auto dir = work_dir();
+    std::string text = "# gtau = 35.15\ntime [s];x [mm];i [A]\n";
+    for (int k = 0; k < 20000; ++k) text += std::to_string(k) + ",5;" + std::to_string(k % 17) + ",25;-1,5\n";
+    write_text(dir / "big.csv", text);
+    const auto from_file = read_csv(dir / "big.csv");
+    const auto from_text = parse_csv(text, (dir / "big.csv").string());
+    ASSERT_EQ(from_file.channels.size(), 3u);
+    EXPECT_EQ(from_file.constants.at("gtau"), 35.15);
+    for (std::size_t c = 0; c < 3; ++c) EXPECT_EQ(from_file.channels[c].values, from_text.channels[c].values);
+    ASSERT_EQ(from_file.channels[0].values.size(), 20000u);
+    EXPECT_EQ(from_file.channels[0].values[19999], 19999.5);
+    EXPECT_EQ(from_file.channels[1].values[19999], 19999 % 17 + 0.25);
+    EXPECT_EQ(from_file.channels[2].values[123], -1.5);
+}
+
+// `feedid info --json -` on the header of the issue: every channel converted to SI, roles guessed from the names.
+TEST(CsvCli, InfoReportsSiConversions) {
+    const auto dir = work_dir();
+    const auto path = dir / "axis.csv";
+    write_text(path,
+               "time [s],x_ref [mm],x [mm],v_set [mm/min],i [A]\n"
+               "0.000,0,0,0,0.5\n"
+               "0.001,1.5,1.25,600,-2.5\n"
+               "0.002,3,2.5,1200,1.75\n"
+               "0.003,-4.5,-4.25,-300,0.25\n");
+    const auto result = run_cli("info '" + path.string() + "' --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto document = nlohmann::json::parse(result.out);
+    EXPECT_EQ(document.at("format"), "csv");
+    EXPECT_EQ(document.at("samples"), 4);
+    EXPECT_NEAR(document.at("sample_time_s").get<double>(), 0.001, 1e-15);
+    EXPECT_NEAR(document.at("duration_s").get<double>(), 0.003, 1e-15);
+
+    struct Expected {
+        std::string name, role, unit, source_unit;
+        double min, max;
+    };
+    // by hand: 1 mm = 0.001 m; 1 mm/min = 0.001 m / 60 s, so 1200 mm/min = 0.02 m/s and -300 mm/min = -0.005 m/s
+    const std::vector<Expected> expected{
+        {"time", "time", "s", "s", 0.0, 0.003},
+        {"x_ref", "reference_position", "m", "mm", -0.0045, 0.003},
+        {"x", "position", "m", "mm", -0.00425, 0.0025},
+        {"v_set", "velocity_command", "m/s", "mm/min", -0.005, 0.02},
+        {"i", "current", "A", "A", -2.5, 1.75},
+    };
+    const auto& channels = document.at("channels");
+    ASSERT_EQ(channels.size(), expected.size());
+    for (std::size_t c = 0; c < expected.size(); ++c) {
+        SCOPED_TRACE(expected[c].name);
+        EXPECT_EQ(channels[c].at("name"), expected[c].name);
+        EXPECT_EQ(channels[c].at("role"), expected[c].role);
+        EXPECT_EQ(channels[c].at("unit"), expected[c].unit);
+        EXPECT_EQ(channels[c].at("source_unit"), expected[c].source_unit);
+        EXPECT_NEAR(channels[c].at("min").get<double>(), expected[c].min, 1e-15 * std::abs(expected[c].min));
+        EXPECT_NEAR(channels[c].at("max").get<double>(), expected[c].max, 1e-15 * std::abs(expected[c].max));
+    }
+    // every role was guessed from a name, and that is said
+    std::size_t guesses = 0;
+    for (const auto& finding : document.at("findings")) guesses += contains(finding.get<std::string>(), "guessed");
+    EXPECT_EQ(guesses, 5u);  // time, x_ref, x, v_set and i
+}
+
+TEST(CsvCli, InfoValuesAreConvertedOnImport) {
+    // the same file through the library: every value, not only min and max
+    const auto dir = work_dir();
+    write_text(dir / "axis.csv",
+               "time [s],x_ref [mm],x [mm],v_set [mm/min],i [mA]\n"
+               "0.000,0,0,0,500\n"
+               "0.001,1.5,1.25,600,-2500\n");
+    const auto trace = read_trace(dir / "axis.csv");
+    EXPECT_EQ(trace.find(Role::position)->name, "x");
+    EXPECT_EQ(trace.find(Role::reference_position)->name, "x_ref");
+    const auto x = trace.column(Role::position);
+    const auto v = trace.column(Role::velocity_command);
+    const auto i = trace.column(Role::current);
+    EXPECT_NEAR(x[1], 0.00125, 1e-18);
+    EXPECT_NEAR(v[1], 0.01, 1e-17);
+    EXPECT_NEAR(i[0], 0.5, 1e-15);
+    EXPECT_NEAR(i[1], -2.5, 1e-15);
+}
+
+// Bad input through the CLI: exit code 2 and one line on stderr naming the file and the problem.
+class CsvBadInput : public ::testing::Test {
+protected:
+    void expect_refused(const std::string& file_name, const std::string& content,
+                        const std::vector<std::string>& message_parts) {
+        const auto path = work_dir() / file_name;
+        write_text(path, content);
+        const auto result = run_cli("info '" + path.string() + "'");
+        EXPECT_EQ(result.exit_code, 2) << result.err;
+        EXPECT_EQ(count_lines(result.err), 1) << result.err;
+        EXPECT_TRUE(result.out.empty()) << result.out;
+        EXPECT_TRUE(contains(result.err, path.string())) << result.err;
+        for (const auto& part : message_parts) EXPECT_TRUE(contains(result.err, part)) << result.err;
+    }
+};
+
+TEST_F(CsvBadInput, EmptyFile) { expect_refused("empty.csv", "", {"empty file"}); }
+
+TEST_F(CsvBadInput, BinaryGarbage) {
+    std::mt19937 generator(7);
+    std::string garbage(4096, '\0');
+    for (auto& byte : garbage) byte = static_cast<char>(generator() & 0xFF);
+    expect_refused("garbage.csv", garbage, {"not a text file"});
+}
+
+TEST_F(CsvBadInput, BinaryGarbageWithoutNulBytes) {
+    std::mt19937 generator(11);
+    std::string garbage(4096, '\0');
+    for (auto& byte : garbage) byte = static_cast<char>(1 + generator() % 255);
+    expect_refused("garbage.dat", garbage, {"not a text file"});
+}
+
+TEST_F(CsvBadInput, HeaderOnly) {
+    expect_refused("header.csv", "time [s],x [mm],i [A]\n", {"header but no data rows"});
+}
+
+TEST_F(CsvBadInput, NonNumericCell) {
+    expect_refused("cell.csv", "time [s],x [mm],i [A]\n0,1,2\n0.001,1.5,2\n0.002,1.5,two\n",
+                   {":4:", "column 3", "'i'", "'two'", "not a number"});
+}
+
+TEST_F(CsvBadInput, NonMonotonicTime) {
+    expect_refused("time.csv", "time [s],x [mm],i [A]\n0,1,2\n0.002,1.5,2\n0.001,1.5,2\n",
+                   {"time is not strictly increasing", "sample 3"});
+}
+
+TEST_F(CsvBadInput, NaNInARoleChannel) {
+    expect_refused("nan.csv", "time [s],x [mm],i [A]\n0,1,2\n0.001,NaN,2\n0.002,1.5,2\n",
+                   {"'x'", "position", "sample 2"});
+}
+
+TEST_F(CsvBadInput, UnknownUnitOfARoleChannel) {
+    expect_refused("unit.csv", "time [s],x [furlong],i [A]\n0,1,2\n0.001,1.5,2\n", {"'x'", "'furlong'"});
+}
+
+TEST_F(CsvBadInput, MissingFile) {
+    const auto path = work_dir() / "absent.csv";
+    const auto result = run_cli("info '" + path.string() + "'");
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_EQ(count_lines(result.err), 1) << result.err;
+    EXPECT_TRUE(contains(result.err, path.string())) << result.err;
+}
+
+TEST_F(CsvBadInput, RpmWithoutALead) {
+    expect_refused("rpm.csv", "time [s],x [mm],v [rpm]\n0,1,0\n0.001,1.5,3000\n", {"'v'", "'rpm'", "--lead"});
+}
+
+TEST(CsvCli, RpmWithALeadIsATableVelocity) {
+    const auto path = work_dir() / "rpm.csv";
+    write_text(path, "time [s],x [mm],v [rpm]\n0,1,-600\n0.001,1.5,3000\n");
+    const auto result = run_cli("info '" + path.string() + "' --lead 10 --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto document = nlohmann::json::parse(result.out);
+    const auto& v = document.at("channels").at(2);
+    EXPECT_EQ(v.at("role"), "velocity");
+    EXPECT_EQ(v.at("unit"), "m/s");
+    // 3000 rev/min * 10 mm/rev = 30 m/min = 0.5 m/s; -600 rev/min -> -0.1 m/s
+    EXPECT_NEAR(v.at("max").get<double>(), 0.5, 1e-15);
+    EXPECT_NEAR(v.at("min").get<double>(), -0.1, 1e-15);
+}
