@@ -73,7 +73,8 @@ run_fuzzers() {
 }
 
 run_sanitized_tests() {
-  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFEEDID_SANITIZE=ON -DFEEDID_WERROR=ON \
+  # No -Werror here: the sanitizer instrumentation makes GCC warn inside libstdc++ (<regex>: -Wmaybe-uninitialized).
+  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DFEEDID_SANITIZE=ON -DFEEDID_WERROR=OFF \
     -DFEEDID_BUILD_BENCH=OFF -DFEEDID_SHARED_DATA="$shared" >/dev/null
   cmake --build build-asan -j"$jobs" --target test_readers
   echo "asan: running the reader tests under AddressSanitizer + UBSan" >&2

@@ -257,6 +257,25 @@ TEST(SinumerikTrace, SparseSignalsOnTwoIntervalsAreForwardFilledOnTheFinestBase)
     EXPECT_EQ(trace.channels[2].source_unit, "%");
 }
 
+TEST(SinumerikTrace, RecordsReadTheSameWithCommentsAndEntitiesAmongThem) {
+    // Plain records are scanned directly; a comment among them, an entity in a value or single quotes send the
+    // file through pugixml's DOM instead. Both must give the same trace.
+    const std::string signals = data_signal("f1", "nckServoDataActPos2ndEnc64", "posn", "0.002") +
+                                data_signal("f2", "nckServoDataDrvLoad64", "percent", "0.004");
+    const Trace plain = parse_sinumerik_trace(sinumerik_xml(signals, sparse_records), "plain.xml");
+    std::string commented = sparse_records;
+    commented.insert(commented.find("  <rec time=\"0.008"), "  <!-- a note among the records -->\n");
+    std::string entity = sparse_records;
+    entity.replace(entity.find("f2=\"20\""), 7, "f2='&#50;0'");
+    for (const auto& records : {commented, entity}) {
+        const Trace other = parse_sinumerik_trace(sinumerik_xml(signals, records), "other.xml");
+        ASSERT_EQ(other.channels.size(), plain.channels.size());
+        for (std::size_t c = 0; c < plain.channels.size(); ++c) {
+            expect_values(other.channels[c].values, plain.channels[c].values, plain.channels[c].name);
+        }
+    }
+}
+
 TEST(SinumerikTrace, TraceStartsWhereEveryRoleChannelHasAValue) {
     // The 4 ms signal is now the iq current (a role): the two fine samples before its first value are dropped.
     const std::string xml = sinumerik_xml(data_signal("f1", "nckServoDataActPos2ndEnc64", "posn", "0.002") +

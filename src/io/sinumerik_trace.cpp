@@ -152,15 +152,10 @@ double parse_attribute_number(std::string_view xml, const std::string& source, c
     return value;
 }
 
-Session read_session(std::string_view xml, const std::string& source) {
-    pugi::xml_document document;
-    const auto parsed = document.load_buffer(xml.data(), xml.size(), pugi::parse_minimal | pugi::parse_escapes,
-                                             pugi::encoding_utf8);
-    if (!parsed) {
-        throw InputError(fmt::format("{}: line {}: not well-formed XML ({})", source,
-                                     scan::line_of(xml, static_cast<std::size_t>(std::max<std::ptrdiff_t>(0, parsed.offset))),
-                                     parsed.description()));
-    }
+// Everything but the records: the root, the setup sections' unit types and descriptions, the dataSignals. `frame`
+// receives the (first) <dataFrame>.
+Session read_declarations(const pugi::xml_document& document, std::string_view xml, const std::string& source,
+                          pugi::xml_node& frame) {
     const auto session_node = document.child("traceSession");
     if (!session_node) {
         const auto root = document.document_element();
@@ -173,7 +168,7 @@ Session read_session(std::string_view xml, const std::string& source) {
         throw InputError(fmt::format("{}: line {}: <traceSession> holds no <traceData> element", source,
                                      line_of_node(xml, session_node)));
     }
-    const auto frame = data.child("dataFrame");
+    frame = data.child("dataFrame");
     if (!frame) throw InputError(fmt::format("{}: line {}: <traceData> holds no <dataFrame>", source, line_of_node(xml, data)));
 
     Session session;
@@ -238,6 +233,11 @@ Session read_session(std::string_view xml, const std::string& source) {
                                      line_of_node(xml, frame)));
     }
 
+    return session;
+}
+
+// The records as pugixml's DOM holds them; every problem is an InputError naming its line.
+void read_dom_records(Session& session, const pugi::xml_node& frame, std::string_view xml, const std::string& source) {
     const SignalLookup lookup(session.signals);
     std::size_t unknown_attributes = 0;
     double previous = -std::numeric_limits<double>::infinity();
@@ -282,6 +282,161 @@ Session read_session(std::string_view xml, const std::string& source) {
         session.findings.push_back(fmt::format("{} record values belong to no declared <dataSignal> and were ignored",
                                                unknown_attributes));
     }
+}
+
+// ---- The fast path for the records --------------------------------------------------------------------------------
+// A trace is almost all <rec .../> elements; building pugixml's DOM for them costs more than reading them. So the
+// run of records is scanned directly when it is plain (empty <rec> elements whose attributes hold no entity, no '<'
+// and no control character), and only the rest of the document, with the run replaced by a placeholder element, goes
+// through pugixml. Anything else - a comment or another element among the records, an entity, a record that does not
+// parse, any error at all - sends the whole file down the DOM path, which gives the canonical result and messages.
+
+constexpr std::string_view records_placeholder = "<feedidRecords/>";
+
+bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; }
+bool is_name_start(char c) { return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || c == '_' || c == ':'; }
+bool is_name_char(char c) { return is_name_start(c) || (c >= '0' && c <= '9') || c == '.' || c == '-'; }
+
+struct RawAttribute {
+    std::string_view name;
+    std::string_view value;
+};
+
+// Reads one plain "<rec ... />" at `position` (which points at '<'); fills `attributes` and returns the position
+// after it, or npos when it is not a plain record.
+std::size_t scan_record(std::string_view xml, std::size_t position, std::vector<RawAttribute>& attributes) {
+    attributes.clear();
+    std::size_t p = position + 4;  // past "<rec"
+    const std::size_t n = xml.size();
+    while (true) {
+        const std::size_t before = p;
+        while (p < n && is_blank(xml[p])) ++p;
+        if (p >= n) return std::string_view::npos;
+        if (xml[p] == '/') return p + 1 < n && xml[p + 1] == '>' ? p + 2 : std::string_view::npos;
+        if (p == before || !is_name_start(xml[p])) return std::string_view::npos;  // attributes are blank-separated
+        const std::size_t name_start = p;
+        while (p < n && is_name_char(xml[p])) ++p;
+        const std::string_view name = xml.substr(name_start, p - name_start);
+        while (p < n && is_blank(xml[p])) ++p;
+        if (p >= n || xml[p] != '=') return std::string_view::npos;
+        ++p;
+        while (p < n && is_blank(xml[p])) ++p;
+        if (p >= n || (xml[p] != '"' && xml[p] != '\'')) return std::string_view::npos;
+        const char quote = xml[p++];
+        const std::size_t value_start = p;
+        while (p < n && xml[p] != quote) {
+            const auto c = static_cast<unsigned char>(xml[p]);
+            if (c == '<' || c == '&' || (c < 0x20 && c != '\t') || c == 0x7F) return std::string_view::npos;
+            ++p;
+        }
+        if (p >= n) return std::string_view::npos;
+        attributes.push_back({name, xml.substr(value_start, p - value_start)});
+        ++p;  // the closing quote
+    }
+}
+
+bool starts_record(std::string_view xml, std::size_t p) {
+    return xml.size() > p + 4 && xml.compare(p, 4, "<rec") == 0 && (is_blank(xml[p + 4]) || xml[p + 4] == '/');
+}
+
+// Reads the run of records into the session; false at the first thing the DOM path must judge.
+bool read_plain_records(Session& session, std::string_view records) {
+    const SignalLookup lookup(session.signals);
+    std::vector<RawAttribute> attributes;
+    std::size_t unknown_attributes = 0;
+    double previous = -std::numeric_limits<double>::infinity();
+    std::size_t p = 0;
+    while (true) {
+        while (p < records.size() && is_blank(records[p])) ++p;
+        if (p >= records.size()) break;
+        if (!starts_record(records, p)) return false;
+        p = scan_record(records, p, attributes);
+        if (p == std::string_view::npos) return false;
+        const auto time_attribute = std::find_if(attributes.begin(), attributes.end(),
+                                                 [](const RawAttribute& a) { return a.name == "time"; });
+        double time = 0.0;
+        if (time_attribute == attributes.end() || !scan::parse_number(time_attribute->value, time) ||
+            !std::isfinite(time) || time < previous) {
+            return false;
+        }
+        previous = time;
+        if (std::isnan(session.first_time)) session.first_time = time;
+        session.last_time = time;
+        for (const auto& attribute : attributes) {
+            if (attribute.name == "time") continue;
+            const int index = lookup.find(attribute.name);
+            if (index < 0) {
+                ++unknown_attributes;
+                continue;
+            }
+            double value = 0.0;
+            if (!scan::parse_number(attribute.value, value) || !std::isfinite(value)) return false;
+            auto& signal = session.signals[static_cast<std::size_t>(index)];
+            if (!signal.times.empty() && signal.times.back() == time) {
+                signal.values.back() = value;  // the same instant written twice: the later value counts
+            } else {
+                signal.times.push_back(time);
+                signal.values.push_back(value);
+            }
+        }
+    }
+    if (std::isnan(session.first_time)) return false;
+    if (unknown_attributes > 0) {
+        session.findings.push_back(fmt::format("{} record values belong to no declared <dataSignal> and were ignored",
+                                               unknown_attributes));
+    }
+    return true;
+}
+
+std::optional<Session> read_session_fast(std::string_view xml, const std::string& source) {
+    const std::size_t frame_at = xml.find("<dataFrame");
+    if (frame_at == std::string_view::npos) return std::nullopt;
+    std::size_t begin = xml.find("<rec", frame_at);
+    while (begin != std::string_view::npos && !starts_record(xml, begin)) begin = xml.find("<rec", begin + 1);
+    if (begin == std::string_view::npos) return std::nullopt;
+    // The run ends where its frame does; that nothing but records lies between is checked while reading them (a
+    // '<' cannot hide inside a plain record's value).
+    const std::size_t end = xml.find("</dataFrame>", begin);
+    if (end == std::string_view::npos) return std::nullopt;
+    std::string rest;
+    rest.reserve(begin + records_placeholder.size() + (xml.size() - end));
+    rest.append(xml.substr(0, begin)).append(records_placeholder).append(xml.substr(end));
+    pugi::xml_document document;
+    if (!document.load_buffer(rest.data(), rest.size(), pugi::parse_minimal | pugi::parse_escapes,
+                              pugi::encoding_utf8)) {
+        return std::nullopt;
+    }
+    try {
+        pugi::xml_node frame;
+        Session session = read_declarations(document, rest, source, frame);
+        // The run must be element content of the frame that is read (the placeholder, found where it was put, is
+        // one of its children; a run inside a comment or CDATA is not), and all of its records.
+        bool placed = false;
+        for (const auto& child : frame.children("feedidRecords")) {
+            placed = placed || child.offset_debug() == static_cast<std::ptrdiff_t>(begin + 1);
+        }
+        if (!placed || frame.child("rec")) return std::nullopt;
+        session.input_bytes = xml.size();
+        if (!read_plain_records(session, xml.substr(begin, end - begin))) return std::nullopt;
+        return session;
+    } catch (const InputError&) {
+        return std::nullopt;
+    }
+}
+
+Session read_session(std::string_view xml, const std::string& source) {
+    if (auto session = read_session_fast(xml, source)) return std::move(*session);
+    pugi::xml_document document;
+    const auto parsed = document.load_buffer(xml.data(), xml.size(), pugi::parse_minimal | pugi::parse_escapes,
+                                             pugi::encoding_utf8);
+    if (!parsed) {
+        throw InputError(fmt::format("{}: line {}: not well-formed XML ({})", source,
+                                     scan::line_of(xml, static_cast<std::size_t>(std::max<std::ptrdiff_t>(0, parsed.offset))),
+                                     parsed.description()));
+    }
+    pugi::xml_node frame;
+    Session session = read_declarations(document, xml, source, frame);
+    read_dom_records(session, frame, xml, source);
     return session;
 }
 
