@@ -496,6 +496,51 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     const double typical_speed = percentile(steady_speeds.empty() ? std::vector<double>{max_speed} : steady_speeds, 0.95);
     double split = options.split_velocity.value_or(options.stribeck ? 0.1 * typical_speed : 0.0);
     split = std::max(split, threshold);
+    // The regressor rows and outputs of a set of samples, for the least-squares fits below.
+    auto regressor_matrix = [&](const std::vector<std::size_t>& rows) {
+        Eigen::MatrixXd m(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(columns.size()));
+        for (std::size_t i = 0; i < rows.size(); ++i) {
+            for (std::size_t c = 0; c < columns.size(); ++c) m(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(c)) = regressors[c][rows[i]];
+        }
+        return m;
+    };
+    auto output_vector = [&](const std::vector<std::size_t>& rows) {
+        Eigen::VectorXd out(static_cast<Eigen::Index>(rows.size()));
+        for (std::size_t i = 0; i < rows.size(); ++i) out(static_cast<Eigen::Index>(i)) = y[rows[i]];
+        return out;
+    };
+    const double base_split = split;
+    if (!options.split_velocity && options.stribeck && split > threshold) {
+        // Step 1 must see no Stribeck friction. Check the speeds just above the split against a fit on the faster
+        // samples: while they carry more friction than their noise explains (mean residual above 3 standard errors),
+        // the split doubles (at most three times, and only while the faster samples remain plenty). A mean is a
+        // weak witness: a small average rise can sit on the ramp samples nearest the split, correlated with the
+        // acceleration, and bias M and B far more than its size suggests.
+        for (int doubling = 0; doubling < 3; ++doubling) {
+            std::vector<std::size_t> band, faster;
+            for (const auto k : moving) {
+                const double speed = std::abs(v_dec[k]);
+                if (speed >= 2.0 * split) faster.push_back(k);
+                else if (speed >= split) band.push_back(k);
+            }
+            if (band.size() < kMinimumSlowSamples || faster.size() < std::max<std::size_t>(20 * columns.size(), moving.size() / 5)) break;
+            const LeastSquaresResult fit = solve_least_squares(regressor_matrix(faster), output_vector(faster));
+            if (fit.rank_deficient) break;
+            const Eigen::VectorXd residual = output_vector(band) - regressor_matrix(band) * fit.estimate;
+            double rise = 0.0;
+            for (std::size_t i = 0; i < band.size(); ++i) rise += (v_dec[band[i]] > 0 ? 1.0 : -1.0) * residual(static_cast<Eigen::Index>(i));
+            rise /= static_cast<double>(band.size());
+            const double noise = 3.0 * fit.residual_std / std::sqrt(static_cast<double>(band.size()));
+            if (!(rise > noise)) break;
+            selection.notes.push_back(fmt::format(
+                "{} samples between {:.3g} and {:.3g} {} carry {:.3g} {} more friction than the faster ones: still "
+                "Stribeck, so step 1 starts at {:.3g} {}",
+                band.size(), split * naming.display_velocity_scale(), 2.0 * split * naming.display_velocity_scale(),
+                naming.display_velocity_unit(), rise, naming.force_unit(), 2.0 * split * naming.display_velocity_scale(),
+                naming.display_velocity_unit()));
+            split *= 2.0;
+        }
+    }
     const double slow_band = split;  // the speeds below which step 2 looks for quasi-static samples
     selection.split_velocity = split;
 
@@ -538,18 +583,6 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     }
 
     // ---- step 1: batch least squares (the certified reference) and RLS (the paper)
-    auto regressor_matrix = [&](const std::vector<std::size_t>& rows) {
-        Eigen::MatrixXd m(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(p));
-        for (std::size_t i = 0; i < rows.size(); ++i) {
-            for (std::size_t c = 0; c < p; ++c) m(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(c)) = regressors[c][rows[i]];
-        }
-        return m;
-    };
-    auto output_vector = [&](const std::vector<std::size_t>& rows) {
-        Eigen::VectorXd out(static_cast<Eigen::Index>(rows.size()));
-        for (std::size_t i = 0; i < rows.size(); ++i) out(static_cast<Eigen::Index>(i)) = y[rows[i]];
-        return out;
-    };
     if (!options.split_velocity && step2.size() < kMinimumSlowSamples && split > threshold) {
         // Holding the slow samples back from step 1 pays only when step 2 can use them. Without quasi-static samples
         // (no slow constant-velocity passes) the slow samples are the ramps through reversals: step 1 takes them too
@@ -724,6 +757,11 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
         const std::size_t stride2 = std::max<std::size_t>(1, step2.size() / 100000);
         for (std::size_t i = 0; i < step1.size(); i += stride1) samples.push(a_dec[step1[i]], v_dec[step1[i]], y[step1[i]]);
         for (std::size_t i = 0; i < step2.size(); i += stride2) samples.push(a_dec[step2[i]], v_dec[step2[i]], y[step2[i]]);
+        // and the ramp samples that only the Stribeck check kept out of step 1: the whole curve models them
+        for (const auto k : moving) {
+            const double speed = std::abs(v_dec[k]);
+            if (speed >= base_split && speed < split && !steady(k)) samples.push(a_dec[k], v_dec[k], y[k]);
+        }
         detail::CurveModel model{asymmetric, true, asymmetric, options.offset};
         constexpr std::size_t minimum_slow = kMinimumSlowSamples;
         if (asymmetric) {

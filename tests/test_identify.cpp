@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <numbers>
 #include <random>
@@ -323,6 +324,12 @@ Run identify_csv(const std::string& csv, const std::string& options = "--force-c
     return {run.exit_code, run.err};
 }
 
+std::string fmt_double(double value) {
+    char buffer[32];
+    std::snprintf(buffer, sizeof buffer, "%.17g", value);
+    return buffer;
+}
+
 std::string csv_of(const feedid::Trace& trace) { return feedid::write_csv(trace); }
 
 // The lines of stderr that are not import findings (guessed roles, assumed units): the error itself.
@@ -381,6 +388,23 @@ TEST(IdentifyBadInput, TooShortToIdentifyAnything) {
     EXPECT_EQ(run.exit_code, 1);
     EXPECT_NE(run.err.find("too short"), std::string::npos) << run.err;
     EXPECT_EQ(lines_of(run.err), 1) << run.err;
+}
+
+TEST(IdentifyCli, OneLeadConvertsTheDriveCurrentAndAnRpmChannel) {
+    // a motor-speed channel in rpm needs the lead to become m/s; --lead (given for K_t) serves both
+    const auto trace = synthetic_trace(asymmetric_drive, slow_and_fast, 1);
+    std::string csv = "t [s],x [m],n [rpm],i [A]\n";
+    const auto& t = trace.find(feedid::Role::time)->values;
+    const auto& x = trace.find(feedid::Role::position)->values;
+    const auto& i = trace.find(feedid::Role::current)->values;
+    for (std::size_t k = 0; k + 1 < t.size(); ++k) {
+        const double rpm = (x[k + 1] - x[k]) / (t[k + 1] - t[k]) / 0.01 * 60.0;  // 10 mm lead
+        csv += std::to_string(t[k]) + "," + fmt_double(x[k]) + "," + fmt_double(rpm) + "," + fmt_double(i[k]) + "\n";
+    }
+    // K_t * 2*pi / lead = 100 N/A with a 10 mm lead
+    const double kt = 100.0 * 0.01 / (2.0 * std::numbers::pi);
+    const auto run = identify_csv(csv, "--channel velocity=n --kt " + fmt_double(kt) + " --lead 10");
+    EXPECT_EQ(run.exit_code, 0) << run.err;
 }
 
 TEST(IdentifyBadInput, OptionsThatMakeNoSense) {

@@ -111,4 +111,10 @@ nlohmann::json read_json(const std::string& path) {
     }
 }
 
+Trace read_trace_for_drive(const TraceArguments& trace, const DriveArguments& drive) {
+    TraceArguments arguments = trace;
+    if (!arguments.lead_mm) arguments.lead_mm = drive.lead_mm;
+    return arguments.read();
+}
+
 }  // namespace feedid::cli

@@ -34,6 +34,10 @@ struct TraceArguments {
     [[nodiscard]] Trace read(bool print_findings = true) const;
 };
 
+struct DriveArguments;
+/// Reads the trace with the drive's --lead also converting rpm channels (one --lead serves both).
+[[nodiscard]] Trace read_trace_for_drive(const TraceArguments& trace, const DriveArguments& drive);
+
 /// `[--kt K --lead L [--gear-ratio G]] [--force-constant K|NAME]`
 struct DriveArguments {
     std::optional<double> kt;

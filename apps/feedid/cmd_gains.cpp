@@ -33,7 +33,7 @@ struct GainsCommand {
     std::string json_path;
 
     int run() const {
-        const Trace trace = trace_arguments.read();
+        const Trace trace = read_trace_for_drive(trace_arguments, drive_arguments);
         const DriveConstants drive = drive_arguments.constants();
         const std::vector<double> force = drive_force(trace, drive);
         const GainOptions options = gain_arguments.options(trace, drive);

@@ -140,7 +140,7 @@ struct IdentifyCommand {
         if (!centers_mm.empty() && !by_location) throw InputError("--centers needs --by-location");
         if (by_location && record.enabled()) throw InputError("--record takes one result; not with --by-location");
         record.check(trace_arguments.axis);
-        const Trace trace = trace_arguments.read();
+        const Trace trace = read_trace_for_drive(trace_arguments, drive_arguments);
         if (by_location) return run_by_location(trace, o);
         const IdentifyResult result = identify(trace, o);
         // The options go into the document too, so that recording it later (feedid history --record) gives the

@@ -31,7 +31,7 @@ struct SimulateCommand {
         const AxisModel axis = axis_from_document(read_json(result_path), result_path);
         const std::optional<nlohmann::json> gains_document =
             gains_path.empty() ? std::nullopt : std::optional<nlohmann::json>(read_json(gains_path));
-        const Trace trace = trace_arguments.read();
+        const Trace trace = read_trace_for_drive(trace_arguments, drive_arguments);
         const DriveConstants drive = drive_arguments.constants();
         const std::vector<double> force = drive_force(trace, drive);
         const GainOptions gain_options = gain_arguments.options(trace, drive);
