@@ -28,5 +28,11 @@ test: build
 bench: build
 	@for b in $(BUILD)/bench/bench_*; do [ -x "$$b" ] && "$$b"; done
 
+# libFuzzer targets of the controller trace readers (clang; skipped with a message without it) for FUZZ_SECONDS each,
+# and the reader tests under AddressSanitizer + UBSan.
+fuzz: SETUP_FLAGS = --extra
+fuzz: setup
+	@FUZZ_SECONDS=$${FUZZ_SECONDS:-20} scripts/fuzz.sh
+
 clean:
 	@rm -rf $(BUILD)

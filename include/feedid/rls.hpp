@@ -73,14 +73,16 @@ public:
         //   P_new = P - eps/(lambda + r) * (P*phi)(P*phi)^T,   P_new*phi = P*phi/(lambda + r) = L (eq. 8).
         const double scale = covariance_.trace();  // >= the largest eigenvalue of P
         if (!(r > 1e-14 * scale * phi.squaredNorm()) || !(r > 0.0)) return RlsUpdate::no_excitation;
-        const double eps = 1.0 - (1.0 - lambda) / r;
-        const double inverse_denominator = 1.0 / (lambda + r);
-        const Vector gain = p_phi * inverse_denominator;
+        // One division: with q = 1/(r*(lambda + r)), 1/(lambda + r) = r*q and eps/(lambda + r) = (r - (1 - lambda))*q.
+        const double q = 1.0 / (r * (lambda + r));
+        const Vector gain = p_phi * (r * q);
         theta_ += gain * error;
         // The outer product a*a^T is exactly symmetric in floating point (a_i*a_j == a_j*a_i), so P stays exactly
         // symmetric without re-symmetrising.
-        const Matrix outer = p_phi * p_phi.transpose();
-        covariance_ -= (eps * inverse_denominator) * outer;
+        const double c = (r - (1.0 - lambda)) * q;
+        for (int j = 0; j < N; ++j) {
+            for (int i = 0; i < N; ++i) covariance_(i, j) -= c * (p_phi(i) * p_phi(j));
+        }
         ++updates_;
         return RlsUpdate::updated;
     }
