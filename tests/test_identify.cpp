@@ -315,10 +315,7 @@ struct Run {
 };
 
 Run identify_csv(const std::string& csv, const std::string& options = "--force-constant 100") {
-    // not in temp_dir(): run_cli() empties that
-    const auto path = std::filesystem::temp_directory_path() / "feedid-tests" /
-                      (std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + ".csv");
-    std::filesystem::create_directories(path.parent_path());
+    const auto path = feedid::testing::temp_dir() / "trace.csv";
     feedid::testing::write_text(path, csv);
     const auto run = run_cli("identify '" + path.string() + "' " + options);
     return {run.exit_code, run.err};

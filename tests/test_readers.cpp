@@ -35,7 +35,8 @@ const char* const sinumerik_file = "sinumerik-trace/X_BK300_1.xml";
 // A folder of its own for the test's files (testing::temp_dir() is emptied again by every run_cli()).
 fs::path files_dir() {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const auto dir = fs::temp_directory_path() / "feedid-tests" / "readers" / info->name();
+    const auto dir = fs::temp_directory_path() / "feedid-tests" / "readers" /
+                     (std::string(info->test_suite_name()) + "." + info->name());
     fs::remove_all(dir);
     fs::create_directories(dir);
     return dir;

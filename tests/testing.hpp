@@ -51,7 +51,8 @@ inline void write_text(const std::filesystem::path& path, const std::string& tex
 
 /// Runs the feedid binary with a shell-quoted argument string; captures stdout, stderr and the exit code.
 inline CliResult run_cli(const std::string& arguments) {
-    const auto dir = temp_dir().parent_path() / "cli-capture";
+    // beside the tests' folders, never inside one: a test's files must survive the commands it runs
+    const auto dir = std::filesystem::temp_directory_path() / "feedid-tests" / "cli-capture";
     std::filesystem::create_directories(dir);
     static int counter = 0;
     const auto out_path = dir / ("out" + std::to_string(::getpid()) + "_" + std::to_string(counter) + ".txt");
