@@ -291,7 +291,25 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     const std::string source = trace.source_path.empty() ? "trace" : trace.source_path;
     const auto time_column = trace.column(Role::time);
     const auto position_column = trace.column(Role::position);
-    const std::vector<double> force_all = drive_force(trace, options.drive);
+    const Channel* current = trace.find(Role::current);
+    if (!trace.has(Role::force) && current != nullptr && current->unit != "N" && current->unit != "N*m" &&
+        options.drive.validate().empty() && !options.drive.force_per_signal(trace)) {
+        // No constant turns the drive signal into force. Whether the data can identify anything at all does not
+        // depend on that scale: find out in signal units first, so that a trace that cannot identify a mass says so
+        // (exit 1) instead of asking for a constant that would not help.
+        IdentifyOptions signal_units = options;
+        signal_units.drive = DriveConstants{};
+        signal_units.drive.force_constant = 1.0;
+        IdentifyResult provisional = identify(trace, signal_units);
+        if (provisional.status == "failed") {
+            provisional.diagnostics.push_back(fmt::format(
+                "{}: (figures above in units of the drive signal '{}': no force constant was given)", source,
+                current->name));
+            provisional.document["diagnostics"] = provisional.diagnostics;
+            return provisional;
+        }
+    }
+    const std::vector<double> force_all = drive_force(trace, options.drive);  // throws: no force constant
 
     const Naming naming{trace.rotary};
     const bool asymmetric = options.model == FrictionModelKind::asymmetric;

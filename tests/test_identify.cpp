@@ -404,6 +404,17 @@ TEST(IdentifyCli, OneLeadConvertsTheDriveCurrentAndAnRpmChannel) {
     EXPECT_EQ(run.exit_code, 0) << run.err;
 }
 
+TEST(IdentifySinumerik, AMicroStepTestHasNoMassInformationEvenWithoutADriveConstant) {
+    // channels mapped automatically, no force constant: whether a mass can be identified does not depend on the
+    // force scale, so the answer is the data's, not a request for --kt
+    FEEDID_REQUIRE_SHARED("sinumerik-trace/X_BK300_1.xml");
+    const auto trace = feedid::testing::shared_data() / "sinumerik-trace" / "X_BK300_1.xml";
+    const auto run = run_cli("identify '" + trace.string() + "'");
+    EXPECT_EQ(run.exit_code, 1) << run.err;
+    EXPECT_NE(run.err.find("no usable mass information"), std::string::npos) << run.err;
+    EXPECT_NE(run.err.find("micro-step"), std::string::npos) << run.err;
+}
+
 TEST(IdentifyBadInput, OptionsThatMakeNoSense) {
     const auto trace = synthetic_trace(asymmetric_drive, papers_ladder, 1);
     for (const std::string options : {"--lambda 1.5", "--lambda 0", "--p0 -1", "--filter-order 0",
