@@ -48,7 +48,19 @@ std::optional<double> DriveConstants::force_per_signal(const Trace& trace) const
 
 std::vector<double> drive_force(const Trace& trace, const DriveConstants& constants) {
     if (const auto problem = constants.validate(); !problem.empty()) throw InputError(problem);
-    if (const auto* force = trace.find(Role::force)) return force->values;
+    if (const auto* force = trace.find(Role::force)) {
+        if (trace.rotary || force->unit != "N*m") return force->values;
+        // a motor torque on a linear axis: the screw turns it into force, F = T * 2*pi * g / lead
+        if (!constants.lead_m) {
+            throw InputError(fmt::format("{}: the force channel '{}' is a torque (N*m) on a linear axis: give the "
+                                         "ball-screw lead (--lead, and --gear-ratio) to turn it into force",
+                                         trace.source_path.empty() ? "trace" : trace.source_path, force->name));
+        }
+        const double factor = 2.0 * std::numbers::pi * constants.gear_ratio / *constants.lead_m;
+        std::vector<double> converted(force->values.size());
+        for (std::size_t k = 0; k < converted.size(); ++k) converted[k] = factor * force->values[k];
+        return converted;
+    }
     const auto* current = trace.find(Role::current);
     if (current == nullptr) {
         throw InputError(fmt::format("{}: no drive signal: map a current channel (--channel current=NAME) or a force "
