@@ -25,16 +25,6 @@ using feedid::testing::write_text;
 
 namespace {
 
-// A folder of its own for each test's files (testing::temp_dir() is emptied again by run_cli()).
-std::filesystem::path work_dir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    auto dir = std::filesystem::temp_directory_path() / "feedid-tests" /
-               ("files." + std::string(info->test_suite_name()) + "." + info->name());
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
-}
-
 std::string error_of(std::string_view text, const std::string& source = "data.csv") {
     try {
         (void)parse_csv(text, source);
@@ -169,7 +159,7 @@ TEST(Csv, MissingValuesAreNaN) {
 }
 
 TEST(Csv, MissingValueInARoleChannelIsRefusedWithChannelAndSample) {
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     write_text(dir / "gap.csv", "t [s],x [mm],note\n0,1,\n0.001,,5\n0.002,3,\n");
     try {
         (void)read_trace(dir / "gap.csv");
@@ -310,7 +300,7 @@ TEST(Csv, WrittenTextIsTheExpectedCsv) {
 }
 
 TEST(Csv, ReadCsvFromAFileMatchesParse) {
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     std::string text = "# gtau = 35.15\ntime [s];x [mm];i [A]\n";
     for (int k = 0; k < 20000; ++k) text += std::to_string(k) + ",5;" + std::to_string(k % 17) + ",25;-1,5\n";
     write_text(dir / "big.csv", text);
@@ -327,7 +317,7 @@ TEST(Csv, ReadCsvFromAFileMatchesParse) {
 
 // `feedid info --json -` on the header of the issue: every channel converted to SI, roles guessed from the names.
 TEST(CsvCli, InfoReportsSiConversions) {
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     const auto path = dir / "axis.csv";
     write_text(path,
                "time [s],x_ref [mm],x [mm],v_set [mm/min],i [A]\n"
@@ -374,7 +364,7 @@ TEST(CsvCli, InfoReportsSiConversions) {
 
 TEST(CsvCli, InfoValuesAreConvertedOnImport) {
     // the same file through the library: every value, not only min and max
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     write_text(dir / "axis.csv",
                "time [s],x_ref [mm],x [mm],v_set [mm/min],i [mA]\n"
                "0.000,0,0,0,500\n"
@@ -396,7 +386,7 @@ class CsvBadInput : public ::testing::Test {
 protected:
     void expect_refused(const std::string& file_name, const std::string& content,
                         const std::vector<std::string>& message_parts) {
-        const auto path = work_dir() / file_name;
+        const auto path = feedid::testing::temp_dir() / file_name;
         write_text(path, content);
         const auto result = run_cli("info '" + path.string() + "'");
         EXPECT_EQ(result.exit_code, 2) << result.err;
@@ -447,7 +437,7 @@ TEST_F(CsvBadInput, UnknownUnitOfARoleChannel) {
 }
 
 TEST_F(CsvBadInput, MissingFile) {
-    const auto path = work_dir() / "absent.csv";
+    const auto path = feedid::testing::temp_dir() / "absent.csv";
     const auto result = run_cli("info '" + path.string() + "'");
     EXPECT_EQ(result.exit_code, 2);
     EXPECT_EQ(count_lines(result.err), 1) << result.err;
@@ -459,7 +449,7 @@ TEST_F(CsvBadInput, RpmWithoutALead) {
 }
 
 TEST(CsvCli, RpmWithALeadIsATableVelocity) {
-    const auto path = work_dir() / "rpm.csv";
+    const auto path = feedid::testing::temp_dir() / "rpm.csv";
     write_text(path, "time [s],x [mm],v [rpm]\n0,1,-600\n0.001,1.5,3000\n");
     const auto result = run_cli("info '" + path.string() + "' --lead 10 --json -");
     ASSERT_EQ(result.exit_code, 0) << result.err;

@@ -27,15 +27,6 @@ using feedid::testing::shared_data;
 
 namespace {
 
-std::filesystem::path work_dir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    auto dir = std::filesystem::temp_directory_path() / "feedid-tests" /
-               ("files." + std::string(info->test_suite_name()) + "." + info->name());
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
-}
-
 bool contains(const std::string& text, std::string_view part) { return text.find(part) != std::string::npos; }
 
 // A MAT file written with libmatio's own writer: the reader is checked against the library's idea of the format.
@@ -176,13 +167,13 @@ TEST(MatEmps, ForceConstantIsUsableByName) {
 }
 
 TEST(Mat, Version5ReadsBackExactly) {
-    const auto path = work_dir() / "v5.mat";
+    const auto path = feedid::testing::temp_dir() / "v5.mat";
     const auto written = write_sample(path, MAT_FT_MAT5);
     expect_sample_read_back(read_mat(path), written);
 }
 
 TEST(Mat, Version73ReadsBackExactly) {
-    const auto path = work_dir() / "v73.mat";
+    const auto path = feedid::testing::temp_dir() / "v73.mat";
     {
         // libmatio writes v7.3 only when it was built with HDF5 (Debian's is)
         mat_t* probe = Mat_CreateVer(path.c_str(), nullptr, MAT_FT_MAT73);
@@ -196,7 +187,7 @@ TEST(Mat, Version73ReadsBackExactly) {
 }
 
 TEST(Mat, ImportedThroughTheChainWithRolesAndFindings) {
-    const auto path = work_dir() / "chain.mat";
+    const auto path = feedid::testing::temp_dir() / "chain.mat";
     const auto written = write_sample(path, MAT_FT_MAT5);
     const auto trace = read_trace(path);
     EXPECT_EQ(trace.find(Role::time)->name, "t");
@@ -211,7 +202,7 @@ TEST(Mat, ImportedThroughTheChainWithRolesAndFindings) {
 // A demanding user keeps matrices and text in the same file as the signals: those are named in findings, not
 // silently dropped, and the vectors still import.
 TEST(Mat, MatricesAndTextAreLeftOutWithAFinding) {
-    const auto path = work_dir() / "mixed.mat";
+    const auto path = feedid::testing::temp_dir() / "mixed.mat";
     Written written;
     {
         MatWriter file(path, MAT_FT_MAT5);
@@ -242,7 +233,7 @@ TEST(Mat, MatricesAndTextAreLeftOutWithAFinding) {
 }
 
 TEST(Mat, OnlyAMatrixIsAClearError) {
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     const auto path = dir / "matrix.mat";
     {
         MatWriter file(path, MAT_FT_MAT5);
@@ -259,7 +250,7 @@ TEST(Mat, OnlyAMatrixIsAClearError) {
 }
 
 TEST(Mat, ChannelsOfAnotherLengthAreLeftOutWithAFinding) {
-    const auto path = work_dir() / "lengths.mat";
+    const auto path = feedid::testing::temp_dir() / "lengths.mat";
     {
         MatWriter file(path, MAT_FT_MAT5);
         ASSERT_TRUE(file.open());
@@ -275,7 +266,7 @@ TEST(Mat, ChannelsOfAnotherLengthAreLeftOutWithAFinding) {
 }
 
 TEST(Mat, NotAMatFileIsOneClearMessage) {
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     // garbage behind a MAT v5 text header
     std::string text = "MATLAB 5.0 MAT-file, written by hand";
     text.resize(116, ' ');

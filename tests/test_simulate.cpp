@@ -32,16 +32,6 @@ nlohmann::json published_emps_result() {
       }})");
 }
 
-// A folder for this test's files. (Not temp_dir(): run_cli() clears that one on every call.)
-std::filesystem::path work_dir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    auto dir = std::filesystem::temp_directory_path() / "feedid-tests" /
-               ("files." + std::string(info->test_suite_name()) + "." + info->name());
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
-}
-
 std::string emps_channels() {
     return "--channel position=qm --channel reference_position=qg --channel current=vir --force-constant gtau";
 }
@@ -82,7 +72,7 @@ TEST(Simulate, EmpsPublishedModelWithIdentifiedGains) {
 
 TEST(Simulate, EmpsPublishedModelCommandLine) {
     FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     feedid::testing::write_text(dir / "result.json", published_emps_result().dump());
     const auto result = run_cli("simulate '" + (shared_data() / "emps/DATA_EMPS.mat").string() + "' " +
                                 emps_channels() + " --saturation 10 --result '" + (dir / "result.json").string() +
@@ -99,7 +89,7 @@ TEST(Simulate, EmpsPublishedModelCommandLine) {
 // The whole pipeline, as a user runs it: identify (symmetric with offset), gains, simulate.
 TEST(Simulate, EmpsIdentifyGainsSimulatePipeline) {
     FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     const std::string file = "'" + (shared_data() / "emps/DATA_EMPS.mat").string() + "' ";
     const auto identified = run_cli("identify " + file +
                                     "--channel position=qm --channel current=vir --force-constant gtau --offset "
@@ -299,7 +289,7 @@ TEST(Simulate, ExternalForcePushesAPLoopOffByForceOverStiffness) {
 TEST(Simulate, CommandLineWritesTheSimulatedSignals) {
     // feedid simulate --out: the simulated signals as CSV, read back with their roles and units; with the true drive
     // as the "identified" one the simulated position follows the synthetic machine's.
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     const std::string trace = "'" + (dir / "synth.csv").string() + "'";
     ASSERT_EQ(run_cli("synth --no-slow-passes --out " + trace).exit_code, 0);
     feedid::testing::write_text(dir / "result.json", R"({"parameters": {

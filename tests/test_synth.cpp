@@ -14,15 +14,6 @@ namespace {
 
 using feedid::testing::run_cli;
 
-std::filesystem::path work_dir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    auto dir = std::filesystem::temp_directory_path() / "feedid-tests" /
-               ("files." + std::string(info->test_suite_name()) + "." + info->name());
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
-}
-
 // A short test so that the suite stays fast: three feedrates and three slow passes.
 feedid::SynthSpec short_spec() {
     auto spec = feedid::demo_spec();
@@ -119,7 +110,7 @@ TEST(Synth, DeterministicForASeedAndDifferentForAnother) {
 TEST(Synth, JitteredTimeStampsAreReportedOnImport) {
     auto spec = short_spec();
     spec.sensors.jitter_s = 0.1e-3;
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     feedid::testing::write_text(dir / "jitter.csv", feedid::write_csv(feedid::synthesize(spec)));
     const auto trace = feedid::read_trace(dir / "jitter.csv");
     EXPECT_TRUE(trace.time_base().jittery);
@@ -127,7 +118,7 @@ TEST(Synth, JitteredTimeStampsAreReportedOnImport) {
 }
 
 TEST(Synth, CsvReadsBackWithRolesUnitsAndConstants) {
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     const auto original = feedid::synthesize(short_spec());
     feedid::testing::write_text(dir / "synth.csv", feedid::write_csv(original));
     const auto trace = feedid::read_trace(dir / "synth.csv");
@@ -138,7 +129,7 @@ TEST(Synth, CsvReadsBackWithRolesUnitsAndConstants) {
 }
 
 TEST(Synth, FollowsAReferenceFileInMillimetres) {
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     std::string text = "t [s],x_ref [mm]\n";
     for (int k = 0; k <= 2000; ++k) {
         const double t = k * 1e-3;
@@ -209,7 +200,7 @@ TEST(Synth, DriveFileFrictionZones) {
 }
 
 TEST(Synth, CommandLineWritesATraceThatInfoReads) {
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     const auto out = dir / "synth.csv";
     const auto result = run_cli("synth --no-slow-passes --out '" + out.string() + "'");
     ASSERT_EQ(result.exit_code, 0) << result.err;
@@ -226,7 +217,7 @@ TEST(Synth, CommandLineWritesATraceThatInfoReads) {
 }
 
 TEST(Synth, TomlDriveFile) {
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     feedid::testing::write_text(dir / "drive.toml", R"(# an asymmetric drive
 seed = 3
 slow_passes = false

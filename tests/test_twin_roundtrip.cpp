@@ -17,15 +17,6 @@ namespace {
 
 using feedid::testing::run_cli;
 
-std::filesystem::path work_dir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    auto dir = std::filesystem::temp_directory_path() / "feedid-tests" /
-               ("files." + std::string(info->test_suite_name()) + "." + info->name());
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
-}
-
 std::string quoted(const std::filesystem::path& path) {
     // Appended piece by piece: GCC 12 warns falsely (-Wrestrict) on "'" + string + "'".
     std::string text(1, '\'');
@@ -52,7 +43,7 @@ double tolerance_for(const std::string& key) {
 }
 
 void round_trip(const Drive& drive) {
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     feedid::testing::write_text(dir / "drive.json", drive.json);
     const auto trace = dir / "synth.csv";
     const auto synth = run_cli("synth --drive " + quoted(dir / "drive.json") + " --out " + quoted(trace));
@@ -165,7 +156,7 @@ TEST(TwinRoundTrip, ValidationTablePrintedSideBySide) {
     // The paper's Fig. 6 figures on a synthetic trace: mean absolute tracking error of model and machine side by
     // side, and the modelling error, printed by `feedid simulate`. The model here is the true one, so the model
     // tracks the machine to within the sensor noise.
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     const auto trace = dir / "synth.csv";
     ASSERT_EQ(run_cli("synth --no-slow-passes --out " + quoted(trace)).exit_code, 0);
     feedid::testing::write_text(dir / "result.json", R"({"parameters": {
