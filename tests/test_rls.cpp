@@ -154,6 +154,34 @@ TEST(Rls, IgnoresNonFiniteSamplesAndNothingToLearn) {
     EXPECT_EQ(rls.updates(), 0u);
 }
 
+TEST(Rls, IgnoresNonFiniteInputsOnceItHasLearnt) {
+    // The robust update finds non-finite input through the error and phi^T P phi; check every slot, both sizes
+    // (odd and even sizes run different code), with an estimate that is no longer zero.
+    const auto check = [](auto rls, auto phi) {
+        for (int k = 0; k < 200; ++k) {
+            phi.setConstant(1.0);
+            phi(k % phi.size()) = 1.0 + 0.1 * k;
+            ASSERT_EQ(rls.update(phi, 3.0), RlsUpdate::updated);
+        }
+        const auto before = rls.estimate();
+        const auto covariance = rls.covariance();
+        for (const double bad : {NAN, INFINITY, -INFINITY}) {
+            for (int i = 0; i < phi.size(); ++i) {
+                phi.setConstant(1.0);
+                phi(i) = bad;
+                EXPECT_EQ(rls.update(phi, 3.0), RlsUpdate::non_finite) << "phi(" << i << ") = " << bad;
+            }
+            phi.setConstant(1.0);
+            EXPECT_EQ(rls.update(phi, bad), RlsUpdate::non_finite) << "y = " << bad;
+        }
+        EXPECT_EQ(rls.estimate(), before);
+        EXPECT_EQ(rls.covariance(), covariance);
+        EXPECT_EQ(rls.updates(), 200u);
+    };
+    check(Rls<3>{}, Eigen::Vector3d{});
+    check(Rls<4>{}, Eigen::Vector4d{});
+}
+
 TEST(Rls, UpdateNeverAllocates) {
     const auto data = exciting_data(1000, 3);
     Rls<4> four(RlsOptions{0.99995, 1e6, RlsVariant::directional});

@@ -53,38 +53,8 @@ public:
 
     /// One sample: y = phi^T * theta + noise.
     RlsUpdate update(const Vector& phi, double y) noexcept {
-        if (!phi.allFinite() || !std::isfinite(y)) return RlsUpdate::non_finite;
-        const double lambda = options_.forgetting_factor;
-        const Vector p_phi = covariance_ * phi;
-        const double r = phi.dot(p_phi);  // phi^T P phi
-        const double error = y - phi.dot(theta_);
-        if (options_.variant == RlsVariant::exponential) {
-            // eq. (8): L = P*phi / (lambda + phi^T*P*phi); eq. (7); eq. (9): P = (I - L*phi^T)*P / lambda
-            const double inverse_denominator = 1.0 / (lambda + r);
-            const Vector gain = p_phi * inverse_denominator;
-            theta_ += gain * error;
-            covariance_ = (covariance_ - gain * p_phi.transpose()) * inverse_lambda_;
-            // P is positive semi-definite, so its trace bounds every entry; NaN fails the comparison too
-            if (!(covariance_.trace() <= wind_up_limit)) wound_up_ = true;
-            ++updates_;
-            return RlsUpdate::updated;
-        }
-        // Directional forgetting. With R_new = R + eps*phi*phi^T, eps = 1 - (1 - lambda)/r:
-        //   P_new = P - eps/(lambda + r) * (P*phi)(P*phi)^T,   P_new*phi = P*phi/(lambda + r) = L (eq. 8).
-        const double scale = covariance_.trace();  // >= the largest eigenvalue of P
-        if (!(r > 1e-14 * scale * phi.squaredNorm()) || !(r > 0.0)) return RlsUpdate::no_excitation;
-        // One division: with q = 1/(r*(lambda + r)), 1/(lambda + r) = r*q and eps/(lambda + r) = (r - (1 - lambda))*q.
-        const double q = 1.0 / (r * (lambda + r));
-        const Vector gain = p_phi * (r * q);
-        theta_ += gain * error;
-        // The outer product a*a^T is exactly symmetric in floating point (a_i*a_j == a_j*a_i), so P stays exactly
-        // symmetric without re-symmetrising.
-        const double c = (r - (1.0 - lambda)) * q;
-        for (int j = 0; j < N; ++j) {
-            for (int i = 0; i < N; ++i) covariance_(i, j) -= c * (p_phi(i) * p_phi(j));
-        }
-        ++updates_;
-        return RlsUpdate::updated;
+        if (options_.variant == RlsVariant::exponential) return update_exponential(phi, y);
+        return update_directional(phi, y);
     }
 
     [[nodiscard]] const Vector& estimate() const noexcept { return theta_; }
@@ -97,6 +67,73 @@ public:
     static constexpr double wind_up_limit = 1e150;
 
 private:
+    RlsUpdate update_exponential(const Vector& phi, double y) noexcept {
+        if (!phi.allFinite() || !std::isfinite(y)) return RlsUpdate::non_finite;
+        const double lambda = options_.forgetting_factor;
+        const Vector p_phi = covariance_ * phi;
+        const double r = phi.dot(p_phi);  // phi^T P phi
+        const double error = y - phi.dot(theta_);
+        // eq. (8): L = P*phi / (lambda + phi^T*P*phi); eq. (7); eq. (9): P = (I - L*phi^T)*P / lambda
+        const double inverse_denominator = 1.0 / (lambda + r);
+        const Vector gain = p_phi * inverse_denominator;
+        theta_ += gain * error;
+        covariance_ = (covariance_ - gain * p_phi.transpose()) * inverse_lambda_;
+        // P is positive semi-definite, so its trace bounds every entry; NaN fails the comparison too
+        if (!(covariance_.trace() <= wind_up_limit)) wound_up_ = true;
+        ++updates_;
+        return RlsUpdate::updated;
+    }
+
+    RlsUpdate update_directional(const Vector& phi, double y) noexcept {
+        const double lambda = options_.forgetting_factor;
+        // P*phi and the rank-1 update read and write P the same way: in 16-byte packets (Eigen) when N is even, in
+        // plain scalar loops when N is odd. Mixing the two (Eigen's packet loads of a P the previous update wrote
+        // with 8-byte stores) defeats store-to-load forwarding; that cost a quarter of the update (26.6 -> 21.7 ns
+        // for N = 3 in bench_rls).
+        Vector p_phi;
+        if constexpr (N % 2 == 0) {
+            p_phi.noalias() = covariance_ * phi;
+        } else {
+            for (int i = 0; i < N; ++i) {
+                double sum = 0.0;
+                for (int j = 0; j < N; ++j) sum += covariance_(i, j) * phi(j);
+                p_phi(i) = sum;
+            }
+        }
+        double r = 0.0;            // phi^T P phi
+        double error = y;          // y - phi^T theta
+        double scale = 0.0;        // trace(P) >= the largest eigenvalue of P
+        double phi_norm2 = 0.0;
+        for (int i = 0; i < N; ++i) {
+            r += phi(i) * p_phi(i);
+            error -= phi(i) * theta_(i);
+            scale += covariance_(i, i);
+            phi_norm2 += phi(i) * phi(i);
+        }
+        // A non-finite phi or y makes the error or r non-finite (theta and P are finite), so one test catches both.
+        if (!std::isfinite(error) || !std::isfinite(r)) return RlsUpdate::non_finite;
+        if (!(r > 1e-14 * scale * phi_norm2) || !(r > 0.0)) return RlsUpdate::no_excitation;
+        // With R_new = R + eps*phi*phi^T, eps = 1 - (1 - lambda)/r:
+        //   P_new = P - eps/(lambda + r) * (P*phi)(P*phi)^T,   P_new*phi = P*phi/(lambda + r) = L (eq. 8).
+        // One division: with q = 1/(r*(lambda + r)), 1/(lambda + r) = r*q and eps/(lambda + r) = (r - (1 - lambda))*q.
+        const double q = 1.0 / (r * (lambda + r));
+        const double step = r * q * error;
+        for (int i = 0; i < N; ++i) theta_(i) += p_phi(i) * step;
+        // The outer product a*a^T is exactly symmetric in floating point (a_i*a_j == a_j*a_i), so P stays exactly
+        // symmetric without re-symmetrising.
+        const double c = (r - (1.0 - lambda)) * q;
+        if constexpr (N % 2 == 0) {
+            const Matrix outer = p_phi * p_phi.transpose();  // formed first: c*(a_i*a_j), never (c*a_i)*a_j
+            covariance_.noalias() -= c * outer;
+        } else {
+            for (int j = 0; j < N; ++j) {
+                for (int i = 0; i < N; ++i) covariance_(i, j) -= c * (p_phi(i) * p_phi(j));
+            }
+        }
+        ++updates_;
+        return RlsUpdate::updated;
+    }
+
     RlsOptions options_;
     double inverse_lambda_{1.0 / options_.forgetting_factor};
     Vector theta_;
