@@ -38,7 +38,7 @@ LogLinearStribeck fit_log_linear(const FitSamples& samples, double mass, double 
 
 CurveLayout::CurveLayout(const CurveModel& model) {
     int next = 0;
-    mass = next++;
+    if (model.mass) mass = next++;
     const int groups = model.asymmetric ? 2 : 1;
     for (int g = 0; g < groups; ++g) {
         viscous[g] = next++;
@@ -51,6 +51,15 @@ CurveLayout::CurveLayout(const CurveModel& model) {
     }
     if (model.offset) offset = next++;
     size = next;
+}
+
+double CurveLayout::friction(const Eigen::VectorXd& x, double velocity, bool asymmetric) const {
+    const double sign = velocity > 0.0 ? 1.0 : (velocity < 0.0 ? -1.0 : 0.0);
+    const int g = group(velocity, asymmetric);
+    double f = x(viscous[g]) * velocity + x(coulomb[g]) * sign;
+    if (delta[g] >= 0) f += sign * x(delta[g]) * std::exp(-std::abs(velocity) / std::exp(x(log_vs[g])));
+    if (offset >= 0) f += x(offset);
+    return f;
 }
 
 namespace {
@@ -74,7 +83,7 @@ struct CurveFunctor : Eigen::DenseFunctor<double> {
             const double v = samples_.velocity[k];
             const double sign = v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
             const int g = layout_.group(v, model_.asymmetric);
-            jacobian(row, layout_.mass) = samples_.acceleration[k];
+            if (layout_.mass >= 0) jacobian(row, layout_.mass) = samples_.acceleration[k];
             jacobian(row, layout_.viscous[g]) = v;
             jacobian(row, layout_.coulomb[g]) = sign;
             if (layout_.delta[g] >= 0) {
@@ -90,15 +99,8 @@ struct CurveFunctor : Eigen::DenseFunctor<double> {
     }
 
     [[nodiscard]] double predict(const Eigen::VectorXd& x, std::size_t k) const {
-        const double v = samples_.velocity[k];
-        const double sign = v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
-        const int g = layout_.group(v, model_.asymmetric);
-        double f = x(layout_.mass) * samples_.acceleration[k] + x(layout_.viscous[g]) * v + x(layout_.coulomb[g]) * sign;
-        if (layout_.delta[g] >= 0) {
-            f += sign * x(layout_.delta[g]) * std::exp(-std::abs(v) / std::exp(x(layout_.log_vs[g])));
-        }
-        if (layout_.offset >= 0) f += x(layout_.offset);
-        return f;
+        const double inertia = layout_.mass >= 0 ? x(layout_.mass) * samples_.acceleration[k] : 0.0;
+        return inertia + layout_.friction(x, samples_.velocity[k], model_.asymmetric);
     }
 
     const FitSamples& samples_;
@@ -120,7 +122,7 @@ double solve_linear_part(const FitSamples& samples, const CurveModel& model, con
         const double v = samples.velocity[k];
         const double sign = v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
         const int g = layout.group(v, model.asymmetric);
-        row(layout.mass) = samples.acceleration[k];
+        if (layout.mass >= 0) row(layout.mass) = samples.acceleration[k];
         row(layout.viscous[g]) = v;
         row(layout.coulomb[g]) = sign;
         if (layout.delta[g] >= 0) row(layout.delta[g]) = sign * std::exp(-std::abs(v) / std::exp(x(layout.log_vs[g])));
@@ -221,17 +223,19 @@ CurveFit fit_friction_curve(const FitSamples& samples, const CurveModel& model, 
     fit.relative_error_pct = yy > 0.0 ? 100.0 * std::sqrt(rss / yy) : 0.0;
     const Eigen::MatrixXd information = jacobian.transpose() * jacobian;
     const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(information);
-    Eigen::VectorXd variance = Eigen::VectorXd::Constant(p, std::numeric_limits<double>::infinity());
-    if (qr.rank() == p) variance = fit.residual_std * fit.residual_std * qr.inverse().diagonal();
+    fit.covariance = Eigen::MatrixXd::Constant(p, p, std::numeric_limits<double>::infinity());
+    if (qr.rank() == p) fit.covariance = fit.residual_std * fit.residual_std * qr.inverse();
     fit.parameters = x;
-    fit.standard_errors = variance.cwiseMax(0.0).cwiseSqrt();
     for (int g = 0; g < 2; ++g) {
         if (layout.log_vs[g] >= 0) {
+            // delta method: v_s = exp(ln v_s), so its row and column of the covariance scale by v_s
             const double vs = std::exp(x(layout.log_vs[g]));
             fit.parameters(layout.log_vs[g]) = vs;
-            fit.standard_errors(layout.log_vs[g]) *= vs;  // delta method: se(v_s) = v_s * se(ln v_s)
+            fit.covariance.row(layout.log_vs[g]) *= vs;
+            fit.covariance.col(layout.log_vs[g]) *= vs;
         }
     }
+    fit.standard_errors = fit.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
     return fit;
 }
 

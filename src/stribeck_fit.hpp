@@ -38,19 +38,22 @@ struct LogLinearStribeck {
 LogLinearStribeck fit_log_linear(const FitSamples& samples, double mass, double viscous, double coulomb, double offset,
                                  double noise_level, const RlsOptions& rls_options);
 
-/// Layout of the nonlinear model: M, then per direction group (one shared group, or forward and reverse)
-/// B, F_C and, where enabled, F_B - F_C and ln v_s; then the offset F_0 where enabled.
+/// Layout of the nonlinear model: M (unless the caller has taken M*a out of the force), then per direction group
+/// (one shared group, or forward and reverse) B, F_C and, where enabled, F_B - F_C and ln v_s; then the offset F_0
+/// where enabled.
 struct CurveModel {
     bool asymmetric{false};
     bool stribeck_forward{true};
     bool stribeck_reverse{true};
     bool offset{false};
+    bool mass{true};
 };
 
 struct CurveFit {
     bool converged{false};
     Eigen::VectorXd parameters;   ///< in the layout above, with v_s (not ln v_s)
     Eigen::VectorXd standard_errors;
+    Eigen::MatrixXd covariance;   ///< of the parameters above (v_s entries by the delta method)
     double residual_std{0.0};
     double relative_error_pct{0.0};
     std::size_t samples{0};
@@ -60,7 +63,7 @@ struct CurveFit {
 /// Number of parameters and index helpers for a CurveModel.
 struct CurveLayout {
     explicit CurveLayout(const CurveModel& model);
-    int mass{0};
+    int mass{-1};
     int viscous[2]{-1, -1};
     int coulomb[2]{-1, -1};
     int delta[2]{-1, -1};      ///< F_B - F_C
@@ -69,6 +72,9 @@ struct CurveLayout {
     int size{0};
     /// Direction group of a velocity: 0 forward (or the shared group), 1 reverse.
     [[nodiscard]] int group(double velocity, bool asymmetric) const { return asymmetric && velocity < 0.0 ? 1 : 0; }
+    /// The friction force (with the offset, without M*a) that parameters x in this layout, with ln v_s (the fit's
+    /// internal form, not CurveFit::parameters), give at velocity v.
+    [[nodiscard]] double friction(const Eigen::VectorXd& x, double velocity, bool asymmetric) const;
 };
 
 /// Fits the whole friction curve (with mass and offset) by a grid search over v_s (variable projection) followed by

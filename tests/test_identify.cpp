@@ -15,6 +15,7 @@
 #include "feedid/error.hpp"
 #include "feedid/identify.hpp"
 #include "feedid/io/csv.hpp"
+#include "feedid/synth.hpp"
 #include "testing.hpp"
 
 namespace {
@@ -285,6 +286,94 @@ TEST(IdentifySynthetic, ARotaryAxisReportsInertiaAndTorques) {
     EXPECT_WITHIN_PCT(estimate(r, "breakaway_Nm"), 15.0, 5.0);
     EXPECT_WITHIN_PCT(estimate(r, "stribeck_velocity_rad_per_s"), 0.02, 15.0);
     EXPECT_FALSE(r.document.at("parameters").contains("mass_kg"));
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Closed loop (feedid synth's twin: P-PI cascade, 0.3 ms current lag, stick-slip; the paper's drive, the feed ladder
+// with slow passes). The transients carry more than M*a (the lag, the drive signal held over a sample); the
+// friction curve must not pick it up.
+
+struct ClosedLoopTruth {
+    double mass, viscous, coulomb, breakaway, stribeck_velocity;
+};
+
+ClosedLoopTruth truth_of(const feedid::SynthSpec& spec) {
+    const auto& f = spec.axis.friction.forward;
+    return {spec.axis.mass, f.viscous, f.coulomb, f.breakaway.value_or(NAN), f.stribeck_velocity.value_or(NAN)};
+}
+
+feedid::IdentifyResult identify_closed_loop(const feedid::SynthSpec& spec) {
+    return feedid::identify(synthesize(spec), [] {
+        feedid::IdentifyOptions options;
+        options.drive.force_constant_name = "force_constant_N_per_A";
+        return options;
+    }());
+}
+
+TEST(IdentifyClosedLoop, TheTransientsDoNotBiasTheFrictionCurve) {
+    // Exact current (no noise, no quantum): what is left is the model's own bias. A joint fit of M and the curve
+    // over every sample put B 5 % high here.
+    feedid::SynthSpec spec = feedid::demo_spec();
+    spec.sensors.current_noise_A = 0.0;
+    spec.sensors.current_resolution_A = 0.0;
+    const auto truth = truth_of(spec);
+    const auto r = identify_closed_loop(spec);
+    ASSERT_EQ(r.status, "ok") << r.document.dump(1);
+    EXPECT_WITHIN_PCT(estimate(r, "mass_kg"), truth.mass, 2.0);
+    EXPECT_WITHIN_PCT(estimate(r, "viscous_Ns_per_m"), truth.viscous, 2.0);
+    EXPECT_WITHIN_PCT(estimate(r, "coulomb_N"), truth.coulomb, 2.0);
+    EXPECT_WITHIN_PCT(estimate(r, "breakaway_N"), truth.breakaway, 5.0);
+    EXPECT_WITHIN_PCT(estimate(r, "stribeck_velocity_m_per_s"), truth.stribeck_velocity, 15.0);
+    EXPECT_EQ(r.document.at("stribeck").at("nonlinear").at("method"), "quasi-static curve, mass from the transients");
+}
+
+TEST(IdentifyClosedLoop, StandardErrorsMatchTheScatterOverRepeatedRuns) {
+    // The same drive and test, twelve sensor-noise seeds: for every parameter the scatter of the estimates agrees
+    // with the reported standard error (ratio within [0.5, 2]: about three standard errors of a 12-run standard
+    // deviation) and the mean lies within three standard errors of the mean of the truth.
+    constexpr int runs = 12;
+    const feedid::SynthSpec base = feedid::demo_spec();
+    const auto truth = truth_of(base);
+    const std::vector<std::pair<std::string, double>> parameters = {
+        {"mass_kg", truth.mass},
+        {"viscous_Ns_per_m", truth.viscous},
+        {"coulomb_N", truth.coulomb},
+        {"breakaway_N", truth.breakaway},
+        {"stribeck_velocity_m_per_s", truth.stribeck_velocity}};
+    std::vector<std::vector<double>> values(parameters.size()), errors(parameters.size());
+    for (int run = 0; run < runs; ++run) {
+        feedid::SynthSpec spec = base;
+        spec.seed = 100 + static_cast<std::uint64_t>(run);
+        const auto r = identify_closed_loop(spec);
+        ASSERT_EQ(r.status, "ok") << "seed " << spec.seed << ": " << r.document.dump(1);
+        for (std::size_t i = 0; i < parameters.size(); ++i) {
+            const auto* p = r.find(parameters[i].first);
+            ASSERT_TRUE(p && p->estimate.value && p->estimate.standard_error) << parameters[i].first;
+            values[i].push_back(*p->estimate.value);
+            errors[i].push_back(*p->estimate.standard_error);
+        }
+    }
+    for (std::size_t i = 0; i < parameters.size(); ++i) {
+        SCOPED_TRACE(parameters[i].first);
+        double mean = 0.0, mean_error = 0.0;
+        for (int run = 0; run < runs; ++run) {
+            mean += values[i][static_cast<std::size_t>(run)] / runs;
+            mean_error += errors[i][static_cast<std::size_t>(run)] / runs;
+        }
+        double variance = 0.0;
+        for (const double v : values[i]) variance += (v - mean) * (v - mean) / (runs - 1);
+        const double scatter = std::sqrt(variance);
+        EXPECT_GT(scatter / mean_error, 0.5) << "scatter " << scatter << ", standard error " << mean_error;
+        EXPECT_LT(scatter / mean_error, 2.0) << "scatter " << scatter << ", standard error " << mean_error;
+        if (parameters[i].first == "mass_kg") {
+            // M keeps a small bias of its own (-0.2 %, 2 standard errors of this mean): the twin holds the drive
+            // force over a sample and lags it 0.3 ms, so the recorded force and the central-difference acceleration
+            // are not sampled at quite the same instant. Within the 2 %; bounded here at 0.5 %.
+            EXPECT_WITHIN_PCT(mean, parameters[i].second, 0.5);
+        } else {
+            EXPECT_NEAR(mean, parameters[i].second, 3.0 * scatter / std::sqrt(static_cast<double>(runs)));
+        }
+    }
 }
 
 TEST(IdentifySynthetic, TheDocumentHasTheContractsKeys) {
