@@ -110,9 +110,7 @@ TEST(FrictionMap, UniformFrictionStandsOutNowhere) {
 // feedid synth plays it on a drive whose screw is worn around the middle centre (a drive file with a friction zone),
 // and `feedid identify FILE --by-location` shows the worn centre, and only that one.
 TEST(FrictionMap, IdentifyByLocationOnTheCommandLine) {
-    const auto dir = std::filesystem::temp_directory_path() / "feedid-tests" / "files.FrictionMap.ByLocationCli";
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
+    const auto dir = feedid::testing::temp_dir();
     const auto path = [&](const char* name) { return "'" + (dir / name).string() + "'"; };
     using feedid::testing::run_cli;
     const auto plan = run_cli("plan --travel=-400:400 --centers=-250,0,250 --slow-feeds 10:1000:3 --max-pass-time 4 "

@@ -25,22 +25,13 @@ namespace fs = std::filesystem;
 using feedid::testing::count_lines;
 using feedid::testing::run_cli;
 using feedid::testing::shared_data;
+using feedid::testing::temp_dir;
 using feedid::testing::write_text;
 
 namespace {
 
 constexpr double nan_value = std::numeric_limits<double>::quiet_NaN();
 const char* const sinumerik_file = "sinumerik-trace/X_BK300_1.xml";
-
-// A folder of its own for the test's files (testing::temp_dir() is emptied again by every run_cli()).
-fs::path files_dir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const auto dir = fs::temp_directory_path() / "feedid-tests" / "readers" /
-                     (std::string(info->test_suite_name()) + "." + info->name());
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
 
 std::string quoted(const fs::path& path) { return "'" + path.string() + "'"; }
 
@@ -324,7 +315,7 @@ TEST(SinumerikTrace, UnitFromTheDisplaySetupWhenTheSignalsOwnIsNone) {
 // ---- SINUMERIK: bad input --------------------------------------------------------------------------------------------
 
 TEST(SinumerikTrace, BadFilesGiveOneMessageWithFileAndPlace) {
-    const auto dir = files_dir();
+    const auto dir = temp_dir();
     const std::string signals = data_signal("f1", "nckServoDataActPos2ndEnc64", "posn", "0.002");
     const std::string good = sinumerik_xml(signals, sparse_records);
 
@@ -456,7 +447,7 @@ TEST(TwinCatScope, ChannelsOfDifferentSampleTimesShareTheFinestBase) {
 
 TEST(TwinCatScope, BadFilesGiveOneMessageWithFileAndLine) {
     FEEDID_REQUIRE_SHARED("twincat-scope/tc3_scope_3_4_3145_3-Seperator_3.csv");
-    const auto dir = files_dir();
+    const auto dir = temp_dir();
     const std::string good =
         feedid::testing::read_text(shared_data() / "twincat-scope/tc3_scope_3_4_3145_3-Seperator_3.csv");
     auto write = [&](const std::string& name, const std::string& text) {
@@ -523,7 +514,7 @@ TEST(Halscope, HalsamplerNeedsTheSampleTimeAndFollowsSampleNumbers) {
 }
 
 TEST(Halscope, BadFilesGiveOneMessageWithFileAndLine) {
-    const auto dir = files_dir();
+    const auto dir = temp_dir();
     auto write = [&](const std::string& name, const std::string& text) {
         write_text(dir / name, text);
         return dir / name;

@@ -29,11 +29,13 @@ struct CliResult {
     std::string err;
 };
 
-/// A fresh folder under the system temp directory, named after the running test.
+/// The folder of this build's test files (build/test-files): never shared with another build's test run.
+inline std::filesystem::path test_files_root() { return std::filesystem::path(FEEDID_TEST_TMP); }
+
+/// A fresh folder for the running test's files, named after the test.
 inline std::filesystem::path temp_dir() {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    auto dir = std::filesystem::temp_directory_path() / "feedid-tests" /
-               (std::string(info->test_suite_name()) + "." + info->name());
+    auto dir = test_files_root() / (std::string(info->test_suite_name()) + "." + info->name());
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
     return dir;
@@ -52,7 +54,7 @@ inline void write_text(const std::filesystem::path& path, const std::string& tex
 /// Runs the feedid binary with a shell-quoted argument string; captures stdout, stderr and the exit code.
 inline CliResult run_cli(const std::string& arguments) {
     // beside the tests' folders, never inside one: a test's files must survive the commands it runs
-    const auto dir = std::filesystem::temp_directory_path() / "feedid-tests" / "cli-capture";
+    const auto dir = test_files_root() / "cli-capture";
     std::filesystem::create_directories(dir);
     static int counter = 0;
     const auto out_path = dir / ("out" + std::to_string(::getpid()) + "_" + std::to_string(counter) + ".txt");
