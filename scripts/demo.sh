@@ -55,9 +55,10 @@ if "$feedid" identify "$trace" --force-constant force_constant_N_per_A --json "$
     /"parameters": \{/ { inside = 1; next }
     inside && /^  \}/ { inside = 0 }
     inside && /^    "[A-Za-z0-9_]+": \{/ { name = $1; gsub(/[":]/, "", name) }
+    inside && /"stderr":/ { e = $2; gsub(/,/, "", e); stderr_of[name] = e }
     inside && /"value":/ { v = $2; gsub(/,/, "", v); value[name] = v; order[++n] = name }
     END {
-      printf "   %-36s %14s %14s\n", "parameter", "identified", "true"
+      printf "   %-36s %14s %14s %18s\n", "parameter", "identified", "true", "off by (std. err.)"
       for (i = 1; i <= n; i++) {
         k = order[i]; t = ""
         if (k in truth) t = truth[k]
@@ -68,7 +69,10 @@ if "$feedid" identify "$trace" --force-constant force_constant_N_per_A --json "$
         }
         if (t == "" && k == "offset_N") t = truth["offset_N"]
         shown = value[k] == "null" ? "-" : sprintf("%.6g", value[k])
-        printf "   %-36s %14s %14s\n", k, shown, (t == "" ? "-" : sprintf("%.6g", t))
+        off = "-"
+        if (value[k] != "null" && t != "" && stderr_of[k] != "null" && stderr_of[k] > 0)
+          off = sprintf("%+.1f", (value[k] - t) / stderr_of[k])
+        printf "   %-36s %14s %14s %18s\n", k, shown, (t == "" ? "-" : sprintf("%.6g", t)), off
       }
     }' "$trace" "$out/demo-result.json"
 else
