@@ -117,6 +117,24 @@ TEST(ReportSvg, WrongDocumentIsAnInputError) {
     EXPECT_THROW(report::result_report_html(nlohmann::json::array(), "x.json"), feedid::InputError);
 }
 
+TEST(ReportSvg, RotarySimulationIsPlottedInMilliradians) {
+    auto simulation = nlohmann::json::parse(R"({"relative_error_pct": {"position": 0.1},
+        "tracking_error_mae_m": {"model": 0.002, "machine": 0.0021}, "modelling_error_mae_m": 0.0003, "rotary": true,
+        "series": {"time_s": [0, 0.001, 0.002], "tracking_error_machine_rad": [0, 0.002, -0.001],
+                   "tracking_error_model_rad": [0, 0.0019, -0.001], "modelling_error_rad": [0, 0.0001, 0]}})");
+    const auto plots = report::simulation_plots(simulation, "rotary.json");
+    ASSERT_EQ(plots.size(), 2u);
+    EXPECT_EQ(plots[0].y_label, "tracking error φ_ref − φ [mrad]");
+    EXPECT_EQ(plots[1].y_label, "modelling error e_m = φ − φ_sim [mrad]");
+    ASSERT_EQ(plots[0].series.size(), 2u);
+    EXPECT_DOUBLE_EQ(plots[0].series[0].y[1], 2.0);  // 0.002 rad shown as 2 mrad
+    const auto text = parse_svg(report::render_svg(plots[0]));
+    EXPECT_EQ(text.x_label, "time [s]");
+    // A rotary document must carry rad series; metre keys on a rotary axis are a malformed document.
+    simulation["rotary"] = false;
+    EXPECT_THROW((void)report::simulation_plots(simulation, "rotary.json"), feedid::InputError);
+}
+
 /// Headless Chromium, or "" when it is not installed.
 std::string find_chromium() {
     if (const char* path = std::getenv("FEEDID_CHROMIUM"); path && fs::exists(path)) return path;
