@@ -199,6 +199,39 @@ std::vector<double> decimate(std::span<const double> x, int factor) {
     return y;
 }
 
+std::vector<std::size_t> extreme_preserving_indices(std::span<const std::span<const double>> signals, std::size_t n,
+                                                    std::size_t max_points) {
+    std::vector<std::size_t> indices;
+    if (n <= max_points) {
+        indices.resize(n);
+        for (std::size_t k = 0; k < n; ++k) indices[k] = k;
+        return indices;
+    }
+    // Each bucket keeps at most two samples per signal, so this many buckets stay within max_points.
+    const std::size_t buckets = std::max<std::size_t>(1, max_points / std::max<std::size_t>(1, 2 * signals.size()));
+    std::vector<std::size_t> kept;
+    for (std::size_t b = 0; b < buckets; ++b) {
+        const std::size_t begin = b * n / buckets;
+        const std::size_t end = (b + 1) * n / buckets;
+        kept.clear();
+        for (const auto& signal : signals) {
+            std::size_t low = begin;
+            std::size_t high = begin;
+            for (std::size_t k = begin; k < end; ++k) {
+                // NaN compares false: a NaN is never kept over a number, and a leading NaN is replaced by one
+                if (signal[k] < signal[low] || std::isnan(signal[low])) low = k;
+                if (signal[k] > signal[high] || std::isnan(signal[high])) high = k;
+            }
+            kept.push_back(low);
+            kept.push_back(high);
+        }
+        std::sort(kept.begin(), kept.end());
+        kept.erase(std::unique(kept.begin(), kept.end()), kept.end());
+        indices.insert(indices.end(), kept.begin(), kept.end());
+    }
+    return indices;
+}
+
 double noise_floor(std::span<const double> x) {
     if (x.size() < 3) return 0.0;
     std::vector<double> d(x.size() - 1);

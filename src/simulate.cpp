@@ -1,6 +1,7 @@
 #include "feedid/simulate.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include <fmt/core.h>
@@ -369,6 +370,40 @@ nlohmann::json validation_document(const ValidationMetrics& m) {
         {"tracking_error_max_m", {{"model", m.tracking_error_max_model_m}, {"machine", m.tracking_error_max_machine_m}}},
         {"modelling_error_max_m", m.modelling_error_max_m},
     };
+}
+
+ValidationSeries validation_series(const Trace& trace, const SimulationOutput& simulated, std::size_t max_points) {
+    const std::size_t n = simulated.position.size();
+    const auto position = trace.column(Role::position);
+    if (position.size() != n) throw InputError("simulation and trace differ in length");
+    if (max_points < 6) throw InputError("validation series: at least 6 points are needed (two per error)");
+    std::vector<double> machine(n), model(n), modelling(n);
+    // The same differences as validate_simulation(), so the series' extremes equal its largest errors.
+    for (std::size_t k = 0; k < n; ++k) {
+        machine[k] = simulated.reference[k] - position[k];
+        model[k] = simulated.reference[k] - simulated.position[k];
+        modelling[k] = position[k] - simulated.position[k];
+    }
+    const std::array<std::span<const double>, 3> errors{machine, model, modelling};
+    ValidationSeries series;
+    series.samples = n;
+    for (const std::size_t k : extreme_preserving_indices(errors, n, max_points)) {
+        series.time.push_back(simulated.time[k]);
+        series.tracking_error_machine.push_back(machine[k]);
+        series.tracking_error_model.push_back(model[k]);
+        series.modelling_error.push_back(modelling[k]);
+    }
+    return series;
+}
+
+nlohmann::json validation_series_document(const ValidationSeries& series, bool rotary) {
+    const std::string unit = rotary ? "_rad" : "_m";
+    return {{"time_s", series.time},
+            {"tracking_error_machine" + unit, series.tracking_error_machine},
+            {"tracking_error_model" + unit, series.tracking_error_model},
+            {"modelling_error" + unit, series.modelling_error},
+            {"samples", series.samples},
+            {"thinning", "min-max per bucket"}};
 }
 
 Trace simulation_trace(const SimulationOutput& output, bool rotary) {

@@ -117,6 +117,24 @@ TEST(ReportSvg, WrongDocumentIsAnInputError) {
     EXPECT_THROW(report::result_report_html(nlohmann::json::array(), "x.json"), feedid::InputError);
 }
 
+TEST(ReportSvg, RotarySimulationIsPlottedInMilliradians) {
+    auto simulation = nlohmann::json::parse(R"({"relative_error_pct": {"position": 0.1},
+        "tracking_error_mae_m": {"model": 0.002, "machine": 0.0021}, "modelling_error_mae_m": 0.0003, "rotary": true,
+        "series": {"time_s": [0, 0.001, 0.002], "tracking_error_machine_rad": [0, 0.002, -0.001],
+                   "tracking_error_model_rad": [0, 0.0019, -0.001], "modelling_error_rad": [0, 0.0001, 0]}})");
+    const auto plots = report::simulation_plots(simulation, "rotary.json");
+    ASSERT_EQ(plots.size(), 2u);
+    EXPECT_EQ(plots[0].y_label, "tracking error φ_ref − φ [mrad]");
+    EXPECT_EQ(plots[1].y_label, "modelling error e_m = φ − φ_sim [mrad]");
+    ASSERT_EQ(plots[0].series.size(), 2u);
+    EXPECT_DOUBLE_EQ(plots[0].series[0].y[1], 2.0);  // 0.002 rad shown as 2 mrad
+    const auto text = parse_svg(report::render_svg(plots[0]));
+    EXPECT_EQ(text.x_label, "time [s]");
+    // A rotary document must carry rad series; metre keys on a rotary axis are a malformed document.
+    simulation["rotary"] = false;
+    EXPECT_THROW((void)report::simulation_plots(simulation, "rotary.json"), feedid::InputError);
+}
+
 /// Headless Chromium, or "" when it is not installed.
 std::string find_chromium() {
     if (const char* path = std::getenv("FEEDID_CHROMIUM"); path && fs::exists(path)) return path;
@@ -320,6 +338,119 @@ TEST_F(ReportEndToEnd, ResultReportHasRlsHistoriesAndTheFrictionCurve) {
     if (chromium.empty()) GTEST_SKIP() << "headless Chromium not found (install Debian's chromium package); the "
                                           "browser rendering check is skipped";
     expect_rendered(render_in_chromium(chromium, page, folder_), svgs);
+}
+
+// The paper's Fig. 6 from a real run: EMPS identified, simulated in closed loop with the gains identified from the
+// trace, and reported with --simulation.
+TEST(ReportSimulation, EmpsReportHasTrackingAndModellingErrorPlots) {
+    FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
+    const auto folder = temp_dir();
+    const std::string mat = quoted(shared_data() / "emps/DATA_EMPS.mat");
+    const auto result = folder / "result.json";
+    const auto simulation = folder / "sim.json";
+    const auto identify = run_shell(fmt::format("{} identify {} --channel position=qm --channel current=vir "
+                                                "--force-constant gtau --offset --json {}",
+                                                cli(), mat, quoted(result)),
+                                    folder);
+    ASSERT_EQ(identify.exit_code, 0) << identify.err;
+    const auto simulate = run_shell(fmt::format("{} simulate {} --channel position=qm --channel reference_position=qg "
+                                                "--channel current=vir --force-constant gtau --saturation 10 "
+                                                "--result {} --json {}",
+                                                cli(), mat, quoted(result), quoted(simulation)),
+                                    folder);
+    ASSERT_EQ(simulate.exit_code, 0) << simulate.err;
+    const auto page = folder / "emps.html";
+    const auto r = run_shell(
+        fmt::format("{} report {} --simulation {} -o {}", cli(), quoted(result), quoted(simulation), quoted(page)),
+        folder);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto html = read_text(page);
+    expect_self_contained(html);
+    const auto svgs = svgs_of(html);
+    std::map<std::string, SvgText> by_heading;
+    for (const auto& svg : svgs) {
+        const auto text = parse_svg(svg);
+        EXPECT_EQ(text.title, text.heading);
+        EXPECT_TRUE(has_unit(text.x_label)) << text.x_label;
+        EXPECT_TRUE(has_unit(text.y_label)) << text.y_label;
+        by_heading[text.heading] = text;
+    }
+    ASSERT_TRUE(by_heading.count("Tracking error of machine and model over time")) << html.substr(0, 500);
+    EXPECT_EQ(by_heading["Tracking error of machine and model over time"].x_label, "time [s]");
+    EXPECT_EQ(by_heading["Tracking error of machine and model over time"].y_label, "tracking error x_ref − x [mm]");
+    ASSERT_TRUE(by_heading.count("Modelling error over time"));
+    EXPECT_EQ(by_heading["Modelling error over time"].x_label, "time [s]");
+    EXPECT_EQ(by_heading["Modelling error over time"].y_label, "modelling error e_m = x − x_sim [mm]");
+    EXPECT_TRUE(by_heading.count("RLS estimate of Mass M over time")) << "the result's plots are still there";
+    // Both errors are drawn, with their legend.
+    EXPECT_NE(html.find("machine: x_ref − x (measured)"), std::string::npos);
+    EXPECT_NE(html.find("model: x_ref − x_sim (simulated)"), std::string::npos);
+
+    // The summary table holds the document's figures, in mm and %.
+    const auto document = nlohmann::json::parse(read_text(simulation));
+    for (const double value : {document["tracking_error_mae_m"]["model"].get<double>() * 1e3,
+                               document["tracking_error_mae_m"]["machine"].get<double>() * 1e3})
+        EXPECT_NE(html.find(fmt::format("<td>{:.4g}</td>", value)), std::string::npos) << value;
+    const double modelling_mae_mm = document["modelling_error_mae_m"].get<double>() * 1e3;
+    EXPECT_NE(html.find(fmt::format("<td colspan=\"2\">{:.4g}</td>", modelling_mae_mm)), std::string::npos);
+    for (const char* key : {"position", "velocity", "acceleration", "force"})
+        EXPECT_NE(html.find(fmt::format("<td>{:.4g}</td>", document["relative_error_pct"][key].get<double>())),
+                  std::string::npos)
+            << key;
+    EXPECT_NE(html.find("mean absolute modelling error"), std::string::npos);
+    EXPECT_EQ(html.find("need a simulation"), std::string::npos);
+
+    const auto chromium = find_chromium();
+    if (chromium.empty()) GTEST_SKIP() << "headless Chromium not found (install Debian's chromium package); the "
+                                          "browser rendering check is skipped";
+    expect_rendered(render_in_chromium(chromium, page, folder), svgs);
+}
+
+TEST_F(ReportEndToEnd, BadSimulationDocumentIsExitTwoAndWritesNothing) {
+    const std::string summary = R"("relative_error_pct": {"position": 0.01, "velocity": 0.2, "acceleration": 8,
+        "force": 5}, "tracking_error_mae_m": {"model": 0.001, "machine": 0.001}, "modelling_error_mae_m": 0.0001)";
+    const std::vector<std::pair<std::string, std::string>> cases{
+        {"garbage.json", "this is not JSON"},
+        {"result-as-simulation.json", read_text(result_)},
+        {"gains.json", R"({"gains": {}, "nc_units": {}, "diagnostics": []})"},
+        {"no-series.json", "{" + summary + "}"},
+        {"short-series.json", "{" + summary + R"(, "series": {"time_s": [0, 0.001, 0.002],
+            "tracking_error_machine_m": [0, 1e-5, 2e-5], "tracking_error_model_m": [0, 1e-5],
+            "modelling_error_m": [0, 0, 0]}})"},
+        {"text-in-series.json", "{" + summary + R"(, "series": {"time_s": [0, 0.001],
+            "tracking_error_machine_m": [0, "x"], "tracking_error_model_m": [0, 1e-5],
+            "modelling_error_m": [0, 0]}})"},
+        {"rotary-keys-missing.json", "{" + summary + R"(, "rotary": true, "series": {"time_s": [0, 0.001],
+            "tracking_error_machine_m": [0, 1e-5], "tracking_error_model_m": [0, 1e-5],
+            "modelling_error_m": [0, 0]}})"},
+    };
+    for (const auto& [name, text] : cases) {
+        const auto simulation = folder_ / name;
+        write_text(simulation, text);
+        const auto page = folder_ / (name + ".html");
+        const auto r = run_shell(
+            fmt::format("{} report {} --simulation {} -o {}", cli(), quoted(result_), quoted(simulation), quoted(page)),
+            folder_);
+        EXPECT_EQ(r.exit_code, 2) << name << ": " << r.err;
+        EXPECT_EQ(count_lines(r.err), 1) << name << ": " << r.err;
+        EXPECT_NE(r.err.find(name), std::string::npos) << name << ": " << r.err;
+        EXPECT_FALSE(fs::exists(page)) << name;
+    }
+    // A history report has no single run to validate.
+    const auto page = folder_ / "history-with-simulation.html";
+    write_text(folder_ / "valid-shape.json", "{" + summary + R"(, "series": {"time_s": [0],
+        "tracking_error_machine_m": [0], "tracking_error_model_m": [0], "modelling_error_m": [0]}})");
+    const auto r = run_shell(fmt::format("{} report {} --simulation {} -o {}", cli(), quoted(database_),
+                                         quoted(folder_ / "valid-shape.json"), quoted(page)),
+                             folder_);
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_EQ(count_lines(r.err), 1) << r.err;
+    EXPECT_FALSE(fs::exists(page));
+    // The same simulation document is accepted with a result.
+    const auto accepted = run_shell(fmt::format("{} report {} --simulation {} -o {}", cli(), quoted(result_),
+                                                quoted(folder_ / "valid-shape.json"), quoted(page)),
+                                    folder_);
+    EXPECT_EQ(accepted.exit_code, 0) << accepted.err;
 }
 
 }  // namespace

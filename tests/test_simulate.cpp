@@ -1,6 +1,9 @@
 // The closed-loop simulation: EMPS reproduced (published model, identified gains), stick-slip through zero velocity,
 // steady-state tracking, and reading the axis from a result document.
 #include <algorithm>
+#include <array>
+#include <span>
+#include <vector>
 #include <cmath>
 #include <tuple>
 
@@ -10,6 +13,7 @@
 #include "feedid/drive.hpp"
 #include "feedid/error.hpp"
 #include "feedid/io/import.hpp"
+#include "feedid/signal.hpp"
 #include "feedid/simulate.hpp"
 #include "testing.hpp"
 
@@ -84,6 +88,109 @@ TEST(Simulate, EmpsPublishedModelCommandLine) {
     EXPECT_TRUE(document["tracking_error_mae_m"]["model"].is_number());
     EXPECT_TRUE(document["tracking_error_mae_m"]["machine"].is_number());
     EXPECT_TRUE(document["modelling_error_mae_m"].is_number());
+}
+
+// simulate --json carries the paper's Fig. 6 as series thinned for plotting. Checked against the full-rate errors
+// rebuilt independently from the --out CSV (simulated x_ref, x) and the recording (measured qm): every point is a real
+// sample, the thinning keeps each error's extremes exactly, and the summary MAE is the mean over all samples.
+TEST(Simulate, EmpsSeriesOfErrorsKeepsTheExtremesWithinItsBound) {
+    FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
+    const auto dir = feedid::testing::temp_dir();
+    feedid::testing::write_text(dir / "result.json", published_emps_result().dump());
+    const auto mat = shared_data() / "emps/DATA_EMPS.mat";
+    const auto result = run_cli("simulate '" + mat.string() + "' " + emps_channels() + " --saturation 10 --result '" +
+                                (dir / "result.json").string() + "' --json '" + (dir / "sim.json").string() +
+                                "' --out '" + (dir / "sim.csv").string() + "'");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto document = nlohmann::json::parse(feedid::testing::read_text(dir / "sim.json"));
+
+    feedid::ImportOptions import;
+    import.channels[feedid::Role::position] = "qm";
+    import.channels[feedid::Role::reference_position] = "qg";
+    const auto machine = feedid::read_trace(mat, import);
+    const auto simulated = feedid::read_trace(dir / "sim.csv");
+    const auto measured = machine.column(feedid::Role::position);
+    const auto t = simulated.column(feedid::Role::time);
+    const auto reference = simulated.column(feedid::Role::reference_position);
+    const auto x_sim = simulated.column(feedid::Role::position);
+    const std::size_t n = measured.size();
+    ASSERT_EQ(x_sim.size(), n);
+    ASSERT_EQ(n, 24841u);
+    const auto qg = machine.column(feedid::Role::reference_position);
+    for (std::size_t k = 0; k < n; ++k) ASSERT_EQ(reference[k], qg[k]) << k;  // the simulation ran on qg
+
+    std::vector<double> machine_error(n), model_error(n), modelling_error(n);
+    double machine_sum = 0.0, model_sum = 0.0, modelling_sum = 0.0;
+    for (std::size_t k = 0; k < n; ++k) {
+        machine_error[k] = qg[k] - measured[k];
+        model_error[k] = reference[k] - x_sim[k];
+        modelling_error[k] = measured[k] - x_sim[k];
+        machine_sum += std::abs(machine_error[k]);
+        model_sum += std::abs(model_error[k]);
+        modelling_sum += std::abs(modelling_error[k]);
+    }
+    const double count = static_cast<double>(n);
+    EXPECT_NEAR(document["tracking_error_mae_m"]["machine"].get<double>(), machine_sum / count, 1e-12 * machine_sum);
+    EXPECT_NEAR(document["tracking_error_mae_m"]["model"].get<double>(), model_sum / count, 1e-12 * model_sum);
+    EXPECT_NEAR(document["modelling_error_mae_m"].get<double>(), modelling_sum / count, 1e-12 * modelling_sum);
+
+    EXPECT_EQ(document["rotary"], false);
+    const auto& series = document["series"];
+    ASSERT_TRUE(series.is_object()) << document.dump().substr(0, 300);
+    EXPECT_EQ(series["samples"].get<std::size_t>(), n);
+    const auto time = series["time_s"].get<std::vector<double>>();
+    const std::vector<std::pair<const char*, const std::vector<double>*>> errors{
+        {"tracking_error_machine_m", &machine_error},
+        {"tracking_error_model_m", &model_error},
+        {"modelling_error_m", &modelling_error}};
+    EXPECT_LE(time.size(), feedid::validation_series_points);
+    EXPECT_GT(time.size(), feedid::validation_series_points / 3) << "thinned far more than needed";
+    std::vector<std::size_t> index(time.size());
+    for (std::size_t i = 0; i < time.size(); ++i) {
+        index[i] = static_cast<std::size_t>(std::llround(time[i] / 0.001));
+        ASSERT_LT(index[i], n);
+        EXPECT_EQ(time[i], t[index[i]]) << "point " << i << " is not a sample instant";
+        if (i > 0) {
+            EXPECT_GT(index[i], index[i - 1]) << "point " << i;
+        }
+    }
+    for (const auto& [key, full] : errors) {
+        const auto values = series[key].get<std::vector<double>>();
+        ASSERT_EQ(values.size(), time.size()) << key;
+        for (std::size_t i = 0; i < values.size(); ++i)
+            ASSERT_EQ(values[i], (*full)[index[i]]) << key << " at point " << i;
+        // Min/max thinning keeps the extremes of the full-rate error exactly (the mean it does not keep).
+        const auto [low, high] = std::minmax_element(values.begin(), values.end());
+        const auto [full_low, full_high] = std::minmax_element(full->begin(), full->end());
+        EXPECT_EQ(*high, *full_high) << key;
+        EXPECT_EQ(*low, *full_low) << key;
+    }
+    double largest_model = 0.0;
+    for (const double e : model_error) largest_model = std::max(largest_model, std::abs(e));
+    EXPECT_EQ(document["tracking_error_max_m"]["model"].get<double>(), largest_model);
+}
+
+// The thinning keeps a one-sample spike in each signal and is the identity on short signals.
+TEST(Simulate, ExtremePreservingThinningKeepsSpikes) {
+    const std::size_t n = 100000;
+    std::vector<double> smooth(n), spiky(n, 0.0);
+    for (std::size_t k = 0; k < n; ++k) smooth[k] = std::sin(1e-4 * static_cast<double>(k));
+    spiky[31337] = 5.0;
+    spiky[31338] = -4.0;
+    spiky[77777] = std::nan("");
+    const std::array<std::span<const double>, 2> signals{smooth, spiky};
+    const auto kept = feedid::extreme_preserving_indices(signals, n, 400);
+    EXPECT_LE(kept.size(), 400u);
+    EXPECT_TRUE(std::is_sorted(kept.begin(), kept.end()));
+    EXPECT_EQ(std::adjacent_find(kept.begin(), kept.end()), kept.end()) << "an index kept twice";
+    EXPECT_NE(std::find(kept.begin(), kept.end(), 31337u), kept.end());
+    EXPECT_NE(std::find(kept.begin(), kept.end(), 31338u), kept.end());
+    EXPECT_EQ(std::find(kept.begin(), kept.end(), 77777u), kept.end()) << "a NaN kept over numbers";
+    const auto largest = std::max_element(smooth.begin(), smooth.end()) - smooth.begin();
+    EXPECT_NE(std::find(kept.begin(), kept.end(), static_cast<std::size_t>(largest)), kept.end());
+    const auto all = feedid::extreme_preserving_indices(signals, 300, 400);
+    ASSERT_EQ(all.size(), 300u);
+    for (std::size_t k = 0; k < all.size(); ++k) EXPECT_EQ(all[k], k);
 }
 
 // The whole pipeline, as a user runs it: identify (symmetric with offset), gains, simulate.

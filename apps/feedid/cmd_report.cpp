@@ -16,6 +16,7 @@ namespace {
 struct ReportArguments {
     std::string input;
     std::string out_path;
+    std::string simulation_path;
     history::RunFilter filter;
     history::TrendOptions trend;
 };
@@ -27,6 +28,11 @@ int run_report(const ReportArguments& arguments) {
                                      arguments.input));
     std::string html;
     if (history::looks_like_sqlite(arguments.input)) {
+        // A simulation validates one run; a history holds many.
+        if (!arguments.simulation_path.empty())
+            throw InputError(fmt::format("--simulation {}: goes with an identify result document, not with a history "
+                                         "database ({})",
+                                         arguments.simulation_path, arguments.input));
         history::SqliteOpenOptions options;
         options.read_only = true;
         const auto store = history::open_sqlite_store(arguments.input, options);
@@ -47,7 +53,10 @@ int run_report(const ReportArguments& arguments) {
                                          "(SQLite)",
                                          arguments.input));
         }
-        html = report::result_report_html(document, arguments.input);
+        std::optional<report::SimulationDocument> simulation;
+        if (!arguments.simulation_path.empty())
+            simulation = report::SimulationDocument{read_json(arguments.simulation_path), arguments.simulation_path};
+        html = report::result_report_html(document, arguments.input, simulation);
     }
     if (arguments.out_path == "-") {
         std::fwrite(html.data(), 1, html.size(), stdout);
@@ -71,6 +80,9 @@ Action add_report_command(CLI::App& app) {
                     "An identify result document (feedid identify --json) or a history database (SQLite file)")
         ->required();
     sub->add_option("-o,--out", arguments->out_path, "Where to write the HTML file ('-' for stdout)")->required();
+    sub->add_option("--simulation", arguments->simulation_path,
+                    "With a result: the simulate document (feedid simulate --json) for the tracking-error plots "
+                    "(Fig. 6)");
     sub->add_option("--machine", arguments->filter.machine, "History: only this machine");
     sub->add_option("--axis", arguments->filter.axis, "History: only this axis");
     sub->add_option("--location", arguments->filter.location, "History: only this location / site");
@@ -81,10 +93,13 @@ Action add_report_command(CLI::App& app) {
         ->default_val(6.0);
     sub->footer(
         "From a result: the RLS estimates over time with the end of the transient, and the friction curve per\n"
-        "direction. From a history: per axis and parameter, each run's value with its uncertainty band, the baseline,\n"
+        "direction; with --simulation, the tracking error of machine and model and the modelling error over time.\n"
+        "From a history: per axis and parameter, each run's value with its uncertainty band, the baseline,\n"
         "the alarm limits and the CUSUM, and the latest run's friction curve. The file needs no network to view.\n"
         "Examples:\n"
         "  feedid identify x.csv --json result.json && feedid report result.json -o x.html\n"
+        "  feedid simulate x.csv --result result.json --json sim.json && \\\n"
+        "      feedid report result.json --simulation sim.json -o x.html\n"
         "  feedid report shop.db --machine DMU50 -o health.html");
     return [arguments] { return run_report(*arguments); };
 }

@@ -81,6 +81,9 @@ struct SimulateCommand {
                 {"saturation_N", controller.saturation_N ? nlohmann::json(*controller.saturation_N) : nlohmann::json()},
                 {"current_lag_s", controller.current_lag_s},
                 {"velocity_difference_samples", controller.velocity_difference_samples}};
+            document["rotary"] = trace.rotary;
+            // The paper's Fig. 6 for `feedid report --simulation`: the errors over time, thinned for plotting.
+            document["series"] = validation_series_document(validation_series(trace, simulated), trace.rotary);
             document["diagnostics"] = notes;
             write_json(document, json_path);
             if (json_path == "-") return 0;

@@ -6,7 +6,9 @@
 // 4) and the measured friction against speed with the fitted curve per direction (Fig. 5). From a history: per axis
 // and parameter, the values of every run with their uncertainty band (value +- 2 standard errors), the baseline
 // mean, the one-run alarm limits and the runs in alarm, and the CUSUM with its decision interval; plus the latest
-// run's friction curve when the stored result holds one.
+// run's friction curve when the stored result holds one. With a simulate document (feedid simulate --json): the
+// tracking error of machine and model and the modelling error over time (the paper's Fig. 6) and the validation
+// figures.
 //
 // Every plot has a title and both axes labelled with their unit; each SVG is well-formed XML on its own.
 
@@ -88,14 +90,28 @@ ParameterLabel parameter_label(const std::string& key);
 /// value) and the friction curve. InputError naming `source` when the document is not an identify result.
 std::vector<Plot> result_plots(const nlohmann::json& result, const std::string& source);
 
+/// A simulate document (feedid simulate --json) and the file it came from.
+struct SimulationDocument {
+    nlohmann::json document;
+    std::string source;
+};
+
+/// Plots of a simulate document, the paper's Fig. 6: the tracking errors of machine and model over time, and the
+/// modelling error over time. InputError naming `source` (and the key) when it is not a simulate document with a
+/// well-formed "series".
+std::vector<Plot> simulation_plots(const nlohmann::json& simulation, const std::string& source);
+
 /// Plots of a history: for each axis and parameter with a trend, the values with their band, baseline, one-run alarm
 /// limits and alarms, and the CUSUM; the latest run's friction curve of each axis when stored.
 std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
                                 const std::vector<history::SeriesTrend>& trends,
                                 const history::TrendOptions& options);
 
-/// The whole HTML page of an identify result document (parameter table, diagnostics, plots).
-std::string result_report_html(const nlohmann::json& result, const std::string& source);
+/// The whole HTML page of an identify result document (parameter table, diagnostics, plots), with the validation by
+/// simulation (figures and Fig. 6) when a simulate document is given. InputError when either document is of the
+/// wrong kind.
+std::string result_report_html(const nlohmann::json& result, const std::string& source,
+                               const std::optional<SimulationDocument>& simulation = std::nullopt);
 
 /// The whole HTML page of a history (per axis: runs, alarms, trend and CUSUM plots, latest friction curve).
 std::string history_report_html(const std::vector<history::RunRecord>& runs,

@@ -38,6 +38,14 @@ std::vector<double> decimate(std::span<const double> x, int factor);
 /// The indices decimate() keeps for a signal of n samples.
 std::vector<std::size_t> decimation_indices(std::size_t n, int factor);
 
+/// Indices that thin signals sampled together to at most `max_points` for plotting without losing a spike: the
+/// samples are cut into equal buckets and each bucket keeps, in time order, the samples where one of the signals has
+/// its smallest or its largest value (NaN ignored). So every signal's extremes, overall and per bucket, survive;
+/// averages do not. All indices when n <= max_points. Precondition: every signal has n samples and
+/// max_points >= 2 * signals.size().
+std::vector<std::size_t> extreme_preserving_indices(std::span<const std::span<const double>> signals, std::size_t n,
+                                                    std::size_t max_points);
+
 /// Robust noise floor of a signal: 1.4826 * median absolute deviation of its first differences / sqrt(2)
 /// (the standard deviation of white noise on the samples).
 double noise_floor(std::span<const double> x);

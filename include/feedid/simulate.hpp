@@ -102,6 +102,28 @@ ValidationMetrics validate_simulation(const Trace& trace, std::span<const double
 /// The simulate document of DESIGN.md.
 nlohmann::json validation_document(const ValidationMetrics& metrics);
 
+/// The errors of the paper's Fig. 6 over time, thinned for plotting by extreme_preserving_indices() over all three
+/// together: every point is one real sample (so e_m = e_model - e_machine holds at each), and each error's largest and
+/// smallest values are kept exactly. Lengths [m], or [rad] on a rotary axis.
+struct ValidationSeries {
+    std::vector<double> time;                    ///< [s], from 0 as SimulationOutput::time
+    std::vector<double> tracking_error_machine;  ///< x_ref - x
+    std::vector<double> tracking_error_model;    ///< x_ref - x_sim
+    std::vector<double> modelling_error;         ///< e_m = x - x_sim
+    std::size_t samples{0};                      ///< samples before thinning
+};
+
+/// At most this many points per series by default: a plot's worth, and a few tens of kB of JSON.
+inline constexpr std::size_t validation_series_points = 2000;
+
+/// The errors of a simulation against the trace it reproduces, thinned to at most `max_points` (>= 6).
+ValidationSeries validation_series(const Trace& trace, const SimulationOutput& simulated,
+                                   std::size_t max_points = validation_series_points);
+
+/// The "series" object of the simulate document: time_s and the three errors, with the length unit in the key
+/// (`tracking_error_machine_m`, `tracking_error_model_m`, `modelling_error_m`; `_rad` on a rotary axis).
+nlohmann::json validation_series_document(const ValidationSeries& series, bool rotary);
+
 /// The simulated signals as a trace (time, reference, position, velocity, acceleration, velocity command, force
 /// command, force, tracking error), for `feedid simulate --out`.
 Trace simulation_trace(const SimulationOutput& output, bool rotary = false);

@@ -106,7 +106,117 @@ std::optional<Plot> friction_curve_plot(const nlohmann::json& result, const std:
     return plot;
 }
 
+/// The errors over time of a simulate document, checked.
+struct SimulationSeries {
+    bool rotary{false};
+    std::vector<double> time;
+    std::vector<double> machine;
+    std::vector<double> model;
+    std::vector<double> modelling;
+};
+
+SimulationSeries read_simulation_series(const nlohmann::json& simulation, const std::string& source) {
+    const auto wrong_kind = [&](const std::string& why) {
+        return InputError(fmt::format("{}: not a simulate document (feedid simulate --json): {}", source, why));
+    };
+    if (!simulation.is_object()) throw wrong_kind("not a JSON object");
+    if (!simulation.contains("tracking_error_mae_m") || !simulation["tracking_error_mae_m"].is_object())
+        throw wrong_kind("it has no 'tracking_error_mae_m'");
+    for (const char* key : {"model", "machine"})
+        if (!number_at(simulation["tracking_error_mae_m"], key))
+            throw wrong_kind(fmt::format("'tracking_error_mae_m.{}' is not a number", key));
+    if (!number_at(simulation, "modelling_error_mae_m")) throw wrong_kind("'modelling_error_mae_m' is not a number");
+    if (!simulation.contains("series") || !simulation["series"].is_object())
+        throw InputError(fmt::format("{}: the simulate document has no 'series' of errors over time (written by an "
+                                     "older feedid; run feedid simulate --json again)",
+                                     source));
+    SimulationSeries out;
+    if (simulation.contains("rotary")) {
+        if (!simulation["rotary"].is_boolean())
+            throw InputError(fmt::format("{}: 'rotary' is not true or false", source));
+        out.rotary = simulation["rotary"].get<bool>();
+    }
+    const auto& series = simulation["series"];
+    const auto column = [&](const std::string& key) {
+        if (!series.contains(key) || !series[key].is_array())
+            throw InputError(fmt::format("{}: series.{} is missing or not an array", source, key));
+        std::vector<double> values;
+        values.reserve(series[key].size());
+        for (const auto& value : series[key]) {
+            if (!value.is_number() || !std::isfinite(value.get<double>()))
+                throw InputError(fmt::format("{}: series.{}[{}] is not a finite number", source, key, values.size()));
+            values.push_back(value.get<double>());
+        }
+        return values;
+    };
+    const std::string unit = out.rotary ? "_rad" : "_m";
+    out.time = column("time_s");
+    out.machine = column("tracking_error_machine" + unit);
+    out.model = column("tracking_error_model" + unit);
+    out.modelling = column("modelling_error" + unit);
+    const std::array<std::pair<const char*, const std::vector<double>*>, 3> errors{
+        {{"tracking_error_machine", &out.machine},
+         {"tracking_error_model", &out.model},
+         {"modelling_error", &out.modelling}}};
+    for (const auto& [key, values] : errors)
+        if (values->size() != out.time.size())
+            throw InputError(fmt::format("{}: series.{}{} has {} values for {} times (series.time_s)", source, key,
+                                         unit, values->size(), out.time.size()));
+    for (std::size_t i = 1; i < out.time.size(); ++i)
+        if (!(out.time[i] > out.time[i - 1]))
+            throw InputError(fmt::format("{}: series.time_s[{}] does not increase", source, i));
+    return out;
+}
+
+/// Lengths are shown in mm (mrad on a rotary axis): tracking errors of feed drives are fractions of a millimetre.
+constexpr double display_scale = 1e3;
+const char* display_unit(bool rotary) { return rotary ? "mrad" : "mm"; }
+
+std::vector<double> scaled(const std::vector<double>& values) {
+    std::vector<double> out(values.size());
+    for (std::size_t i = 0; i < values.size(); ++i) out[i] = values[i] * display_scale;
+    return out;
+}
+
 }  // namespace
+
+std::vector<Plot> simulation_plots(const nlohmann::json& simulation, const std::string& source) {
+    const auto series = read_simulation_series(simulation, source);
+    const char* unit = display_unit(series.rotary);
+    const std::string x = series.rotary ? "φ" : "x";
+    Plot tracking;
+    tracking.id = "fig6-tracking-error";
+    tracking.title = "Tracking error of machine and model over time";
+    tracking.x_label = "time [s]";
+    tracking.y_label = fmt::format("tracking error {0}_ref − {0} [{1}]", x, unit);
+    Series machine;
+    machine.name = fmt::format("machine: {0}_ref − {0} (measured)", x);
+    machine.x = series.time;
+    machine.y = scaled(series.machine);
+    machine.colour = blue;
+    Series model;
+    model.name = fmt::format("model: {0}_ref − {0}_sim (simulated)", x);
+    model.x = series.time;
+    model.y = scaled(series.model);
+    model.colour = orange;
+    model.dashed = true;
+    tracking.series.push_back(std::move(machine));
+    tracking.series.push_back(std::move(model));
+
+    Plot modelling;
+    modelling.id = "fig6-modelling-error";
+    modelling.title = "Modelling error over time";
+    modelling.x_label = "time [s]";
+    modelling.y_label = fmt::format("modelling error e_m = {0} − {0}_sim [{1}]", x, unit);
+    Series error;
+    error.name = fmt::format("e_m = {0}_machine − {0}_model", x);
+    error.x = series.time;
+    error.y = scaled(series.modelling);
+    error.colour = green;
+    modelling.series.push_back(std::move(error));
+    modelling.horizontal.push_back({"", 0.0, grey, false});
+    return {std::move(tracking), std::move(modelling)};
+}
 
 ParameterLabel parameter_label(const std::string& key) {
     // Unit suffixes of the result document's keys, longest first where one ends another.
@@ -334,10 +444,76 @@ std::string figure(const Plot& plot, const std::string& caption) {
     return fmt::format("<figure>\n{}<figcaption>{}</figcaption>\n</figure>\n", render_svg(plot), escape_xml(caption));
 }
 
+std::string cell(const std::optional<double>& value, double scale) {
+    return value ? fmt::format("{:.4g}", *value * scale) : std::string("—");
+}
+
+/// The validation by simulation: its figures in two small tables and the Fig. 6 plots.
+std::string validation_section(const SimulationDocument& simulation, const std::string& result_trace,
+                               const std::vector<Plot>& plots) {
+    const auto& document = simulation.document;
+    const bool rotary = document.value("rotary", false);
+    const std::string unit = display_unit(rotary);
+    const auto object = [&](const char* key) {
+        return document.contains(key) && document[key].is_object() ? document[key] : nlohmann::json::object();
+    };
+    std::string body = "<h2>Validation: the identified axis simulated on the recorded reference</h2>\n";
+    std::string simulated_trace;
+    std::string samples;
+    if (const auto trace = object("trace"); trace.contains("path") && trace["path"].is_string()) {
+        simulated_trace = trace["path"].get<std::string>();
+        if (const auto n = number_at(trace, "samples")) samples = fmt::format(", {:.0f} samples", *n);
+    }
+    const std::string of_trace =
+        simulated_trace.empty() ? "" : fmt::format(" of trace <code>{}</code>", escape_xml(simulated_trace));
+    body += fmt::format("<p>Simulation <code>{}</code>{}{}.</p>\n", escape_xml(simulation.source), of_trace, samples);
+    if (!simulated_trace.empty() &&
+        std::filesystem::path(simulated_trace).filename() != std::filesystem::path(result_trace).filename())
+        body += fmt::format("<p class=\"alarm\">The simulation ran on <code>{}</code>, the result was identified from "
+                            "<code>{}</code>.</p>\n",
+                            escape_xml(simulated_trace), escape_xml(result_trace));
+    const auto mae = object("tracking_error_mae_m");
+    const auto largest = object("tracking_error_max_m");
+    body += fmt::format("<table>\n<tr><th class=\"text\">error</th><th>model</th><th>machine</th>"
+                        "<th class=\"text\">unit</th></tr>\n"
+                        "<tr><td class=\"text\">mean absolute tracking error</td><td>{}</td><td>{}</td>"
+                        "<td class=\"text\">{}</td></tr>\n"
+                        "<tr><td class=\"text\">largest tracking error</td><td>{}</td><td>{}</td>"
+                        "<td class=\"text\">{}</td></tr>\n"
+                        "<tr><td class=\"text\">mean absolute modelling error e_m</td><td colspan=\"2\">{}</td>"
+                        "<td class=\"text\">{}</td></tr>\n"
+                        "<tr><td class=\"text\">largest modelling error e_m</td><td colspan=\"2\">{}</td>"
+                        "<td class=\"text\">{}</td></tr>\n</table>\n",
+                        cell(number_at(mae, "model"), display_scale), cell(number_at(mae, "machine"), display_scale),
+                        unit, cell(number_at(largest, "model"), display_scale),
+                        cell(number_at(largest, "machine"), display_scale), unit,
+                        cell(number_at(document, "modelling_error_mae_m"), display_scale), unit,
+                        cell(number_at(document, "modelling_error_max_m"), display_scale), unit);
+    const auto relative = object("relative_error_pct");
+    body += "<table>\n<tr><th class=\"text\">relative error 100·‖y − y_sim‖/‖y‖</th><th>position</th>"
+            "<th>velocity</th><th>acceleration</th><th>force</th></tr>\n<tr><td class=\"text\">%</td>";
+    for (const char* key : {"position", "velocity", "acceleration", "force"})
+        body += fmt::format("<td>{}</td>", cell(number_at(relative, key), 1.0));
+    body += "</tr>\n</table>\n";
+    std::string thinned;
+    if (const auto series = object("series"); number_at(series, "samples") && series.contains("time_s"))
+        thinned = fmt::format(" The plots show {} of the {:.0f} samples: in each stretch of time the samples where an "
+                              "error is smallest or largest, so no peak is lost.",
+                              series["time_s"].size(), *number_at(series, "samples"));
+    body += figure(plots.at(0), "The tracking error of the machine (measured) and of the model (simulated in closed "
+                                "loop with the identified gains) on the same reference." + thinned);
+    body += figure(plots.at(1), "The modelling error: measured minus simulated position." + thinned);
+    return body;
+}
+
 }  // namespace
 
-std::string result_report_html(const nlohmann::json& result, const std::string& source) {
+std::string result_report_html(const nlohmann::json& result, const std::string& source,
+                               const std::optional<SimulationDocument>& simulation) {
     const auto plots = result_plots(result, source);
+    // Both documents are checked before anything is written.
+    const auto validation_plots =
+        simulation ? simulation_plots(simulation->document, simulation->source) : std::vector<Plot>{};
     std::string body;
     std::string trace_path = source;
     if (result.contains("trace") && result["trace"].is_object() && result["trace"].contains("path") &&
@@ -380,8 +556,10 @@ std::string result_report_html(const nlohmann::json& result, const std::string& 
                                  : "Quasi-static friction binned by speed, per direction, with the fitted model "
                                    "(viscous, Coulomb and, where identified, Stribeck terms).");
     }
-    body += "<p class=\"note\">Tracking-error plots need a simulation (feedid simulate); they are not part of an "
-            "identify result.</p>\n";
+    if (simulation) body += validation_section(*simulation, trace_path, validation_plots);
+    else
+        body += "<p class=\"note\">Tracking-error plots (the paper's Fig. 6) need a simulation: give its document with "
+                "--simulation (feedid simulate --json).</p>\n";
     return page(fmt::format("feedid identification report: {}", std::filesystem::path(trace_path).filename().string()),
                 body);
 }
