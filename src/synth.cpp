@@ -51,6 +51,10 @@ double SynthSpec::force_constant_N_per_A() const {
 std::string SynthSpec::validate() const {
     if (!(kt_Nm_per_A > 0.0) || !(lead_m > 0.0) || !(gear_ratio > 0.0)) return "K_t, lead and gear ratio must be positive";
     if (!(axis.mass > 0.0)) return "the mass must be positive";
+    // The test is given in mm and mm/min and the drive acts through a ball screw: a rotary table would come out as a
+    // linear axis with the wrong units. Refuse it rather than write such a trace.
+    if (axis.rotary) return "rotary axes are not synthesised (the test is in mm and mm/min, the drive a ball screw); "
+                            "give a linear axis";
     if (auto problem = controller.validate(); !problem.empty()) return problem;
     if (auto problem = sensors.validate(); !problem.empty()) return problem;
     if (auto problem = test.validate(); !problem.empty()) return problem;

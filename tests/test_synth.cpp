@@ -178,6 +178,17 @@ TEST(Synth, DriveFileOverridesTheDemoAndRejectsUnknownKeys) {
                  feedid::InputError);
 }
 
+TEST(Synth, ARotaryDriveIsRefusedNotWrittenInLinearUnits) {
+    feedid::SynthSpec spec = feedid::demo_spec();
+    spec.axis.rotary = true;
+    try {
+        (void)feedid::synthesize(spec);
+        FAIL() << "expected an InputError";
+    } catch (const feedid::InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("rotary"), std::string::npos) << e.what();
+    }
+}
+
 TEST(Synth, DriveFileFrictionZones) {
     const auto spec = feedid::spec_from_json(
         nlohmann::json::parse(R"({"friction_zones": [{"from_mm": -100, "to_mm": 50, "coulomb_factor": 1.3}]})"), "d");
