@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Robustness of the controller trace readers (SINUMERIK trace XML, TwinCAT Scope CSV, halscope/halsampler):
+# Robustness of the trace readers (CSV, MATLAB .mat, SINUMERIK trace XML, TwinCAT Scope CSV, halscope/halsampler):
 #   1. libFuzzer: each reader's fuzz target (fuzz/) built with clang into build-fuzz/ and run for a bounded time,
 #      seeded from the hand-made corpus in tests/fuzz/corpus/<reader>/, the kept regression inputs in
 #      tests/fuzz/regressions/<reader>/ and the real files in ../shared/data (read only);
@@ -22,11 +22,12 @@ what=${1:-all}
 seconds=${FUZZ_SECONDS:-30}
 jobs=${JOBS:-2}
 shared=${FEEDID_SHARED_DATA:-$root/../shared/data}
-readers=(sinumerik_trace twincat_scope halscope)
+readers=(csv mat sinumerik_trace twincat_scope halscope)
 status=0
 
 seeds_from_shared() {
   case "$1" in
+    mat) echo "$shared/emps" ;;
     sinumerik_trace) echo "$shared/sinumerik-trace" ;;
     twincat_scope) echo "$shared/twincat-scope" ;;
     *) ;;
