@@ -451,3 +451,23 @@ TEST(Mat, HeadersClaimingMoreThanTheFileHoldsAreRefusedBeforeLibmatioAllocates) 
         }
     }
 }
+
+// Every MAT input fuzzing found (a header on which libmatio allocated gigabytes, or parsed past where the walk does)
+// is refused as damaged before libmatio allocates, with one line naming the file.
+TEST(Mat, EveryKeptFuzzInputIsRefusedAsDamaged) {
+    const auto folder = std::filesystem::path(FEEDID_TEST_SOURCE_DIR) / "fuzz" / "regressions" / "mat";
+    ASSERT_TRUE(std::filesystem::exists(folder)) << folder;
+    int inputs = 0;
+    for (const auto& entry : std::filesystem::directory_iterator(folder)) {
+        SCOPED_TRACE(entry.path().filename().string());
+        try {
+            (void)read_mat(entry.path());
+            ADD_FAILURE() << "no InputError";
+        } catch (const InputError& e) {
+            EXPECT_TRUE(contains(e.what(), entry.path().string() + ": the file is damaged or truncated")) << e.what();
+            EXPECT_EQ(count_lines(e.what()), 0) << e.what();
+        }
+        ++inputs;
+    }
+    EXPECT_GE(inputs, 9);
+}

@@ -109,6 +109,8 @@ public:
             const std::uint64_t end = std::min<std::uint64_t>(begin + bytes, size_);
             variable_.clear();
             if (type == miMATRIX) {
+                // libmatio reads a variable's header even from an element of 0 bytes, on into the next one
+                if (bytes == 0) damaged("is an array element of 0 bytes");
                 check_matrix(begin, end, 0);
             } else if (type == miCOMPRESSED) {
                 inflater_.emplace(in_, begin, end - begin);
@@ -267,6 +269,8 @@ private:
         if (flags.bytes < 4 || !read_at(flags.data, flag_word.data(), 4)) claims_too_much("array flags");
         const auto class_type = word(flag_word.data()) & 0xFF;
         const auto dimensions = element(flags.next, end, "dimensions", miINT32);
+        // libmatio reads bytes / 4 dimensions and goes on from there, not from the padded end
+        if (dimensions.bytes % 4 != 0) damaged(fmt::format("has dimensions of {} bytes, not whole int32", dimensions.bytes));
         const auto elements = product(words(dimensions));
         const auto name = element(dimensions.next, end, "a name", miINT8);
         if (depth == 0) {
@@ -284,10 +288,11 @@ private:
             if (length_of_name == 0 && names.bytes > 0) damaged("has field names of length 0");
             fields = length_of_name == 0 ? 0 : names.bytes / length_of_name;
             position = names.next;
-        } else if (class_type != MAT_C_CELL) {
+        } else if (class_type != MAT_C_CELL && class_type != MAT_C_FUNCTION) {
             return;  // numbers, text, sparse: libmatio allocates for their data only when asked to read it
         }
-        // every cell, and every field of every struct element, is a miMATRIX element of at least its 8-byte tag
+        // every cell (a function handle holds its parts as cells), and every field of every struct element, is a
+        // miMATRIX element of at least its 8-byte tag
         std::uint64_t children = UINT64_MAX;
         if (!__builtin_mul_overflow(elements, fields, &children) && children <= (end - position) / 8) {
             for (std::uint64_t k = 0; k < children; ++k) {
@@ -321,8 +326,9 @@ void check_version4_headers(const std::filesystem::path& path, const std::string
     if (static_cast<std::size_t>(in.gcount()) == header.size()) {
         const bool little = header[126] == 'I' && header[127] == 'M';
         const bool big = header[126] == 'M' && header[127] == 'I';
-        const int version = little ? header[125] : big ? header[124] : 0;
-        if (version == 1 || version == 2) return;  // v5 or v7.3
+        // the version word, 0x0100 (v5) or 0x0200 (v7.3), in the byte order the endian indicator states
+        const int version = little && header[124] == 0 ? header[125] : big && header[125] == 0 ? header[124] : 0;
+        if (version == 1 || version == 2) return;
     }
     std::uint64_t position = 0;
     std::string previous = "(none)";
