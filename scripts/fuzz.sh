@@ -24,6 +24,8 @@ jobs=${JOBS:-2}
 shared=${FEEDID_SHARED_DATA:-$root/../shared/data}
 readers=(csv mat sinumerik_trace twincat_scope halscope)
 status=0
+# HDF5's own leaks on damaged v7.3 files are not feedid's (see the file); every other leak still fails.
+export LSAN_OPTIONS="suppressions=$root/fuzz/lsan.supp${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
 
 seeds_from_shared() {
   case "$1" in

@@ -452,8 +452,9 @@ TEST(Mat, HeadersClaimingMoreThanTheFileHoldsAreRefusedBeforeLibmatioAllocates) 
     }
 }
 
-// Every MAT input fuzzing found (a header on which libmatio allocated gigabytes, or parsed past where the walk does)
-// is refused as damaged before libmatio allocates, with one line naming the file.
+// Every v4/v5 input fuzzing found (a header on which libmatio allocated gigabytes, or parsed past where the walk does)
+// is refused as damaged before libmatio allocates, with one line naming the file; the v7.3 one (on which HDF5 leaks)
+// is refused too.
 TEST(Mat, EveryKeptFuzzInputIsRefusedAsDamaged) {
     const auto folder = std::filesystem::path(FEEDID_TEST_SOURCE_DIR) / "fuzz" / "regressions" / "mat";
     ASSERT_TRUE(std::filesystem::exists(folder)) << folder;
@@ -464,10 +465,12 @@ TEST(Mat, EveryKeptFuzzInputIsRefusedAsDamaged) {
             (void)read_mat(entry.path());
             ADD_FAILURE() << "no InputError";
         } catch (const InputError& e) {
-            EXPECT_TRUE(contains(e.what(), entry.path().string() + ": the file is damaged or truncated")) << e.what();
+            const bool hdf5 = entry.path().filename().string().starts_with("v73_");
+            EXPECT_TRUE(contains(e.what(), entry.path().string() + (hdf5 ? ": " : ": the file is damaged or truncated")))
+                << e.what();
             EXPECT_EQ(count_lines(e.what()), 0) << e.what();
         }
         ++inputs;
     }
-    EXPECT_GE(inputs, 9);
+    EXPECT_GE(inputs, 10);
 }
