@@ -4,11 +4,13 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <new>
 #include <random>
 #include <string>
 
@@ -17,6 +19,24 @@
 #include "feedid/error.hpp"
 #include "feedid/io/import.hpp"
 #include "testing.hpp"
+
+// Sums the bytes requested from operator new while `counting` is set: what the parser asks for, touched or not. The
+// replacement allocates with malloc, so its delete frees with free (GCC cannot see that they pair).
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+#endif
+namespace {
+std::atomic<bool> counting{false};
+std::atomic<std::size_t> requested_bytes{0};
+}  // namespace
+
+void* operator new(std::size_t size) {
+    if (counting.load(std::memory_order_relaxed)) requested_bytes.fetch_add(size, std::memory_order_relaxed);
+    if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+    throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 using namespace feedid;
 using feedid::testing::count_lines;
@@ -239,6 +259,44 @@ TEST(Csv, HeaderProblems) {
     EXPECT_TRUE(contains(error_of("0,1\n0.001,2\n"), "holds numbers, not a header"));
     EXPECT_TRUE(contains(error_of("t,x,t\n0,1,2\n"), "'t' appears twice"));
     EXPECT_TRUE(contains(error_of("t,,x\n0,1,2\n"), "column 2 has no name"));
+}
+
+// A header of many columns: its duplicate names are found however far apart (a set of names, not a search of the
+// columns before each one, which took seconds for 10000 columns), and a wide file is read.
+TEST(Csv, WideHeaderDuplicatesAreFoundAndAWideFileIsRead) {
+    constexpr int columns = 20000;
+    std::string header;
+    std::string row;
+    for (int c = 0; c < columns; ++c) {
+        header += (c > 0 ? "," : "") + std::string("c") + std::to_string(c);
+        row += (c > 0 ? "," : "") + std::to_string(c % 10);
+    }
+    const auto trace = parse_csv(header + "\n" + row + "\n", "wide.csv");
+    ASSERT_EQ(trace.channels.size(), std::size_t{columns});
+    EXPECT_EQ(trace.channels[12345].name, "c12345");
+    ASSERT_EQ(trace.channels[12345].values.size(), 1U);
+    EXPECT_EQ(trace.channels[12345].values[0], 5.0);
+    EXPECT_TRUE(contains(error_of(header + ",c0\n" + row + ",1\n"), "'c0' appears twice"));
+}
+
+// A wide header over many blank lines made the parser reserve columns x lines values (gigabytes
+// for a file of kilobytes; kept in tests/fuzz/regressions/csv/). A row of n cells takes at least n bytes, so the
+// columns never need more than 8 bytes of reserve per byte of text.
+TEST(Csv, ReserveIsBoundedByTheTextNotByColumnsTimesLines) {
+    constexpr int columns = 2000;
+    std::string text;
+    for (int c = 0; c < columns; ++c) text += (c > 0 ? "," : "") + std::string("c") + std::to_string(c);
+    text += std::string(100000, '\n');
+    for (int c = 0; c < columns; ++c) text += (c > 0 ? ",1" : "1");
+    text += "\n";
+    requested_bytes = 0;
+    counting = true;
+    const auto trace = parse_csv(text, "blank_lines.csv");
+    counting = false;
+    ASSERT_EQ(trace.channels.size(), std::size_t{columns});
+    EXPECT_EQ(trace.samples(), 1U);
+    // before the bound: 2000 columns x 100002 estimated rows x 8 bytes = 1.6 GB
+    EXPECT_LT(requested_bytes.load(), 16 * text.size()) << "text of " << text.size() << " bytes";
 }
 
 TEST(Csv, WriteThenParseIsExact) {

@@ -18,16 +18,6 @@ namespace {
 
 using feedid::testing::run_cli;
 
-// A folder of our own: run_cli() wipes the test's temp_dir().
-std::filesystem::path work_dir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const auto dir = std::filesystem::temp_directory_path() / "feedid-tests" /
-                     (std::string(info->test_suite_name()) + "." + info->name() + "-work");
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
-}
-
 std::string quoted(const std::filesystem::path& path) { return "'" + path.string() + "'"; }
 
 // The `# name = value` constants of a synthetic trace (its true drive values).
@@ -53,7 +43,7 @@ struct DryRun {
 };
 
 DryRun dry_run(const std::string& plan_arguments) {
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     DryRun run;
     const auto plan = run_cli("plan --travel=-400:400 --centers=-300 " + plan_arguments + " --reference " +
                               quoted(dir / "ref.csv") + " --json " + quoted(dir / "plan.json"));

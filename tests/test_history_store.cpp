@@ -321,4 +321,55 @@ TEST(HistoryRecord, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
     EXPECT_EQ(history::open_sqlite_store(database, read_only)->runs().size(), 2u);
 }
 
+// In WAL mode a connection opened with SQLITE_OPEN_READONLY creates DB-wal and DB-shm and may not delete them when it
+// closes: read-only commands left two empty files beside the database. Every read-only command now leaves the
+// folder, and the database file, as it found them.
+TEST(HistoryStore, ReadOnlyCommandsLeaveTheFolderAsTheyFoundIt) {
+    const auto folder = temp_dir();
+    const auto scratch = folder / "scratch";  // results, report and captured output live outside the listed folder
+    const auto shop = folder / "shop";
+    std::filesystem::create_directories(scratch);
+    std::filesystem::create_directories(shop);
+    const auto results = write_small_results(scratch, "run", 2);
+    const auto database = shop / "shop.db";
+    const auto recorded = run_shell(fmt::format("{} history {} --record {} --record {} --machine M --axis X", cli(),
+                                                quoted(database), quoted(results[0]), quoted(results[1])),
+                                    scratch);
+    ASSERT_EQ(recorded.exit_code, 0) << recorded.err;
+    auto listing = [&] {
+        std::set<std::string> names;
+        for (const auto& entry : std::filesystem::directory_iterator(shop)) {
+            names.insert(fmt::format("{} ({} bytes)", entry.path().filename().string(), entry.file_size()));
+        }
+        return names;
+    };
+    const auto before = listing();
+    ASSERT_EQ(before.size(), 1U) << *before.begin();
+    const std::string bytes_before = read_text(database);
+
+    for (const std::string& arguments :
+         {fmt::format("history {}", quoted(database)), fmt::format("history {} --json -", quoted(database)),
+          fmt::format("history {} --csv - --machine M --axis X", quoted(database)),
+          fmt::format("history {} --check", quoted(database)),
+          fmt::format("report {} --out {}", quoted(database), quoted(scratch / "report.html"))}) {
+        SCOPED_TRACE(arguments);
+        const auto result = run_shell(cli() + " " + arguments, scratch);
+        EXPECT_EQ(result.exit_code, 0) << result.err;
+        EXPECT_EQ(listing(), before);
+    }
+    // the library's reader too, and a reader that closes while another connection still has the file open
+    history::SqliteOpenOptions read_only;
+    read_only.read_only = true;
+    {
+        const auto writer = history::open_sqlite_store(database);
+        EXPECT_EQ(history::open_sqlite_store(database, read_only)->runs().size(), 2U);
+    }
+    EXPECT_EQ(history::open_sqlite_store(database, read_only)->runs().size(), 2U);
+    EXPECT_EQ(listing(), before);
+    EXPECT_EQ(read_text(database), bytes_before);
+
+    // a reader still cannot write
+    EXPECT_THROW(history::open_sqlite_store(database, read_only)->add_run(history::RunRecord{}), feedid::InputError);
+}
+
 }  // namespace

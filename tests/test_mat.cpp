@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <matio.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cmath>
@@ -288,4 +289,188 @@ TEST(Mat, NotAMatFileIsOneClearMessage) {
         EXPECT_TRUE(contains(result.err, path.string())) << result.err;
         EXPECT_TRUE(contains(result.err, problem)) << result.err;
     }
+}
+
+// libmatio allocates what a variable's header claims before reading its data: a damaged header claiming two billion
+// elements in a file of a few hundred bytes is refused before that, naming the variable and the claim.
+TEST(Mat, HeaderClaimingMoreElementsThanTheFileHoldsIsRefused) {
+    const auto dir = feedid::testing::temp_dir();
+    const auto good = dir / "good.mat";
+    {
+        MatWriter file(good, MAT_FT_MAT5);
+        ASSERT_TRUE(file.open());
+        std::vector<double> t{0.0, 0.1, 0.2};
+        file.add_doubles("t", t);
+    }
+    std::string bytes = feedid::testing::read_text(good);
+    // v5, uncompressed: 128-byte file header, the variable's tag (8), array flags (16), dimensions tag (8), then
+    // the first dimension as int32
+    constexpr std::size_t first_dimension = 128 + 8 + 16 + 8;
+    ASSERT_GT(bytes.size(), first_dimension + 8);
+    ASSERT_EQ(bytes.substr(first_dimension, 8), std::string("\x03\x00\x00\x00\x01\x00\x00\x00", 8));
+    bytes.replace(first_dimension, 4, std::string("\xFF\xFF\xFF\x7F", 4));
+    const auto damaged = dir / "damaged.mat";
+    feedid::testing::write_text(damaged, bytes);
+    try {
+        (void)read_mat(damaged);
+        ADD_FAILURE() << "no InputError";
+    } catch (const InputError& e) {
+        EXPECT_TRUE(contains(e.what(), "variable 't' claims to be 2147483647x1, more than the " +
+                                           std::to_string(bytes.size()) + "-byte file can hold"))
+            << e.what();
+    }
+}
+
+// libmatio reads a variable by name: of two with the same name the second would be read as the first, and its own
+// element count applied to the first one's data (a read past its end). Refused as damaged.
+TEST(Mat, TwoVariablesOfOneNameAreRefused) {
+    // libmatio's writer refuses a second variable of a name, so the file is two written files joined: the second's
+    // variable appended after the first's (v5 variables follow the 128-byte file header one after the other)
+    const auto dir = feedid::testing::temp_dir();
+    std::vector<double> few{1.0, 2.0};
+    std::vector<double> many(1000, 0.5);
+    for (auto [name, values] : {std::pair{"few.mat", &few}, std::pair{"many.mat", &many}}) {
+        MatWriter file(dir / name, MAT_FT_MAT5);
+        ASSERT_TRUE(file.open());
+        file.add_doubles("x", *values);
+    }
+    const auto path = dir / "twice.mat";
+    feedid::testing::write_text(path, feedid::testing::read_text(dir / "few.mat") +
+                                          feedid::testing::read_text(dir / "many.mat").substr(128));
+    try {
+        (void)read_mat(path);
+        ADD_FAILURE() << "no InputError";
+    } catch (const InputError& e) {
+        EXPECT_TRUE(contains(e.what(), "variable 'x' appears twice")) << e.what();
+    }
+}
+
+// A file that is not v5 or v7.3 is taken for v4 by libmatio, which allocates the name length a v4 header states
+// before reading it (1.2 GB for a 270-byte file that fuzzing found). A v4 file is read; a damaged one refused first.
+TEST(Mat, Version4IsReadAndADamagedHeaderRefused) {
+    const auto dir = feedid::testing::temp_dir();
+    // v4, little-endian, double (type 0000): rows, columns, no imaginary part, name length with its NUL, name, data
+    auto variable = [](std::uint32_t rows, std::uint32_t name_length, const std::string& name,
+                       const std::vector<double>& values) {
+        std::string bytes;
+        for (const std::uint32_t field : {0U, rows, 1U, 0U, name_length}) {
+            bytes.append(reinterpret_cast<const char*>(&field), 4);
+        }
+        bytes += name + '\0';
+        bytes.append(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(double));
+        return bytes;
+    };
+    const std::vector<double> t{0.0, 0.001, 0.002};
+    const std::vector<double> x{1.5, -2.0, 0.25};
+    feedid::testing::write_text(dir / "v4.mat", variable(3, 2, "t", t) + variable(3, 2, "x", x));
+    const auto trace = read_mat(dir / "v4.mat");
+    ASSERT_EQ(trace.channels.size(), 2U);
+    EXPECT_EQ(trace.channels[1].name, "x");
+    EXPECT_EQ(trace.channels[1].values, x);
+
+    feedid::testing::write_text(dir / "damaged.mat", variable(3, 2, "t", t) + variable(3, 0x49010000, "x", x));
+    try {
+        (void)read_mat(dir / "damaged.mat");
+        ADD_FAILURE() << "no InputError";
+    } catch (const InputError& e) {
+        EXPECT_TRUE(contains(e.what(), "truncated after variable 't' (a v4 variable claims a 1224802304-byte name"))
+            << e.what();
+    }
+}
+
+// libmatio allocates for a cell array's claimed cells, and for the rank its dimensions element claims, while it only
+// reads the variable's header (Mat_VarReadNextInfo). The headers are checked first, compressed ones inflated; the
+// inputs fuzzing found (1.9 GB of dimensions in 798 bytes, a compressed one asking 6.9 GB) are kept as regressions.
+TEST(Mat, HeadersClaimingMoreThanTheFileHoldsAreRefusedBeforeLibmatioAllocates) {
+    const auto dir = feedid::testing::temp_dir();
+    for (const auto compression : {MAT_COMPRESSION_NONE, MAT_COMPRESSION_ZLIB}) {
+        SCOPED_TRACE(compression == MAT_COMPRESSION_NONE ? "uncompressed" : "compressed");
+        const auto good = dir / "cells.mat";
+        {
+            mat_t* file = Mat_CreateVer(good.c_str(), nullptr, MAT_FT_MAT5);
+            ASSERT_NE(file, nullptr);
+            std::vector<double> t{0.0, 0.1, 0.2};
+            std::size_t t_dims[2] = {3, 1};
+            matvar_t* tv = Mat_VarCreate("t", MAT_C_DOUBLE, MAT_T_DOUBLE, 2, t_dims, t.data(), 0);
+            ASSERT_EQ(Mat_VarWrite(file, tv, MAT_COMPRESSION_NONE), 0);
+            Mat_VarFree(tv);
+            std::size_t cell_dims[2] = {2, 1};
+            matvar_t* cells = Mat_VarCreate("c", MAT_C_CELL, MAT_T_CELL, 2, cell_dims, nullptr, 0);
+            for (std::size_t k = 0; k < 2; ++k) {
+                std::size_t one[2] = {1, 1};
+                double value = 1.0 + static_cast<double>(k);
+                Mat_VarSetCell(cells, static_cast<int>(k),
+                               Mat_VarCreate(nullptr, MAT_C_DOUBLE, MAT_T_DOUBLE, 2, one, &value, 0));
+            }
+            ASSERT_EQ(Mat_VarWrite(file, cells, compression), 0);
+            Mat_VarFree(cells);
+            Mat_Close(file);
+        }
+        ASSERT_NO_THROW((void)read_mat(good));  // the file as written is fine: 'c' is left out with a finding
+
+        std::string bytes = feedid::testing::read_text(good);
+        if (compression == MAT_COMPRESSION_NONE) {
+            // the cell array's first dimension: after the first variable, its tag (8), array flags (16), dims tag (8)
+            const std::size_t first_variable_end = 128 + 8 + (bytes[132] & 0xFF) + ((bytes[133] & 0xFF) << 8);
+            const std::size_t first_dimension = first_variable_end + 8 + 16 + 8;
+            ASSERT_EQ(bytes.substr(first_dimension, 4), std::string("\x02\x00\x00\x00", 4));
+            bytes.replace(first_dimension, 4, std::string("\x00\x00\x00\x40", 4));  // 2^30 cells
+        } else {
+            // inflate the compressed variable, claim 2^30 cells, and deflate it again
+            const std::size_t first_variable_end = 128 + 8 + (bytes[132] & 0xFF) + ((bytes[133] & 0xFF) << 8);
+            ASSERT_EQ(bytes[first_variable_end], '\x0F');
+            const std::string compressed = bytes.substr(first_variable_end + 8);
+            std::string inflated(4096, '\0');
+            uLongf inflated_size = inflated.size();
+            ASSERT_EQ(uncompress(reinterpret_cast<Bytef*>(inflated.data()), &inflated_size,
+                                 reinterpret_cast<const Bytef*>(compressed.data()), compressed.size()),
+                      Z_OK);
+            inflated.resize(inflated_size);
+            const std::size_t first_dimension = 8 + 16 + 8;
+            ASSERT_EQ(inflated.substr(first_dimension, 4), std::string("\x02\x00\x00\x00", 4));
+            inflated.replace(first_dimension, 4, std::string("\x00\x00\x00\x40", 4));
+            std::string deflated(compressBound(inflated.size()), '\0');
+            uLongf deflated_size = deflated.size();
+            ASSERT_EQ(compress(reinterpret_cast<Bytef*>(deflated.data()), &deflated_size,
+                               reinterpret_cast<const Bytef*>(inflated.data()), inflated.size()),
+                      Z_OK);
+            deflated.resize(deflated_size);
+            const auto size = static_cast<std::uint32_t>(deflated.size());
+            bytes = bytes.substr(0, first_variable_end) + std::string("\x0F\x00\x00\x00", 4) +
+                    std::string(reinterpret_cast<const char*>(&size), 4) + deflated;
+        }
+        const auto damaged = dir / "damaged.mat";
+        feedid::testing::write_text(damaged, bytes);
+        try {
+            (void)read_mat(damaged);
+            ADD_FAILURE() << "no InputError";
+        } catch (const InputError& e) {
+            EXPECT_TRUE(contains(e.what(), "damaged or truncated after variable 't' (variable 'c' claims 1073741824 "
+                                           "cells or fields, more than the file holds)"))
+                << e.what();
+        }
+    }
+}
+
+// Every v4/v5 input fuzzing found (a header on which libmatio allocated gigabytes, or parsed past where the walk does)
+// is refused as damaged before libmatio allocates, with one line naming the file; the v7.3 one (on which HDF5 leaks)
+// is refused too.
+TEST(Mat, EveryKeptFuzzInputIsRefusedAsDamaged) {
+    const auto folder = std::filesystem::path(FEEDID_TEST_SOURCE_DIR) / "fuzz" / "regressions" / "mat";
+    ASSERT_TRUE(std::filesystem::exists(folder)) << folder;
+    int inputs = 0;
+    for (const auto& entry : std::filesystem::directory_iterator(folder)) {
+        SCOPED_TRACE(entry.path().filename().string());
+        try {
+            (void)read_mat(entry.path());
+            ADD_FAILURE() << "no InputError";
+        } catch (const InputError& e) {
+            const bool hdf5 = entry.path().filename().string().starts_with("v73_");
+            EXPECT_TRUE(contains(e.what(), entry.path().string() + (hdf5 ? ": " : ": the file is damaged or truncated")))
+                << e.what();
+            EXPECT_EQ(count_lines(e.what()), 0) << e.what();
+        }
+        ++inputs;
+    }
+    EXPECT_GE(inputs, 10);
 }

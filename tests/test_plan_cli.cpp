@@ -12,16 +12,6 @@ namespace {
 
 using feedid::testing::run_cli;
 
-// A folder of our own: run_cli() wipes the test's temp_dir().
-std::filesystem::path work_dir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const auto dir = std::filesystem::temp_directory_path() / "feedid-tests" /
-                     (std::string(info->test_suite_name()) + "." + info->name() + "-work");
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
-}
-
 std::string quoted(const std::filesystem::path& path) { return "'" + path.string() + "'"; }
 
 TEST(PlanCli, HelpShowsAWorkedExample) {
@@ -33,7 +23,7 @@ TEST(PlanCli, HelpShowsAWorkedExample) {
 }
 
 TEST(PlanCli, WritesProgramReferenceAndJson) {
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     for (const std::string dialect : {"iso", "sinumerik", "linuxcnc"}) {
         const auto program = dir / ("test." + dialect);
         const auto json = dir / ("plan-" + dialect + ".json");

@@ -14,8 +14,10 @@
 #include <pugixml.hpp>
 
 #include "feedid/error.hpp"
+#include "feedid/io/csv.hpp"
 #include "feedid/io/halscope.hpp"
 #include "feedid/io/import.hpp"
+#include "feedid/io/mat.hpp"
 #include "feedid/io/sinumerik_trace.hpp"
 #include "feedid/io/twincat_scope.hpp"
 #include "testing.hpp"
@@ -549,10 +551,16 @@ TEST(ReaderFuzzRegressions, EveryKeptInputIsReadOrRefusedWithAnInputError) {
         const std::string bytes = feedid::testing::read_text(entry.path());
         SCOPED_TRACE(entry.path().string());
         try {
+            // each as its fuzz target (fuzz/fuzz_<reader>.cpp) calls the reader
             if (reader == "sinumerik_trace") (void)parse_sinumerik_trace_axes(bytes, "fuzz.xml");
             else if (reader == "twincat_scope") (void)parse_twincat_scope(bytes, "fuzz.csv");
             else if (reader == "halscope") (void)parse_halscope(bytes, "fuzz.txt", 0.001);
-            else continue;
+            else if (reader == "csv") (void)parse_csv(bytes, "fuzz.csv");
+            else if (reader == "mat") (void)read_mat(entry.path());  // libmatio reads files only
+            else {
+                ADD_FAILURE() << "regression input for an unknown reader '" << reader << "'";
+                continue;
+            }
         } catch (const InputError&) {
         }
         ++inputs;

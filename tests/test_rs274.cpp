@@ -36,22 +36,12 @@ struct Canonical {
     double feed_mm_per_min;
 };
 
-// A folder of our own: run_cli() and temp_dir() wipe the test's temp_dir().
-std::filesystem::path work_dir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const auto dir = std::filesystem::temp_directory_path() / "feedid-tests" /
-                     (std::string(info->test_suite_name()) + "." + info->name() + "-work");
-    std::filesystem::remove_all(dir);
-    std::filesystem::create_directories(dir);
-    return dir;
-}
-
 void check_plan_through_rs274(const feedid::TestPlan& plan) {
     const auto rs274 = find_rs274();
     if (rs274.empty())
         GTEST_SKIP() << "LinuxCNC's rs274 interpreter not found (install Debian's linuxcnc-uspace: scripts/setup.sh "
                         "--extra); the .ngc check is skipped";
-    const auto dir = work_dir();
+    const auto dir = feedid::testing::temp_dir();
     const auto program = dir / "test.ngc";
     feedid::testing::write_text(program, feedid::emit_part_program(plan, feedid::Dialect::linuxcnc));
     // rs274 may look for its var file in the working directory: run it in ours.

@@ -155,8 +155,11 @@ public:
         if (exists && std::filesystem::file_size(path) > 0 && !looks_like_sqlite(path))
             throw InputError(fmt::format("{}: not a feedid history database (not a SQLite file)", path_));
 
-        const int flags = options.read_only ? SQLITE_OPEN_READONLY
-                                            : (SQLITE_OPEN_READWRITE | (exists ? 0 : SQLITE_OPEN_CREATE));
+        // A reader opens read-write too (query_only below keeps it from writing): in WAL mode a connection opened
+        // with SQLITE_OPEN_READONLY creates the -wal and -shm files beside the database but may not delete them when
+        // it closes, so read-only commands left two stray files behind. A read-write connection that closes last
+        // deletes them, as a writer does. SQLite falls back to reading only where the file is write-protected.
+        const int flags = SQLITE_OPEN_READWRITE | (exists || options.read_only ? 0 : SQLITE_OPEN_CREATE);
         const int code = sqlite3_open_v2(path_.c_str(), &db_, flags | SQLITE_OPEN_NOMUTEX, nullptr);
         if (code != SQLITE_OK) {
             const std::string message = describe(code, db_);
@@ -166,6 +169,7 @@ public:
         }
         try {
             sqlite3_busy_timeout(db_, options.busy_timeout_ms);
+            if (read_only_) exec("PRAGMA query_only = ON");
             check_and_migrate(options.target_schema_version);
         } catch (...) {
             sqlite3_close(db_);

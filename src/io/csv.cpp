@@ -6,6 +6,7 @@
 #include <functional>
 #include <limits>
 #include <map>
+#include <unordered_set>
 
 #include <fcntl.h>
 #include <sys/mman.h>
@@ -248,15 +249,15 @@ Trace parse_csv_text(std::string_view text, const std::string& source,
     trace.format = "csv";
     trace.constants = std::move(constants);
     trace.channels.reserve(columns);
+    std::unordered_set<std::string> names;  // a set, not a search of the columns so far: a wide header is not quadratic
+    names.reserve(columns);
     for (std::size_t c = 0; c < columns; ++c) {
         auto [name, unit] = split_name_unit(header[c]);
         if (name.empty()) {
             throw InputError(fmt::format("{}:{}: column {} has no name in the header", source, header_line, c + 1));
         }
-        for (std::size_t previous = 0; previous < c; ++previous) {
-            if (trace.channels[previous].name == name) {
-                throw InputError(fmt::format("{}:{}: column name '{}' appears twice", source, header_line, name));
-            }
+        if (!names.insert(name).second) {
+            throw InputError(fmt::format("{}:{}: column name '{}' appears twice", source, header_line, name));
         }
         // a header whose "names" are all numbers is data, not a header
         double probe = 0.0;
@@ -270,7 +271,11 @@ Trace parse_csv_text(std::string_view text, const std::string& source,
     }
 
     {
-        const std::size_t estimate = estimate_rows(text, position);
+        // A row of n cells takes at least n bytes (n - 1 separators and a line end), which bounds the rows the rest
+        // of the text can hold however its lines are counted: reserving for blank lines under a wide header would
+        // otherwise claim columns x lines values, gigabytes for a file of kilobytes.
+        const std::size_t rest = text.size() - std::min(position, text.size());
+        const std::size_t estimate = std::min(estimate_rows(text, position), rest / columns + 1);
         for (auto& channel : trace.channels) channel.values.reserve(estimate);
     }
 

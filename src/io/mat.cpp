@@ -1,13 +1,19 @@
 #include "feedid/io/mat.hpp"
 
 #include <matio.h>
+#include <zlib.h>
 
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
+#include <fstream>
 #include <memory>
+#include <optional>
+#include <set>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "feedid/error.hpp"
@@ -59,6 +65,307 @@ std::string dimensions(const matvar_t& variable) {
     return text;
 }
 
+// The number of elements a variable's dimensions claim; nullopt when the product overflows (a damaged header).
+std::optional<std::size_t> element_count(const matvar_t& variable) {
+    std::size_t elements = 1;
+    for (int k = 0; k < variable.rank; ++k) {
+        if (__builtin_mul_overflow(elements, variable.dims[k], &elements)) return std::nullopt;
+    }
+    return elements;
+}
+
+bool same_shape(const matvar_t& a, const matvar_t& b) {
+    if (a.rank != b.rank || a.class_type != b.class_type) return false;
+    for (int k = 0; k < a.rank; ++k) {
+        if (a.dims[k] != b.dims[k]) return false;
+    }
+    return true;
+}
+
+// libmatio sizes allocations from a v5 variable's header before checking them against the file: a dimensions
+// element claiming 1.9 GB in a file of 798 bytes (found by fuzzing; the inputs are kept in tests/fuzz/regressions/mat/)
+// has Mat_VarReadNextInfo allocate 3.9 GB for the rank, and a cell array or struct has it allocate a pointer for
+// every element it claims, following cells within cells as deep as they go; a compressed variable does the same with
+// what its inflated stream claims (6.9 GB). So the headers of the v5 variables are walked first, reading only their
+// tags (a compressed variable is inflated as far as the walk goes, and never held whole), and every size or count
+// libmatio would allocate for is checked against the bytes there to hold it: the file's, or at most 1032 times the
+// compressed bytes (zlib's largest expansion).
+class Version5HeaderCheck {
+public:
+    Version5HeaderCheck(const std::filesystem::path& path, std::string source, std::uintmax_t size)
+        : in_(path, std::ios::binary), source_(std::move(source)), size_(size) {}
+
+    void run() {
+        std::array<unsigned char, 128> header{};
+        if (!read_at(0, header.data(), header.size())) return;  // libmatio has read it; not for this check to judge
+        swap_ = header[126] == 'M' && header[127] == 'I';
+        std::uint64_t position = 128;
+        while (position + 8 <= size_) {
+            std::array<unsigned char, 8> tag{};
+            if (!read_at(position, tag.data(), tag.size())) return;
+            const std::uint32_t type = word(tag.data());
+            const std::uint64_t bytes = word(tag.data() + 4);
+            const std::uint64_t begin = position + 8;
+            const std::uint64_t end = std::min<std::uint64_t>(begin + bytes, size_);
+            variable_.clear();
+            if (type == miMATRIX) {
+                // libmatio reads a variable's header even from an element of 0 bytes, on into the next one
+                if (bytes == 0) damaged("is an array element of 0 bytes");
+                check_matrix(begin, end, 0);
+            } else if (type == miCOMPRESSED) {
+                inflater_.emplace(in_, begin, end - begin);
+                std::array<unsigned char, 8> inner{};
+                if (inflater_->read(0, inner.data(), inner.size()) && word(inner.data()) == miMATRIX) {
+                    const std::uint64_t expanded = (end - begin) * 1032;
+                    check_matrix(8, std::min<std::uint64_t>(8 + std::uint64_t{word(inner.data() + 4)}, expanded), 0);
+                }
+                inflater_.reset();
+            }
+            if (!variable_.empty()) previous_ = variable_;
+            position = begin + bytes;
+        }
+    }
+
+private:
+    static constexpr std::uint32_t miINT8 = 1, miINT32 = 5, miUINT32 = 6, miMATRIX = 14, miCOMPRESSED = 15;
+    static constexpr int deepest = 64;
+
+    // A compressed variable's zlib stream, inflated forward only as far as it is read; what lies before the last
+    // read is dropped, so memory stays at a window however large the variable.
+    class Inflater {
+    public:
+        Inflater(std::ifstream& in, std::uint64_t begin, std::uint64_t bytes)
+            : in_(in), next_input_(begin), input_left_(bytes) {
+            ok_ = inflateInit(&stream_) == Z_OK;
+        }
+        Inflater(const Inflater&) = delete;
+        Inflater& operator=(const Inflater&) = delete;
+        ~Inflater() {
+            if (ok_) inflateEnd(&stream_);
+        }
+        bool read(std::uint64_t offset, void* out, std::size_t count) {
+            if (!ok_ || offset < window_start_) return false;
+            while (true) {
+                const std::uint64_t drop = std::min<std::uint64_t>(offset - window_start_, window_.size());
+                window_.erase(0, drop);
+                window_start_ += drop;
+                if (window_start_ == offset && window_.size() >= count) break;
+                if (!more()) return false;
+            }
+            std::copy_n(window_.data(), count, static_cast<char*>(out));
+            return true;
+        }
+
+    private:
+        bool more() {
+            while (!finished_) {
+                if (stream_.avail_in == 0) {
+                    const auto chunk = static_cast<std::streamsize>(std::min<std::uint64_t>(input_.size(), input_left_));
+                    in_.clear();
+                    in_.seekg(static_cast<std::streamoff>(next_input_));
+                    if (chunk == 0 || !in_.read(input_.data(), chunk)) {
+                        finished_ = true;
+                        break;
+                    }
+                    next_input_ += static_cast<std::uint64_t>(chunk);
+                    input_left_ -= static_cast<std::uint64_t>(chunk);
+                    stream_.next_in = reinterpret_cast<Bytef*>(input_.data());
+                    stream_.avail_in = static_cast<uInt>(chunk);
+                }
+                stream_.next_out = reinterpret_cast<Bytef*>(output_.data());
+                stream_.avail_out = static_cast<uInt>(output_.size());
+                const int code = inflate(&stream_, Z_NO_FLUSH);
+                const std::size_t produced = output_.size() - stream_.avail_out;
+                window_.append(output_.data(), produced);
+                if (code != Z_OK) finished_ = true;  // the end of the stream, or a damaged one
+                if (produced > 0) return true;
+            }
+            return false;
+        }
+
+        std::ifstream& in_;
+        z_stream stream_{};
+        bool ok_{false};
+        bool finished_{false};
+        std::uint64_t next_input_;
+        std::uint64_t input_left_;
+        std::array<char, 16384> input_{};
+        std::array<char, 65536> output_{};
+        std::string window_;
+        std::uint64_t window_start_{0};
+    };
+
+    struct Element {
+        std::uint32_t type;
+        std::uint64_t data;   // where its data begins
+        std::uint64_t bytes;  // how many bytes of data
+        std::uint64_t next;   // where the element after it begins
+    };
+
+    bool read_at(std::uint64_t offset, void* out, std::size_t count) {
+        if (inflater_) return inflater_->read(offset, out, count);
+        in_.clear();
+        in_.seekg(static_cast<std::streamoff>(offset));
+        in_.read(static_cast<char*>(out), static_cast<std::streamsize>(count));
+        return static_cast<std::size_t>(in_.gcount()) == count;
+    }
+    [[nodiscard]] std::uint32_t word(const unsigned char* p) const {
+        const std::uint32_t little = p[0] | (p[1] << 8) | (p[2] << 16) | (std::uint32_t{p[3]} << 24);
+        return swap_ ? __builtin_bswap32(little) : little;
+    }
+    [[noreturn]] void damaged(std::string_view problem) const {
+        throw InputError(fmt::format("{}: the file is damaged or truncated after variable '{}' ({} {})", source_,
+                                     previous_,
+                                     variable_.empty() ? std::string("the next variable") : "variable '" + variable_ + "'",
+                                     problem));
+    }
+    [[noreturn]] void claims_too_much(std::string_view what) const {
+        damaged(fmt::format("claims {}, more than the file holds", what));
+    }
+
+    // The sub-element at `position` inside [.., end): a tag of 8 bytes, or 4 bytes of tag and 4 of data (the small
+    // format); data padded to 8 bytes. Of the type the format prescribes: libmatio reads what it finds otherwise in
+    // ways that need not match this walk.
+    Element element(std::uint64_t position, std::uint64_t end, std::string_view what, std::uint32_t type) {
+        std::array<unsigned char, 8> tag{};
+        if (position + 8 > end || !read_at(position, tag.data(), tag.size())) claims_too_much(what);
+        const std::uint32_t first = word(tag.data());
+        Element found{};
+        if ((first >> 16) != 0) {
+            if ((first >> 16) > 4) claims_too_much(fmt::format("{} of {} bytes in a 4-byte element", what, first >> 16));
+            found = {first & 0xFFFF, position + 4, first >> 16, position + 8};
+        } else {
+            const std::uint64_t bytes = word(tag.data() + 4);
+            if (bytes > end - position - 8) claims_too_much(fmt::format("{} of {} bytes", what, bytes));
+            found = {first, position + 8, bytes, position + 8 + (bytes + 7) / 8 * 8};
+        }
+        if (found.type != type) damaged(fmt::format("has {} of data type {}, not {}", what, found.type, type));
+        return found;
+    }
+
+    std::uint64_t product(const std::vector<std::uint32_t>& counts) const {
+        std::uint64_t total = 1;
+        for (const auto count : counts) {
+            if (__builtin_mul_overflow(total, std::uint64_t{count}, &total)) return UINT64_MAX;
+        }
+        return total;
+    }
+
+    std::vector<std::uint32_t> words(const Element& e) {
+        if (e.bytes > 4 * 1024) claims_too_much(fmt::format("{} dimensions", e.bytes / 4));
+        std::vector<std::uint32_t> out(e.bytes / 4);
+        std::vector<unsigned char> raw(out.size() * 4);
+        if (!raw.empty() && !read_at(e.data, raw.data(), raw.size())) claims_too_much("a dimension past the end");
+        for (std::size_t k = 0; k < out.size(); ++k) out[k] = word(raw.data() + 4 * k);
+        return out;
+    }
+
+    // One miMATRIX element's content [begin, end): array flags, dimensions, name, then what its class holds.
+    void check_matrix(std::uint64_t begin, std::uint64_t end, int depth) {
+        if (begin >= end) return;  // an empty element
+        if (depth > deepest) damaged(fmt::format("holds cells or structs nested deeper than {}", deepest));
+        const auto flags = element(begin, end, "array flags", miUINT32);
+        std::array<unsigned char, 4> flag_word{};
+        if (flags.bytes < 4 || !read_at(flags.data, flag_word.data(), 4)) claims_too_much("array flags");
+        const auto class_type = word(flag_word.data()) & 0xFF;
+        const auto dimensions = element(flags.next, end, "dimensions", miINT32);
+        // libmatio reads bytes / 4 dimensions and goes on from there, not from the padded end
+        if (dimensions.bytes % 4 != 0) damaged(fmt::format("has dimensions of {} bytes, not whole int32", dimensions.bytes));
+        const auto elements = product(words(dimensions));
+        const auto name = element(dimensions.next, end, "a name", miINT8);
+        if (depth == 0) {
+            std::string text(std::min<std::uint64_t>(name.bytes, 63), '\0');
+            if (read_at(name.data, text.data(), text.size())) variable_ = text;
+        }
+        std::uint64_t position = name.next;
+        std::uint64_t fields = 1;
+        if (class_type == MAT_C_OBJECT) position = element(position, end, "a class name", miINT8).next;
+        if (class_type == MAT_C_STRUCT || class_type == MAT_C_OBJECT) {
+            const auto length_element = element(position, end, "a field name length", miINT32);
+            const auto length = words(length_element);
+            const auto names = element(length_element.next, end, "field names", miINT8);
+            const std::uint64_t length_of_name = length.empty() ? 0 : length.front();
+            if (length_of_name == 0 && names.bytes > 0) damaged("has field names of length 0");
+            fields = length_of_name == 0 ? 0 : names.bytes / length_of_name;
+            position = names.next;
+        } else if (class_type != MAT_C_CELL && class_type != MAT_C_FUNCTION) {
+            return;  // numbers, text, sparse: libmatio allocates for their data only when asked to read it
+        }
+        // every cell (a function handle holds its parts as cells), and every field of every struct element, is a
+        // miMATRIX element of at least its 8-byte tag
+        std::uint64_t children = UINT64_MAX;
+        if (!__builtin_mul_overflow(elements, fields, &children) && children <= (end - position) / 8) {
+            for (std::uint64_t k = 0; k < children; ++k) {
+                const auto child = element(position, end, "a cell or field", miMATRIX);
+                check_matrix(child.data, child.data + child.bytes, depth + 1);
+                position = child.data + child.bytes;
+            }
+            return;
+        }
+        claims_too_much(fmt::format("{} cells or fields", children == UINT64_MAX ? std::string("2^64 or more")
+                                                                        : std::to_string(children)));
+    }
+
+    std::ifstream in_;
+    std::string source_;
+    std::uintmax_t size_;
+    bool swap_{false};
+    std::string variable_;
+    std::string previous_{"(none)"};
+    std::optional<Inflater> inflater_;
+};
+
+// A v4 file has no file header: Mat_Open takes a file that is not v5 or v7.3 for v4 and reads its first variable's
+// header, allocating the name length it finds there (fuzzing found 1.2 GB asked for by a 270-byte file). So before
+// libmatio opens such a file, the v4 variable headers are walked and each name and data size checked against the
+// bytes that follow (v4 has no compression). A file whose first bytes are no v4 header is left to libmatio to refuse.
+void check_version4_headers(const std::filesystem::path& path, const std::string& source, std::uintmax_t size) {
+    std::ifstream in(path, std::ios::binary);
+    std::array<unsigned char, 128> header{};
+    in.read(reinterpret_cast<char*>(header.data()), header.size());
+    if (static_cast<std::size_t>(in.gcount()) == header.size()) {
+        const bool little = header[126] == 'I' && header[127] == 'M';
+        const bool big = header[126] == 'M' && header[127] == 'I';
+        // the version word, 0x0100 (v5) or 0x0200 (v7.3), in the byte order the endian indicator states
+        const int version = little && header[124] == 0 ? header[125] : big && header[125] == 0 ? header[124] : 0;
+        if (version == 1 || version == 2) return;
+    }
+    std::uint64_t position = 0;
+    std::string previous = "(none)";
+    while (position + 20 <= size) {
+        std::array<unsigned char, 20> raw{};
+        in.clear();
+        in.seekg(static_cast<std::streamoff>(position));
+        if (!in.read(reinterpret_cast<char*>(raw.data()), raw.size())) return;
+        std::array<std::uint32_t, 5> fields{};  // type, rows, columns, imaginary part, name length
+        bool swap = false;
+        auto word = [&](std::size_t k) {
+            const unsigned char* p = raw.data() + 4 * k;
+            const std::uint32_t little = p[0] | (p[1] << 8) | (p[2] << 16) | (std::uint32_t{p[3]} << 24);
+            return swap ? __builtin_bswap32(little) : little;
+        };
+        if (word(0) > 4052) swap = true;  // the type is at most 4052 (MOPT digits) in the file's own byte order
+        for (std::size_t k = 0; k < fields.size(); ++k) fields[k] = word(k);
+        const std::uint32_t type = fields[0];
+        if (type > 4052 || (type / 100) % 10 != 0 || (type / 10) % 10 > 5) return;  // not v4: libmatio's to refuse
+        constexpr std::array<std::uint64_t, 6> element_bytes{8, 4, 4, 2, 2, 1};
+        const std::uint64_t rest = size - position - 20;
+        std::uint64_t data = 0;
+        const bool overflow = __builtin_mul_overflow(std::uint64_t{fields[1]}, std::uint64_t{fields[2]}, &data) ||
+                              __builtin_mul_overflow(data, element_bytes[(type / 10) % 10] * (fields[3] != 0 ? 2 : 1),
+                                                     &data);
+        if (fields[4] > rest || overflow || data > rest - fields[4]) {
+            throw InputError(fmt::format("{}: the file is damaged or truncated after variable '{}' (a v4 variable "
+                                         "claims a {}-byte name and {}x{} values, more than the file holds)",
+                                         source, previous, fields[4], fields[1], fields[2]));
+        }
+        std::string name(std::min<std::uint32_t>(fields[4], 63), '\0');
+        in.read(name.data(), static_cast<std::streamsize>(name.size()));
+        previous = name.c_str();
+        position += 20 + fields[4] + data;
+    }
+}
+
 template <typename T>
 void append_as_double(const void* data, std::size_t count, std::vector<double>& out) {
     const auto* typed = static_cast<const T*>(data);
@@ -88,8 +395,14 @@ Trace read_mat(const std::filesystem::path& path) {
     const std::string source = path.string();
     install_matio_log();
     last_matio_message().clear();
+    std::error_code size_error;
+    const std::uintmax_t file_bytes = std::filesystem::file_size(path, size_error);
+    if (size_error) throw InputError(fmt::format("{}: cannot read the file ({})", source, size_error.message()));
+    check_version4_headers(path, source, file_bytes);
     std::unique_ptr<mat_t, MatCloser> file(Mat_Open(source.c_str(), MAT_ACC_RDONLY));
     if (!file) throw InputError(fmt::format("{}: not a MATLAB .mat file libmatio can read", source));
+    const bool hdf5 = Mat_GetVersion(file.get()) == MAT_FT_MAT73;
+    if (Mat_GetVersion(file.get()) == MAT_FT_MAT5) Version5HeaderCheck(path, source, file_bytes).run();
 
     Trace trace;
     trace.source_path = source;
@@ -97,6 +410,7 @@ Trace read_mat(const std::filesystem::path& path) {
     // Variables that cannot be a channel or a constant are left out and each is named in a finding: a cell, struct
     // or char array, a complex value, or a matrix (which column would be which signal is not for import to guess).
     std::vector<std::string> left_out;
+    std::set<std::string> seen;
     std::string previous = "(none)";
     while (true) {
         last_matio_message().clear();
@@ -112,6 +426,10 @@ Trace read_mat(const std::filesystem::path& path) {
         if (info->name == nullptr) continue;
         const std::string name = info->name;
         previous = name;
+        // libmatio reads a variable by name, so of two with one name the second could not be read as itself.
+        if (!seen.insert(name).second) {
+            throw InputError(fmt::format("{}: variable '{}' appears twice (the file is damaged)", source, name));
+        }
         const bool numeric = info->class_type >= MAT_C_DOUBLE && info->class_type <= MAT_C_UINT64;
         if (!numeric || info->isComplex) {
             const std::string_view what = info->isComplex ? "complex array" : class_name(info->class_type);
@@ -119,12 +437,20 @@ Trace read_mat(const std::filesystem::path& path) {
                                            name, dimensions(*info), what));
             continue;
         }
-        std::size_t elements = 1;
-        std::size_t longest_dimension = 0;
-        for (int k = 0; k < info->rank; ++k) {
-            elements *= info->dims[k];
-            longest_dimension = std::max(longest_dimension, info->dims[k]);
+        const auto counted = element_count(*info);
+        // libmatio allocates what a variable's header claims before it reads a byte of the data, so a damaged header
+        // claiming billions of elements would have it allocate gigabytes. No variable holds more elements than its
+        // file has room for: an element takes at least one byte (MATLAB stores small integers as int8), and zlib (v5
+        // compressed variables, the deflate filter of v7.3's HDF5) expands at most 1032-fold.
+        const std::uintmax_t expansion = hdf5 || info->compression == MAT_COMPRESSION_ZLIB ? 1032 : 1;
+        if (!counted || *counted / expansion > file_bytes) {
+            throw InputError(fmt::format("{}: variable '{}' claims to be {}, more than the {}-byte file can hold (the "
+                                         "file is damaged)",
+                                         source, name, dimensions(*info), file_bytes));
         }
+        const std::size_t elements = *counted;
+        std::size_t longest_dimension = 0;
+        for (int k = 0; k < info->rank; ++k) longest_dimension = std::max(longest_dimension, info->dims[k]);
         if (elements == 0) {
             left_out.push_back(fmt::format("variable '{}' is empty ({}): left out", name, dimensions(*info)));
             continue;
@@ -141,6 +467,13 @@ Trace read_mat(const std::filesystem::path& path) {
             throw InputError(fmt::format("{}: variable '{}' cannot be read{}", source, name,
                                          last_matio_message().empty() ? std::string(" (a truncated file?)")
                                                                       : " (" + last_matio_message() + ")"));
+        }
+        // What was read must be what the header announced, and hold data for every element.
+        if (!same_shape(*info, *variable) || variable->isComplex ||
+            variable->nbytes / std::max<std::size_t>(Mat_SizeOf(variable->data_type), 1) < elements) {
+            throw InputError(fmt::format("{}: variable '{}' reads back other than its header says (the file is "
+                                         "damaged)",
+                                         source, name));
         }
         std::vector<double> values;
         if (!to_doubles(*variable, elements, values)) {

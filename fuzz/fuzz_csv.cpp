@@ -1,0 +1,16 @@
+// libFuzzer target: delimited text traces (the in-memory CSV parser). Read or InputError; anything else is a bug.
+#include <cstddef>
+#include <cstdint>
+#include <string_view>
+
+#include "feedid/error.hpp"
+#include "feedid/io/csv.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+    const std::string_view text(reinterpret_cast<const char*>(data), size);
+    try {
+        (void)feedid::parse_csv(text, "fuzz.csv");
+    } catch (const feedid::InputError&) {
+    }
+    return 0;
+}
