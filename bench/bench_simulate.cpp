@@ -19,64 +19,58 @@ std::vector<double> reference_of_60_s(double sample_time_s) {
     return reference;
 }
 
+// The demo drive on 60 s of its test, sampled every `sample_time_s`, integrated in `substeps` steps per sample.
+struct Run {
+    feedid::SynthSpec spec = feedid::demo_spec();
+    std::vector<double> reference;  // owned here: SimulationInput only views it
+    feedid::SimulationInput input;
+    feedid::SimulationOptions options;
+    Run(double sample_time_s, int substeps) : reference(reference_of_60_s(sample_time_s)) {
+        input.sample_time_s = sample_time_s;
+        input.reference = reference;
+        options.substeps = substeps;
+        options.position_resolution_m = 1e-8;
+    }
+    [[nodiscard]] benchmark::Counter steps_per_second() const {
+        return {static_cast<double>(reference.size()) * options.substeps,
+                benchmark::Counter::kIsIterationInvariantRate};
+    }
+};
+
 // 1 kHz samples and controller, 8 integration steps per sample: 8 kHz integration.
 void BM_Simulate60s_1kHzSamples_8kHzIntegration(benchmark::State& state) {
-    const auto spec = feedid::demo_spec();
-    const auto reference = reference_of_60_s(1e-3);
-    feedid::SimulationInput input;
-    input.sample_time_s = 1e-3;
-    input.reference = reference;
-    feedid::SimulationOptions options;
-    options.substeps = 8;
-    options.position_resolution_m = 1e-8;
+    const Run run(1e-3, 8);
     for (auto _ : state) {
-        auto out = feedid::simulate(spec.axis, spec.controller, input, options);
+        auto out = feedid::simulate(run.spec.axis, run.spec.controller, run.input, run.options);
         benchmark::DoNotOptimize(out.position.data());
     }
-    state.counters["steps"] = static_cast<double>(reference.size() * 8);
-    state.counters["steps_per_s"] =
-        benchmark::Counter(static_cast<double>(reference.size() * 8), benchmark::Counter::kIsIterationInvariantRate);
+    state.counters["steps"] = static_cast<double>(run.reference.size() * 8);
+    state.counters["steps_per_s"] = run.steps_per_second();
 }
 BENCHMARK(BM_Simulate60s_1kHzSamples_8kHzIntegration)->Unit(benchmark::kMillisecond);
 
 // 8 kHz samples and controller (velocity loop at 125 us as on a SINUMERIK), one integration step per sample.
 void BM_Simulate60s_8kHzSamplesAndController(benchmark::State& state) {
-    const auto spec = feedid::demo_spec();
-    const auto reference = reference_of_60_s(125e-6);
-    feedid::SimulationInput input;
-    input.sample_time_s = 125e-6;
-    input.reference = reference;
-    feedid::SimulationOptions options;
-    options.substeps = 1;
-    options.position_resolution_m = 1e-8;
+    const Run run(125e-6, 1);
     for (auto _ : state) {
-        auto out = feedid::simulate(spec.axis, spec.controller, input, options);
+        auto out = feedid::simulate(run.spec.axis, run.spec.controller, run.input, run.options);
         benchmark::DoNotOptimize(out.position.data());
     }
-    state.counters["steps_per_s"] =
-        benchmark::Counter(static_cast<double>(reference.size()), benchmark::Counter::kIsIterationInvariantRate);
+    state.counters["steps_per_s"] = run.steps_per_second();
 }
 BENCHMARK(BM_Simulate60s_8kHzSamplesAndController)->Unit(benchmark::kMillisecond);
 
 // The same into a reused output: what the simulation itself costs, without the operating system's first touch of
 // 38 MB of fresh output pages per run (which the one-shot figures above include).
 void BM_Simulate60s_8kHzSamplesAndController_ReusedOutput(benchmark::State& state) {
-    const auto spec = feedid::demo_spec();
-    const auto reference = reference_of_60_s(125e-6);
-    feedid::SimulationInput input;
-    input.sample_time_s = 125e-6;
-    input.reference = reference;
-    feedid::SimulationOptions options;
-    options.substeps = 1;
-    options.position_resolution_m = 1e-8;
+    const Run run(125e-6, 1);
     feedid::SimulationOutput out;
-    feedid::simulate(spec.axis, spec.controller, input, options, out);
+    feedid::simulate(run.spec.axis, run.spec.controller, run.input, run.options, out);
     for (auto _ : state) {
-        feedid::simulate(spec.axis, spec.controller, input, options, out);
+        feedid::simulate(run.spec.axis, run.spec.controller, run.input, run.options, out);
         benchmark::DoNotOptimize(out.position.data());
     }
-    state.counters["steps_per_s"] =
-        benchmark::Counter(static_cast<double>(reference.size()), benchmark::Counter::kIsIterationInvariantRate);
+    state.counters["steps_per_s"] = run.steps_per_second();
 }
 BENCHMARK(BM_Simulate60s_8kHzSamplesAndController_ReusedOutput)->Unit(benchmark::kMillisecond);
 
