@@ -68,7 +68,7 @@ void BM_IdentifyEmps(benchmark::State& state) {
         return;
     }
     feedid::ImportOptions import;
-    import.channels = {{feedid::Role::position, "qm"}, {feedid::Role::current, "vir"}};
+    import.channels = {{feedid::Role::position, "qm"}, { feedid::Role::current, "vir" }};
     const auto trace = feedid::read_trace(path, import);
     feedid::IdentifyOptions options;
     options.offset = true;

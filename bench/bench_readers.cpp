@@ -17,21 +17,22 @@ namespace {
 // A SINUMERIK servo trace like the reference one, made up in memory: 10 signals at 2 ms (one of them at 4 ms),
 // `records` records, sparse where a value did not change (as the trace tool writes them).
 std::string synthetic_sinumerik_trace(std::size_t records) {
-    static constexpr const char* variables[] = {
-        "nckServoDataCmdPos2ndEnc64", "nckServoDataActPos1stEnc64", "nckServoDataActPos2ndEnc64",
-        "nckServoDataCmdVelCtrlIn64", "nckServoDataActVel1stEnc64", "nckServoDataActVel2ndEnc64",
-        "nckServoDataCtrlDev64",      "nckServoDataDrvLoad64",      "nckServoDataActCurr64",
-        "nckServoDataCmdTorque64"};
-    static constexpr const char* units[] = {"posn", "posn", "posn", "velo", "velo", "velo", "posn", "percent",
-                                            "current", "torque"};
+    static constexpr const char* variables[] = {"nckServoDataCmdPos2ndEnc64", "nckServoDataActPos1stEnc64",
+                                                "nckServoDataActPos2ndEnc64", "nckServoDataCmdVelCtrlIn64",
+                                                "nckServoDataActVel1stEnc64", "nckServoDataActVel2ndEnc64",
+                                                "nckServoDataCtrlDev64",      "nckServoDataDrvLoad64",
+                                                "nckServoDataActCurr64",      "nckServoDataCmdTorque64"};
+    static constexpr const char* units[] = {"posn", "posn", "posn",    "velo",    "velo",
+                                            "velo", "posn", "percent", "current", "torque"};
     std::string xml =
         "<?xml version=\"1.0\" encoding=\"utf-8\" ?>\n<traceSession version=\"01.00.03.02\">\n"
         "<traceData dataFrames=\"1\">\n <dataFrame>\n";
     for (int k = 0; k < 10; ++k) {
-        xml += fmt::format("  <dataSignal key=\"s{0}\" event=\"255\" unitsType=\"{1}\" name=\"/Nck/!SD/{2} [u1, 1]\" "
-                           "datapointCount=\"{3}\" domain=\"NCU_1\" description=\"signal {0}\" interval=\"{4}\" "
-                           "displayRes=\"5\" eventChannel=\"1\" dataType=\"double\" id=\"f{0}\"/>\n",
-                           k + 1, units[k], variables[k], records, k == 7 ? "0.004000" : "0.002000");
+        xml += fmt::format(
+            "  <dataSignal key=\"s{0}\" event=\"255\" unitsType=\"{1}\" name=\"/Nck/!SD/{2} [u1, 1]\" "
+            "datapointCount=\"{3}\" domain=\"NCU_1\" description=\"signal {0}\" interval=\"{4}\" "
+            "displayRes=\"5\" eventChannel=\"1\" dataType=\"double\" id=\"f{0}\"/>\n",
+            k + 1, units[k], variables[k], records, k == 7 ? "0.004000" : "0.002000");
     }
     std::uint64_t state = 12345;
     auto next = [&state] {
@@ -42,7 +43,7 @@ std::string synthetic_sinumerik_trace(std::size_t records) {
         xml += fmt::format("  <rec time=\"{:.6f}\"", 0.002 * static_cast<double>(r));
         for (int k = 0; k < 10; ++k) {
             if (r > 0 && (k == 0 || k == 3) && r % 50 != 0) continue;  // setpoints change rarely
-            if (k == 7 && r % 2 != 0) continue;                         // the 4 ms signal
+            if (k == 7 && r % 2 != 0) continue;                        // the 4 ms signal
             xml += fmt::format(" f{}=\"{:.6f}\"", k + 1, -300.0 + 600.0 * next());
         }
         xml += "/>\n";
@@ -80,8 +81,9 @@ BENCHMARK(BM_SinumerikReferenceTraceEndToEnd)->Unit(benchmark::kMillisecond);
 
 // For information: the largest TwinCAT Scope reference export (one time column per channel, 22 channels).
 void BM_TwinCatScopeReferenceEndToEnd(benchmark::State& state) {
-    const std::filesystem::path path = std::filesystem::path(FEEDID_SHARED_DATA) /
-                                       "twincat-scope/tc3_scope_3_4_3145_3-ExcludeDoubleTimestamp_false-SortChannels_false.csv";
+    const std::filesystem::path path =
+        std::filesystem::path(FEEDID_SHARED_DATA) /
+        "twincat-scope/tc3_scope_3_4_3145_3-ExcludeDoubleTimestamp_false-SortChannels_false.csv";
     if (!std::filesystem::exists(path)) {
         state.SkipWithError("reference data not found (../shared/data/twincat-scope)");
         return;

@@ -17,7 +17,7 @@ int main(int argc, char** argv) {
     }
     try {
         feedid::ImportOptions import;
-        import.channels = {{feedid::Role::position, argv[2]}, {feedid::Role::current, argv[3]}};
+        import.channels = {{feedid::Role::position, argv[2]}, { feedid::Role::current, argv[3] }};
         const feedid::Trace trace = feedid::read_trace(argv[1], import);
 
         feedid::IdentifyOptions options;

@@ -10,9 +10,9 @@
 
 int main() {
     const double mass = 69.1, viscous = 54.2, coulomb = 742.8;  // the paper's drive
-    feedid::Rls<3> rls;                                          // lambda 0.99995, P(0) = 1e6 I, directional
+    feedid::Rls<3> rls;                                         // lambda 0.99995, P(0) = 1e6 I, directional
     std::mt19937 random(1);
-    std::normal_distribution<double> noise(0.0, 5.0);            // N
+    std::normal_distribution<double> noise(0.0, 5.0);  // N
     for (int k = 0; k < 20000; ++k) {
         const double t = 1e-3 * k;
         const double v = 0.1 * std::sin(3.0 * t), a = 0.3 * std::cos(3.0 * t);

@@ -12,11 +12,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     (void)feedid::looks_like_halsampler(text);
     try {
         (void)feedid::parse_halscope(text, "fuzz.txt");
-    } catch (const feedid::InputError&) {
-    }
+    } catch (const feedid::InputError&) {}
     try {
         (void)feedid::parse_halscope(text, "fuzz.txt", 0.001);
-    } catch (const feedid::InputError&) {
-    }
+    } catch (const feedid::InputError&) {}
     return 0;
 }

@@ -40,7 +40,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     static const std::string path = "/proc/self/fd/" + std::to_string(fd);
     try {
         (void)feedid::read_mat(path);
-    } catch (const feedid::InputError&) {
-    }
+    } catch (const feedid::InputError&) {}
     return 0;
 }

@@ -65,8 +65,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const auto direct = read(text);
     try {
         (void)feedid::parse_sinumerik_trace(text, "fuzz.xml", "2");
-    } catch (const feedid::InputError&) {
-    }
+    } catch (const feedid::InputError&) {}
     const auto tree = tree_of(text);
     if (!tree) {
         if (direct) __builtin_trap();  // read although not well-formed

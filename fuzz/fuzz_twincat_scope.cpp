@@ -10,7 +10,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const std::string_view text(reinterpret_cast<const char*>(data), size);
     try {
         (void)feedid::parse_twincat_scope(text, "fuzz.csv");
-    } catch (const feedid::InputError&) {
-    }
+    } catch (const feedid::InputError&) {}
     return 0;
 }

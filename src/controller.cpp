@@ -66,8 +66,8 @@ double Controller::velocity_step(double velocity_command, double position) noexc
         // anti-windup), so that the loop recovers from the limit without overshoot.
         const double next = integrator_ + model_.velocity_integral_gain_N_per_m * error * velocity_cycle_s_;
         const double candidate = proportional + next;
-        const bool saturated = model_.saturation_N && std::abs(candidate) > *model_.saturation_N &&
-                               (candidate > 0.0) == (error > 0.0);
+        const bool saturated =
+            model_.saturation_N && std::abs(candidate) > *model_.saturation_N && (candidate > 0.0) == (error > 0.0);
         if (!saturated) integrator_ = next;
         command = proportional + integrator_;
     }

@@ -30,16 +30,17 @@ std::optional<double> DriveConstants::force_per_signal(const Trace& trace) const
         if (found == trace.constants.end()) {
             std::string names;
             for (const auto& [name, value] : trace.constants) names += (names.empty() ? "" : ", ") + name;
-            throw InputError(fmt::format("--force-constant {}: the file has no scalar named '{}'{}", force_constant_name,
-                                         force_constant_name,
-                                         names.empty() ? std::string(" (it has no scalars)") : " (it has: " + names + ")"));
+            throw InputError(fmt::format(
+                "--force-constant {}: the file has no scalar named '{}'{}", force_constant_name, force_constant_name,
+                names.empty() ? std::string(" (it has no scalars)") : " (it has: " + names + ")"));
         }
         return found->second;
     }
     if (force_constant) return *force_constant;
     if (torque_constant_Nm_per_A) {
         if (trace.rotary) return *torque_constant_Nm_per_A * gear_ratio;
-        if (!lead_m) throw InputError("--kt needs --lead (the ball-screw lead) to turn torque into force on a linear axis");
+        if (!lead_m)
+            throw InputError("--kt needs --lead (the ball-screw lead) to turn torque into force on a linear axis");
         // eq. (2): F_d = K_t * i / R with R = l / 2*pi, times the gear ratio motor:screw
         return *torque_constant_Nm_per_A * gear_ratio * 2.0 * std::numbers::pi / *lead_m;
     }
@@ -52,9 +53,10 @@ std::vector<double> drive_force(const Trace& trace, const DriveConstants& consta
         if (trace.rotary || force->unit != "N*m") return force->values;
         // a motor torque on a linear axis: the screw turns it into force, F = T * 2*pi * g / lead
         if (!constants.lead_m) {
-            throw InputError(fmt::format("{}: the force channel '{}' is a torque (N*m) on a linear axis: give the "
-                                         "ball-screw lead (--lead, and --gear-ratio) to turn it into force",
-                                         trace.source_path.empty() ? "trace" : trace.source_path, force->name));
+            throw InputError(
+                fmt::format("{}: the force channel '{}' is a torque (N*m) on a linear axis: give the "
+                            "ball-screw lead (--lead, and --gear-ratio) to turn it into force",
+                            trace.source_path.empty() ? "trace" : trace.source_path, force->name));
         }
         const double factor = 2.0 * std::numbers::pi * constants.gear_ratio / *constants.lead_m;
         std::vector<double> converted(force->values.size());
@@ -63,17 +65,19 @@ std::vector<double> drive_force(const Trace& trace, const DriveConstants& consta
     }
     const auto* current = trace.find(Role::current);
     if (current == nullptr) {
-        throw InputError(fmt::format("{}: no drive signal: map a current channel (--channel current=NAME) or a force "
-                                     "channel (--channel force=NAME)",
-                                     trace.source_path.empty() ? "trace" : trace.source_path));
+        throw InputError(
+            fmt::format("{}: no drive signal: map a current channel (--channel current=NAME) or a force "
+                        "channel (--channel force=NAME)",
+                        trace.source_path.empty() ? "trace" : trace.source_path));
     }
     const auto factor = constants.force_per_signal(trace);
     if (!factor) {
         if (current->unit == "N" || current->unit == "N*m") return current->values;
-        throw InputError(fmt::format("{}: the drive signal '{}' is in {} and no constant turns it into force: give "
-                                     "--kt and --lead, or --force-constant",
-                                     trace.source_path.empty() ? "trace" : trace.source_path, current->name,
-                                     current->unit.empty() ? std::string("unknown units") : current->unit));
+        throw InputError(
+            fmt::format("{}: the drive signal '{}' is in {} and no constant turns it into force: give "
+                        "--kt and --lead, or --force-constant",
+                        trace.source_path.empty() ? "trace" : trace.source_path, current->name,
+                        current->unit.empty() ? std::string("unknown units") : current->unit));
     }
     std::vector<double> force(current->values.size());
     for (std::size_t k = 0; k < force.size(); ++k) force[k] = *factor * current->values[k];

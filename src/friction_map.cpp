@@ -75,7 +75,9 @@ std::vector<std::size_t> turning_points(std::span<const double> x, double hyster
     return turns;
 }
 
-nlohmann::json finite_or_null(double value) { return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(); }
+nlohmann::json finite_or_null(double value) {
+    return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json();
+}
 
 }  // namespace
 
@@ -125,9 +127,10 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
         centers = detect_centers(trace, options);
         map.centers_detected = true;
         if (centers.empty()) {
-            throw InputError(fmt::format("{}: no centre found about which the axis strokes back and forth at least {} "
-                                         "times; give the centres with --centers.",
-                                         where, options.min_strokes));
+            throw InputError(
+                fmt::format("{}: no centre found about which the axis strokes back and forth at least {} "
+                            "times; give the centres with --centers.",
+                            where, options.min_strokes));
         }
     }
     std::sort(centers.begin(), centers.end());
@@ -241,10 +244,11 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
             if (std::abs(difference) > options.deviation_threshold * std::abs(typical) &&
                 std::abs(difference) > 3.0 * combined) {
                 stands_out[l].push_back(key);
-                map.findings.push_back(fmt::format(
-                    "centre {:.3f} mm: {} = {:.4g} {} is {:.1f} % {} the median {:.4g} of the {} locations", location.center * 1e3,
-                    parameter->symbol, value, parameter->unit, 100.0 * std::abs(difference) / std::abs(typical),
-                    difference > 0.0 ? "above" : "below", typical, values.size()));
+                map.findings.push_back(
+                    fmt::format("centre {:.3f} mm: {} = {:.4g} {} is {:.1f} % {} the median {:.4g} of the {} locations",
+                                location.center * 1e3, parameter->symbol, value, parameter->unit,
+                                100.0 * std::abs(difference) / std::abs(typical), difference > 0.0 ? "above" : "below",
+                                typical, values.size()));
             }
         }
     }

@@ -18,8 +18,8 @@
 #include <limits>
 #include <numeric>
 
-#include <Eigen/Dense>
 #include <fmt/core.h>
+#include <Eigen/Dense>
 
 #include "feedid/controller.hpp"
 #include "feedid/error.hpp"
@@ -35,7 +35,8 @@ std::string GainOptions::validate() const {
         return "--current-lag must be a time >= 0";
     }
     if (saturation_N && !(*saturation_N > 0.0)) return "--saturation must be positive";
-    if (!(rls.forgetting_factor > 0.0 && rls.forgetting_factor <= 1.0)) return "the forgetting factor must be in (0, 1]";
+    if (!(rls.forgetting_factor > 0.0 && rls.forgetting_factor <= 1.0))
+        return "the forgetting factor must be in (0, 1]";
     return {};
 }
 
@@ -58,9 +59,9 @@ void apply_drive_filter(Column& column, double a, double mu) {
 }
 
 struct Structure {
-    int difference{1};      // n; 0 = the logged velocity channel
+    int difference{1};       // n; 0 = the logged velocity channel
     int reference_delay{0};  // d
-    double lag_s{0.0};      // tau
+    double lag_s{0.0};       // tau
     double mu{0.0};
 };
 
@@ -81,7 +82,9 @@ double residual_sum_of_squares(const Problem& problem) {
     for (Eigen::Index j = 0; j < p; ++j) {
         double sum = 0.0;
         for (std::size_t k = 0; k < n; ++k) {
-            if (use[k]) sum += problem.columns[static_cast<std::size_t>(j)][k] * problem.columns[static_cast<std::size_t>(j)][k];
+            if (use[k])
+                sum +=
+                    problem.columns[static_cast<std::size_t>(j)][k] * problem.columns[static_cast<std::size_t>(j)][k];
         }
         scale(j) = sum > 0.0 ? 1.0 / std::sqrt(sum) : 1.0;
     }
@@ -100,16 +103,17 @@ double residual_sum_of_squares(const Problem& problem) {
     for (std::size_t k = 0; k < n; ++k) {
         if (!use[k]) continue;
         double fitted = 0.0;
-        for (Eigen::Index j = 0; j < p; ++j) fitted += problem.columns[static_cast<std::size_t>(j)][k] * scale(j) * theta(j);
+        for (Eigen::Index j = 0; j < p; ++j)
+            fitted += problem.columns[static_cast<std::size_t>(j)][k] * scale(j) * theta(j);
         rss += (y[k] - fitted) * (y[k] - fitted);
     }
     return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
 }
 
 struct Fit {
-    Eigen::VectorXd estimate;   // RLS, unscaled
-    Eigen::VectorXd batch;      // batch LS, unscaled
-    Eigen::MatrixXd covariance; // batch, unscaled
+    Eigen::VectorXd estimate;    // RLS, unscaled
+    Eigen::VectorXd batch;       // batch LS, unscaled
+    Eigen::MatrixXd covariance;  // batch, unscaled
     double relative_error_pct{0.0};
     std::size_t samples{0};
     bool rank_deficient{false};
@@ -147,7 +151,8 @@ Fit fit(const Problem& problem, const RlsOptions& options) {
         scale(j) = rms > 0.0 ? rms : 1.0;
         phi.col(j) /= scale(j);
     }
-    const double y_scale = std::max(target.norm() / std::sqrt(static_cast<double>(std::max<Eigen::Index>(rows, 1))), 1e-300);
+    const double y_scale =
+        std::max(target.norm() / std::sqrt(static_cast<double>(std::max<Eigen::Index>(rows, 1))), 1e-300);
     const LeastSquaresResult batch = solve_least_squares(phi, target / y_scale);
     Fit result;
     result.samples = static_cast<std::size_t>(rows);
@@ -194,7 +199,8 @@ Column difference_velocity(std::span<const double> x, int n, double dt) {
 
 Column delayed(std::span<const double> x, int d) {
     Column out(x.size());
-    for (std::size_t k = 0; k < x.size(); ++k) out[k] = x[k >= static_cast<std::size_t>(d) ? k - static_cast<std::size_t>(d) : 0];
+    for (std::size_t k = 0; k < x.size(); ++k)
+        out[k] = x[k >= static_cast<std::size_t>(d) ? k - static_cast<std::size_t>(d) : 0];
     return out;
 }
 
@@ -212,7 +218,9 @@ Column running_sum(const Column& x, double dt) {
 constexpr std::array<double, 12> lag_grid{0.0, 0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.0, 1.4, 2.0, 3.0, 5.0};
 constexpr std::array<double, 5> mu_grid{0.0, 0.25, 0.5, 0.75, 1.0};
 
-double lag_coefficient(double lag_s, double dt) { return lag_s > 0.0 ? std::exp(-dt / lag_s) : 0.0; }
+double lag_coefficient(double lag_s, double dt) {
+    return lag_s > 0.0 ? std::exp(-dt / lag_s) : 0.0;
+}
 
 }  // namespace
 
@@ -225,12 +233,15 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
         throw InputError(fmt::format("{}: no position channel: map one with --channel position=NAME", source));
     }
     if (reference_channel == nullptr) {
-        throw InputError(fmt::format("{}: no reference position channel, which the position loop's following error "
-                                     "needs: map one with --channel reference_position=NAME",
-                                     source));
+        throw InputError(
+            fmt::format("{}: no reference position channel, which the position loop's following error "
+                        "needs: map one with --channel reference_position=NAME",
+                        source));
     }
     const std::size_t n = trace.samples();
-    if (drive_force.size() != n) throw InputError(fmt::format("{}: the drive force has {} samples, the trace {}", source, drive_force.size(), n));
+    if (drive_force.size() != n)
+        throw InputError(
+            fmt::format("{}: the drive force has {} samples, the trace {}", source, drive_force.size(), n));
     if (n < 50) throw AnalysisError(fmt::format("{}: {} samples are too few to identify controller gains", source, n));
     const double dt = trace.time_base().sample_time_s;
     const std::span<const double> x = position_channel->values;
@@ -247,10 +258,11 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
     for (std::size_t k = 0; k < n; ++k) following_rms += (reference[k] - x[k]) * (reference[k] - x[k]);
     following_rms = std::sqrt(following_rms / static_cast<double>(n));
     if (!(following_rms > 0.0)) {
-        throw AnalysisError(fmt::format("{}: the position equals the reference everywhere (no following error), so the "
-                                        "position gain cannot be identified; a trace of a motion with the position "
-                                        "loop closed would",
-                                        source));
+        throw AnalysisError(
+            fmt::format("{}: the position equals the reference everywhere (no following error), so the "
+                        "position gain cannot be identified; a trace of a motion with the position "
+                        "loop closed would",
+                        source));
     }
 
     // Rows used: past the start-up of the differences and filters, not at the force limit.
@@ -273,13 +285,18 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
     }
 
     std::vector<int> differences;
-    if (options.velocity_difference_samples) differences.push_back(*options.velocity_difference_samples);
-    else differences = {1, 2, 3, 4};
+    if (options.velocity_difference_samples)
+        differences.push_back(*options.velocity_difference_samples);
+    else
+        differences = {1, 2, 3, 4};
     if (velocity_channel != nullptr && !options.velocity_difference_samples) differences.push_back(0);
-    const std::vector<int> reference_delays = command_channel != nullptr ? std::vector<int>{0} : std::vector<int>{0, 1, 2};
+    const std::vector<int> reference_delays =
+        command_channel != nullptr ? std::vector<int>{0} : std::vector<int>{0, 1, 2};
     std::vector<double> lags;
-    if (options.current_lag_s) lags.push_back(*options.current_lag_s);
-    else for (const double samples : lag_grid) lags.push_back(samples * dt);
+    if (options.current_lag_s)
+        lags.push_back(*options.current_lag_s);
+    else
+        for (const double samples : lag_grid) lags.push_back(samples * dt);
 
     const auto velocity_for = [&](int difference) {
         return difference == 0 ? Column(velocity_channel->values.begin(), velocity_channel->values.end())
@@ -338,7 +355,9 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
         } else {
             Column error(n), minus_v(n);
             for (std::size_t k = 0; k < n; ++k) {
-                const std::size_t j = k >= static_cast<std::size_t>(s.reference_delay) ? k - static_cast<std::size_t>(s.reference_delay) : 0;
+                const std::size_t j = k >= static_cast<std::size_t>(s.reference_delay)
+                                          ? k - static_cast<std::size_t>(s.reference_delay)
+                                          : 0;
                 error[k] = reference[j] - x[k];
                 minus_v[k] = -v[k];
             }
@@ -431,9 +450,10 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
         }
     }
     if (force_fit.rank_deficient) {
-        throw AnalysisError(fmt::format("{}: the velocity error does not determine the velocity-loop gains (the axis "
-                                        "barely moved); a trace of a motion would",
-                                        source));
+        throw AnalysisError(
+            fmt::format("{}: the velocity error does not determine the velocity-loop gains (the axis "
+                        "barely moved); a trace of a motion would",
+                        source));
     }
 
     const auto& theta = force_fit.estimate;
@@ -454,7 +474,8 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
         const int kp = command_channel != nullptr ? 0 : 1;
         const int ki = integral_index;
         result.reset_time_s = make_estimate(
-            theta(kp) / theta(ki), ratio_variance(theta(kp), theta(ki), covariance(kp, kp), covariance(ki, ki), covariance(kp, ki)));
+            theta(kp) / theta(ki),
+            ratio_variance(theta(kp), theta(ki), covariance(kp, kp), covariance(ki, ki), covariance(kp, ki)));
     }
     result.velocity_difference_samples = structure.difference == 0 ? 1 : structure.difference;
     if (structure.difference == 0) result.diagnostics.push_back("velocity loop fitted on the logged velocity channel");
@@ -463,8 +484,9 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
     result.relative_error_pct = force_fit.relative_error_pct;
     result.samples_used = force_fit.samples;
     if (!(result.position_gain_per_s.value.value_or(0.0) > 0.0) || !(theta(command_channel != nullptr ? 0 : 1) > 0.0)) {
-        result.diagnostics.push_back("a gain came out negative: the channels' signs or roles may be wrong (is the "
-                                     "reference mapped to the reference, the drive signal to the current?)");
+        result.diagnostics.push_back(
+            "a gain came out negative: the channels' signs or roles may be wrong (is the "
+            "reference mapped to the reference, the drive signal to the current?)");
     }
 
     ControllerModel& controller = result.controller;
@@ -507,7 +529,8 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
     };
     if (options.force_per_signal != 0.0) {
         const double per = 1.0 / options.force_per_signal;
-        document["gains"]["velocity_gain_signal_per_m_per_s"] = estimate_json(scaled(result.velocity_gain_N_s_per_m, per));
+        document["gains"]["velocity_gain_signal_per_m_per_s"] =
+            estimate_json(scaled(result.velocity_gain_N_s_per_m, per));
         document["gains"]["velocity_integral_gain_signal_per_m"] =
             estimate_json(scaled(result.velocity_integral_gain_N_per_m, per));
         document["signal"] = {{"unit", options.signal_unit}, {"force_per_signal", options.force_per_signal}};
@@ -519,7 +542,7 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
         {"kv_m_per_min_per_mm_stderr", kv.standard_error ? nlohmann::json(*kv.standard_error) : nlohmann::json()},
         {"tn_ms", tn.value ? nlohmann::json(*tn.value) : nlohmann::json()},
         {"tn_ms_stderr", tn.standard_error && std::isfinite(*tn.standard_error) ? nlohmann::json(*tn.standard_error)
-                                                                                 : nlohmann::json()},
+                                                                                : nlohmann::json()},
     };
     document["structure"] = {
         {"method", result.method},
@@ -528,8 +551,8 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
         {"reference_delay_samples", result.reference_delay_samples},
         {"current_lag_s", result.current_lag_s},
         {"drive_delay_samples", result.drive_delay_samples},
-        {"saturation_N", result.controller.saturation_N ? nlohmann::json(*result.controller.saturation_N)
-                                                        : nlohmann::json()},
+        {"saturation_N",
+         result.controller.saturation_N ? nlohmann::json(*result.controller.saturation_N) : nlohmann::json()},
         {"sample_time_s", result.controller.velocity_cycle_s},
     };
     document["fit"] = {{"relative_error_pct", result.relative_error_pct},

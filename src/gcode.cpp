@@ -58,7 +58,8 @@ std::string feed_list(const std::vector<double>& feeds) {
 std::vector<std::string> header_lines(const TestPlan& plan, Dialect dialect) {
     const auto& o = plan.options;
     std::vector<std::string> lines;
-    lines.push_back(fmt::format("feedid {} axis test for axis {} ({} dialect)", version, o.axis, dialect_name(dialect)));
+    lines.push_back(
+        fmt::format("feedid {} axis test for axis {} ({} dialect)", version, o.axis, dialect_name(dialect)));
     lines.push_back("constant-velocity back-and-forth strokes at rising feedrates, every move ends at rest");
     lines.push_back(fmt::format("travel {} .. {} mm", number(o.travel_min / mm, 3), number(o.travel_max / mm, 3)));
     std::string centers;
@@ -70,9 +71,10 @@ std::vector<std::string> header_lines(const TestPlan& plan, Dialect dialect) {
     lines.push_back(fmt::format("slow feeds {}", feed_list(o.slow_feeds)));
     lines.push_back(fmt::format("cycles per feedrate {}, dwell at reversals {} s", o.cycles, number(o.dwell, 3)));
     lines.push_back(fmt::format("positioning feed {} mm/min", number(o.positioning_feed / mm_per_min, 3)));
-    lines.push_back(fmt::format("acceleration {} m/s^2 and jerk {} as set in the machine data; the reference "
-                                "trajectory assumes them",
-                                number(o.acceleration, 4), o.jerk ? number(*o.jerk, 3) + " m/s^3" : "unlimited"));
+    lines.push_back(
+        fmt::format("acceleration {} m/s^2 and jerk {} as set in the machine data; the reference "
+                    "trajectory assumes them",
+                    number(o.acceleration, 4), o.jerk ? number(*o.jerk, 3) + " m/s^3" : "unlimited"));
     lines.push_back(fmt::format("trace sample time {} ms; predicted duration {} s; {} blocks",
                                 number(o.sample_time * 1e3, 4), number(plan.duration, 1), plan.moves.size()));
     return lines;
@@ -88,8 +90,8 @@ std::string sanitize_parenthesised(std::string text) {
 
 bool is_single_letter_axis(const std::string& axis) {
     static const std::string letters = "XYZABCUVW";
-    return axis.size() == 1 && letters.find(static_cast<char>(std::toupper(static_cast<unsigned char>(axis[0])))) !=
-                                   std::string::npos;
+    return axis.size() == 1 &&
+           letters.find(static_cast<char>(std::toupper(static_cast<unsigned char>(axis[0])))) != std::string::npos;
 }
 
 }  // namespace
@@ -97,9 +99,10 @@ bool is_single_letter_axis(const std::string& axis) {
 std::string emit_part_program(const TestPlan& plan, Dialect dialect) {
     const auto& o = plan.options;
     if (dialect != Dialect::sinumerik && !is_single_letter_axis(o.axis)) {
-        throw InputError(fmt::format("part program: axis '{}' is not an axis letter of the {} dialect (X, Y, Z, A, B, "
-                                     "C, U, V, W).",
-                                     o.axis, dialect_name(dialect)));
+        throw InputError(
+            fmt::format("part program: axis '{}' is not an axis letter of the {} dialect (X, Y, Z, A, B, "
+                        "C, U, V, W).",
+                        o.axis, dialect_name(dialect)));
     }
     const bool semicolon_comments = dialect == Dialect::sinumerik;
     std::string out;
@@ -109,7 +112,7 @@ std::string emit_part_program(const TestPlan& plan, Dialect dialect) {
     // SINUMERIK needs "=" between an axis name with digits and its value (X1=10.0).
     const std::string axis_word =
         dialect == Dialect::sinumerik && o.axis.find_first_of("0123456789") != std::string::npos ? o.axis + "="
-                                                                                                   : o.axis;
+                                                                                                 : o.axis;
 
     if (dialect == Dialect::iso) out += "%\nO1000\n";
     for (const auto& line : header_lines(plan, dialect)) comment(line);
@@ -119,10 +122,12 @@ std::string emit_part_program(const TestPlan& plan, Dialect dialect) {
         case Dialect::sinumerik: out += fmt::format("G71 G90 G94 G60 {}\n", o.jerk ? "SOFT" : "BRISK"); break;
     }
     if (dialect == Dialect::sinumerik) {
-        comment("servo trace: in HMI Diagnostics > Trace, record actual position, position setpoint and actual current");
-        comment(fmt::format("every {} ms, start trigger R99 == 1, stop trigger R99 == 0; then remove the ';' before "
-                            "the STOPRE and R99 lines",
-                            number(o.sample_time * 1e3, 4)));
+        comment(
+            "servo trace: in HMI Diagnostics > Trace, record actual position, position setpoint and actual current");
+        comment(
+            fmt::format("every {} ms, start trigger R99 == 1, stop trigger R99 == 0; then remove the ';' before "
+                        "the STOPRE and R99 lines",
+                        number(o.sample_time * 1e3, 4)));
         out += ";STOPRE\n;R99=1 ; servo trace start\n";
     }
 

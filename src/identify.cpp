@@ -7,10 +7,10 @@
 #include <functional>
 #include <numeric>
 
-#include <Eigen/Dense>
 #include <fmt/core.h>
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <Eigen/Dense>
 
 #include "feedid/error.hpp"
 #include "feedid/least_squares.hpp"
@@ -81,7 +81,9 @@ struct Naming {
     bool rotary{false};
 
     [[nodiscard]] std::string key(Quantity quantity, Direction direction = Direction::both) const {
-        const std::string dir = direction == Direction::forward ? "_forward" : direction == Direction::reverse ? "_reverse" : "";
+        const std::string dir = direction == Direction::forward   ? "_forward"
+                                : direction == Direction::reverse ? "_reverse"
+                                                                  : "";
         switch (quantity) {
             case Quantity::mass: return rotary ? "inertia_kgm2" : "mass_kg";
             case Quantity::viscous: return "viscous" + dir + (rotary ? "_Nms_per_rad" : "_Ns_per_m");
@@ -153,7 +155,9 @@ struct Signals {
     std::vector<std::vector<double>> columns;
 };
 
-double sign_of(double v) { return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0); }
+double sign_of(double v) {
+    return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
+}
 
 std::vector<double> regressor_column(const Column& column, std::span<const double> a, std::span<const double> v) {
     std::vector<double> out(v.size());
@@ -178,7 +182,8 @@ std::vector<double> regressor_column(const Column& column, std::span<const doubl
 
 double percentile(std::vector<double> values, double fraction) {
     if (values.empty()) return 0.0;
-    const auto index = static_cast<std::size_t>(std::clamp(fraction, 0.0, 1.0) * static_cast<double>(values.size() - 1));
+    const auto index =
+        static_cast<std::size_t>(std::clamp(fraction, 0.0, 1.0) * static_cast<double>(values.size() - 1));
     std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(index), values.end());
     return values[index];
 }
@@ -240,8 +245,10 @@ RlsRun run_rls(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, const std::
     std::size_t first_settled = trajectory.size();
     for (std::size_t i = trajectory.size(); i-- > 0;) {
         const Eigen::VectorXd deviation = (trajectory[i] - run.final_estimate).cwiseAbs();
-        if ((deviation.array() <= tolerance.array()).all()) first_settled = i;
-        else break;
+        if ((deviation.array() <= tolerance.array()).all())
+            first_settled = i;
+        else
+            break;
     }
     run.settled = first_settled + 1 < trajectory.size() && first_settled < trajectory.size() * 9 / 10;
     run.settled_index = first_settled < trajectory.size() ? trajectory_index[first_settled] : n;
@@ -302,9 +309,9 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
         signal_units.drive.force_constant = 1.0;
         IdentifyResult provisional = identify(trace, signal_units);
         if (provisional.status == "failed") {
-            provisional.diagnostics.push_back(fmt::format(
-                "{}: (figures above in units of the drive signal '{}': no force constant was given)", source,
-                current->name));
+            provisional.diagnostics.push_back(
+                fmt::format("{}: (figures above in units of the drive signal '{}': no force constant was given)",
+                            source, current->name));
             provisional.document["diagnostics"] = provisional.diagnostics;
             return provisional;
         }
@@ -338,12 +345,14 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
             Parameter{naming.key(quantity, direction), Naming::symbol(quantity, direction), naming.unit(quantity), {}});
     };
     add_parameter(Quantity::mass, Direction::both);
-    for (const auto direction : asymmetric ? std::vector{Direction::forward, Direction::reverse} : std::vector{Direction::both}) {
+    for (const auto direction :
+         asymmetric ? std::vector{Direction::forward, Direction::reverse} : std::vector{Direction::both}) {
         add_parameter(Quantity::viscous, direction);
         add_parameter(Quantity::coulomb, direction);
     }
     if (options.offset) add_parameter(Quantity::offset, Direction::both);
-    for (const auto direction : asymmetric ? std::vector{Direction::forward, Direction::reverse} : std::vector{Direction::both}) {
+    for (const auto direction :
+         asymmetric ? std::vector{Direction::forward, Direction::reverse} : std::vector{Direction::both}) {
         add_parameter(Quantity::breakaway, direction);
         add_parameter(Quantity::stribeck_velocity, direction);
     }
@@ -369,12 +378,17 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     // ---- window and edge trim
     const std::size_t n_all = trace.samples();
     std::size_t first = 0, last = n_all;
-    if (options.from_s) first = static_cast<std::size_t>(std::lower_bound(time_column.begin(), time_column.end(), *options.from_s) - time_column.begin());
-    if (options.to_s) last = static_cast<std::size_t>(std::upper_bound(time_column.begin(), time_column.end(), *options.to_s) - time_column.begin());
+    if (options.from_s)
+        first = static_cast<std::size_t>(std::lower_bound(time_column.begin(), time_column.end(), *options.from_s) -
+                                         time_column.begin());
+    if (options.to_s)
+        last = static_cast<std::size_t>(std::upper_bound(time_column.begin(), time_column.end(), *options.to_s) -
+                                        time_column.begin());
     if (last <= first + 20) {
-        diagnostics.push_back(fmt::format("{}: only {} samples in the analysis window: too short to identify anything "
-                                          "(record at least a few seconds of motion)",
-                                          source, last > first ? last - first : 0));
+        diagnostics.push_back(
+            fmt::format("{}: only {} samples in the analysis window: too short to identify anything "
+                        "(record at least a few seconds of motion)",
+                        source, last > first ? last - first : 0));
         return finish("failed");
     }
     const double dt = base.sample_time_s;
@@ -383,9 +397,10 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     {
         const auto [low, high] = std::minmax_element(x.begin(), x.end());
         if (!(*high > *low)) {
-            diagnostics.push_back(fmt::format("{}: the position never changes in the analysis window: the axis did "
-                                              "not move, so nothing can be identified",
-                                              source));
+            diagnostics.push_back(
+                fmt::format("{}: the position never changes in the analysis window: the axis did "
+                            "not move, so nothing can be identified",
+                            source));
             return finish("failed");
         }
     }
@@ -404,7 +419,8 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
         case Differentiation::butterworth: {
             differentiation_name = "butterworth";
             if (!(cutoff < 0.5 * fs)) {
-                throw InputError(fmt::format("--cutoff {} Hz must be below half the sample rate ({} Hz)", cutoff, 0.5 * fs));
+                throw InputError(
+                    fmt::format("--cutoff {} Hz must be below half the sample rate ({} Hz)", cutoff, 0.5 * fs));
             }
             const auto filtered = filtfilt(butterworth_lowpass(options.filter_order, cutoff, fs), x);
             velocity = central_difference(filtered, dt);
@@ -430,9 +446,10 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     const std::size_t edge = options.edge_samples.value_or(default_edge);
     const std::size_t n_window = x.size();
     if (n_window <= 2 * edge + 20) {
-        diagnostics.push_back(fmt::format("{}: {} samples in the window, {} dropped at each edge: too short to identify "
-                                          "anything",
-                                          source, n_window, edge));
+        diagnostics.push_back(
+            fmt::format("{}: {} samples in the window, {} dropped at each edge: too short to identify "
+                        "anything",
+                        source, n_window, edge));
         return finish("failed");
     }
     const std::size_t keep_first = edge, keep_last = n_window - edge;
@@ -478,7 +495,8 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     const double quantum = position_quantum(x);
     double max_speed = 0.0;
     for (const double v : v_dec) max_speed = std::max(max_speed, std::abs(v));
-    const double threshold = options.moving_threshold.value_or(std::max({5.0 * noise_v, quantum * cutoff, 1e-6 * max_speed}));
+    const double threshold =
+        options.moving_threshold.value_or(std::max({5.0 * noise_v, quantum * cutoff, 1e-6 * max_speed}));
     selection.moving_threshold = threshold;
     std::vector<std::size_t> moving;
     for (std::size_t k = 0; k < n; ++k) {
@@ -486,8 +504,8 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     }
     selection.moving = moving.size();
     if (n_all > n_kept) {
-        selection.notes.push_back(fmt::format("{} samples outside the time window or within {} samples of its edges",
-                                              n_all - n_kept, edge));
+        selection.notes.push_back(
+            fmt::format("{} samples outside the time window or within {} samples of its edges", n_all - n_kept, edge));
     }
     if (decimation > 1) selection.notes.push_back(fmt::format("decimated by {}: {} samples remain", decimation, n));
     selection.notes.push_back(fmt::format("{} samples at rest (|v| <= {:.3g} {}, 5x the velocity noise floor {:.3g})",
@@ -511,14 +529,16 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     for (const auto k : moving) {
         if (steady(k)) steady_speeds.push_back(std::abs(v_dec[k]));
     }
-    const double typical_speed = percentile(steady_speeds.empty() ? std::vector<double>{max_speed} : steady_speeds, 0.95);
+    const double typical_speed =
+        percentile(steady_speeds.empty() ? std::vector<double>{max_speed} : steady_speeds, 0.95);
     double split = options.split_velocity.value_or(options.stribeck ? 0.1 * typical_speed : 0.0);
     split = std::max(split, threshold);
     // The regressor rows and outputs of a set of samples, for the least-squares fits below.
     auto regressor_matrix = [&](const std::vector<std::size_t>& rows) {
         Eigen::MatrixXd m(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(columns.size()));
         for (std::size_t i = 0; i < rows.size(); ++i) {
-            for (std::size_t c = 0; c < columns.size(); ++c) m(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(c)) = regressors[c][rows[i]];
+            for (std::size_t c = 0; c < columns.size(); ++c)
+                m(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(c)) = regressors[c][rows[i]];
         }
         return m;
     };
@@ -538,15 +558,20 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
             std::vector<std::size_t> band, faster;
             for (const auto k : moving) {
                 const double speed = std::abs(v_dec[k]);
-                if (speed >= 2.0 * split) faster.push_back(k);
-                else if (speed >= split) band.push_back(k);
+                if (speed >= 2.0 * split)
+                    faster.push_back(k);
+                else if (speed >= split)
+                    band.push_back(k);
             }
-            if (band.size() < kMinimumSlowSamples || faster.size() < std::max<std::size_t>(20 * columns.size(), moving.size() / 5)) break;
+            if (band.size() < kMinimumSlowSamples ||
+                faster.size() < std::max<std::size_t>(20 * columns.size(), moving.size() / 5))
+                break;
             const LeastSquaresResult fit = solve_least_squares(regressor_matrix(faster), output_vector(faster));
             if (fit.rank_deficient) break;
             const Eigen::VectorXd residual = output_vector(band) - regressor_matrix(band) * fit.estimate;
             double rise = 0.0;
-            for (std::size_t i = 0; i < band.size(); ++i) rise += (v_dec[band[i]] > 0 ? 1.0 : -1.0) * residual(static_cast<Eigen::Index>(i));
+            for (std::size_t i = 0; i < band.size(); ++i)
+                rise += (v_dec[band[i]] > 0 ? 1.0 : -1.0) * residual(static_cast<Eigen::Index>(i));
             rise /= static_cast<double>(band.size());
             const double noise = 3.0 * fit.residual_std / std::sqrt(static_cast<double>(band.size()));
             if (!(rise > noise)) break;
@@ -554,8 +579,8 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
                 "{} samples between {:.3g} and {:.3g} {} carry {:.3g} {} more friction than the faster ones: still "
                 "Stribeck, so step 1 starts at {:.3g} {}",
                 band.size(), split * naming.display_velocity_scale(), 2.0 * split * naming.display_velocity_scale(),
-                naming.display_velocity_unit(), rise, naming.force_unit(), 2.0 * split * naming.display_velocity_scale(),
-                naming.display_velocity_unit()));
+                naming.display_velocity_unit(), rise, naming.force_unit(),
+                2.0 * split * naming.display_velocity_scale(), naming.display_velocity_unit()));
             split *= 2.0;
         }
     }
@@ -564,8 +589,10 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
 
     std::vector<std::size_t> step1, step2;
     for (const auto k : moving) {
-        if (std::abs(v_dec[k]) >= split) step1.push_back(k);
-        else if (steady(k)) step2.push_back(k);
+        if (std::abs(v_dec[k]) >= split)
+            step1.push_back(k);
+        else if (steady(k))
+            step2.push_back(k);
     }
     selection.step1 = step1.size();
     selection.step2 = step2.size();
@@ -594,9 +621,10 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
 
     const std::size_t p = columns.size();
     if (step1.size() < 10 * p) {
-        diagnostics.push_back(fmt::format("{}: only {} moving samples fast enough for step 1 (need at least {}): the "
-                                          "axis barely moves; record constant-velocity strokes (see feedid plan)",
-                                          source, step1.size(), 10 * p));
+        diagnostics.push_back(
+            fmt::format("{}: only {} moving samples fast enough for step 1 (need at least {}): the "
+                        "axis barely moves; record constant-velocity strokes (see feedid plan)",
+                        source, step1.size(), 10 * p));
         return finish("failed");
     }
 
@@ -614,7 +642,8 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
         if (slow.size() >= kMinimumSlowSamples && !fast_fit.rank_deficient) {
             const Eigen::VectorXd residual = output_vector(slow) - regressor_matrix(slow) * fast_fit.estimate;
             double rise = 0.0;
-            for (std::size_t i = 0; i < slow.size(); ++i) rise += (v_dec[slow[i]] > 0 ? 1.0 : -1.0) * residual(static_cast<Eigen::Index>(i));
+            for (std::size_t i = 0; i < slow.size(); ++i)
+                rise += (v_dec[slow[i]] > 0 ? 1.0 : -1.0) * residual(static_cast<Eigen::Index>(i));
             rise /= static_cast<double>(slow.size());
             const bool consistent = rise <= fast_fit.residual_std;  // a Stribeck effect only ever adds friction
             selection.notes.push_back(fmt::format(
@@ -643,26 +672,29 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     const LeastSquaresResult batch = solve_least_squares(phi, y1);
     Json batch_json = Json::object();
     for (std::size_t c = 0; c < p; ++c) {
-        batch_json[naming.key(columns[c].quantity, columns[c].direction)] =
-            estimate_json(make_estimate(batch.estimate(static_cast<Eigen::Index>(c)), batch.standard_error(static_cast<Eigen::Index>(c))));
+        batch_json[naming.key(columns[c].quantity, columns[c].direction)] = estimate_json(make_estimate(
+            batch.estimate(static_cast<Eigen::Index>(c)), batch.standard_error(static_cast<Eigen::Index>(c))));
     }
     document["fit"] = {{"relative_error_pct", batch.relative_error_pct},
                        {"condition_number", batch.condition_number},
                        {"samples_used", batch.samples},
                        {"residual_std", batch.residual_std},
-                       {"r_diagonal", std::vector<double>(batch.r_diagonal.data(), batch.r_diagonal.data() + batch.r_diagonal.size())}};
+                       {"r_diagonal", std::vector<double>(batch.r_diagonal.data(),
+                                                          batch.r_diagonal.data() + batch.r_diagonal.size())}};
     document["step1"] = {{"batch", batch_json}};
 
     if (batch.rank_deficient) {
         // Which parameter is missing its excitation?
         std::vector<std::string> silent;
         for (std::size_t c = 0; c < p; ++c) {
-            if (phi.col(static_cast<Eigen::Index>(c)).norm() == 0.0) silent.push_back(Naming::symbol(columns[c].quantity, columns[c].direction));
+            if (phi.col(static_cast<Eigen::Index>(c)).norm() == 0.0)
+                silent.push_back(Naming::symbol(columns[c].quantity, columns[c].direction));
         }
-        diagnostics.push_back(fmt::format("{}: the step-1 regressors are linearly dependent{}: the data cannot separate "
-                                          "the parameters (does the axis move in both directions{}?)",
-                                          source, silent.empty() ? "" : " (no excitation of " + fmt::format("{}", fmt::join(silent, ", ")) + ")",
-                                          options.offset ? ", and is the offset separable from Coulomb friction" : ""));
+        diagnostics.push_back(fmt::format(
+            "{}: the step-1 regressors are linearly dependent{}: the data cannot separate "
+            "the parameters (does the axis move in both directions{}?)",
+            source, silent.empty() ? "" : " (no excitation of " + fmt::format("{}", fmt::join(silent, ", ")) + ")",
+            options.offset ? ", and is the offset separable from Coulomb friction" : ""));
         return finish("failed");
     }
 
@@ -680,12 +712,13 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
         return finish("failed");
     }
     for (std::size_t c = 0; c < p; ++c) {
-        parameter(columns[c].quantity, columns[c].direction).estimate =
-            make_estimate(batch.estimate(static_cast<Eigen::Index>(c)), batch.standard_error(static_cast<Eigen::Index>(c)));
+        parameter(columns[c].quantity, columns[c].direction).estimate = make_estimate(
+            batch.estimate(static_cast<Eigen::Index>(c)), batch.standard_error(static_cast<Eigen::Index>(c)));
     }
     auto coefficient = [&](Quantity quantity, Direction direction) {
         for (std::size_t c = 0; c < p; ++c) {
-            if (columns[c].quantity == quantity && columns[c].direction == direction) return batch.estimate(static_cast<Eigen::Index>(c));
+            if (columns[c].quantity == quantity && columns[c].direction == direction)
+                return batch.estimate(static_cast<Eigen::Index>(c));
         }
         return 0.0;
     };
@@ -705,7 +738,8 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
             for (const auto& h : run.history) series.push_back(h(static_cast<Eigen::Index>(c)));
             history[key] = series;
         }
-        const double transient_end = run.settled_index < t1.size() ? t1[run.settled_index] : (t1.empty() ? 0.0 : t1.back());
+        const double transient_end =
+            run.settled_index < t1.size() ? t1[run.settled_index] : (t1.empty() ? 0.0 : t1.back());
         document["rls"] = {{"variant", options.rls.variant == RlsVariant::exponential ? "exponential" : "directional"},
                            {"forgetting_factor", options.rls.forgetting_factor},
                            {"initial_covariance", options.rls.initial_covariance},
@@ -715,12 +749,14 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
                            {"transient_end_s", transient_end},
                            {"history", history}};
         if (!run.settled) {
-            diagnostics.push_back("RLS: the estimates did not settle within 2 % (or 3 standard errors) of their final "
-                                  "values before the last tenth of the data; rls.averaged is the final value");
+            diagnostics.push_back(
+                "RLS: the estimates did not settle within 2 % (or 3 standard errors) of their final "
+                "values before the last tenth of the data; rls.averaged is the final value");
         }
         if (run.wound_up || !run.covariance_ok) {
-            diagnostics.push_back("RLS (the paper's exponential forgetting): the covariance wound up in directions the "
-                                  "data does not excite; its estimates are unreliable (use the directional variant)");
+            diagnostics.push_back(
+                "RLS (the paper's exponential forgetting): the covariance wound up in directions the "
+                "data does not excite; its estimates are unreliable (use the directional variant)");
         }
     }
 
@@ -761,7 +797,8 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
                                                            2.0 * batch.residual_std, options.rls);
             stribeck_json[g == 0 ? "forward" : "reverse"]["log_linear"] = {
                 {"breakaway", log_linear.breakaway ? Json(*log_linear.breakaway) : Json(nullptr)},
-                {"stribeck_velocity", log_linear.stribeck_velocity ? Json(*log_linear.stribeck_velocity) : Json(nullptr)},
+                {"stribeck_velocity",
+                 log_linear.stribeck_velocity ? Json(*log_linear.stribeck_velocity) : Json(nullptr)},
                 {"samples_used", log_linear.used},
                 {"excluded_wrong_sign", log_linear.wrong_sign},
                 {"excluded_below_noise", log_linear.below_noise}};
@@ -773,8 +810,10 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
         // At most about 100000 of each: beyond that the fit gains little but time (a million-sample trace).
         const std::size_t stride1 = std::max<std::size_t>(1, step1.size() / 100000);
         const std::size_t stride2 = std::max<std::size_t>(1, step2.size() / 100000);
-        for (std::size_t i = 0; i < step1.size(); i += stride1) samples.push(a_dec[step1[i]], v_dec[step1[i]], y[step1[i]]);
-        for (std::size_t i = 0; i < step2.size(); i += stride2) samples.push(a_dec[step2[i]], v_dec[step2[i]], y[step2[i]]);
+        for (std::size_t i = 0; i < step1.size(); i += stride1)
+            samples.push(a_dec[step1[i]], v_dec[step1[i]], y[step1[i]]);
+        for (std::size_t i = 0; i < step2.size(); i += stride2)
+            samples.push(a_dec[step2[i]], v_dec[step2[i]], y[step2[i]]);
         // and the ramp samples that only the Stribeck check kept out of step 1: the whole curve models them
         for (const auto k : moving) {
             const double speed = std::abs(v_dec[k]);
@@ -809,7 +848,8 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
                     if (!asymmetric || (v_dec[k] > 0) == (g == 0)) speeds.push_back(std::abs(v_dec[k]));
                 }
                 // B needs quasi-static samples at speeds at least a factor two apart
-                if (speeds.size() < 10 * kMinimumSlowSamples || !(percentile(speeds, 0.9) >= 2.0 * percentile(speeds, 0.1))) {
+                if (speeds.size() < 10 * kMinimumSlowSamples ||
+                    !(percentile(speeds, 0.9) >= 2.0 * percentile(speeds, 0.1))) {
                     return false;
                 }
             }
@@ -858,7 +898,8 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
                 double aa = 0.0, ar = 0.0, rr = 0.0;
                 for (std::size_t k = 0; k < samples.size(); ++k) {
                     const double a = samples.acceleration[k];
-                    const double r = samples.force[k] - layout.friction(curve_parameters, samples.velocity[k], asymmetric);
+                    const double r =
+                        samples.force[k] - layout.friction(curve_parameters, samples.velocity[k], asymmetric);
                     aa += a * a;
                     ar += a * r;
                     rr += r * r;
@@ -908,9 +949,13 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
                             dir_name, delta, delta_se, naming.force_unit()));
                     } else {
                         diagnostics.push_back(fmt::format(
-                            "Stribeck{}: {} quasi-static samples below 3 v_s: F_B and v_s are not determined by this data "
+                            "Stribeck{}: {} quasi-static samples below 3 v_s: F_B and v_s are not determined by this "
+                            "data "
                             "(fit {}); add constant-velocity passes spanning about 0.3 to 5 times the expected v_s",
-                            dir_name, below, fit.converged ? fmt::format("v_s = {:.3g} +/- {:.2g} {}", vs * display, vs_se * display, naming.display_velocity_unit()) : "did not converge"));
+                            dir_name, below,
+                            fit.converged ? fmt::format("v_s = {:.3g} +/- {:.2g} {}", vs * display, vs_se * display,
+                                                        naming.display_velocity_unit())
+                                          : "did not converge"));
                     }
                 }
             }
@@ -920,7 +965,8 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
             parameter(Quantity::mass, Direction::both).estimate = make_estimate(curve.mass, curve.mass_se);
             if (options.offset) {
                 result.axis.offset = fit.parameters(layout.offset);
-                parameter(Quantity::offset, Direction::both).estimate = make_estimate(fit.parameters(layout.offset), fit.standard_errors(layout.offset));
+                parameter(Quantity::offset, Direction::both).estimate =
+                    make_estimate(fit.parameters(layout.offset), fit.standard_errors(layout.offset));
             }
             for (std::size_t g = 0; g < 2; ++g) {
                 const std::size_t group = asymmetric ? g : 0;
@@ -928,32 +974,36 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
                 FrictionBranch& branch = g == 0 ? result.axis.friction.forward : result.axis.friction.reverse;
                 branch.viscous = fit.parameters(layout.viscous[group]);
                 branch.coulomb = fit.parameters(layout.coulomb[group]);
-                parameter(Quantity::viscous, d).estimate = make_estimate(branch.viscous, fit.standard_errors(layout.viscous[group]));
-                parameter(Quantity::coulomb, d).estimate = make_estimate(branch.coulomb, fit.standard_errors(layout.coulomb[group]));
+                parameter(Quantity::viscous, d).estimate =
+                    make_estimate(branch.viscous, fit.standard_errors(layout.viscous[group]));
+                parameter(Quantity::coulomb, d).estimate =
+                    make_estimate(branch.coulomb, fit.standard_errors(layout.coulomb[group]));
                 if (layout.delta[group] >= 0) {
                     const double delta = fit.parameters(layout.delta[group]);
                     branch.breakaway = branch.coulomb + delta;
                     branch.stribeck_velocity = fit.parameters(layout.log_vs[group]);
                     // F_B = F_C + (F_B - F_C): var = var(F_C) + var(F_B - F_C) + 2 cov
                     const int c = layout.coulomb[group], e = layout.delta[group];
-                    const double se_fb = std::sqrt(std::max(
-                        0.0, fit.covariance(c, c) + fit.covariance(e, e) + 2.0 * fit.covariance(c, e)));
+                    const double se_fb = std::sqrt(
+                        std::max(0.0, fit.covariance(c, c) + fit.covariance(e, e) + 2.0 * fit.covariance(c, e)));
                     parameter(Quantity::breakaway, d).estimate = make_estimate(*branch.breakaway, se_fb);
                     parameter(Quantity::stribeck_velocity, d).estimate =
                         make_estimate(*branch.stribeck_velocity, fit.standard_errors(layout.log_vs[group]));
                 }
             }
-            stribeck_json["nonlinear"] = {{"method", separable ? "quasi-static curve, mass from the transients" : "joint"},
-                                          {"converged", fit.converged},
-                                          {"relative_error_pct", fit.relative_error_pct},
-                                          {"residual_std", fit.residual_std},
-                                          {"samples_used", fit.samples},
-                                          {"function_evaluations", fit.iterations}};
+            stribeck_json["nonlinear"] = {
+                {"method", separable ? "quasi-static curve, mass from the transients" : "joint"},
+                {"converged", fit.converged},
+                {"relative_error_pct", fit.relative_error_pct},
+                {"residual_std", fit.residual_std},
+                {"samples_used", fit.samples},
+                {"function_evaluations", fit.iterations}};
             break;
         }
         if (!model.stribeck_forward && !model.stribeck_reverse && slow_count[0] + slow_count[1] < minimum_slow) {
             diagnostics.push_back(fmt::format(
-                "Stribeck: only {} quasi-static samples below {:.3g} {} (a tenth of the typical constant-velocity speed): "
+                "Stribeck: only {} quasi-static samples below {:.3g} {} (a tenth of the typical constant-velocity "
+                "speed): "
                 "F_B and v_s cannot be determined; add slow constant-velocity passes (e.g. 10 to 1000 mm/min, "
                 "see feedid plan)",
                 slow_count[0] + slow_count[1], slow_band * display, naming.display_velocity_unit()));
@@ -967,9 +1017,10 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     for (auto& p : result.parameters) {
         if (p.estimate.value && p.estimate.standard_error && p.key.rfind("offset", 0) != 0 &&
             *p.estimate.standard_error > std::abs(*p.estimate.value)) {
-            diagnostics.push_back(fmt::format("{} = {:.4g} +/- {:.2g} {}: not determined by this data (standard error "
-                                              "larger than the value)",
-                                              p.symbol, *p.estimate.value, *p.estimate.standard_error, p.unit));
+            diagnostics.push_back(
+                fmt::format("{} = {:.4g} +/- {:.2g} {}: not determined by this data (standard error "
+                            "larger than the value)",
+                            p.symbol, *p.estimate.value, *p.estimate.standard_error, p.unit));
         }
     }
 
@@ -980,7 +1031,8 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
             std::vector<std::pair<double, double>> points;  // |v|, friction magnitude
             for (const auto k : moving) {
                 if (!steady(k) || (v_dec[k] > 0) != (g == 0)) continue;
-                const double friction = (y[k] - result.axis.mass * a_dec[k] - result.axis.offset) * (g == 0 ? 1.0 : -1.0);
+                const double friction =
+                    (y[k] - result.axis.mass * a_dec[k] - result.axis.offset) * (g == 0 ? 1.0 : -1.0);
                 points.emplace_back(std::abs(v_dec[k]), friction);
             }
             if (points.size() < 5) continue;
@@ -996,7 +1048,8 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
             std::array<double, bins> sum_v{}, sum_f{};
             std::array<std::size_t, bins> count{};
             for (const auto& [speed, force] : points) {
-                const int b = std::clamp(static_cast<int>(bins * std::log(std::max(speed, low) / low) / span), 0, bins - 1);
+                const int b =
+                    std::clamp(static_cast<int>(bins * std::log(std::max(speed, low) / low) / span), 0, bins - 1);
                 sum_v[static_cast<std::size_t>(b)] += speed;
                 sum_f[static_cast<std::size_t>(b)] += force;
                 ++count[static_cast<std::size_t>(b)];
@@ -1007,11 +1060,13 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
                 const double speed = sum_v[b] / static_cast<double>(count[b]);
                 speeds.push_back(speed);
                 forces.push_back(sum_f[b] / static_cast<double>(count[b]));
-                fitted.push_back((g == 0 ? result.axis.friction.forward : result.axis.friction.reverse).magnitude(speed));
+                fitted.push_back(
+                    (g == 0 ? result.axis.friction.forward : result.axis.friction.reverse).magnitude(speed));
             }
             const std::string velocity_key = naming.rotary ? "velocity_rad_per_s" : "velocity_m_per_s";
             const std::string force_key = naming.rotary ? "torque_Nm" : "force_N";
-            curve[g == 0 ? "forward" : "reverse"] = {{velocity_key, speeds}, {force_key, forces}, {"fitted_" + force_key, fitted}};
+            curve[g == 0 ? "forward" : "reverse"] = {
+                {velocity_key, speeds}, {force_key, forces}, {"fitted_" + force_key, fitted}};
         }
         document["friction_curve"] = curve;
     }

@@ -38,8 +38,7 @@ LeastSquaresResult solve_least_squares(const Eigen::MatrixXd& phi, const Eigen::
     const double y_norm = y.norm();
     result.relative_error_pct = y_norm > 0.0 ? 100.0 * std::sqrt(rss) / y_norm : 0.0;
     // (Phi^T Phi)^-1 = R^-1 R^-T
-    const Eigen::MatrixXd r_inverse =
-        r.triangularView<Eigen::Upper>().solve(Eigen::MatrixXd::Identity(p, p));
+    const Eigen::MatrixXd r_inverse = r.triangularView<Eigen::Upper>().solve(Eigen::MatrixXd::Identity(p, p));
     result.covariance = result.residual_std * result.residual_std * (r_inverse * r_inverse.transpose());
     result.standard_error = result.covariance.diagonal().cwiseSqrt();
     return result;

@@ -10,7 +10,9 @@
 
 namespace feedid {
 
-bool is_terminal(std::FILE* stream) { return stream && ::isatty(::fileno(stream)) == 1; }
+bool is_terminal(std::FILE* stream) {
+    return stream && ::isatty(::fileno(stream)) == 1;
+}
 
 Progress::Progress(std::string label, std::size_t total, std::FILE* stream)
     : Progress(std::move(label), total, stream, is_terminal(stream)) {}
@@ -23,7 +25,9 @@ Progress::Progress(std::string label, std::size_t total, std::FILE* stream, bool
       start_(std::chrono::steady_clock::now()),
       last_draw_(start_) {}
 
-Progress::~Progress() { finish(); }
+Progress::~Progress() {
+    finish();
+}
 
 void Progress::update(std::size_t done) {
     if (!enabled_) return;

@@ -139,7 +139,8 @@ std::vector<double> savitzky_golay(std::span<const double> x, int window, int po
     }
     const std::size_t n = x.size();
     const int half = window / 2;
-    if (n < static_cast<std::size_t>(window)) throw std::invalid_argument("signal shorter than the Savitzky-Golay window");
+    if (n < static_cast<std::size_t>(window))
+        throw std::invalid_argument("signal shorter than the Savitzky-Golay window");
     // Vandermonde on offsets -half..half; row `derivative` of the pseudo-inverse, times derivative!, gives the
     // derivative of the fitted polynomial at offset t (evaluated by the polynomial basis).
     Eigen::MatrixXd vandermonde(window, polynomial + 1);
@@ -162,7 +163,8 @@ std::vector<double> savitzky_golay(std::span<const double> x, int window, int po
     const Eigen::RowVectorXd centre = weights_at(0.0);
     for (std::size_t k = static_cast<std::size_t>(half); k + static_cast<std::size_t>(half) < n; ++k) {
         double sum = 0.0;
-        for (int i = 0; i < window; ++i) sum += centre(i) * x[k - static_cast<std::size_t>(half) + static_cast<std::size_t>(i)];
+        for (int i = 0; i < window; ++i)
+            sum += centre(i) * x[k - static_cast<std::size_t>(half) + static_cast<std::size_t>(i)];
         y[k] = sum * scale;
     }
     for (int k = 0; k < half; ++k) {

@@ -81,9 +81,9 @@ void simulate(const AxisModel& axis, const ControllerModel& model, const Simulat
 
     // Cleared and reserved, not resized: each column is written once, in order (no zero-filling pass over ~40 MB
     // for 60 s at 8 kHz); a reused output keeps its memory.
-    for (auto* column : {&out.time, &out.reference, &out.position, &out.measured_position, &out.velocity,
-                         &out.acceleration, &out.velocity_command, &out.force_command, &out.force,
-                         &out.tracking_error}) {
+    for (auto* column :
+         {&out.time, &out.reference, &out.position, &out.measured_position, &out.velocity, &out.acceleration,
+          &out.velocity_command, &out.force_command, &out.force, &out.tracking_error}) {
         column->clear();
         column->reserve(n);
     }
@@ -118,8 +118,8 @@ void simulate(const AxisModel& axis, const ControllerModel& model, const Simulat
             b.stribeck_rise *= f;
             return b;
         };
-        zones.push_back({zone.from_m, zone.to_m, scaled(forward), scaled(reverse),
-                         {breakaway.forward * f, breakaway.reverse * f}});
+        zones.push_back(
+            {zone.from_m, zone.to_m, scaled(forward), scaled(reverse), {breakaway.forward * f, breakaway.reverse * f}});
     }
     const auto friction_magnitude = [](const Branch& b, double speed) {
         double value = b.viscous * speed + b.coulomb;
@@ -231,7 +231,6 @@ void simulate(const AxisModel& axis, const ControllerModel& model, const Simulat
     out.stick_transitions = stick_transitions;
 }
 
-
 namespace {
 
 // A number from `parent[key]`, either {"value": x} or x; nullopt when absent or null.
@@ -253,9 +252,9 @@ bool present(const nlohmann::json& parent, const std::string& key) {
 AxisModel axis_from_document(const nlohmann::json& document, const std::string& source) {
     if (!document.is_object()) throw InputError(fmt::format("{}: not a JSON object", source));
     // A result document keeps the values under "parameters"; a drive file may give them under "axis" or at the top.
-    const nlohmann::json& parameters = document.contains("parameters")   ? document["parameters"]
-                                       : document.contains("axis")       ? document["axis"]
-                                                                         : document;
+    const nlohmann::json& parameters = document.contains("parameters") ? document["parameters"]
+                                       : document.contains("axis")     ? document["axis"]
+                                                                       : document;
     AxisModel axis;
     axis.rotary = present(parameters, "inertia_kgm2") || (document.is_object() && document.value("rotary", false));
     const std::string mass_key = axis.rotary ? "inertia_kgm2" : "mass_kg";
@@ -280,8 +279,8 @@ AxisModel axis_from_document(const nlohmann::json& document, const std::string& 
         const auto [viscous, has_viscous] = directional("viscous", viscous_unit, direction);
         const auto [coulomb, has_coulomb] = directional("coulomb", force_unit, direction);
         if (!coulomb) {
-            throw InputError(fmt::format("{}: the Coulomb friction (parameters.coulomb_{}{}) is missing or null", source,
-                                         has_coulomb ? "" : direction + "_", force_unit));
+            throw InputError(fmt::format("{}: the Coulomb friction (parameters.coulomb_{}{}) is missing or null",
+                                         source, has_coulomb ? "" : direction + "_", force_unit));
         }
         branch.viscous = viscous.value_or(0.0);
         branch.coulomb = std::abs(*coulomb);
@@ -365,9 +364,11 @@ nlohmann::json validation_document(const ValidationMetrics& m) {
           {"velocity", m.velocity_relative_error_pct},
           {"acceleration", m.acceleration_relative_error_pct},
           {"force", m.force_relative_error_pct}}},
-        {"tracking_error_mae_m", {{"model", m.tracking_error_mae_model_m}, {"machine", m.tracking_error_mae_machine_m}}},
+        {"tracking_error_mae_m",
+         {{"model", m.tracking_error_mae_model_m}, {"machine", m.tracking_error_mae_machine_m}}},
         {"modelling_error_mae_m", m.modelling_error_mae_m},
-        {"tracking_error_max_m", {{"model", m.tracking_error_max_model_m}, {"machine", m.tracking_error_max_machine_m}}},
+        {"tracking_error_max_m",
+         {{"model", m.tracking_error_max_model_m}, {"machine", m.tracking_error_max_machine_m}}},
         {"modelling_error_max_m", m.modelling_error_max_m},
     };
 }

@@ -16,7 +16,8 @@ LogLinearStribeck fit_log_linear(const FitSamples& samples, double mass, double 
         const double v = samples.velocity[k];
         const double sign = v > 0.0 ? 1.0 : -1.0;
         // eq. (12): what the first step's model leaves unexplained is the Stribeck part
-        const double stribeck = samples.force[k] - mass * samples.acceleration[k] - viscous * v - coulomb * sign - offset;
+        const double stribeck =
+            samples.force[k] - mass * samples.acceleration[k] - viscous * v - coulomb * sign - offset;
         if (stribeck * sign <= 0.0) {
             ++result.wrong_sign;
             continue;
@@ -67,7 +68,9 @@ namespace {
 struct CurveFunctor : Eigen::DenseFunctor<double> {
     CurveFunctor(const FitSamples& samples, const CurveModel& model, const CurveLayout& layout)
         : Eigen::DenseFunctor<double>(layout.size, static_cast<int>(samples.size())),
-          samples_(samples), model_(model), layout_(layout) {}
+          samples_(samples),
+          model_(model),
+          layout_(layout) {}
 
     int operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residual) const {
         for (std::size_t k = 0; k < samples_.size(); ++k) {

@@ -51,9 +51,9 @@ struct CurveModel {
 
 struct CurveFit {
     bool converged{false};
-    Eigen::VectorXd parameters;   ///< in the layout above, with v_s (not ln v_s)
+    Eigen::VectorXd parameters;  ///< in the layout above, with v_s (not ln v_s)
     Eigen::VectorXd standard_errors;
-    Eigen::MatrixXd covariance;   ///< of the parameters above (v_s entries by the delta method)
+    Eigen::MatrixXd covariance;  ///< of the parameters above (v_s entries by the delta method)
     double residual_std{0.0};
     double relative_error_pct{0.0};
     std::size_t samples{0};
@@ -66,7 +66,7 @@ struct CurveLayout {
     int mass{-1};
     int viscous[2]{-1, -1};
     int coulomb[2]{-1, -1};
-    int delta[2]{-1, -1};      ///< F_B - F_C
+    int delta[2]{-1, -1};  ///< F_B - F_C
     int log_vs[2]{-1, -1};
     int offset{-1};
     int size{0};

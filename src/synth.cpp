@@ -26,8 +26,10 @@ std::string TestReference::validate() const {
     }
     if (!(stroke_m > 0.0 && std::isfinite(stroke_m))) return "the stroke must be a positive length";
     if (cycles < 1 || cycles > 1000) return "the cycles per feedrate must be between 1 and 1000";
-    if (!(slow_pass_duration_s > 0.0) || !(slow_stroke_min_m > 0.0)) return "slow-pass duration and stroke must be positive";
-    if (!(acceleration_m_per_s2 > 0.0 && std::isfinite(acceleration_m_per_s2))) return "the acceleration must be positive";
+    if (!(slow_pass_duration_s > 0.0) || !(slow_stroke_min_m > 0.0))
+        return "slow-pass duration and stroke must be positive";
+    if (!(acceleration_m_per_s2 > 0.0 && std::isfinite(acceleration_m_per_s2)))
+        return "the acceleration must be positive";
     if (!(dwell_s >= 0.0 && std::isfinite(dwell_s))) return "the dwell must be a time >= 0";
     if (!std::isfinite(start_m)) return "the start position must be a finite number";
     return {};
@@ -49,12 +51,14 @@ double SynthSpec::force_constant_N_per_A() const {
 }
 
 std::string SynthSpec::validate() const {
-    if (!(kt_Nm_per_A > 0.0) || !(lead_m > 0.0) || !(gear_ratio > 0.0)) return "K_t, lead and gear ratio must be positive";
+    if (!(kt_Nm_per_A > 0.0) || !(lead_m > 0.0) || !(gear_ratio > 0.0))
+        return "K_t, lead and gear ratio must be positive";
     if (!(axis.mass > 0.0)) return "the mass must be positive";
     // The test is given in mm and mm/min and the drive acts through a ball screw: a rotary table would come out as a
     // linear axis with the wrong units. Refuse it rather than write such a trace.
-    if (axis.rotary) return "rotary axes are not synthesised (the test is in mm and mm/min, the drive a ball screw); "
-                            "give a linear axis";
+    if (axis.rotary)
+        return "rotary axes are not synthesised (the test is in mm and mm/min, the drive a ball screw); "
+               "give a linear axis";
     if (auto problem = controller.validate(); !problem.empty()) return problem;
     if (auto problem = sensors.validate(); !problem.empty()) return problem;
     if (auto problem = test.validate(); !problem.empty()) return problem;
@@ -110,17 +114,20 @@ public:
     std::optional<bool> boolean(const std::string& key) {
         known_.insert(key);
         if (!has(key)) return std::nullopt;
-        if (!object_[key].is_boolean()) throw InputError(fmt::format("{}: {}.{} must be true or false", source_, path_, key));
+        if (!object_[key].is_boolean())
+            throw InputError(fmt::format("{}: {}.{} must be true or false", source_, path_, key));
         return object_[key].get<bool>();
     }
     std::optional<std::vector<double>> numbers(const std::string& key) {
         known_.insert(key);
         if (!has(key)) return std::nullopt;
         const auto& value = object_[key];
-        if (!value.is_array()) throw InputError(fmt::format("{}: {}.{} must be a list of numbers", source_, path_, key));
+        if (!value.is_array())
+            throw InputError(fmt::format("{}: {}.{} must be a list of numbers", source_, path_, key));
         std::vector<double> out;
         for (const auto& item : value) {
-            if (!item.is_number()) throw InputError(fmt::format("{}: {}.{} must be a list of numbers", source_, path_, key));
+            if (!item.is_number())
+                throw InputError(fmt::format("{}: {}.{} must be a list of numbers", source_, path_, key));
             out.push_back(item.get<double>());
         }
         return out;
@@ -129,7 +136,8 @@ public:
     void reject_unknown() const {
         for (const auto& [key, value] : object_.items()) {
             if (!known_.contains(key)) {
-                throw InputError(fmt::format("{}: unknown key '{}{}{}'", source_, path_, path_.empty() ? "" : ".", key));
+                throw InputError(
+                    fmt::format("{}: unknown key '{}{}{}'", source_, path_, path_.empty() ? "" : ".", key));
             }
         }
     }
@@ -152,7 +160,8 @@ SynthSpec spec_from_json(const nlohmann::json& document, const std::string& sour
             static const std::set<std::string> keys{"mass_kg", "inertia_kgm2", "offset_N", "offset_Nm", "rotary"};
             const bool friction_key = key.starts_with("viscous_") || key.starts_with("coulomb_") ||
                                       key.starts_with("breakaway_") || key.starts_with("stribeck_velocity_");
-            if (!keys.contains(key) && !friction_key) throw InputError(fmt::format("{}: unknown key 'axis.{}'", source, key));
+            if (!keys.contains(key) && !friction_key)
+                throw InputError(fmt::format("{}: unknown key 'axis.{}'", source, key));
         }
     }
     top.accept("axis");
@@ -167,13 +176,16 @@ SynthSpec spec_from_json(const nlohmann::json& document, const std::string& sour
             model.velocity_integral_gain_N_per_m = *v > 0.0 ? model.velocity_gain_N_s_per_m / (*v * 1e-3) : 0.0;
         }
         if (const auto v = c.number("velocity_feedforward")) model.velocity_feedforward = *v;
-        if (c.has("saturation_N")) model.saturation_N = c.number("saturation_N");
-        else if (document["controller"].contains("saturation_N")) model.saturation_N.reset();
+        if (c.has("saturation_N"))
+            model.saturation_N = c.number("saturation_N");
+        else if (document["controller"].contains("saturation_N"))
+            model.saturation_N.reset();
         c.accept("saturation_N");
         if (const auto v = c.number("current_lag_ms")) model.current_lag_s = *v * 1e-3;
         if (const auto v = c.number("position_cycle_ms")) model.position_cycle_s = *v * 1e-3;
         if (const auto v = c.number("velocity_cycle_ms")) model.velocity_cycle_s = *v * 1e-3;
-        if (const auto v = c.number("velocity_difference_samples")) model.velocity_difference_samples = static_cast<int>(std::lround(*v));
+        if (const auto v = c.number("velocity_difference_samples"))
+            model.velocity_difference_samples = static_cast<int>(std::lround(*v));
         c.reject_unknown();
     }
     top.accept("controller");
@@ -224,7 +236,8 @@ SynthSpec spec_from_json(const nlohmann::json& document, const std::string& sour
             const auto factor = z.number("coulomb_factor");
             z.reject_unknown();
             if (!from || !to || !factor) {
-                throw InputError(fmt::format("{}: friction_zones[{}] needs from_mm, to_mm and coulomb_factor", source, k));
+                throw InputError(
+                    fmt::format("{}: friction_zones[{}] needs from_mm, to_mm and coulomb_factor", source, k));
             }
             spec.friction_zones.push_back({*from * 1e-3, *to * 1e-3, *factor});
         }
@@ -238,7 +251,8 @@ SynthSpec spec_from_json(const nlohmann::json& document, const std::string& sour
     top.accept("$schema");
     top.accept("description");
     top.reject_unknown();
-    if (const auto problem = spec.validate(); !problem.empty()) throw InputError(fmt::format("{}: {}", source, problem));
+    if (const auto problem = spec.validate(); !problem.empty())
+        throw InputError(fmt::format("{}: {}", source, problem));
     return spec;
 }
 
@@ -288,11 +302,12 @@ nlohmann::json spec_to_json(const SynthSpec& spec) {
     nlohmann::json axis;
     axis["mass_kg"] = spec.axis.mass;
     axis["offset_N"] = spec.axis.offset;
-    for (const auto& [direction, branch] :
-         {std::pair{std::string("forward"), &spec.axis.friction.forward}, std::pair{std::string("reverse"), &spec.axis.friction.reverse}}) {
+    for (const auto& [direction, branch] : {std::pair{std::string("forward"), &spec.axis.friction.forward},
+                                            std::pair{std::string("reverse"), &spec.axis.friction.reverse}}) {
         axis["viscous_" + direction + "_Ns_per_m"] = branch->viscous;
         axis["coulomb_" + direction + "_N"] = branch->coulomb;
-        axis["breakaway_" + direction + "_N"] = branch->has_stribeck() ? nlohmann::json(*branch->breakaway) : nlohmann::json();
+        axis["breakaway_" + direction + "_N"] =
+            branch->has_stribeck() ? nlohmann::json(*branch->breakaway) : nlohmann::json();
         axis["stribeck_velocity_" + direction + "_m_per_s"] =
             branch->has_stribeck() ? nlohmann::json(*branch->stribeck_velocity) : nlohmann::json();
     }
@@ -310,31 +325,33 @@ nlohmann::json spec_to_json(const SynthSpec& spec) {
     const auto& t = spec.test;
     nlohmann::json zones = nlohmann::json::array();
     for (const auto& zone : spec.friction_zones) {
-        zones.push_back({{"from_mm", zone.from_m * 1e3}, {"to_mm", zone.to_m * 1e3}, {"coulomb_factor", zone.coulomb_factor}});
+        zones.push_back(
+            {{"from_mm", zone.from_m * 1e3}, {"to_mm", zone.to_m * 1e3}, {"coulomb_factor", zone.coulomb_factor}});
     }
-    return {{"axis", axis},
-            {"controller", controller},
-            {"drive", {{"kt_Nm_per_A", spec.kt_Nm_per_A}, {"lead_mm", spec.lead_m * 1e3}, {"gear_ratio", spec.gear_ratio}}},
-            {"sensors",
-             {{"sample_time_ms", s.sample_time_s * 1e3},
-              {"jitter_us", s.jitter_s * 1e6},
-              {"position_resolution_um", s.position_resolution_m * 1e6},
-              {"current_noise_A", s.current_noise_A},
-              {"current_resolution_A", s.current_resolution_A},
-              {"substeps", s.substeps}}},
-            {"test",
-             {{"feedrates_mm_per_min", t.feedrates_mm_per_min},
-              {"stroke_mm", t.stroke_m * 1e3},
-              {"cycles", t.cycles},
-              {"slow_passes", t.slow_passes},
-              {"slow_feedrates_mm_per_min", t.slow_feedrates_mm_per_min},
-              {"slow_pass_duration_s", t.slow_pass_duration_s},
-              {"slow_stroke_min_mm", t.slow_stroke_min_m * 1e3},
-              {"acceleration_m_per_s2", t.acceleration_m_per_s2},
-              {"dwell_s", t.dwell_s},
-              {"start_mm", t.start_m * 1e3}}},
-            {"friction_zones", zones},
-            {"seed", spec.seed}};
+    return {
+        {"axis", axis},
+        {"controller", controller},
+        {"drive", {{"kt_Nm_per_A", spec.kt_Nm_per_A}, {"lead_mm", spec.lead_m * 1e3}, {"gear_ratio", spec.gear_ratio}}},
+        {"sensors",
+         {{"sample_time_ms", s.sample_time_s * 1e3},
+          {"jitter_us", s.jitter_s * 1e6},
+          {"position_resolution_um", s.position_resolution_m * 1e6},
+          {"current_noise_A", s.current_noise_A},
+          {"current_resolution_A", s.current_resolution_A},
+          {"substeps", s.substeps}}},
+        {"test",
+         {{"feedrates_mm_per_min", t.feedrates_mm_per_min},
+          {"stroke_mm", t.stroke_m * 1e3},
+          {"cycles", t.cycles},
+          {"slow_passes", t.slow_passes},
+          {"slow_feedrates_mm_per_min", t.slow_feedrates_mm_per_min},
+          {"slow_pass_duration_s", t.slow_pass_duration_s},
+          {"slow_stroke_min_mm", t.slow_stroke_min_m * 1e3},
+          {"acceleration_m_per_s2", t.acceleration_m_per_s2},
+          {"dwell_s", t.dwell_s},
+          {"start_mm", t.start_m * 1e3}}},
+        {"friction_zones", zones},
+        {"seed", spec.seed}};
 }
 
 std::vector<double> test_reference(const TestReference& test, double sample_time_s) {
@@ -389,8 +406,10 @@ std::vector<double> test_reference(const TestReference& test, double sample_time
             const double tau = static_cast<double>(k) * sample_time_s - segment_start;
             double travelled = 0.0;
             if (peak > 0.0) {
-                if (tau < accelerate) travelled = 0.5 * a * tau * tau;
-                else if (tau < accelerate + cruise) travelled = 0.5 * peak * accelerate + peak * (tau - accelerate);
+                if (tau < accelerate)
+                    travelled = 0.5 * a * tau * tau;
+                else if (tau < accelerate + cruise)
+                    travelled = 0.5 * peak * accelerate + peak * (tau - accelerate);
                 else {
                     const double left = std::max(0.0, duration - tau);
                     travelled = distance - 0.5 * a * left * left;
@@ -438,9 +457,11 @@ Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>
     const double rate = std::round(1.0 / dt);
     const bool whole_rate = std::abs(rate * dt - 1.0) < 1e-12;
     for (std::size_t k = 0; k < n; ++k) {
-        time[k] = (whole_rate ? static_cast<double>(k) / rate : static_cast<double>(k) * dt) + (spec.sensors.jitter_s > 0.0 ? spec.sensors.jitter_s * jitter(generator) : 0.0);
-        const double amperes = simulated.force[k] / force_per_ampere +
-                               (spec.sensors.current_noise_A > 0.0 ? spec.sensors.current_noise_A * noise(generator) : 0.0);
+        time[k] = (whole_rate ? static_cast<double>(k) / rate : static_cast<double>(k) * dt) +
+                  (spec.sensors.jitter_s > 0.0 ? spec.sensors.jitter_s * jitter(generator) : 0.0);
+        const double amperes =
+            simulated.force[k] / force_per_ampere +
+            (spec.sensors.current_noise_A > 0.0 ? spec.sensors.current_noise_A * noise(generator) : 0.0);
         current[k] = quantise(amperes, spec.sensors.current_resolution_A);
     }
 

@@ -5,8 +5,8 @@
 #include <limits>
 #include <numeric>
 
-#include <Eigen/Dense>
 #include <fmt/core.h>
+#include <Eigen/Dense>
 
 #include "feedid/error.hpp"
 #include "testplan_profile.hpp"
@@ -18,8 +18,12 @@ namespace {
 constexpr double mm = 1e-3;
 constexpr double mm_per_min = 1e-3 / 60.0;
 
-double to_mm(double metres) { return metres / mm; }
-double to_mm_per_min(double metres_per_second) { return metres_per_second / mm_per_min; }
+double to_mm(double metres) {
+    return metres / mm;
+}
+double to_mm_per_min(double metres_per_second) {
+    return metres_per_second / mm_per_min;
+}
 
 bool all_finite(const std::vector<double>& values) {
     return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
@@ -114,8 +118,8 @@ Profile make_profile(double distance, double feed, double acceleration, std::opt
         specs = {{phase.constant, 0.0, phase.peak}, {cruise, 0.0, 0.0}, {phase.constant, 0.0, -phase.peak}};
     } else {
         const double j = *jerk;
-        specs = {{phase.ramp, j, 0.0},     {phase.constant, 0.0, {}}, {phase.ramp, -j, {}}, {cruise, 0.0, 0.0},
-                 {phase.ramp, -j, {}},     {phase.constant, 0.0, {}}, {phase.ramp, j, {}}};
+        specs = {{phase.ramp, j, 0.0}, {phase.constant, 0.0, {}}, {phase.ramp, -j, {}}, {cruise, 0.0, 0.0},
+                 {phase.ramp, -j, {}}, {phase.constant, 0.0, {}}, {phase.ramp, j, {}}};
     }
     double x = 0.0;
     double v = 0.0;
@@ -204,8 +208,8 @@ std::vector<ProfileState> sample_timeline(const Timeline& timeline, double sampl
             samples[k] = {segment.start_position, 0.0, 0.0};
         } else {
             const auto state = segment.profile.at(local);
-            samples[k] = {segment.start_position + segment.direction * state.position, segment.direction * state.velocity,
-                          segment.direction * state.acceleration};
+            samples[k] = {segment.start_position + segment.direction * state.position,
+                          segment.direction * state.velocity, segment.direction * state.acceleration};
         }
     }
     return samples;
@@ -312,8 +316,8 @@ TestPlan make_test_plan(const TestPlanOptions& options) {
     double positioning_feed = options.positioning_feed;
     if (options.max_feed && positioning_feed > *options.max_feed) {
         positioning_feed = *options.max_feed;
-        plan.notes.push_back(fmt::format("positioning moves run at the feedrate limit {:.0f} mm/min",
-                                         to_mm_per_min(positioning_feed)));
+        plan.notes.push_back(
+            fmt::format("positioning moves run at the feedrate limit {:.0f} mm/min", to_mm_per_min(positioning_feed)));
     }
 
     struct Feed {
@@ -348,24 +352,27 @@ TestPlan make_test_plan(const TestPlanOptions& options) {
             const int pass_index = static_cast<int>(plan.passes.size());
             const double low = center_position - pass.stroke / 2.0;
             const double high = center_position + pass.stroke / 2.0;
-            const std::string what = fmt::format("{}, {:.4g} mm/min", describe_center(center, center_position),
-                                                 to_mm_per_min(feed.value));
+            const std::string what =
+                fmt::format("{}, {:.4g} mm/min", describe_center(center, center_position), to_mm_per_min(feed.value));
             if (!(std::abs(position - low) < 1e-12)) {
                 plan.moves.push_back({MoveKind::feed, low, positioning_feed, 0.0, center, -1,
                                       fmt::format("{}: move to the start of the pass", what)});
-                if (options.dwell > 0.0) plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, -1,
-                                      fmt::format("{}: dwell before the pass", what)});
+                if (options.dwell > 0.0)
+                    plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, -1,
+                                          fmt::format("{}: dwell before the pass", what)});
                 position = low;
             }
             for (int cycle = 1; cycle <= options.cycles; ++cycle) {
                 plan.moves.push_back({MoveKind::feed, high, feed.value, 0.0, center, pass_index,
                                       fmt::format("{}, cycle {}, stroke +", what, cycle)});
-                if (options.dwell > 0.0) plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, pass_index,
-                                      fmt::format("{}, cycle {}, dwell at +", what, cycle)});
+                if (options.dwell > 0.0)
+                    plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, pass_index,
+                                          fmt::format("{}, cycle {}, dwell at +", what, cycle)});
                 plan.moves.push_back({MoveKind::feed, low, feed.value, 0.0, center, pass_index,
                                       fmt::format("{}, cycle {}, stroke -", what, cycle)});
-                if (options.dwell > 0.0) plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, pass_index,
-                                      fmt::format("{}, cycle {}, dwell at -", what, cycle)});
+                if (options.dwell > 0.0)
+                    plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, pass_index,
+                                          fmt::format("{}, cycle {}, dwell at -", what, cycle)});
             }
             const auto profile = detail::make_profile(pass.stroke, feed.value, options.acceleration, options.jerk);
             pass.duration = 2.0 * options.cycles * (profile.duration + options.dwell);
@@ -383,9 +390,10 @@ TestPlan make_test_plan(const TestPlanOptions& options) {
     for (const auto& feed : options.slow_feeds) {
         for (const auto& pass : plan.passes) {
             if (pass.slow && pass.feed == feed && pass.stroke < options.stroke) {
-                plan.notes.push_back(fmt::format("slow pass at {:.4g} mm/min: stroke shortened to {:.2f} mm to keep "
-                                                 "the pass within {} s",
-                                                 to_mm_per_min(feed), to_mm(pass.stroke), options.max_pass_time));
+                plan.notes.push_back(
+                    fmt::format("slow pass at {:.4g} mm/min: stroke shortened to {:.2f} mm to keep "
+                                "the pass within {} s",
+                                to_mm_per_min(feed), to_mm(pass.stroke), options.max_pass_time));
                 break;
             }
         }
@@ -393,26 +401,26 @@ TestPlan make_test_plan(const TestPlanOptions& options) {
 
     // Safety: every move inside the travel and within the feedrate limit; the first offender is named.
     const double tolerance = 1e-9;
-    if (options.start_position &&
-        (*options.start_position < options.travel_min - tolerance || *options.start_position > options.travel_max + tolerance)) {
-        throw InputError(fmt::format("test plan: the start position {:.3f} mm lies outside the travel {:.3f}:{:.3f} mm.",
-                                     to_mm(*options.start_position), to_mm(options.travel_min),
-                                     to_mm(options.travel_max)));
+    if (options.start_position && (*options.start_position < options.travel_min - tolerance ||
+                                   *options.start_position > options.travel_max + tolerance)) {
+        throw InputError(
+            fmt::format("test plan: the start position {:.3f} mm lies outside the travel {:.3f}:{:.3f} mm.",
+                        to_mm(*options.start_position), to_mm(options.travel_min), to_mm(options.travel_max)));
     }
     for (std::size_t k = 0; k < plan.moves.size(); ++k) {
         const auto& move = plan.moves[k];
         if (move.kind != MoveKind::feed) continue;
         if (move.target > options.travel_max + tolerance) {
-            throw InputError(fmt::format(
-                "test plan: move {} ({}) goes to {:.3f} mm, {:.3f} mm beyond the travel maximum {:.3f} mm.", k + 1,
-                move.description, to_mm(move.target), to_mm(move.target - options.travel_max),
-                to_mm(options.travel_max)));
+            throw InputError(
+                fmt::format("test plan: move {} ({}) goes to {:.3f} mm, {:.3f} mm beyond the travel maximum {:.3f} mm.",
+                            k + 1, move.description, to_mm(move.target), to_mm(move.target - options.travel_max),
+                            to_mm(options.travel_max)));
         }
         if (move.target < options.travel_min - tolerance) {
-            throw InputError(fmt::format(
-                "test plan: move {} ({}) goes to {:.3f} mm, {:.3f} mm beyond the travel minimum {:.3f} mm.", k + 1,
-                move.description, to_mm(move.target), to_mm(options.travel_min - move.target),
-                to_mm(options.travel_min)));
+            throw InputError(
+                fmt::format("test plan: move {} ({}) goes to {:.3f} mm, {:.3f} mm beyond the travel minimum {:.3f} mm.",
+                            k + 1, move.description, to_mm(move.target), to_mm(options.travel_min - move.target),
+                            to_mm(options.travel_min)));
         }
         if (options.max_feed && move.feed > *options.max_feed * (1.0 + 1e-12)) {
             throw InputError(fmt::format(
@@ -556,7 +564,8 @@ IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const Pr
         prediction.diagnostics.push_back("no pass reaches a constant velocity: the friction curve is not sampled");
     } else if (prediction.slowest_cruise_speed > 3.0 * stribeck_velocity) {
         prediction.diagnostics.push_back(fmt::format(
-            "the slowest constant-velocity pass runs at {:.3g} mm/s = {:.3g} v_s (nominal v_s {:.3g} mm/s): the Stribeck "
+            "the slowest constant-velocity pass runs at {:.3g} mm/s = {:.3g} v_s (nominal v_s {:.3g} mm/s): the "
+            "Stribeck "
             "term is below {:.2g} % of F_B - F_C there, so F_B and v_s are not identifiable; add slow passes "
             "(e.g. --slow-feeds 10:1000 mm/min)",
             prediction.slowest_cruise_speed / mm, prediction.slowest_cruise_speed / stribeck_velocity,

@@ -24,7 +24,9 @@ constexpr std::array<std::pair<Role, std::string_view>, 9> role_names{{
     {Role::external_force, "external_force"},
 }};
 
-std::string where(const Trace& trace) { return trace.source_path.empty() ? std::string("trace") : trace.source_path; }
+std::string where(const Trace& trace) {
+    return trace.source_path.empty() ? std::string("trace") : trace.source_path;
+}
 }  // namespace
 
 std::string_view role_name(Role role) {
@@ -54,7 +56,9 @@ const Channel* Trace::find(Role role) const {
     return nullptr;
 }
 
-Channel* Trace::find(Role role) { return const_cast<Channel*>(std::as_const(*this).find(role)); }
+Channel* Trace::find(Role role) {
+    return const_cast<Channel*>(std::as_const(*this).find(role));
+}
 
 const Channel* Trace::find(std::string_view name) const {
     for (const auto& channel : channels) {
@@ -63,7 +67,9 @@ const Channel* Trace::find(std::string_view name) const {
     return nullptr;
 }
 
-Channel* Trace::find(std::string_view name) { return const_cast<Channel*>(std::as_const(*this).find(name)); }
+Channel* Trace::find(std::string_view name) {
+    return const_cast<Channel*>(std::as_const(*this).find(name));
+}
 
 std::span<const double> Trace::column(Role role) const {
     const auto* channel = find(role);
@@ -148,10 +154,10 @@ void Trace::validate() {
     if (n >= 2) {
         const TimeBase base = time_base();
         if (base.jittery) {
-            findings.push_back(fmt::format("jittery time base: sample time {:.6g} s, largest deviation {:.3g} s "
-                                           "({:.1f} % of a sample)",
-                                           base.sample_time_s, base.max_deviation_s,
-                                           100.0 * base.max_deviation_s / base.sample_time_s));
+            findings.push_back(fmt::format(
+                "jittery time base: sample time {:.6g} s, largest deviation {:.3g} s "
+                "({:.1f} % of a sample)",
+                base.sample_time_s, base.max_deviation_s, 100.0 * base.max_deviation_s / base.sample_time_s));
         }
     }
 }

@@ -151,7 +151,8 @@ std::string normalise(std::string_view unit) {
     }
     // Newton metre spellings, decided before lower-casing: "Nm", "N.m", "N m", "N*m", "kNm", "mNm".
     for (std::string_view newton_metre : {"N.m", "N m", "N*m", "Nm"}) {
-        if (const auto pos = out.find(newton_metre); pos != std::string::npos && pos + newton_metre.size() == out.size()) {
+        if (const auto pos = out.find(newton_metre);
+            pos != std::string::npos && pos + newton_metre.size() == out.size()) {
             out = out.substr(0, pos) + "n*m";
             break;
         }
@@ -201,14 +202,16 @@ UnitConversion parse_unit_or_throw(std::string_view unit, std::string_view chann
     if (auto conversion = parse_unit(unit, context)) return *conversion;
     const std::string key = normalise(unit);
     if (key == "rpm" || key == "rps") {
-        throw InputError(fmt::format("channel '{}': unit '{}' needs the ball-screw lead to become a table velocity "
-                                     "(--lead MM per revolution)",
-                                     channel, unit));
+        throw InputError(
+            fmt::format("channel '{}': unit '{}' needs the ball-screw lead to become a table velocity "
+                        "(--lead MM per revolution)",
+                        channel, unit));
     }
     if (key == "%") {
-        throw InputError(fmt::format("channel '{}': unit '%' needs the rated value it is a percentage of "
-                                     "(--rated VALUE in SI units)",
-                                     channel));
+        throw InputError(
+            fmt::format("channel '{}': unit '%' needs the rated value it is a percentage of "
+                        "(--rated VALUE in SI units)",
+                        channel));
     }
     throw InputError(fmt::format("channel '{}': unknown unit '{}'", channel, unit));
 }

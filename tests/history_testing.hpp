@@ -33,15 +33,21 @@ inline CliResult run_shell(const std::string& command_line, const std::filesyste
 }
 
 /// The feedid binary, quoted for a shell.
-inline std::string cli() { return std::string("'") + FEEDID_CLI + "'"; }
+inline std::string cli() {
+    return std::string("'") + FEEDID_CLI + "'";
+}
 
 /// A path quoted for a shell.
-inline std::string quoted(const std::filesystem::path& path) { return "'" + path.string() + "'"; }
+inline std::string quoted(const std::filesystem::path& path) {
+    return "'" + path.string() + "'";
+}
 
 /// A small identify result document (the shape of DESIGN.md's result document) naming `trace`: the store tests need
 /// many distinct runs quickly, not the identification itself.
 inline nlohmann::json small_result(const std::filesystem::path& trace, double coulomb) {
-    const auto estimate = [](double value, double error) { return nlohmann::json{{"value", value}, {"stderr", error}}; };
+    const auto estimate = [](double value, double error) {
+        return nlohmann::json{{"value", value}, {"stderr", error}};
+    };
     return {{"feedid_version", "0.1.0"},
             {"trace", {{"path", trace.string()}, {"samples", 5000}, {"sample_time_s", 0.001}, {"duration_s", 5.0}}},
             {"model", "symmetric"},

@@ -9,8 +9,8 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
-#include <numbers>
 #include <new>
+#include <numbers>
 #include <random>
 #include <string>
 
@@ -35,8 +35,12 @@ void* operator new(std::size_t size) {
     if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
     throw std::bad_alloc();
 }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p) noexcept {
+    std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+    std::free(p);
+}
 
 using namespace feedid;
 using feedid::testing::count_lines;
@@ -61,7 +65,9 @@ const Channel& channel(const Trace& trace, std::string_view name) {
     return *found;
 }
 
-bool contains(const std::string& text, std::string_view part) { return text.find(part) != std::string::npos; }
+bool contains(const std::string& text, std::string_view part) {
+    return text.find(part) != std::string::npos;
+}
 
 }  // namespace
 
@@ -89,8 +95,8 @@ TEST(Csv, CommaSeparatedWithUnitsInAllThreeNotations) {
 }
 
 TEST(Csv, SemicolonWithDecimalComma) {
-    const auto trace = parse_csv("Zeit [s];Position [mm];Strom [A]\n0;0;0\n0,001;12,5;-1,25\n0,002;-0,75;3\n",
-                                 "de.csv");
+    const auto trace =
+        parse_csv("Zeit [s];Position [mm];Strom [A]\n0;0;0\n0,001;12,5;-1,25\n0,002;-0,75;3\n", "de.csv");
     ASSERT_EQ(trace.channels.size(), 3u);
     EXPECT_EQ(channel(trace, "Zeit").values, (std::vector<double>{0.0, 0.001, 0.002}));
     EXPECT_EQ(channel(trace, "Position").values, (std::vector<double>{0.0, 12.5, -0.75}));
@@ -397,10 +403,8 @@ TEST(CsvCli, InfoReportsSiConversions) {
     };
     // by hand: 1 mm = 0.001 m; 1 mm/min = 0.001 m / 60 s, so 1200 mm/min = 0.02 m/s and -300 mm/min = -0.005 m/s
     const std::vector<Expected> expected{
-        {"time", "time", "s", "s", 0.0, 0.003},
-        {"x_ref", "reference_position", "m", "mm", -0.0045, 0.003},
-        {"x", "position", "m", "mm", -0.00425, 0.0025},
-        {"v_set", "velocity_command", "m/s", "mm/min", -0.005, 0.02},
+        {"time", "time", "s", "s", 0.0, 0.003},         {"x_ref", "reference_position", "m", "mm", -0.0045, 0.003},
+        {"x", "position", "m", "mm", -0.00425, 0.0025}, {"v_set", "velocity_command", "m/s", "mm/min", -0.005, 0.02},
         {"i", "current", "A", "A", -2.5, 1.75},
     };
     const auto& channels = document.at("channels");
@@ -455,7 +459,9 @@ protected:
     }
 };
 
-TEST_F(CsvBadInput, EmptyFile) { expect_refused("empty.csv", "", {"empty file"}); }
+TEST_F(CsvBadInput, EmptyFile) {
+    expect_refused("empty.csv", "", {"empty file"});
+}
 
 TEST_F(CsvBadInput, BinaryGarbage) {
     std::mt19937 generator(7);

@@ -18,7 +18,9 @@ namespace {
 
 using feedid::testing::run_cli;
 
-std::string quoted(const std::filesystem::path& path) { return "'" + path.string() + "'"; }
+std::string quoted(const std::filesystem::path& path) {
+    return "'" + path.string() + "'";
+}
 
 // The `# name = value` constants of a synthetic trace (its true drive values).
 std::map<std::string, double> constants_of(const std::filesystem::path& csv) {

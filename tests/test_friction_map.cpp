@@ -95,8 +95,10 @@ TEST(FrictionMap, HigherCoulombFrictionShowsAtItsCentreOnly) {
     EXPECT_TRUE(named) << map.document.at("findings").dump();
     // Only the worn centre stands out, and there the friction levels do: nothing at the other two.
     for (const auto& finding : map.findings) EXPECT_NE(finding.find("centre 0.000 mm"), std::string::npos) << finding;
-    EXPECT_TRUE(map.document.at("locations").at(0).at("stands_out").empty()) << map.document.at("locations").at(0).dump();
-    EXPECT_TRUE(map.document.at("locations").at(2).at("stands_out").empty()) << map.document.at("locations").at(2).dump();
+    EXPECT_TRUE(map.document.at("locations").at(0).at("stands_out").empty())
+        << map.document.at("locations").at(0).dump();
+    EXPECT_TRUE(map.document.at("locations").at(2).at("stands_out").empty())
+        << map.document.at("locations").at(2).dump();
     EXPECT_TRUE(stands_out(middle, "breakaway_N")) << middle.dump();
 }
 
@@ -113,8 +115,10 @@ TEST(FrictionMap, IdentifyByLocationOnTheCommandLine) {
     const auto dir = feedid::testing::temp_dir();
     const auto path = [&](const char* name) { return "'" + (dir / name).string() + "'"; };
     using feedid::testing::run_cli;
-    const auto plan = run_cli("plan --travel=-400:400 --centers=-250,0,250 --slow-feeds 10:1000:3 --max-pass-time 4 "
-                              "-o /dev/null --reference " + path("ref.csv"));
+    const auto plan = run_cli(
+        "plan --travel=-400:400 --centers=-250,0,250 --slow-feeds 10:1000:3 --max-pass-time 4 "
+        "-o /dev/null --reference " +
+        path("ref.csv"));
     ASSERT_EQ(plan.exit_code, 0) << plan.err;
     feedid::testing::write_text(dir / "worn.json",
                                 R"({"friction_zones": [{"from_mm": -100, "to_mm": 100, "coulomb_factor": 1.3}]})");

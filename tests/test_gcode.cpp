@@ -152,7 +152,8 @@ void expect_same_moves(const feedid::TestPlan& plan, const ParsedProgram& progra
         const auto& parsed = program.moves[k];
         ASSERT_EQ(static_cast<int>(parsed.kind), static_cast<int>(expected.kind)) << "block " << k + 1;
         if (expected.kind == MoveKind::feed) {
-            EXPECT_NEAR(parsed.target_mm, expected.target * 1e3, 5e-5) << "block " << k + 1 << ": " << expected.description;
+            EXPECT_NEAR(parsed.target_mm, expected.target * 1e3, 5e-5)
+                << "block " << k + 1 << ": " << expected.description;
             EXPECT_NEAR(parsed.feed_mm_per_min, expected.feed * 60000.0, 5e-4) << "block " << k + 1;
         } else {
             EXPECT_NEAR(parsed.dwell_s, expected.dwell, 5e-4) << "block " << k + 1;
@@ -192,7 +193,8 @@ TEST(Gcode, SinumerikHoldsThePlanMoveForMoveWithTraceAndJerk) {
     const auto program = parse_program(text, Dialect::sinumerik, "X1");
     expect_same_moves(plan, program);
     EXPECT_TRUE(program.ended);
-    for (const auto* word : {"G71", "G90", "G94", "G60", "SOFT"}) EXPECT_TRUE(contains(program.modal_words, word)) << word;
+    for (const auto* word : {"G71", "G90", "G94", "G60", "SOFT"})
+        EXPECT_TRUE(contains(program.modal_words, word)) << word;
     // Servo trace start and stop, commented out for the user to enable, around the moves.
     const auto start = text.find(";R99=1");
     const auto stop = text.find(";R99=0");

@@ -35,11 +35,11 @@ protected:
         results_ = write_small_results(folder_, "run", 4);
         good_ = folder_ / "good.db";
         for (int i = 0; i < 3; ++i) {
-            const auto r = run_shell(fmt::format("{} history {} --record {} --machine M1 --axis X "
-                                                 "--recorded-at 2026-03-0{}T06:00:00Z",
-                                                 cli(), quoted(good_), quoted(results_[static_cast<std::size_t>(i)]),
-                                                 i + 1),
-                                     folder_);
+            const auto r =
+                run_shell(fmt::format("{} history {} --record {} --machine M1 --axis X "
+                                      "--recorded-at 2026-03-0{}T06:00:00Z",
+                                      cli(), quoted(good_), quoted(results_[static_cast<std::size_t>(i)]), i + 1),
+                          folder_);
             ASSERT_EQ(r.exit_code, 0) << r.err;
         }
         ASSERT_FALSE(fs::exists(good_.string() + "-wal")) << "the WAL is checkpointed when the last writer closes";
@@ -145,9 +145,9 @@ TEST_F(HistoryBadInput, ResultOfTheWrongKindIsRejectedAndTheDatabaseUntouched) {
     expect_rejected(fmt::format("history {} --record {} --machine M1 --axis X", db, quoted(empty)), good_,
                     empty.string(), "not a JSON document");
     // One bad file among good ones: nothing is recorded.
-    expect_rejected(fmt::format("history {} --record {} --record {} --machine M1 --axis X", db, quoted(results_[3]),
-                                quoted(gains)),
-                    good_, gains.string(), "not a feedid identify result document");
+    expect_rejected(
+        fmt::format("history {} --record {} --record {} --machine M1 --axis X", db, quoted(results_[3]), quoted(gains)),
+        good_, gains.string(), "not a feedid identify result document");
     // The report of a wrong document.
     expect_rejected(fmt::format("report {} -o {}", quoted(csv), quoted(folder_ / "report.html")), good_, csv.string(),
                     "neither");
@@ -156,9 +156,9 @@ TEST_F(HistoryBadInput, ResultOfTheWrongKindIsRejectedAndTheDatabaseUntouched) {
     // Missing names and a malformed time: rejected before the database is opened.
     expect_rejected(fmt::format("history {} --record {} --axis X", db, quoted(results_[3])), good_, "--machine",
                     "--machine");
-    expect_rejected(fmt::format("history {} --record {} --machine M1 --axis X --recorded-at yesterday", db,
-                                quoted(results_[3])),
-                    good_, "yesterday", "not an ISO 8601");
+    expect_rejected(
+        fmt::format("history {} --record {} --machine M1 --axis X --recorded-at yesterday", db, quoted(results_[3])),
+        good_, "yesterday", "not an ISO 8601");
 }
 
 TEST_F(HistoryBadInput, AGoodDatabaseStillWorksAfterwards) {

@@ -21,24 +21,27 @@ constexpr int runs_per_series = 20;
 constexpr double coulomb_N = 742.8;  // the demo drive's F_C (feedid synth --help)
 
 /// Coulomb friction of run i (1-based) of the rising series [N].
-double rising_coulomb(int i) { return i <= 10 ? coulomb_N : coulomb_N * (1.0 + 0.01 * (i - 10)); }
+double rising_coulomb(int i) {
+    return i <= 10 ? coulomb_N : coulomb_N * (1.0 + 0.01 * (i - 10));
+}
 
 /// The demo drive (feedid synth --print-drive) with the given Coulomb friction, and a short test (four feedrates, no
 /// slow passes) so that 40 runs take seconds, not minutes.
 nlohmann::json drive_file(double coulomb, int seed) {
-    return {{"seed", seed},
-            {"axis",
-             {{"mass_kg", 69.1},
-              {"offset_N", 0.0},
-              {"viscous_forward_Ns_per_m", 54.2},
-              {"viscous_reverse_Ns_per_m", 54.2},
-              {"coulomb_forward_N", coulomb},
-              {"coulomb_reverse_N", coulomb},
-              {"breakaway_forward_N", 946.2},
-              {"breakaway_reverse_N", 946.2},
-              {"stribeck_velocity_forward_m_per_s", 0.005},
-              {"stribeck_velocity_reverse_m_per_s", 0.005}}},
-            {"test", {{"feedrates_mm_per_min", {1500, 3000, 4500, 6000}}, {"stroke_mm", 20.0}, {"slow_passes", false}}}};
+    return {
+        {"seed", seed},
+        {"axis",
+         {{"mass_kg", 69.1},
+          {"offset_N", 0.0},
+          {"viscous_forward_Ns_per_m", 54.2},
+          {"viscous_reverse_Ns_per_m", 54.2},
+          {"coulomb_forward_N", coulomb},
+          {"coulomb_reverse_N", coulomb},
+          {"breakaway_forward_N", 946.2},
+          {"breakaway_reverse_N", 946.2},
+          {"stribeck_velocity_forward_m_per_s", 0.005},
+          {"stribeck_velocity_reverse_m_per_s", 0.005}}},
+        {"test", {{"feedrates_mm_per_min", {1500, 3000, 4500, 6000}}, {"stroke_mm", 20.0}, {"slow_passes", false}}}};
 }
 
 /// Synthesises and identifies run i of a series; returns the result document's path.
@@ -47,12 +50,12 @@ std::filesystem::path make_run(const std::filesystem::path& folder, const std::s
     const auto trace = folder / fmt::format("{}-{:02}.csv", series, i);
     const auto result = folder / fmt::format("{}-{:02}-result.json", series, i);
     write_text(drive, drive_file(coulomb, 1000 + i).dump());
-    const auto synth = run_shell(fmt::format("{} synth --drive {} --out {}", cli(), quoted(drive), quoted(trace)), folder);
+    const auto synth =
+        run_shell(fmt::format("{} synth --drive {} --out {}", cli(), quoted(drive), quoted(trace)), folder);
     EXPECT_EQ(synth.exit_code, 0) << synth.err;
-    const auto identify =
-        run_shell(fmt::format("{} identify {} --force-constant force_constant_N_per_A --json {}", cli(), quoted(trace),
-                              quoted(result)),
-                  folder);
+    const auto identify = run_shell(fmt::format("{} identify {} --force-constant force_constant_N_per_A --json {}",
+                                                cli(), quoted(trace), quoted(result)),
+                                    folder);
     EXPECT_EQ(identify.exit_code, 0) << identify.err;
     return result;
 }
@@ -130,7 +133,8 @@ TEST(HistoryDrift, RisingCoulombFrictionAlarmsByRun16AndNotBefore11) {
     EXPECT_EQ(alarms[0]["parameter"], "coulomb_N");
     EXPECT_EQ(alarms[0]["direction"], "up");
     // Run ids are in recording order here; the alarm is at the first run whose --check failed.
-    EXPECT_EQ(alarms[0]["run"].get<int>(), document["runs"][static_cast<std::size_t>(first_alarm - 1)]["id"].get<int>());
+    EXPECT_EQ(alarms[0]["run"].get<int>(),
+              document["runs"][static_cast<std::size_t>(first_alarm - 1)]["id"].get<int>());
 }
 
 TEST(HistoryDrift, ConstantFrictionRaisesNoAlarmIn20Runs) {
@@ -139,8 +143,8 @@ TEST(HistoryDrift, ConstantFrictionRaisesNoAlarmIn20Runs) {
     const auto outcome = record_and_check(folder, folder / "constant.db", results);
     ASSERT_EQ(outcome.exit_codes.size(), static_cast<std::size_t>(runs_per_series));
     for (int i = 1; i <= runs_per_series; ++i)
-        EXPECT_EQ(outcome.exit_codes[static_cast<std::size_t>(i - 1)], 0) << "false alarm after run " << i << ": "
-                                                                           << outcome.first_alarm_message;
+        EXPECT_EQ(outcome.exit_codes[static_cast<std::size_t>(i - 1)], 0)
+            << "false alarm after run " << i << ": " << outcome.first_alarm_message;
 }
 
 }  // namespace

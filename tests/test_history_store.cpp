@@ -224,9 +224,10 @@ TEST(HistoryDurability, TwoProcessesRecordingAtOnceLoseNothing) {
     const auto second = write_small_results(folder, "b", 50);
     const auto database = folder / "shared.db";
     const auto loop = [&](const std::string& stem) {
-        return fmt::format("fail=0; for i in $(seq 1 50); do {} history {} --record {}/{}-$i.json --machine M1 --axis "
-                           "X || fail=1; done; exit $fail",
-                           cli(), quoted(database), quoted(folder), stem);
+        return fmt::format(
+            "fail=0; for i in $(seq 1 50); do {} history {} --record {}/{}-$i.json --machine M1 --axis "
+            "X || fail=1; done; exit $fail",
+            cli(), quoted(database), quoted(folder), stem);
     };
     const auto r = run_shell(fmt::format("( {} ) & a=$!; ( {} ) & b=$!; wait $a; ra=$?; wait $b; rb=$?; "
                                          "echo \"$ra $rb\"; [ $ra -eq 0 ] && [ $rb -eq 0 ]",
@@ -280,8 +281,9 @@ TEST(HistoryRecord, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
     write_text(drive, R"({"seed": 9, "slow_passes": false, "test": {"feedrates_mm_per_min": [1500, 3000, 4500, 6000],
                           "stroke_mm": 20}})");
     const auto trace = folder / "x.csv";
-    ASSERT_EQ(run_shell(fmt::format("{} synth --drive {} --out {}", cli(), quoted(drive), quoted(trace)), folder).exit_code,
-              0);
+    ASSERT_EQ(
+        run_shell(fmt::format("{} synth --drive {} --out {}", cli(), quoted(drive), quoted(trace)), folder).exit_code,
+        0);
     const auto database = folder / "shop.db";
     const auto result = folder / "result.json";
     const auto identify = run_shell(fmt::format("{} identify {} --force-constant force_constant_N_per_A --json {} "
@@ -302,12 +304,13 @@ TEST(HistoryRecord, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
     EXPECT_EQ(runs[0].trace_sha256, history::sha256_file(trace));
     EXPECT_EQ(runs[0].options, document["options"]);
     EXPECT_EQ(runs[0].options["drive"]["force_constant"], "force_constant_N_per_A");
-    EXPECT_DOUBLE_EQ(*runs[0].parameters.at("coulomb_N").value, document["parameters"]["coulomb_N"]["value"].get<double>());
+    EXPECT_DOUBLE_EQ(*runs[0].parameters.at("coulomb_N").value,
+                     document["parameters"]["coulomb_N"]["value"].get<double>());
     EXPECT_TRUE(runs[0].result.contains("friction_curve"));
 
-    const auto again = run_shell(fmt::format("{} history {} --record {} --machine 'DMU 50' --axis X", cli(),
-                                             quoted(database), quoted(result)),
-                                 folder);
+    const auto again = run_shell(
+        fmt::format("{} history {} --record {} --machine 'DMU 50' --axis X", cli(), quoted(database), quoted(result)),
+        folder);
     EXPECT_EQ(again.exit_code, 0) << again.err;
     EXPECT_NE(again.err.find("already recorded as run #1"), std::string::npos) << again.err;
     EXPECT_EQ(history::open_sqlite_store(database, read_only)->runs().size(), 1u);

@@ -207,8 +207,7 @@ feedid::IdentifyOptions options_for(feedid::FrictionModelKind model, bool offset
     return options;
 }
 
-const std::vector<double> slow_and_fast = {0.0005, 0.001, 0.002, 0.003, 0.005, 0.008, 0.012, 0.02,
-                                           0.05,   0.1,   0.2,   0.3};
+const std::vector<double> slow_and_fast = {0.0005, 0.001, 0.002, 0.003, 0.005, 0.008, 0.012, 0.02, 0.05, 0.1, 0.2, 0.3};
 const std::vector<double> papers_ladder = {0.02, 0.05, 0.1, 0.2, 0.3};  // fast passes only
 
 const Drive asymmetric_drive{50.0, {80.0, 100.0, 130.0, 0.004}, {95.0, 110.0, 150.0, 0.005}};
@@ -224,7 +223,7 @@ TEST(IdentifySynthetic, PerDirectionFrictionWithSlowPasses) {
     ASSERT_NE(r.status, "failed") << r.document.dump(1);
     EXPECT_WITHIN_PCT(estimate(r, "mass_kg"), 50.0, 2.0);
     for (const auto& [name, branch] : {std::pair{std::string("forward"), asymmetric_drive.forward},
-                                        std::pair{std::string("reverse"), asymmetric_drive.reverse}}) {
+                                       std::pair{std::string("reverse"), asymmetric_drive.reverse}}) {
         SCOPED_TRACE(name);
         EXPECT_WITHIN_PCT(estimate(r, "viscous_" + name + "_Ns_per_m"), branch.viscous, 2.0);
         EXPECT_WITHIN_PCT(estimate(r, "coulomb_" + name + "_N"), branch.coulomb, 2.0);
@@ -383,8 +382,8 @@ TEST(IdentifySynthetic, TheDocumentHasTheContractsKeys) {
                                   "preprocessing", "status", "diagnostics"}) {
         EXPECT_TRUE(r.document.contains(key)) << key;
     }
-    for (const std::string key : {"mass_kg", "viscous_Ns_per_m", "coulomb_N", "breakaway_N",
-                                  "stribeck_velocity_m_per_s"}) {
+    for (const std::string key :
+         {"mass_kg", "viscous_Ns_per_m", "coulomb_N", "breakaway_N", "stribeck_velocity_m_per_s"}) {
         ASSERT_TRUE(r.document.at("parameters").contains(key)) << key;
         EXPECT_TRUE(r.document.at("parameters").at(key).contains("value")) << key;
         EXPECT_TRUE(r.document.at("parameters").at(key).contains("stderr")) << key;
@@ -416,7 +415,9 @@ std::string fmt_double(double value) {
     return buffer;
 }
 
-std::string csv_of(const feedid::Trace& trace) { return feedid::write_csv(trace); }
+std::string csv_of(const feedid::Trace& trace) {
+    return feedid::write_csv(trace);
+}
 
 // The lines of stderr that are not import findings (guessed roles, assumed units): the error itself.
 int lines_of(const std::string& text) {
@@ -447,8 +448,7 @@ TEST(IdentifyBadInput, NoCurrentOrForceChannel) {
     trace.find(feedid::Role::current)->role = feedid::Role::other;
     const auto run = identify_csv(csv_of(trace));
     EXPECT_EQ(run.exit_code, 2);
-    EXPECT_TRUE(run.err.find("current") != std::string::npos || run.err.find("force") != std::string::npos)
-        << run.err;
+    EXPECT_TRUE(run.err.find("current") != std::string::npos || run.err.find("force") != std::string::npos) << run.err;
 }
 
 TEST(IdentifyBadInput, NoForceConstant) {
@@ -506,8 +506,8 @@ TEST(IdentifySinumerik, AMicroStepTestHasNoMassInformationEvenWithoutADriveConst
 
 TEST(IdentifyBadInput, OptionsThatMakeNoSense) {
     const auto trace = synthetic_trace(asymmetric_drive, papers_ladder, 1);
-    for (const std::string options : {"--lambda 1.5", "--lambda 0", "--p0 -1", "--filter-order 0",
-                                      "--from 5 --to 2", "--cutoff 900"}) {
+    for (const std::string options :
+         {"--lambda 1.5", "--lambda 0", "--p0 -1", "--filter-order 0", "--from 5 --to 2", "--cutoff 900"}) {
         const auto run = identify_csv(csv_of(trace), "--force-constant 100 " + options);
         EXPECT_EQ(run.exit_code, 2) << options << ": " << run.err;
         EXPECT_FALSE(run.err.empty()) << options;

@@ -28,7 +28,9 @@ using feedid::testing::shared_data;
 
 namespace {
 
-bool contains(const std::string& text, std::string_view part) { return text.find(part) != std::string::npos; }
+bool contains(const std::string& text, std::string_view part) {
+    return text.find(part) != std::string::npos;
+}
 
 // read_mat refuses the file with an InputError whose message holds `part`.
 void expect_refused(const std::filesystem::path& path, const std::string& part) {
@@ -61,8 +63,8 @@ public:
         Mat_VarFree(variable);
     }
     void add_doubles(const char* name, std::vector<double>& values, bool column = true) {
-        add(name, MAT_C_DOUBLE, MAT_T_DOUBLE, column ? std::vector<std::size_t>{values.size(), 1}
-                                                     : std::vector<std::size_t>{1, values.size()},
+        add(name, MAT_C_DOUBLE, MAT_T_DOUBLE,
+            column ? std::vector<std::size_t>{values.size(), 1} : std::vector<std::size_t>{1, values.size()},
             values.data());
     }
 
@@ -339,8 +341,8 @@ TEST(Mat, TwoVariablesOfOneNameAreRefused) {
         file.add_doubles("x", *values);
     }
     const auto path = dir / "twice.mat";
-    feedid::testing::write_text(path, feedid::testing::read_text(dir / "few.mat") +
-                                          feedid::testing::read_text(dir / "many.mat").substr(128));
+    feedid::testing::write_text(
+        path, feedid::testing::read_text(dir / "few.mat") + feedid::testing::read_text(dir / "many.mat").substr(128));
     expect_refused(path, "variable 'x' appears twice");
 }
 
@@ -434,8 +436,9 @@ TEST(Mat, HeadersClaimingMoreThanTheFileHoldsAreRefusedBeforeLibmatioAllocates) 
         }
         const auto damaged = dir / "damaged.mat";
         feedid::testing::write_text(damaged, bytes);
-        expect_refused(damaged, "damaged or truncated after variable 't' (variable 'c' claims 1073741824 cells or "
-                                "fields, more than the file holds)");
+        expect_refused(damaged,
+                       "damaged or truncated after variable 't' (variable 'c' claims 1073741824 cells or "
+                       "fields, more than the file holds)");
     }
 }
 
@@ -453,7 +456,8 @@ TEST(Mat, EveryKeptFuzzInputIsRefusedAsDamaged) {
             ADD_FAILURE() << "no InputError";
         } catch (const InputError& e) {
             const bool hdf5 = entry.path().filename().string().starts_with("v73_");
-            EXPECT_TRUE(contains(e.what(), entry.path().string() + (hdf5 ? ": " : ": the file is damaged or truncated")))
+            EXPECT_TRUE(
+                contains(e.what(), entry.path().string() + (hdf5 ? ": " : ": the file is damaged or truncated")))
                 << e.what();
             EXPECT_EQ(count_lines(e.what()), 0) << e.what();
         }

@@ -12,7 +12,9 @@ namespace {
 
 using feedid::testing::run_cli;
 
-std::string quoted(const std::filesystem::path& path) { return "'" + path.string() + "'"; }
+std::string quoted(const std::filesystem::path& path) {
+    return "'" + path.string() + "'";
+}
 
 TEST(PlanCli, HelpShowsAWorkedExample) {
     const auto result = run_cli("plan --help");
@@ -27,9 +29,9 @@ TEST(PlanCli, WritesProgramReferenceAndJson) {
     for (const std::string dialect : {"iso", "sinumerik", "linuxcnc"}) {
         const auto program = dir / ("test." + dialect);
         const auto json = dir / ("plan-" + dialect + ".json");
-        const auto result = run_cli("plan --axis X --travel=-400:400 --centers=-300,0,300 --dialect " + dialect +
-                                    " -o " + quoted(program) + " --json " + quoted(json) + " --reference " +
-                                    quoted(dir / "ref.csv"));
+        const auto result =
+            run_cli("plan --axis X --travel=-400:400 --centers=-300,0,300 --dialect " + dialect + " -o " +
+                    quoted(program) + " --json " + quoted(json) + " --reference " + quoted(dir / "ref.csv"));
         ASSERT_EQ(result.exit_code, 0) << result.err;
         const auto text = feedid::testing::read_text(program);
         EXPECT_NE(text.find("feedid "), std::string::npos);
@@ -38,7 +40,8 @@ TEST(PlanCli, WritesProgramReferenceAndJson) {
         EXPECT_EQ(document.at("passes").size(), 3u * 14u);
         EXPECT_GT(document.at("duration_s").get<double>(), 200.0);
         EXPECT_LT(document.at("duration_s").get<double>(), 300.0);
-        for (const auto* key : {"mass_kg", "viscous_Ns_per_m", "coulomb_N", "breakaway_N", "stribeck_velocity_m_per_s"}) {
+        for (const auto* key :
+             {"mass_kg", "viscous_Ns_per_m", "coulomb_N", "breakaway_N", "stribeck_velocity_m_per_s"}) {
             EXPECT_TRUE(document.at("prediction").at("parameters").at(key).at("identifiable").get<bool>()) << key;
         }
         // The summary goes to stdout when no output is on stdout.

@@ -35,9 +35,13 @@ namespace {
 constexpr double nan_value = std::numeric_limits<double>::quiet_NaN();
 const char* const sinumerik_file = "sinumerik-trace/X_BK300_1.xml";
 
-std::string quoted(const fs::path& path) { return "'" + path.string() + "'"; }
+std::string quoted(const fs::path& path) {
+    return "'" + path.string() + "'";
+}
 
-bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+bool contains(const std::string& text, const std::string& part) {
+    return text.find(part) != std::string::npos;
+}
 
 // Expects exit code 2 and exactly one line on stderr that names the file and the place (`where`).
 void expect_one_clear_error(const fs::path& file, const std::string& arguments, const std::string& where) {
@@ -51,8 +55,7 @@ void expect_one_clear_error(const fs::path& file, const std::string& arguments, 
 // ---- SINUMERIK fixtures ------------------------------------------------------------------------------------------
 
 // A trace header with the given <dataSignal> lines, then the records.
-std::string sinumerik_xml(const std::string& signals, const std::string& records,
-                          const std::string& display = {}) {
+std::string sinumerik_xml(const std::string& signals, const std::string& records, const std::string& display = {}) {
     return "<?xml version=\"1.0\" encoding=\"utf-8\" ?>\n"
            "<traceSession version=\"01.00.03.02\">\n" +
            display +
@@ -287,11 +290,10 @@ TEST(SinumerikTrace, TraceStartsWhereEveryRoleChannelHasAValue) {
 }
 
 TEST(SinumerikTrace, OneTracePerAxisSelectableByIndex) {
-    const std::string xml =
-        sinumerik_xml(data_signal("f1", "nckServoDataActPos2ndEnc64", "posn", "0.002", "1") +
-                          data_signal("f2", "nckServoDataActPos2ndEnc64", "posn", "0.002", "2"),
-                      "  <rec time=\"0\" f1=\"5\" f2=\"7\"/>\n  <rec time=\"0.002\" f1=\"6\"/>\n"
-                      "  <rec time=\"0.004\" f2=\"8\"/>\n");
+    const std::string xml = sinumerik_xml(data_signal("f1", "nckServoDataActPos2ndEnc64", "posn", "0.002", "1") +
+                                              data_signal("f2", "nckServoDataActPos2ndEnc64", "posn", "0.002", "2"),
+                                          "  <rec time=\"0\" f1=\"5\" f2=\"7\"/>\n  <rec time=\"0.002\" f1=\"6\"/>\n"
+                                          "  <rec time=\"0.004\" f2=\"8\"/>\n");
     const auto axes = parse_sinumerik_trace_axes(xml, "two-axes.xml");
     ASSERT_EQ(axes.size(), 2u);
     expect_values(axes[0].find(Role::position)->values, {5, 6, 6}, "axis 1");
@@ -314,7 +316,8 @@ TEST(SinumerikTrace, UnitFromTheDisplaySetupWhenTheSignalsOwnIsNone) {
     EXPECT_EQ(trace.find("nckServoDataCmdTorque64")->source_unit, "N*m");
 }
 
-// ---- SINUMERIK: bad input --------------------------------------------------------------------------------------------
+// ---- SINUMERIK: bad input
+// --------------------------------------------------------------------------------------------
 
 TEST(SinumerikTrace, BadFilesGiveOneMessageWithFileAndPlace) {
     const auto dir = temp_dir();
@@ -328,8 +331,9 @@ TEST(SinumerikTrace, BadFilesGiveOneMessageWithFileAndPlace) {
     // Truncated in the middle of the records.
     expect_one_clear_error(write("truncated.xml", good.substr(0, good.find("time=\"0.008"))), "", "line ");
     // A well-formed document whose root is not <traceSession>.
-    expect_one_clear_error(write("root.xml", "<?xml version=\"1.0\"?>\n<traceSessions>\n<traceSession/>\n"
-                                             "</traceSessions>\n"),
+    expect_one_clear_error(write("root.xml",
+                                 "<?xml version=\"1.0\"?>\n<traceSessions>\n<traceSession/>\n"
+                                 "</traceSessions>\n"),
                            "", "line 2");
     // A sample that is not a number.
     std::string text = good;
@@ -356,7 +360,8 @@ TEST(SinumerikTrace, HostileIntervalCannotMakeItAllocateWithoutBound) {
     EXPECT_THROW((void)parse_sinumerik_trace(xml, "hostile.xml"), InputError);
 }
 
-// ---- TwinCAT Scope ---------------------------------------------------------------------------------------------------
+// ---- TwinCAT Scope
+// ---------------------------------------------------------------------------------------------------
 
 namespace {
 struct ScopeExport {
@@ -416,8 +421,8 @@ TEST(TwinCatScope, EveryExportVariantImportsToTheSameChannelValues) {
                 while (r < reference_time.size() && reference_time[r] < time[k] - time_tolerance) ++r;
                 if (r == reference_time.size()) break;
                 if (std::abs(reference_time[r] - time[k]) > time_tolerance) continue;
-                const double value = apply ? scaling->second.first * channel.values[k] + scaling->second.second
-                                           : channel.values[k];
+                const double value =
+                    apply ? scaling->second.first * channel.values[k] + scaling->second.second : channel.values[k];
                 ASSERT_EQ(value, expected->values[r]) << channel.name << " at " << time[k] << " s";
                 ++shared;
             }
@@ -552,17 +557,21 @@ TEST(ReaderFuzzRegressions, EveryKeptInputIsReadOrRefusedWithAnInputError) {
         SCOPED_TRACE(entry.path().string());
         try {
             // each as its fuzz target (fuzz/fuzz_<reader>.cpp) calls the reader
-            if (reader == "sinumerik_trace") (void)parse_sinumerik_trace_axes(bytes, "fuzz.xml");
-            else if (reader == "twincat_scope") (void)parse_twincat_scope(bytes, "fuzz.csv");
-            else if (reader == "halscope") (void)parse_halscope(bytes, "fuzz.txt", 0.001);
-            else if (reader == "csv") (void)parse_csv(bytes, "fuzz.csv");
-            else if (reader == "mat") (void)read_mat(entry.path());  // libmatio reads files only
+            if (reader == "sinumerik_trace")
+                (void)parse_sinumerik_trace_axes(bytes, "fuzz.xml");
+            else if (reader == "twincat_scope")
+                (void)parse_twincat_scope(bytes, "fuzz.csv");
+            else if (reader == "halscope")
+                (void)parse_halscope(bytes, "fuzz.txt", 0.001);
+            else if (reader == "csv")
+                (void)parse_csv(bytes, "fuzz.csv");
+            else if (reader == "mat")
+                (void)read_mat(entry.path());  // libmatio reads files only
             else {
                 ADD_FAILURE() << "regression input for an unknown reader '" << reader << "'";
                 continue;
             }
-        } catch (const InputError&) {
-        }
+        } catch (const InputError&) {}
         ++inputs;
     }
     SUCCEED() << inputs << " regression inputs";

@@ -60,7 +60,9 @@ std::vector<std::string> svgs_of(const std::string& html) {
     return out;
 }
 
-bool has_unit(const std::string& label) { return std::regex_search(label, std::regex(R"(\[[^\]]+\]$)")); }
+bool has_unit(const std::string& label) {
+    return std::regex_search(label, std::regex(R"(\[[^\]]+\]$)"));
+}
 
 TEST(ReportSvg, PlotIsWellFormedXmlWithTitleAndAxisLabels) {
     report::Plot plot;
@@ -165,7 +167,7 @@ constexpr const char* render_probe = R"(<script>
 )";
 
 std::string unescape_html(std::string text) {
-    const std::pair<const char*, const char*> entities[] = {{"&lt;", "<"}, {"&gt;", ">"}, {"&quot;", "\""},
+    const std::pair<const char*, const char*> entities[] = {{"&lt;", "<"},  {"&gt;", ">"},   {"&quot;", "\""},
                                                             {"&#39;", "'"}, {"&nbsp;", " "}, {"&amp;", "&"}};
     for (const auto& [entity, character] : entities)
         for (auto at = text.find(entity); at != std::string::npos; at = text.find(entity, at + 1))
@@ -181,11 +183,12 @@ nlohmann::json render_in_chromium(const std::string& chromium, const fs::path& p
     html.insert(body_end, render_probe);
     const auto probe_page = folder / (page.stem().string() + "-probe.html");
     write_text(probe_page, html);
-    const auto r = run_shell(fmt::format("timeout 120 '{}' --headless --no-sandbox --disable-gpu --disable-dev-shm-usage "
-                                         "--no-first-run --user-data-dir={} --virtual-time-budget=5000 --dump-dom "
-                                         "'file://{}'",
-                                         chromium, quoted(folder / "chromium-profile"), probe_page.string()),
-                             folder);
+    const auto r =
+        run_shell(fmt::format("timeout 120 '{}' --headless --no-sandbox --disable-gpu --disable-dev-shm-usage "
+                              "--no-first-run --user-data-dir={} --virtual-time-budget=5000 --dump-dom "
+                              "'file://{}'",
+                              chromium, quoted(folder / "chromium-profile"), probe_page.string()),
+                  folder);
     EXPECT_EQ(r.exit_code, 0) << r.err.substr(0, 2000);
     const std::string open = "<pre id=\"render-check\">";
     const auto start = r.out.find(open);
@@ -310,8 +313,9 @@ TEST_F(ReportEndToEnd, HistoryReportHasTrendsAlarmsAndTheLatestFrictionCurve) {
     }
 
     const auto chromium = find_chromium();
-    if (chromium.empty()) GTEST_SKIP() << "headless Chromium not found (install Debian's chromium package); the "
-                                          "browser rendering check is skipped";
+    if (chromium.empty())
+        GTEST_SKIP() << "headless Chromium not found (install Debian's chromium package); the "
+                        "browser rendering check is skipped";
     expect_rendered(render_in_chromium(chromium, page, folder_), svgs);
 }
 
@@ -335,8 +339,9 @@ TEST_F(ReportEndToEnd, ResultReportHasRlsHistoriesAndTheFrictionCurve) {
     EXPECT_NE(html.find("transient ends"), std::string::npos);
 
     const auto chromium = find_chromium();
-    if (chromium.empty()) GTEST_SKIP() << "headless Chromium not found (install Debian's chromium package); the "
-                                          "browser rendering check is skipped";
+    if (chromium.empty())
+        GTEST_SKIP() << "headless Chromium not found (install Debian's chromium package); the "
+                        "browser rendering check is skipped";
     expect_rendered(render_in_chromium(chromium, page, folder_), svgs);
 }
 
@@ -401,8 +406,9 @@ TEST(ReportSimulation, EmpsReportHasTrackingAndModellingErrorPlots) {
     EXPECT_EQ(html.find("need a simulation"), std::string::npos);
 
     const auto chromium = find_chromium();
-    if (chromium.empty()) GTEST_SKIP() << "headless Chromium not found (install Debian's chromium package); the "
-                                          "browser rendering check is skipped";
+    if (chromium.empty())
+        GTEST_SKIP() << "headless Chromium not found (install Debian's chromium package); the "
+                        "browser rendering check is skipped";
     expect_rendered(render_in_chromium(chromium, page, folder), svgs);
 }
 

@@ -8,8 +8,8 @@
 #include <new>
 #include <random>
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/Core>
+#include <Eigen/Eigenvalues>
 
 #include "feedid/least_squares.hpp"
 #include "feedid/rls.hpp"
@@ -29,8 +29,12 @@ void* operator new(std::size_t size) {
     if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
     throw std::bad_alloc();
 }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+void operator delete(void* p) noexcept {
+    std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+    std::free(p);
+}
 
 namespace {
 
@@ -83,8 +87,7 @@ TEST_P(RlsEqualsBatch, WithoutForgettingAndALargeInitialCovariance) {
 }
 
 INSTANTIATE_TEST_SUITE_P(BothVariants, RlsEqualsBatch,
-                         ::testing::Values(RlsVariant::exponential, RlsVariant::directional),
-                         [](const auto& info) {
+                         ::testing::Values(RlsVariant::exponential, RlsVariant::directional), [](const auto& info) {
                              return info.param == RlsVariant::exponential ? std::string("Paper")
                                                                           : std::string("Directional");
                          });

@@ -2,10 +2,10 @@
 // steady-state tracking, and reading the axis from a result document.
 #include <algorithm>
 #include <array>
-#include <span>
-#include <vector>
 #include <cmath>
+#include <span>
 #include <tuple>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -78,9 +78,9 @@ TEST(Simulate, EmpsPublishedModelCommandLine) {
     FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
     const auto dir = feedid::testing::temp_dir();
     feedid::testing::write_text(dir / "result.json", published_emps_result().dump());
-    const auto result = run_cli("simulate '" + (shared_data() / "emps/DATA_EMPS.mat").string() + "' " +
-                                emps_channels() + " --saturation 10 --result '" + (dir / "result.json").string() +
-                                "' --json -");
+    const auto result =
+        run_cli("simulate '" + (shared_data() / "emps/DATA_EMPS.mat").string() + "' " + emps_channels() +
+                " --saturation 10 --result '" + (dir / "result.json").string() + "' --json -");
     ASSERT_EQ(result.exit_code, 0) << result.err;
     const auto document = nlohmann::json::parse(result.out);
     EXPECT_LE(document["relative_error_pct"]["position"].get<double>(), 0.05);
@@ -200,14 +200,14 @@ TEST(Simulate, EmpsIdentifyGainsSimulatePipeline) {
     const std::string file = "'" + (shared_data() / "emps/DATA_EMPS.mat").string() + "' ";
     const auto identified = run_cli("identify " + file +
                                     "--channel position=qm --channel current=vir --force-constant gtau --offset "
-                                    "--json '" + (dir / "result.json").string() + "'");
+                                    "--json '" +
+                                    (dir / "result.json").string() + "'");
     ASSERT_EQ(identified.exit_code, 0) << identified.err;
-    const auto gains = run_cli("gains " + file + emps_channels() + " --saturation 10 --json '" +
-                               (dir / "gains.json").string() + "'");
+    const auto gains =
+        run_cli("gains " + file + emps_channels() + " --saturation 10 --json '" + (dir / "gains.json").string() + "'");
     ASSERT_EQ(gains.exit_code, 0) << gains.err;
-    const auto result = run_cli("simulate " + file + emps_channels() + " --result '" +
-                                (dir / "result.json").string() + "' --gains '" + (dir / "gains.json").string() +
-                                "' --json -");
+    const auto result = run_cli("simulate " + file + emps_channels() + " --result '" + (dir / "result.json").string() +
+                                "' --gains '" + (dir / "gains.json").string() + "' --json -");
     ASSERT_EQ(result.exit_code, 0) << result.err;
     const auto document = nlohmann::json::parse(result.out);
     EXPECT_LE(document["relative_error_pct"]["position"].get<double>(), 0.05);
@@ -243,7 +243,8 @@ void expect_breakaway_at_the_breakaway_force(double offset) {
     input.reference = reference;
     const auto out = feedid::simulate(axis, controller, input);
     const auto first_moving = static_cast<std::size_t>(
-        std::find_if(out.velocity.begin(), out.velocity.end(), [](double v) { return v != 0.0; }) - out.velocity.begin());
+        std::find_if(out.velocity.begin(), out.velocity.end(), [](double v) { return v != 0.0; }) -
+        out.velocity.begin());
     ASSERT_LT(first_moving, out.velocity.size()) << "the axis never broke away";
     ASSERT_GT(first_moving, 1u);
     for (std::size_t k = 0; k < first_moving; ++k) {
@@ -261,7 +262,9 @@ void expect_breakaway_at_the_breakaway_force(double offset) {
     EXPECT_GT(out.velocity[first_moving], 0.0);
 }
 
-TEST(Simulate, StaysAtRestBelowBreakawayAndStartsAboveIt) { expect_breakaway_at_the_breakaway_force(0.0); }
+TEST(Simulate, StaysAtRestBelowBreakawayAndStartsAboveIt) {
+    expect_breakaway_at_the_breakaway_force(0.0);
+}
 
 TEST(Simulate, VerticalAxisHeldByStaticFrictionStartsAtBreakawayPlusWeight) {
     // The weight (offset 80 N) is below F_B: static friction holds the axis; it moves up once F_d > F_0 + F_B.
@@ -455,7 +458,8 @@ TEST(Simulate, AxisFromSymmetricAndAsymmetricDocuments) {
         "coulomb_forward_N": {"value": 20.144}, "coulomb_reverse_N": {"value": 20.6277},
         "breakaway_forward_N": {"value": 25.0}, "breakaway_reverse_N": {"value": null},
         "stribeck_velocity_forward_m_per_s": {"value": 0.004}, "stribeck_velocity_reverse_m_per_s": {"value": null}
-      }})"), "r");
+      }})"),
+                                                       "r");
     EXPECT_DOUBLE_EQ(asymmetric.friction.forward.viscous, 166.7061);
     EXPECT_DOUBLE_EQ(asymmetric.friction.reverse.viscous, 240.4236);
     EXPECT_DOUBLE_EQ(asymmetric.friction.reverse.coulomb, 20.6277);
@@ -467,7 +471,9 @@ TEST(Simulate, AxisFromSymmetricAndAsymmetricDocuments) {
 
 TEST(Simulate, ResultWithoutMassIsBadInput) {
     EXPECT_THROW(feedid::axis_from_document(nlohmann::json::parse(R"({"parameters": {"mass_kg": {"value": null},
-        "coulomb_N": {"value": 1}}})"), "r.json"), feedid::InputError);
+        "coulomb_N": {"value": 1}}})"),
+                                            "r.json"),
+                 feedid::InputError);
     EXPECT_THROW(feedid::axis_from_document(nlohmann::json::parse("[1, 2]"), "r.json"), feedid::InputError);
     try {
         feedid::axis_from_document(nlohmann::json::parse(R"({"parameters": {"mass_kg": {"value": 3}}})"), "r.json");
@@ -480,9 +486,10 @@ TEST(Simulate, ResultWithoutMassIsBadInput) {
 
 TEST(Simulate, MissingResultFileIsExitCode2) {
     FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
-    const auto result = run_cli("simulate '" + (shared_data() / "emps/DATA_EMPS.mat").string() + "' " +
-                                emps_channels() + " --unit time=s --unit position=m --unit reference_position=m --unit current=V "
-                                "--result /nonexistent/result.json");
+    const auto result =
+        run_cli("simulate '" + (shared_data() / "emps/DATA_EMPS.mat").string() + "' " + emps_channels() +
+                " --unit time=s --unit position=m --unit reference_position=m --unit current=V "
+                "--result /nonexistent/result.json");
     EXPECT_EQ(result.exit_code, 2);
     EXPECT_EQ(feedid::testing::count_lines(result.err), 1) << result.err;
 }

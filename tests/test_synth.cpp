@@ -151,7 +151,8 @@ TEST(Synth, DriveFileOverridesTheDemoAndRejectsUnknownKeys) {
                  "offset_N": 50},
         "controller": {"kv_m_per_min_per_mm": 3, "tn_ms": 10},
         "sensors": {"sample_time_ms": 0.5, "position_resolution_um": 0.001},
-        "slow_passes": false, "seed": 9})"), "drive.json");
+        "slow_passes": false, "seed": 9})"),
+                                             "drive.json");
     EXPECT_DOUBLE_EQ(spec.axis.mass, 200.0);
     EXPECT_DOUBLE_EQ(spec.axis.friction.reverse.coulomb, 120.0);
     EXPECT_DOUBLE_EQ(spec.axis.friction.forward.viscous, 300.0);
@@ -199,15 +200,16 @@ TEST(Synth, DriveFileFrictionZones) {
     EXPECT_EQ(feedid::spec_to_json(feedid::spec_from_json(feedid::spec_to_json(spec), "printed")),
               feedid::spec_to_json(spec));
     try {
-        feedid::spec_from_json(nlohmann::json::parse(R"({"friction_zones": [{"from_mm": 0, "to_mm": 1, "factor": 2}]})"),
-                               "drive.json");
+        feedid::spec_from_json(
+            nlohmann::json::parse(R"({"friction_zones": [{"from_mm": 0, "to_mm": 1, "factor": 2}]})"), "drive.json");
         FAIL() << "expected an InputError";
     } catch (const feedid::InputError& e) {
         EXPECT_NE(std::string(e.what()).find("friction_zones[0]"), std::string::npos) << e.what();
     }
-    EXPECT_THROW(feedid::spec_from_json(nlohmann::json::parse(
-                     R"({"friction_zones": [{"from_mm": 5, "to_mm": 1, "coulomb_factor": 2}]})"), "d"),
-                 feedid::InputError);
+    EXPECT_THROW(
+        feedid::spec_from_json(
+            nlohmann::json::parse(R"({"friction_zones": [{"from_mm": 5, "to_mm": 1, "coulomb_factor": 2}]})"), "d"),
+        feedid::InputError);
 }
 
 TEST(Synth, CommandLineWritesATraceThatInfoReads) {
@@ -250,12 +252,13 @@ feedrates_mm_per_min = [1250, 9350]
     EXPECT_EQ(spec.test.feedrates_mm_per_min.size(), 2u);
     EXPECT_FALSE(spec.test.slow_passes);
     EXPECT_EQ(spec.seed, 3u);
-    const auto result = run_cli("synth --drive '" + (dir / "drive.toml").string() + "' --out '" +
-                                (dir / "out.csv").string() + "'");
+    const auto result =
+        run_cli("synth --drive '" + (dir / "drive.toml").string() + "' --out '" + (dir / "out.csv").string() + "'");
     EXPECT_EQ(result.exit_code, 0) << result.err;
     // Syntax errors name the file and line; unknown keys are rejected as in JSON.
     feedid::testing::write_text(dir / "bad.toml", "[axis]\nmass_kg = = 3\n");
-    const auto bad = run_cli("synth --drive '" + (dir / "bad.toml").string() + "' --out '" + (dir / "out.csv").string() + "'");
+    const auto bad =
+        run_cli("synth --drive '" + (dir / "bad.toml").string() + "' --out '" + (dir / "out.csv").string() + "'");
     EXPECT_EQ(bad.exit_code, 2);
     EXPECT_NE(bad.err.find("bad.toml:2"), std::string::npos) << bad.err;
     EXPECT_EQ(feedid::testing::count_lines(bad.err), 1) << bad.err;

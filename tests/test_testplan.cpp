@@ -91,8 +91,8 @@ TEST(TestPlan, StructureOfAMultiCentrePlan) {
         if (move.kind == feedid::MoveKind::dwell) {
             duration += move.dwell;
         } else {
-            duration += feedid::move_duration(std::abs(move.target - position), move.feed, options.acceleration,
-                                              options.jerk);
+            duration +=
+                feedid::move_duration(std::abs(move.target - position), move.feed, options.acceleration, options.jerk);
             position = move.target;
         }
     }
@@ -166,7 +166,8 @@ TEST(TestPlan, ReferenceTrajectoryFollowsTheMovesWithinTheLimits) {
         // Each move's target is reached and held through its dwell.
         for (const auto& move : plan.moves) {
             if (move.kind != feedid::MoveKind::feed) continue;
-            const bool reached = std::any_of(x.begin(), x.end(), [&](double p) { return std::abs(p - move.target) < 1e-12; });
+            const bool reached =
+                std::any_of(x.begin(), x.end(), [&](double p) { return std::abs(p - move.target) < 1e-12; });
             EXPECT_TRUE(reached) << move.description;
         }
     }

@@ -94,9 +94,9 @@ TEST(Trace, SampleTimeIsNotBiasedByRoundedTimeStamps) {
     Trace trace = make_trace(time, position);
     trace.validate();
     const auto base = trace.time_base();
-    EXPECT_NEAR(base.sample_time_s, 0.001, 1e-9);       // (30 s - 0 s) / 30000 steps, to float rounding of 30 s
+    EXPECT_NEAR(base.sample_time_s, 0.001, 1e-9);  // (30 s - 0 s) / 30000 steps, to float rounding of 30 s
     EXPECT_NEAR(base.duration_s, 30.0, 1e-6);
-    EXPECT_FALSE(base.jittery);                           // float steps deviate by < 2e-6 s, far below 1 %
+    EXPECT_FALSE(base.jittery);  // float steps deviate by < 2e-6 s, far below 1 %
 }
 
 TEST(Trace, SampleTimeIgnoresAGapButTheGapIsReported) {

@@ -27,9 +27,9 @@ std::string quoted(const std::filesystem::path& path) {
 
 struct Drive {
     std::string name;
-    std::string json;                      // the drive file
-    std::string identify_options;          // model and offset
-    std::map<std::string, double> truth;   // result-document key -> true value
+    std::string json;                     // the drive file
+    std::string identify_options;         // model and offset
+    std::map<std::string, double> truth;  // result-document key -> true value
     double position_gain;
     double velocity_gain;
     double integral_gain;
@@ -75,8 +75,9 @@ void round_trip(const Drive& drive) {
     }
 
     // The digital twin: the identified axis with the identified gains tracks like the synthetic machine.
-    const auto simulated = run_cli("simulate " + quoted(trace) + " --force-constant force_constant_N_per_A --result " +
-                                   quoted(dir / "result.json") + " --gains " + quoted(dir / "gains.json") + " --json -");
+    const auto simulated =
+        run_cli("simulate " + quoted(trace) + " --force-constant force_constant_N_per_A --result " +
+                quoted(dir / "result.json") + " --gains " + quoted(dir / "gains.json") + " --json -");
     ASSERT_EQ(simulated.exit_code, 0) << simulated.err;
     const auto validation = nlohmann::json::parse(simulated.out);
     const double model = validation["tracking_error_mae_m"]["model"].get<double>();
@@ -93,9 +94,14 @@ TEST(TwinRoundTrip, SymmetricDrive) {
                     "controller": {"kv_m_per_min_per_mm": 2.5, "velocity_gain_N_s_per_m": 40000, "tn_ms": 15},
                     "seed": 11})",
                 "--model symmetric",
-                {{"mass_kg", 120}, {"viscous_Ns_per_m", 800}, {"coulomb_N", 300}, {"breakaway_N", 400},
+                {{"mass_kg", 120},
+                 {"viscous_Ns_per_m", 800},
+                 {"coulomb_N", 300},
+                 {"breakaway_N", 400},
                  {"stribeck_velocity_m_per_s", 0.005}},
-                feedid::position_gain_from_kv(2.5), 40000, 40000 / 0.015});
+                feedid::position_gain_from_kv(2.5),
+                40000,
+                40000 / 0.015});
 }
 
 TEST(TwinRoundTrip, AsymmetricDrive) {
@@ -116,7 +122,9 @@ TEST(TwinRoundTrip, AsymmetricDrive) {
                  {"breakaway_reverse_N", 430},
                  {"stribeck_velocity_forward_m_per_s", 0.004},
                  {"stribeck_velocity_reverse_m_per_s", 0.006}},
-                feedid::position_gain_from_kv(2.0), 35000, 35000 / 0.020});
+                feedid::position_gain_from_kv(2.0),
+                35000,
+                35000 / 0.020});
 }
 
 TEST(TwinRoundTrip, VerticalAxisWithOffset) {
@@ -126,9 +134,15 @@ TEST(TwinRoundTrip, VerticalAxisWithOffset) {
                     "controller": {"kv_m_per_min_per_mm": 1.5, "velocity_gain_N_s_per_m": 45000, "tn_ms": 25},
                     "seed": 13})",
                 "--model symmetric --offset",
-                {{"mass_kg", 150}, {"offset_N", 600}, {"viscous_Ns_per_m", 600}, {"coulomb_N", 250},
-                 {"breakaway_N", 330}, {"stribeck_velocity_m_per_s", 0.005}},
-                feedid::position_gain_from_kv(1.5), 45000, 45000 / 0.025});
+                {{"mass_kg", 150},
+                 {"offset_N", 600},
+                 {"viscous_Ns_per_m", 600},
+                 {"coulomb_N", 250},
+                 {"breakaway_N", 330},
+                 {"stribeck_velocity_m_per_s", 0.005}},
+                feedid::position_gain_from_kv(1.5),
+                45000,
+                45000 / 0.025});
 }
 
 TEST(TwinRoundTrip, GainsFromTheStructureWhenTheVelocityCommandIsNotLogged) {

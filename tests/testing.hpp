@@ -3,24 +3,26 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
 #include <array>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <sys/wait.h>
 
 namespace feedid::testing {
 
 /// ../shared/data (a CMake cache variable); tests that need it skip with a message when it is absent.
-inline std::filesystem::path shared_data() { return FEEDID_SHARED_DATA; }
+inline std::filesystem::path shared_data() {
+    return FEEDID_SHARED_DATA;
+}
 
-#define FEEDID_REQUIRE_SHARED(relative)                                                                      \
-    do {                                                                                                     \
-        if (!std::filesystem::exists(::feedid::testing::shared_data() / (relative)))                         \
-            GTEST_SKIP() << "reference data not found: " << (::feedid::testing::shared_data() / (relative))  \
-                         << " (set -DFEEDID_SHARED_DATA=...)";                                               \
+#define FEEDID_REQUIRE_SHARED(relative)                                                                     \
+    do {                                                                                                    \
+        if (!std::filesystem::exists(::feedid::testing::shared_data() / (relative)))                        \
+            GTEST_SKIP() << "reference data not found: " << (::feedid::testing::shared_data() / (relative)) \
+                         << " (set -DFEEDID_SHARED_DATA=...)";                                              \
     } while (0)
 
 struct CliResult {
@@ -30,7 +32,9 @@ struct CliResult {
 };
 
 /// The folder of this build's test files (build/test-files): never shared with another build's test run.
-inline std::filesystem::path test_files_root() { return std::filesystem::path(FEEDID_TEST_TMP); }
+inline std::filesystem::path test_files_root() {
+    return std::filesystem::path(FEEDID_TEST_TMP);
+}
 
 /// A fresh folder for the running test's files, named after the test.
 inline std::filesystem::path temp_dir() {
@@ -59,8 +63,8 @@ inline CliResult run_cli(const std::string& arguments) {
     static int counter = 0;
     const auto out_path = dir / ("out" + std::to_string(::getpid()) + "_" + std::to_string(counter) + ".txt");
     const auto err_path = dir / ("err" + std::to_string(::getpid()) + "_" + std::to_string(counter++) + ".txt");
-    const std::string command = std::string("'") + FEEDID_CLI + "' " + arguments + " >'" + out_path.string() +
-                                "' 2>'" + err_path.string() + "' </dev/null";
+    const std::string command = std::string("'") + FEEDID_CLI + "' " + arguments + " >'" + out_path.string() + "' 2>'" +
+                                err_path.string() + "' </dev/null";
     const int status = std::system(command.c_str());
     CliResult result;
     result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);

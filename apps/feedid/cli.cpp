@@ -1,7 +1,7 @@
 #include "cli.hpp"
 
-#include <cstdio>
 #include <charconv>
+#include <cstdio>
 #include <fstream>
 #include <iostream>
 
@@ -77,8 +77,10 @@ DriveConstants DriveArguments::constants() const {
         const auto* begin = force_constant.data();
         const auto* end = begin + force_constant.size();
         const auto [ptr, error] = std::from_chars(begin, end, value);
-        if (error == std::errc() && ptr == end) constants.force_constant = value;
-        else constants.force_constant_name = force_constant;
+        if (error == std::errc() && ptr == end)
+            constants.force_constant = value;
+        else
+            constants.force_constant_name = force_constant;
     }
     if (const auto problem = constants.validate(); !problem.empty()) throw InputError(problem);
     return constants;

@@ -5,9 +5,9 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
-#include "gain_arguments.hpp"
 #include "feedid/controller.hpp"
 #include "feedid/error.hpp"
+#include "gain_arguments.hpp"
 
 namespace feedid::cli {
 
@@ -45,8 +45,9 @@ struct GainsCommand {
             if (json_path == "-") return 0;
         }
         fmt::print("{}: controller gains ({} samples, {})\n", trace.source_path, result.samples_used,
-                   result.method == "velocity_command" ? "position and velocity loop each from the logged velocity command"
-                                                       : "from reference, position and drive signal");
+                   result.method == "velocity_command"
+                       ? "position and velocity loop each from the logged velocity command"
+                       : "from reference, position and drive signal");
         fmt::print("  position loop  K_v   {:<28} ({})\n", format_estimate(result.position_gain_per_s, "1/s"),
                    format_estimate(result.position_gain_per_s, "(m/min)/mm", 0.06));
         if (result.velocity_feedforward.value) {
@@ -54,7 +55,8 @@ struct GainsCommand {
         }
         fmt::print("  velocity loop  K_p   {:<28}", format_estimate(result.velocity_gain_N_s_per_m, "N*s/m"));
         if (options.force_per_signal != 0.0) {
-            const std::string unit = (options.signal_unit.empty() ? std::string("signal") : options.signal_unit) + "/(m/s)";
+            const std::string unit =
+                (options.signal_unit.empty() ? std::string("signal") : options.signal_unit) + "/(m/s)";
             Estimate signal = result.velocity_gain_N_s_per_m;
             fmt::print(" ({})", format_estimate(signal, unit.c_str(), 1.0 / options.force_per_signal));
         }
@@ -65,9 +67,10 @@ struct GainsCommand {
         } else {
             fmt::print("                 K_i   — (P-only velocity loop)\n");
         }
-        fmt::print("  structure      velocity measured as (x_k - x_k-{0})/({0}*T); reference delay {1} samples; "
-                   "current-loop lag {2:.3g} ms\n",
-                   result.velocity_difference_samples, result.reference_delay_samples, result.current_lag_s * 1e3);
+        fmt::print(
+            "  structure      velocity measured as (x_k - x_k-{0})/({0}*T); reference delay {1} samples; "
+            "current-loop lag {2:.3g} ms\n",
+            result.velocity_difference_samples, result.reference_delay_samples, result.current_lag_s * 1e3);
         fmt::print("  fit            relative error {:.3g} % (velocity loop)", result.relative_error_pct);
         if (result.method == "velocity_command") {
             fmt::print(", {:.3g} % (position loop)", result.position_loop_relative_error_pct);

@@ -76,7 +76,8 @@ std::string runs_csv(const std::vector<history::RunRecord>& runs) {
                             run.trace_sha256, csv_field(run.trace_path));
         for (const auto& key : keys) {
             const auto found = run.parameters.find(key);
-            if (found == run.parameters.end()) text += ",,";
+            if (found == run.parameters.end())
+                text += ",,";
             else
                 text += fmt::format(",{},{}", number(found->second.value), number(found->second.standard_error));
         }
@@ -95,7 +96,8 @@ void print_table(const std::vector<history::RunRecord>& runs, const std::vector<
         for (const auto* run : series_runs)
             for (const auto& [key, estimate] : run->parameters) keys.insert(key);
         fmt::print("machine '{}' axis '{}': {} run(s); baseline: ", series.machine, series.axis, series_runs.size());
-        if (series.baseline_run_ids.empty()) fmt::print("none\n");
+        if (series.baseline_run_ids.empty())
+            fmt::print("none\n");
         else
             fmt::print("run(s) #{}..#{}{}\n", series.baseline_run_ids.front(), series.baseline_run_ids.back(),
                        series.pinned_run ? fmt::format(" (pinned at #{})", *series.pinned_run) : "");
@@ -146,14 +148,14 @@ int run_history(HistoryArguments& arguments) {
                 if (!result.is_object() || !result.contains("trace") || !result["trace"].is_object() ||
                     !result["trace"].contains("path") || !result["trace"]["path"].is_string())
                     (void)history::run_from_result(result, path);  // the clearer message for a wrong document
-                if (result.contains("trace") && result["trace"].contains("path") &&
-                    result["trace"]["path"].is_string())
+                if (result.contains("trace") && result["trace"].contains("path") && result["trace"]["path"].is_string())
                     trace = result["trace"]["path"].get<std::string>();
                 // A relative trace path is relative to where identify ran; fall back to the result's folder.
                 if (!trace.empty() && trace.is_relative() && !std::filesystem::exists(trace))
                     trace = std::filesystem::path(path).parent_path() / trace;
                 if (trace.empty())
-                    throw InputError(fmt::format("{}: the result names no trace file; give it with --trace FILE", path));
+                    throw InputError(
+                        fmt::format("{}: the result names no trace file; give it with --trace FILE", path));
             }
             history::RecordContext context;
             context.machine = arguments.filter.machine;
@@ -184,8 +186,10 @@ int run_history(HistoryArguments& arguments) {
     }
     if (arguments.pin) {
         const auto all = store->runs({});
-        const auto found = std::find_if(all.begin(), all.end(), [&](const auto& run) { return run.id == *arguments.pin; });
-        if (found == all.end()) throw InputError(fmt::format("{}: there is no run #{}", arguments.database, *arguments.pin));
+        const auto found =
+            std::find_if(all.begin(), all.end(), [&](const auto& run) { return run.id == *arguments.pin; });
+        if (found == all.end())
+            throw InputError(fmt::format("{}: there is no run #{}", arguments.database, *arguments.pin));
         store->pin_baseline(found->machine, found->axis, found->id);
         fmt::print(stderr, "feedid: the baseline of machine '{}' axis '{}' now starts at run #{}\n", found->machine,
                    found->axis, found->id);
@@ -222,9 +226,10 @@ int run_history(HistoryArguments& arguments) {
         return alarms > 0 ? 1 : 0;
     }
     if (arguments.json_path.empty() && arguments.csv_path.empty() && !writes) {
-        if (runs.empty()) fmt::print("no runs recorded{}\n", arguments.filter.machine.empty() && arguments.filter.axis.empty()
-                                                                 ? ""
-                                                                 : " for this machine/axis");
+        if (runs.empty())
+            fmt::print("no runs recorded{}\n", arguments.filter.machine.empty() && arguments.filter.axis.empty()
+                                                   ? ""
+                                                   : " for this machine/axis");
         print_table(runs, trends);
     }
     return 0;
@@ -236,14 +241,17 @@ Action add_history_command(CLI::App& app) {
     auto arguments = std::make_shared<HistoryArguments>();
     auto* sub = app.add_subcommand("history", "List, record and check the parameter history of machines and axes");
     sub->add_option("DB", arguments->database, "The history database (SQLite file)")->required();
-    sub->add_option("--machine", arguments->filter.machine, "Only this machine (with --add: the machine to file under)");
+    sub->add_option("--machine", arguments->filter.machine,
+                    "Only this machine (with --add: the machine to file under)");
     sub->add_option("--axis", arguments->filter.axis, "Only this axis (with --add: the axis to file under)");
     sub->add_option("--location", arguments->filter.location, "Only this location / site (with --add: its site)");
-    auto* json = sub->add_option("--json", arguments->json_path, "Write runs and trends as JSON to PATH (- or no value: "
-                                                                  "stdout)")
+    auto* json = sub->add_option("--json", arguments->json_path,
+                                 "Write runs and trends as JSON to PATH (- or no value: "
+                                 "stdout)")
                      ->expected(0, 1);
-    auto* csv = sub->add_option("--csv", arguments->csv_path, "Write the runs as CSV, one row per run, to PATH (- or no "
-                                                               "value: stdout)")
+    auto* csv = sub->add_option("--csv", arguments->csv_path,
+                                "Write the runs as CSV, one row per run, to PATH (- or no "
+                                "value: stdout)")
                     ->expected(0, 1);
     sub->add_flag("--check", arguments->check,
                   "Check for drift: print every alarm (machine, axis, parameter, run) and exit 1 when there is one, 0 "
@@ -269,7 +277,8 @@ Action add_history_command(CLI::App& app) {
     sub->footer(
         "Trend: each run's change against the baseline (mean of the first --baseline-runs runs of the axis, or of the\n"
         "runs from a pinned one) in units of the combined standard error, where a run's error is the larger of its\n"
-        "reported standard error and the baseline runs' own scatter; a two-sided CUSUM per parameter raises the alarm.\n"
+        "reported standard error and the baseline runs' own scatter; a two-sided CUSUM per parameter raises the "
+        "alarm.\n"
         "Examples:\n"
         "  feedid identify x.csv --json - --record shop.db --machine DMU50 --axis X\n"
         "  feedid history shop.db --add result.json --machine DMU50 --axis X --recorded-at 2026-11-23T09:00:00Z\n"

@@ -45,9 +45,10 @@ struct IdentifyCommand {
         location->add_flag("--by-location", by_location,
                            "Cut a multi-centre test (feedid plan --centers ...) by centre and identify each segment on "
                            "its own: a friction map, in which a worn stretch of the screw stands out");
-        location->add_option("--centers", centers_mm,
-                             "Centres of the strokes C1,C2,... [mm] for --by-location (write --centers=-300,0,300); "
-                             "default: found from the strokes in the trace")
+        location
+            ->add_option("--centers", centers_mm,
+                         "Centres of the strokes C1,C2,... [mm] for --by-location (write --centers=-300,0,300); "
+                         "default: found from the strokes in the trace")
             ->delimiter(',');
         auto* pre = sub.add_option_group("Preprocessing");
         pre->add_option("--differentiation", differentiation,
@@ -59,7 +60,8 @@ struct IdentifyCommand {
         pre->add_option("--cutoff", cutoff, "Butterworth cut-off [Hz] (default: min(100 Hz, sample rate / 10))");
         pre->add_option("--sg-window", options.savitzky_golay_window,
                         "Savitzky-Golay window [samples, odd] (default: about 20 ms)");
-        pre->add_option("--sg-order", options.savitzky_golay_order, "Savitzky-Golay polynomial order")->capture_default_str();
+        pre->add_option("--sg-order", options.savitzky_golay_order, "Savitzky-Golay polynomial order")
+            ->capture_default_str();
         pre->add_option("--decimate", options.decimation,
                         "Decimate every regressor column and the force by this factor (order-8 Chebyshev anti-alias "
                         "filter, forwards and backwards; default 1 = none)");
@@ -75,7 +77,8 @@ struct IdentifyCommand {
                            "|v| above which a sample counts as moving [m/s] (default: 5x the velocity noise floor)");
         auto* rls = sub.add_option_group("RLS");
         rls->add_option("--lambda", options.rls.forgetting_factor, "Forgetting factor")->capture_default_str();
-        rls->add_option("--p0", options.rls.initial_covariance, "Initial covariance P(0) = p0 * I")->capture_default_str();
+        rls->add_option("--p0", options.rls.initial_covariance, "Initial covariance P(0) = p0 * I")
+            ->capture_default_str();
         rls->add_option("--rls", rls_variant,
                         "RLS variant: directional (forgetting only where the data excites; robust) or paper "
                         "(exponential forgetting, eq. 7-9)")
@@ -105,7 +108,9 @@ struct IdentifyCommand {
     /// The options that shape the result (canonical key order), stored with a recorded run: the same trace with
     /// other options is another run.
     nlohmann::json options_json() const {
-        const auto optional = [](const auto& value) { return value ? nlohmann::json(*value) : nlohmann::json(nullptr); };
+        const auto optional = [](const auto& value) {
+            return value ? nlohmann::json(*value) : nlohmann::json(nullptr);
+        };
         return {{"model", model},
                 {"offset", options.offset},
                 {"stribeck", !no_stribeck},
@@ -120,13 +125,15 @@ struct IdentifyCommand {
                 {"to_s", optional(to)},
                 {"split_velocity", optional(split)},
                 {"moving_threshold", optional(moving)},
-                {"rls", {{"variant", rls_variant},
-                         {"forgetting_factor", options.rls.forgetting_factor},
-                         {"initial_covariance", options.rls.initial_covariance}}},
-                {"drive", {{"kt_Nm_per_A", optional(drive_arguments.kt)},
-                           {"lead_mm", optional(drive_arguments.lead_mm)},
-                           {"gear_ratio", drive_arguments.gear_ratio},
-                           {"force_constant", drive_arguments.force_constant}}},
+                {"rls",
+                 {{"variant", rls_variant},
+                  {"forgetting_factor", options.rls.forgetting_factor},
+                  {"initial_covariance", options.rls.initial_covariance}}},
+                {"drive",
+                 {{"kt_Nm_per_A", optional(drive_arguments.kt)},
+                  {"lead_mm", optional(drive_arguments.lead_mm)},
+                  {"gear_ratio", drive_arguments.gear_ratio},
+                  {"force_constant", drive_arguments.force_constant}}},
                 {"channels", trace_arguments.channel_assignments},
                 {"units", trace_arguments.unit_assignments},
                 {"axis", trace_arguments.axis},
@@ -172,7 +179,7 @@ struct IdentifyCommand {
         if (!any) {
             std::string why;
             for (const auto& location : map.locations) {
-                const std::string reason = location.error ? *location.error
+                const std::string reason = location.error                        ? *location.error
                                            : location.result.diagnostics.empty() ? std::string("not identified")
                                                                                  : location.result.diagnostics.front();
                 why += fmt::format("{}centre {:.3f} mm: {}", why.empty() ? "" : "; ", location.center * 1e3, reason);
@@ -191,8 +198,8 @@ struct IdentifyCommand {
         std::vector<const Parameter*> columns;
         for (const auto& location : map.locations) {
             for (const auto& p : location.result.parameters) {
-                const bool seen = std::any_of(columns.begin(), columns.end(),
-                                              [&](const Parameter* c) { return c->key == p.key; });
+                const bool seen =
+                    std::any_of(columns.begin(), columns.end(), [&](const Parameter* c) { return c->key == p.key; });
                 if (!seen) columns.push_back(&p);
             }
         }
@@ -245,7 +252,8 @@ struct IdentifyCommand {
         }
         if (doc.contains("rls")) {
             fmt::print("  RLS ({}): settled at {:.3g} s{}\n", doc["rls"]["variant"].get<std::string>(),
-                       doc["rls"]["transient_end_s"].get<double>(), doc["rls"]["settled"].get<bool>() ? "" : " (did not settle)");
+                       doc["rls"]["transient_end_s"].get<double>(),
+                       doc["rls"]["settled"].get<bool>() ? "" : " (did not settle)");
             for (const auto& [key, value] : doc["rls"]["final"].items()) {
                 fmt::print("    {:<28} final {:>12.6g}   averaged {:>12.6g}\n", key, value.get<double>(),
                            doc["rls"]["averaged"][key].get<double>());
@@ -266,8 +274,9 @@ struct IdentifyCommand {
 
 Action add_identify_command(CLI::App& app) {
     auto command = std::make_shared<IdentifyCommand>();
-    auto* sub = app.add_subcommand("identify", "Estimate mass, viscous, Coulomb and breakaway friction and Stribeck "
-                                               "velocity, each with a standard error");
+    auto* sub = app.add_subcommand("identify",
+                                   "Estimate mass, viscous, Coulomb and breakaway friction and Stribeck "
+                                   "velocity, each with a standard error");
     command->add_to(*sub);
     sub->footer(
         "Examples:\n"

@@ -66,11 +66,10 @@ struct InfoCommand {
         fmt::print("    {:<28} {:<20} {:<8} {:<10} {:>14} {:>14}\n", "name", "role", "unit", "source", "min", "max");
         for (const auto& channel : trace.channels) {
             const auto range = finite_range(channel.values);
-            fmt::print("    {:<28} {:<20} {:<8} {:<10} {:>14} {:>14}\n", channel.name, role_name(channel.role),
-                       channel.unit.empty() ? "-" : channel.unit,
-                       channel.source_unit.empty() ? "-" : channel.source_unit,
-                       range ? fmt::format("{:.6g}", range->first) : "-",
-                       range ? fmt::format("{:.6g}", range->second) : "-");
+            fmt::print(
+                "    {:<28} {:<20} {:<8} {:<10} {:>14} {:>14}\n", channel.name, role_name(channel.role),
+                channel.unit.empty() ? "-" : channel.unit, channel.source_unit.empty() ? "-" : channel.source_unit,
+                range ? fmt::format("{:.6g}", range->first) : "-", range ? fmt::format("{:.6g}", range->second) : "-");
         }
         if (!trace.constants.empty()) {
             fmt::print("  constants\n");
@@ -92,8 +91,9 @@ Action add_info_command(CLI::App& app) {
     sub->add_option("--json", command->json_path, "Write the info document to PATH ('-' for stdout)");
     sub->add_option("--lead", command->trace_arguments.lead_mm,
                     "Ball-screw lead [mm per revolution]: converts channels in rpm to table velocity");
-    sub->footer("Example:\n  feedid info ../shared/data/emps/DATA_EMPS.mat\n"
-                "  feedid info trace.csv --channel position=x_act --unit current=A --json -");
+    sub->footer(
+        "Example:\n  feedid info ../shared/data/emps/DATA_EMPS.mat\n"
+        "  feedid info trace.csv --channel position=x_act --unit current=A --json -");
     return [command] { return command->run(); };
 }
 

@@ -84,9 +84,10 @@ nlohmann::json plan_document(const TestPlan& plan, const IdentifiabilityPredicti
     }
     nlohmann::json parameters = nlohmann::json::object();
     for (const auto& p : prediction.parameters) {
-        parameters[p.key] = {{"nominal", p.nominal},
-                             {"stderr", std::isfinite(p.standard_error) ? nlohmann::json(p.standard_error) : nlohmann::json()},
-                             {"identifiable", p.identifiable}};
+        parameters[p.key] = {
+            {"nominal", p.nominal},
+            {"stderr", std::isfinite(p.standard_error) ? nlohmann::json(p.standard_error) : nlohmann::json()},
+            {"identifiable", p.identifiable}};
     }
     const auto& o = plan.options;
     return {{"feedid_version", version},
@@ -116,13 +117,15 @@ void print_summary(std::FILE* out, const TestPlan& plan, const IdentifiabilityPr
     const auto& o = plan.options;
     std::size_t slow = 0;
     for (const auto& pass : plan.passes) slow += pass.slow ? 1 : 0;
-    fmt::print(out, "feedid plan: axis {}, {} centre(s), {} passes ({} slow), {} blocks, predicted duration {:.1f} s "
-                    "({:.1f} min)\n",
+    fmt::print(out,
+               "feedid plan: axis {}, {} centre(s), {} passes ({} slow), {} blocks, predicted duration {:.1f} s "
+               "({:.1f} min)\n",
                o.axis, o.centers.size(), plan.passes.size(), slow, plan.moves.size(), plan.duration,
                plan.duration / 60.0);
     const auto& branch = nominal.drive.friction.forward;
-    fmt::print(out, "identifiability from a nominal drive (M {} kg, B {} N*s/m, F_C {} N, F_B {} N, v_s {} mm/s; force "
-                    "noise {} N):\n",
+    fmt::print(out,
+               "identifiability from a nominal drive (M {} kg, B {} N*s/m, F_C {} N, F_B {} N, v_s {} mm/s; force "
+               "noise {} N):\n",
                nominal.drive.mass, branch.viscous, branch.coulomb, branch.breakaway.value_or(0.0),
                branch.stribeck_velocity.value_or(0.0) / mm, nominal.force_noise);
     fmt::print(out, "  step 1: condition number {:.3g} over {} samples; step 2: {} constant-velocity friction levels\n",
@@ -202,7 +205,8 @@ Action add_plan_command(CLI::App& app) {
     };
     auto arguments = std::make_shared<Arguments>();
     auto& a = *arguments;
-    sub->add_option("--axis", a.axis, "Axis name as the NC knows it (X, Y, Z, A, ...; X1 on SINUMERIK)")->default_val("X");
+    sub->add_option("--axis", a.axis, "Axis name as the NC knows it (X, Y, Z, A, ...; X1 on SINUMERIK)")
+        ->default_val("X");
     sub->add_option("--travel", a.travel, "Travel limits MIN:MAX [mm] (write --travel=-400:400)")->required();
     sub->add_option("--centers", a.centers, "Centres of the strokes C1,C2,... [mm] (write --centers=-300,0,300)")
         ->required();
@@ -238,8 +242,7 @@ Action add_plan_command(CLI::App& app) {
     sub->add_option("--force-noise", a.force_noise, "Expected force noise per sample [N]")->default_val(10.0);
     sub->add_option("--level-error", a.level_error, "Expected error of one pass's friction level [N]")
         ->default_val(5.0);
-    sub->add_option("--position-resolution", a.resolution_um, "Position measurement resolution [um]")
-        ->default_val(1.0);
+    sub->add_option("--position-resolution", a.resolution_um, "Position measurement resolution [um]")->default_val(1.0);
 
     return [arguments]() -> int {
         const auto& a = *arguments;
@@ -251,7 +254,8 @@ Action add_plan_command(CLI::App& app) {
         options.travel_max = parse_number(travel[1], "--travel") * mm;
         options.centers = parse_list(a.centers, "--centers", mm);
         options.stroke = a.stroke_mm * mm;
-        if (!a.feeds.empty()) options.feeds = a.feeds == "none" ? std::vector<double>{} : parse_list(a.feeds, "--feeds", mm_per_min);
+        if (!a.feeds.empty())
+            options.feeds = a.feeds == "none" ? std::vector<double>{} : parse_list(a.feeds, "--feeds", mm_per_min);
         options.slow_feeds = parse_slow_feeds(a.slow_feeds);
         options.max_pass_time = a.max_pass_time_s;
         options.cycles = a.cycles;

@@ -24,24 +24,24 @@ struct ReportArguments {
 int run_report(const ReportArguments& arguments) {
     if (const auto problem = arguments.trend.validate(); !problem.empty()) throw InputError(problem);
     if (!std::filesystem::is_regular_file(arguments.input))
-        throw InputError(fmt::format("{}: no such file (give an identify result document or a history database)",
-                                     arguments.input));
+        throw InputError(
+            fmt::format("{}: no such file (give an identify result document or a history database)", arguments.input));
     std::string html;
     if (history::looks_like_sqlite(arguments.input)) {
         // A simulation validates one run; a history holds many.
         if (!arguments.simulation_path.empty())
-            throw InputError(fmt::format("--simulation {}: goes with an identify result document, not with a history "
-                                         "database ({})",
-                                         arguments.simulation_path, arguments.input));
+            throw InputError(
+                fmt::format("--simulation {}: goes with an identify result document, not with a history "
+                            "database ({})",
+                            arguments.simulation_path, arguments.input));
         history::SqliteOpenOptions options;
         options.read_only = true;
         const auto store = history::open_sqlite_store(arguments.input, options);
         const auto runs = store->runs(arguments.filter);
         if (runs.empty())
-            throw InputError(fmt::format("{}: no runs recorded{}", arguments.input,
-                                         arguments.filter.machine.empty() && arguments.filter.axis.empty()
-                                             ? ""
-                                             : " for this machine/axis"));
+            throw InputError(fmt::format(
+                "{}: no runs recorded{}", arguments.input,
+                arguments.filter.machine.empty() && arguments.filter.axis.empty() ? "" : " for this machine/axis"));
         const auto trends = history::analyse_trends(runs, store->pins(), arguments.trend);
         html = report::history_report_html(runs, trends, arguments.trend, arguments.input);
     } else {
@@ -49,9 +49,10 @@ int run_report(const ReportArguments& arguments) {
         try {
             document = read_json(arguments.input);
         } catch (const InputError&) {
-            throw InputError(fmt::format("{}: neither an identify result document (JSON) nor a history database "
-                                         "(SQLite)",
-                                         arguments.input));
+            throw InputError(
+                fmt::format("{}: neither an identify result document (JSON) nor a history database "
+                            "(SQLite)",
+                            arguments.input));
         }
         std::optional<report::SimulationDocument> simulation;
         if (!arguments.simulation_path.empty())
@@ -74,8 +75,9 @@ int run_report(const ReportArguments& arguments) {
 
 Action add_report_command(CLI::App& app) {
     auto arguments = std::make_shared<ReportArguments>();
-    auto* sub = app.add_subcommand("report", "Write one self-contained HTML report with plots of an identify result or "
-                                             "of a parameter history");
+    auto* sub = app.add_subcommand("report",
+                                   "Write one self-contained HTML report with plots of an identify result or "
+                                   "of a parameter history");
     sub->add_option("INPUT", arguments->input,
                     "An identify result document (feedid identify --json) or a history database (SQLite file)")
         ->required();

@@ -47,9 +47,10 @@ struct SimulateCommand {
         } else {
             const GainResult gains = identify_gains(trace, force, gain_options);
             controller = gains.controller;
-            notes.push_back(fmt::format("gains identified from the trace: K_v {:.6g} 1/s, K_p {:.6g} N*s/m, K_i {:.6g} N/m",
-                                        controller.position_gain_per_s, controller.velocity_gain_N_s_per_m,
-                                        controller.velocity_integral_gain_N_per_m));
+            notes.push_back(
+                fmt::format("gains identified from the trace: K_v {:.6g} 1/s, K_p {:.6g} N*s/m, K_i {:.6g} N/m",
+                            controller.position_gain_per_s, controller.velocity_gain_N_s_per_m,
+                            controller.velocity_integral_gain_N_per_m));
         }
         const double dt = trace.time_base().sample_time_s;
         if (controller.position_cycle_s == 0.0) controller.position_cycle_s = dt;
@@ -95,15 +96,16 @@ struct SimulateCommand {
         fmt::print("  {:<32} {:>12} {:>12}\n", "", "model", "machine");
         fmt::print("  {:<32} {:>12.4g} {:>12.4g}   {}\n", "mean absolute tracking error",
                    metrics.tracking_error_mae_model_m * 1e3, metrics.tracking_error_mae_machine_m * 1e3, unit);
-        fmt::print("  {:<32} {:>12.4g} {:>12.4g}   {}\n", "largest tracking error", metrics.tracking_error_max_model_m * 1e3,
-                   metrics.tracking_error_max_machine_m * 1e3, unit);
+        fmt::print("  {:<32} {:>12.4g} {:>12.4g}   {}\n", "largest tracking error",
+                   metrics.tracking_error_max_model_m * 1e3, metrics.tracking_error_max_machine_m * 1e3, unit);
         fmt::print("  {:<32} {:>12.4g}   {}   (e_m = x_machine - x_model; largest {:.4g} {})\n",
                    "mean absolute modelling error", metrics.modelling_error_mae_m * 1e3, unit,
                    metrics.modelling_error_max_m * 1e3, unit);
-        fmt::print("  relative error 100*||y - y_sim||/||y||: position {:.4g} %, velocity {:.4g} %, acceleration {:.4g} %, "
-                   "force {:.4g} %\n",
-                   metrics.position_relative_error_pct, metrics.velocity_relative_error_pct,
-                   metrics.acceleration_relative_error_pct, metrics.force_relative_error_pct);
+        fmt::print(
+            "  relative error 100*||y - y_sim||/||y||: position {:.4g} %, velocity {:.4g} %, acceleration {:.4g} %, "
+            "force {:.4g} %\n",
+            metrics.position_relative_error_pct, metrics.velocity_relative_error_pct,
+            metrics.acceleration_relative_error_pct, metrics.force_relative_error_pct);
         return 0;
     }
 };
@@ -113,7 +115,8 @@ struct SimulateCommand {
 Action add_simulate_command(CLI::App& app) {
     auto command = std::make_shared<SimulateCommand>();
     auto* sub = app.add_subcommand(
-        "simulate", "Simulate the identified axis in closed loop on the trace's reference and compare with the machine");
+        "simulate",
+        "Simulate the identified axis in closed loop on the trace's reference and compare with the machine");
     command->trace_arguments.add_to(*sub);
     command->drive_arguments.add_to(*sub);
     command->gain_arguments.add_to(*sub);
@@ -125,9 +128,11 @@ Action add_simulate_command(CLI::App& app) {
     sub->add_option("--substeps", command->substeps, "Integration steps per sample")->default_val(8);
     sub->footer(
         "Examples:\n"
-        "  feedid identify DATA_EMPS.mat --channel position=qm --channel current=vir --force-constant gtau --offset \\\n"
+        "  feedid identify DATA_EMPS.mat --channel position=qm --channel current=vir --force-constant gtau --offset "
+        "\\\n"
         "      --json result.json\n"
-        "  feedid simulate DATA_EMPS.mat --channel position=qm --channel reference_position=qg --channel current=vir \\\n"
+        "  feedid simulate DATA_EMPS.mat --channel position=qm --channel reference_position=qg --channel current=vir "
+        "\\\n"
         "      --force-constant gtau --saturation 10 --result result.json\n"
         "  feedid simulate synth.csv --force-constant force_constant_N_per_A --result result.json --gains gains.json "
         "--out sim.csv");

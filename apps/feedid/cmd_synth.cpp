@@ -22,7 +22,8 @@ std::vector<double> read_reference(const std::string& path, double sample_time_s
     const Channel* reference = trace.find(Role::reference_position);
     if (reference == nullptr) reference = trace.find(Role::position);
     if (reference == nullptr) {
-        throw InputError(fmt::format("{}: no reference position column (name it x_ref, with its unit, e.g. 'x_ref [mm]')", path));
+        throw InputError(
+            fmt::format("{}: no reference position column (name it x_ref, with its unit, e.g. 'x_ref [mm]')", path));
     }
     const auto time = trace.column(Role::time);
     const double start = time.front();
@@ -80,9 +81,10 @@ Action add_synth_command(CLI::App& app) {
     auto* sub = app.add_subcommand(
         "synth", "Generate the trace an NC would record for a known drive, controller and test (with sensor models)");
     sub->add_option("--out", command->out_path, "Where to write the trace (CSV with `name [unit]` headers)");
-    sub->add_option("--drive", command->drive_path,
-                    "Drive file, JSON or TOML (*.toml): axis, controller, drive, sensors, test, seed; missing keys keep the "
-                    "demo values");
+    sub->add_option(
+        "--drive", command->drive_path,
+        "Drive file, JSON or TOML (*.toml): axis, controller, drive, sensors, test, seed; missing keys keep the "
+        "demo values");
     sub->add_option("--seed", command->seed, "Seed of the sensor noise (default: the drive file's, or 1)");
     sub->add_option("--reference", command->reference_path,
                     "A reference position to follow instead of the test: a file with time and x_ref columns (e.g. "
@@ -91,7 +93,8 @@ Action add_synth_command(CLI::App& app) {
                   "Leave out the slow passes: the paper's feedrate ladder (1250..9350 mm/min) alone");
     sub->add_flag("--print-drive", command->print_drive, "Print the drive file in use (every key) as JSON");
     sub->footer(
-        "The default drive: the paper's M 69.1 kg, B 54.2 N*s/m, F_C 742.8 N, F_B 946.2 N, v_s 5 mm/s; K_v 2 (m/min)/mm, "
+        "The default drive: the paper's M 69.1 kg, B 54.2 N*s/m, F_C 742.8 N, F_B 946.2 N, v_s 5 mm/s; K_v 2 "
+        "(m/min)/mm, "
         "K_p 40000 N*s/m, T_n 20 ms, current lag 0.3 ms; 1 kHz, 10 nm encoder, current noise 0.02 A, quantum 5 mA.\n"
         "The trace carries the drive constants (force_constant_N_per_A, kt_Nm_per_A, lead_m) and the true values as "
         "`# name = value` lines.\n"

@@ -54,7 +54,8 @@ struct GainArguments {
             }
         }
         if (saturation) {
-            options.saturation_N = std::abs(*saturation) * (options.force_per_signal != 0.0 ? std::abs(options.force_per_signal) : 1.0);
+            options.saturation_N =
+                std::abs(*saturation) * (options.force_per_signal != 0.0 ? std::abs(options.force_per_signal) : 1.0);
         }
         if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
         return options;

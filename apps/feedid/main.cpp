@@ -14,8 +14,9 @@ int main(int argc, char** argv) {
     CLI::App app{"feedid: rapid parameter estimation and health monitoring of CNC feed drives", "feedid"};
     app.set_version_flag("--version", std::string(feedid::version));
     app.require_subcommand(1);
-    app.footer("Exit codes: 0 success, 1 the analysis failed (the message says why), 2 bad usage or bad input.\n"
-               "Run `feedid SUBCOMMAND --help` for a subcommand's options and an example.");
+    app.footer(
+        "Exit codes: 0 success, 1 the analysis failed (the message says why), 2 bad usage or bad input.\n"
+        "Run `feedid SUBCOMMAND --help` for a subcommand's options and an example.");
 
     std::map<CLI::App*, Action> actions;
     const auto add = [&](Action (*add_command)(CLI::App&)) {

@@ -31,8 +31,8 @@ void RecordArguments::check(const std::string& axis) const {
     if (machine.empty()) throw InputError("--record needs the machine's name (--machine NAME)");
     if (axis.empty()) throw InputError("--record needs the axis (--axis X)");
     if (!recorded_at.empty() && !history::is_iso8601_utc(recorded_at))
-        throw InputError(fmt::format("--recorded-at '{}': not an ISO 8601 UTC time (e.g. 2026-11-23T09:30:00Z)",
-                                     recorded_at));
+        throw InputError(
+            fmt::format("--recorded-at '{}': not an ISO 8601 UTC time (e.g. 2026-11-23T09:30:00Z)", recorded_at));
     if (std::filesystem::exists(database)) {
         history::SqliteOpenOptions read_only;
         read_only.read_only = true;

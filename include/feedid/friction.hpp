@@ -10,10 +10,10 @@
 namespace feedid {
 
 struct FrictionBranch {
-    double viscous{0.0};                       ///< B [N*s/m]
-    double coulomb{0.0};                       ///< F_C [N]
-    std::optional<double> breakaway;           ///< F_B [N]; none = no Stribeck term
-    std::optional<double> stribeck_velocity;   ///< v_s [m/s]; none = no Stribeck term
+    double viscous{0.0};                      ///< B [N*s/m]
+    double coulomb{0.0};                      ///< F_C [N]
+    std::optional<double> breakaway;          ///< F_B [N]; none = no Stribeck term
+    std::optional<double> stribeck_velocity;  ///< v_s [m/s]; none = no Stribeck term
 
     /// Friction magnitude at speed |v| = speed >= 0.
     [[nodiscard]] double magnitude(double speed) const;
@@ -35,7 +35,7 @@ struct Friction {
 
 /// Mass and friction of one axis: M*x'' = F_d - F_f(x') - offset.
 struct AxisModel {
-    double mass{0.0};    ///< M [kg] (rotary: inertia [kg*m^2])
+    double mass{0.0};  ///< M [kg] (rotary: inertia [kg*m^2])
     Friction friction;
     double offset{0.0};  ///< Constant force [N] the drive must hold (gravity, sensor offset); F_d = ... + offset
     bool rotary{false};

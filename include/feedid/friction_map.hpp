@@ -19,11 +19,11 @@
 namespace feedid {
 
 struct FrictionMapOptions {
-    IdentifyOptions identify;             ///< applied to every segment
-    std::vector<double> centers;          ///< centres [m]; empty = detect them from the strokes
-    double turning_hysteresis{2e-5};      ///< a turning point needs the axis to come back this far [m]
-    double center_tolerance{5e-4};        ///< stroke midpoints this close belong to one centre [m]
-    int min_strokes{4};                   ///< a detected centre needs at least this many strokes about it
+    IdentifyOptions identify;         ///< applied to every segment
+    std::vector<double> centers;      ///< centres [m]; empty = detect them from the strokes
+    double turning_hysteresis{2e-5};  ///< a turning point needs the axis to come back this far [m]
+    double center_tolerance{5e-4};    ///< stroke midpoints this close belong to one centre [m]
+    int min_strokes{4};               ///< a detected centre needs at least this many strokes about it
     /// A location's parameter stands out when it differs from the median of the locations by more than this
     /// fraction and by more than 3 combined standard errors.
     double deviation_threshold{0.10};
@@ -33,13 +33,13 @@ struct FrictionMapOptions {
 };
 
 struct LocationResult {
-    double center{0.0};         ///< [m]
-    std::size_t first{0};       ///< first sample of the segment
-    std::size_t last{0};        ///< one past the last sample
-    double from_s{0.0};         ///< [s]
-    double to_s{0.0};           ///< [s]
-    double min_position{0.0};   ///< [m]
-    double max_position{0.0};   ///< [m]
+    double center{0.0};        ///< [m]
+    std::size_t first{0};      ///< first sample of the segment
+    std::size_t last{0};       ///< one past the last sample
+    double from_s{0.0};        ///< [s]
+    double to_s{0.0};          ///< [s]
+    double min_position{0.0};  ///< [m]
+    double max_position{0.0};  ///< [m]
     IdentifyResult result;
     std::optional<std::string> error;  ///< why this segment could not be identified (bad or too little data)
 };

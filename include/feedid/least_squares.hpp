@@ -16,7 +16,7 @@ struct LeastSquaresResult {
     double relative_error_pct{0.0};  ///< 100 * ||y - Phi*theta|| / ||y||
     double condition_number{0.0};    ///< sigma_max / sigma_min of Phi (2-norm)
     std::size_t samples{0};
-    bool rank_deficient{false};      ///< Phi has numerically dependent columns; estimate is then not unique
+    bool rank_deficient{false};  ///< Phi has numerically dependent columns; estimate is then not unique
 };
 
 /// Solves min ||y - Phi*theta||. Requires rows >= columns; returns rank_deficient when Phi lacks full column rank.

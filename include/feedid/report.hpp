@@ -27,10 +27,10 @@ namespace feedid::report {
 /// One data series of a plot.
 struct Series {
     enum class Style { line, points, line_and_points, step };
-    std::string name;                 ///< legend entry ("" = not in the legend)
+    std::string name;  ///< legend entry ("" = not in the legend)
     std::vector<double> x;
-    std::vector<double> y;            ///< same length as x; non-finite values are gaps
-    std::vector<double> band;         ///< empty, or half-widths: a shaded band y +- band
+    std::vector<double> y;     ///< same length as x; non-finite values are gaps
+    std::vector<double> band;  ///< empty, or half-widths: a shaded band y +- band
     Style style{Style::line};
     std::string colour{"#1f77b4"};
     bool dashed{false};
@@ -68,8 +68,8 @@ struct Plot {
     std::vector<HorizontalLine> horizontal;
     std::vector<VerticalLine> vertical;
     std::vector<Highlight> highlights;
-    bool log_x{false};    ///< logarithmic x axis (every x must be > 0)
-    double width{760.0};  ///< [px]
+    bool log_x{false};     ///< logarithmic x axis (every x must be > 0)
+    double width{760.0};   ///< [px]
     double height{340.0};  ///< [px]
 };
 
@@ -104,8 +104,7 @@ std::vector<Plot> simulation_plots(const nlohmann::json& simulation, const std::
 /// Plots of a history: for each axis and parameter with a trend, the values with their band, baseline, one-run alarm
 /// limits and alarms, and the CUSUM; the latest run's friction curve of each axis when stored.
 std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
-                                const std::vector<history::SeriesTrend>& trends,
-                                const history::TrendOptions& options);
+                                const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options);
 
 /// The whole HTML page of an identify result document (parameter table, diagnostics, plots), with the validation by
 /// simulation (figures and Fig. 6) when a simulate document is given. InputError when either document is of the
@@ -115,7 +114,7 @@ std::string result_report_html(const nlohmann::json& result, const std::string& 
 
 /// The whole HTML page of a history (per axis: runs, alarms, trend and CUSUM plots, latest friction curve).
 std::string history_report_html(const std::vector<history::RunRecord>& runs,
-                                const std::vector<history::SeriesTrend>& trends,
-                                const history::TrendOptions& options, const std::string& source);
+                                const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options,
+                                const std::string& source);
 
 }  // namespace feedid::report

@@ -28,9 +28,9 @@ struct RlsOptions {
 
 /// What one update did.
 enum class RlsUpdate : unsigned char {
-    updated,       ///< estimate and covariance updated
-    no_excitation, ///< phi^T*P*phi below round-off: nothing to learn, nothing forgotten (robust variant)
-    non_finite,    ///< phi or y not finite: sample ignored
+    updated,        ///< estimate and covariance updated
+    no_excitation,  ///< phi^T*P*phi below round-off: nothing to learn, nothing forgotten (robust variant)
+    non_finite,     ///< phi or y not finite: sample ignored
 };
 
 template <int N>
@@ -100,9 +100,9 @@ private:
                 p_phi(i) = sum;
             }
         }
-        double r = 0.0;            // phi^T P phi
-        double error = y;          // y - phi^T theta
-        double scale = 0.0;        // trace(P) >= the largest eigenvalue of P
+        double r = 0.0;      // phi^T P phi
+        double error = y;    // y - phi^T theta
+        double scale = 0.0;  // trace(P) >= the largest eigenvalue of P
         double phi_norm2 = 0.0;
         for (int i = 0; i < N; ++i) {
             r += phi(i) * p_phi(i);

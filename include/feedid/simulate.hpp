@@ -44,25 +44,25 @@ struct SimulationOptions {
 
 /// What drives the simulation: the reference on a regular sample grid.
 struct SimulationInput {
-    double sample_time_s{0.0};                 ///< T [s] of the reference samples
-    std::span<const double> reference;         ///< x_ref(k*T) [m]
-    std::span<const double> external_force;    ///< F_ext(k*T) [N], acting in +x; empty = none
+    double sample_time_s{0.0};               ///< T [s] of the reference samples
+    std::span<const double> reference;       ///< x_ref(k*T) [m]
+    std::span<const double> external_force;  ///< F_ext(k*T) [N], acting in +x; empty = none
 };
 
 /// Signals at the sample instants k*T (the controller's state when it has just computed its outputs).
 struct SimulationOutput {
-    std::vector<double> time;              ///< [s], from 0
-    std::vector<double> reference;         ///< x_ref [m]
-    std::vector<double> position;          ///< x [m] (exact; the controller saw it quantised)
-    std::vector<double> measured_position; ///< x as the controller measured it [m]
-    std::vector<double> velocity;          ///< x' [m/s]
-    std::vector<double> acceleration;      ///< x'' [m/s^2] during the first integration step after the sample
-    std::vector<double> velocity_command;  ///< position loop output [m/s]
-    std::vector<double> force_command;     ///< velocity loop output, saturated [N]
-    std::vector<double> force;             ///< drive force F_d after the current loop, one integration step after the
-                                           ///< sample (what a current sensor sampled there would read) [N]
-    std::vector<double> tracking_error;    ///< x_ref - x [m]
-    std::size_t stick_transitions{0};      ///< how often the axis came to rest
+    std::vector<double> time;               ///< [s], from 0
+    std::vector<double> reference;          ///< x_ref [m]
+    std::vector<double> position;           ///< x [m] (exact; the controller saw it quantised)
+    std::vector<double> measured_position;  ///< x as the controller measured it [m]
+    std::vector<double> velocity;           ///< x' [m/s]
+    std::vector<double> acceleration;       ///< x'' [m/s^2] during the first integration step after the sample
+    std::vector<double> velocity_command;   ///< position loop output [m/s]
+    std::vector<double> force_command;      ///< velocity loop output, saturated [N]
+    std::vector<double> force;              ///< drive force F_d after the current loop, one integration step after the
+                                            ///< sample (what a current sensor sampled there would read) [N]
+    std::vector<double> tracking_error;     ///< x_ref - x [m]
+    std::size_t stick_transitions{0};       ///< how often the axis came to rest
 };
 
 /// Simulates the axis in closed loop. Throws InputError for an invalid model, controller or options.

@@ -6,9 +6,9 @@
 
 #include <cstdint>
 #include <filesystem>
-#include <string_view>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -25,27 +25,27 @@ namespace feedid {
 /// identifiable.
 struct TestReference {
     std::vector<double> feedrates_mm_per_min{1250, 2150, 3050, 3950, 4850, 5750, 6650, 7550, 8450, 9350};
-    double stroke_m{0.030};                 ///< length of each stroke [m]
-    int cycles{1};                          ///< back-and-forth cycles per feedrate
+    double stroke_m{0.030};  ///< length of each stroke [m]
+    int cycles{1};           ///< back-and-forth cycles per feedrate
     bool slow_passes{true};
     std::vector<double> slow_feedrates_mm_per_min{10, 17.8, 31.6, 56.2, 100, 178, 316, 562, 1000};
-    double slow_pass_duration_s{1.5};       ///< each slow stroke lasts about this long ...
-    double slow_stroke_min_m{0.0002};       ///< ... but is at least this long [m]
-    double acceleration_m_per_s2{2.0};      ///< the NC's acceleration limit [m/s^2]
-    double dwell_s{0.2};                    ///< pause at each reversal and at the start and end [s]
-    double start_m{0.0};                    ///< where the strokes start [m]
+    double slow_pass_duration_s{1.5};   ///< each slow stroke lasts about this long ...
+    double slow_stroke_min_m{0.0002};   ///< ... but is at least this long [m]
+    double acceleration_m_per_s2{2.0};  ///< the NC's acceleration limit [m/s^2]
+    double dwell_s{0.2};                ///< pause at each reversal and at the start and end [s]
+    double start_m{0.0};                ///< where the strokes start [m]
 
     [[nodiscard]] std::string validate() const;
 };
 
 /// The sensors and the recording.
 struct SensorModel {
-    double sample_time_s{1e-3};              ///< the trace's sample time (and the controller's cycle) [s]
-    double jitter_s{0.0};                    ///< time stamps jitter uniformly within +-jitter [s] (< T/2)
-    double position_resolution_m{1e-8};      ///< encoder quantum [m]; 0 = exact
-    double current_noise_A{0.02};            ///< standard deviation of white current-sensor noise [A]
-    double current_resolution_A{0.005};      ///< current quantum [A]; 0 = exact
-    int substeps{8};                         ///< integration steps per sample
+    double sample_time_s{1e-3};          ///< the trace's sample time (and the controller's cycle) [s]
+    double jitter_s{0.0};                ///< time stamps jitter uniformly within +-jitter [s] (< T/2)
+    double position_resolution_m{1e-8};  ///< encoder quantum [m]; 0 = exact
+    double current_noise_A{0.02};        ///< standard deviation of white current-sensor noise [A]
+    double current_resolution_A{0.005};  ///< current quantum [A]; 0 = exact
+    int substeps{8};                     ///< integration steps per sample
 
     [[nodiscard]] std::string validate() const;
 };
@@ -54,9 +54,9 @@ struct SensorModel {
 struct SynthSpec {
     AxisModel axis;
     ControllerModel controller;
-    double kt_Nm_per_A{1.444};   ///< motor torque constant [N*m/A] (the paper's 26.0 N*m at 18.0 A)
-    double lead_m{0.020};        ///< ball-screw lead [m]
-    double gear_ratio{1.0};      ///< motor revolutions per screw revolution
+    double kt_Nm_per_A{1.444};  ///< motor torque constant [N*m/A] (the paper's 26.0 N*m at 18.0 A)
+    double lead_m{0.020};       ///< ball-screw lead [m]
+    double gear_ratio{1.0};     ///< motor revolutions per screw revolution
     SensorModel sensors;
     TestReference test;
     /// Friction along the axis: stretches with scaled Coulomb and breakaway friction (a worn part of the screw).

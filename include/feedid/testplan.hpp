@@ -32,21 +32,21 @@ std::vector<double> paper_feed_ladder();
 std::vector<double> log_spaced_feeds(double lowest, double highest, int count);
 
 struct TestPlanOptions {
-    std::string axis{"X"};                 ///< axis letter as the NC knows it (X, Y, Z, A, ..., X1 on SINUMERIK)
-    double travel_min{0.0};                ///< lower travel limit (software limit switch) [m]
-    double travel_max{0.0};                ///< upper travel limit [m]
-    std::vector<double> centers;           ///< centres of the strokes along the axis [m]
-    double stroke{0.030};                  ///< stroke of the ladder passes (the paper: 30 mm) [m]
+    std::string axis{"X"};        ///< axis letter as the NC knows it (X, Y, Z, A, ..., X1 on SINUMERIK)
+    double travel_min{0.0};       ///< lower travel limit (software limit switch) [m]
+    double travel_max{0.0};       ///< upper travel limit [m]
+    std::vector<double> centers;  ///< centres of the strokes along the axis [m]
+    double stroke{0.030};         ///< stroke of the ladder passes (the paper: 30 mm) [m]
     std::vector<double> feeds{paper_feed_ladder()};  ///< ladder feedrates [m/s]
     /// Slow feedrates for the Stribeck curve [m/s]; default 10 to 1000 mm/min, log-spaced, 7 values.
     std::vector<double> slow_feeds{log_spaced_feeds(10.0 / 60000.0, 1000.0 / 60000.0, 7)};
-    double max_pass_time{8.0};             ///< a slow pass takes at most this long: its stroke is shortened [s]
-    int cycles{2};                         ///< back-and-forth cycles per feedrate
-    double acceleration{1.0};              ///< path acceleration the NC uses (machine data) [m/s^2]
-    std::optional<double> jerk;            ///< jerk limit [m/s^3]; none = trapezoidal velocity (BRISK)
-    double dwell{0.2};                     ///< dwell at every reversal [s]
-    double sample_time{0.001};             ///< trace sample time (servo trace / reference file) [s]
-    std::optional<double> max_feed;        ///< feedrate limit of the axis [m/s]; none = not checked
+    double max_pass_time{8.0};                  ///< a slow pass takes at most this long: its stroke is shortened [s]
+    int cycles{2};                              ///< back-and-forth cycles per feedrate
+    double acceleration{1.0};                   ///< path acceleration the NC uses (machine data) [m/s^2]
+    std::optional<double> jerk;                 ///< jerk limit [m/s^3]; none = trapezoidal velocity (BRISK)
+    double dwell{0.2};                          ///< dwell at every reversal [s]
+    double sample_time{0.001};                  ///< trace sample time (servo trace / reference file) [s]
+    std::optional<double> max_feed;             ///< feedrate limit of the axis [m/s]; none = not checked
     double positioning_feed{5000.0 / 60000.0};  ///< feedrate of the moves between passes and centres [m/s]
     /// Where the axis stands when the program starts [m]; none = at the first pass's start (the reference trajectory
     /// then begins there).
@@ -61,11 +61,11 @@ enum class MoveKind { feed, dwell };
 /// One block of the part program.
 struct Move {
     MoveKind kind{MoveKind::feed};
-    double target{0.0};  ///< end position of a feed move [m]
-    double feed{0.0};    ///< feedrate of a feed move [m/s]
-    double dwell{0.0};   ///< dwell time [s]
-    int center{-1};      ///< index of the centre this move belongs to
-    int pass{-1};        ///< index of the pass (into TestPlan::passes); -1 for positioning moves
+    double target{0.0};       ///< end position of a feed move [m]
+    double feed{0.0};         ///< feedrate of a feed move [m/s]
+    double dwell{0.0};        ///< dwell time [s]
+    int center{-1};           ///< index of the centre this move belongs to
+    int pass{-1};             ///< index of the pass (into TestPlan::passes); -1 for positioning moves
     std::string description;  ///< "centre 2 (-300 mm), 1250 mm/min, cycle 1, stroke +" (names it in messages)
 };
 
@@ -113,18 +113,18 @@ AxisModel nominal_demo_drive();
 
 struct PredictionOptions {
     AxisModel drive{nominal_demo_drive()};  ///< nominal drive model
-    double force_noise{10.0};           ///< white noise on the drive force per sample (current noise * K) [N]
-    double position_resolution{1e-6};   ///< position quantisation [m]
+    double force_noise{10.0};               ///< white noise on the drive force per sample (current noise * K) [N]
+    double position_resolution{1e-6};       ///< position quantisation [m]
     /// Error of one pass's friction level beyond white noise (friction varying along the stroke, force ripple) [N]:
     /// what limits the Stribeck fit, which sees each constant-velocity pass as one point of the friction curve.
     double level_error{5.0};
-    std::optional<double> split_velocity;  ///< step 1 above this speed [m/s]; default 5 * nominal v_s
+    std::optional<double> split_velocity;      ///< step 1 above this speed [m/s]; default 5 * nominal v_s
     double identifiable_relative_error{0.10};  ///< a parameter counts as identifiable below this relative std. error
 };
 
 struct ParameterPrediction {
-    std::string key;       ///< result-document key ("mass_kg", "breakaway_N", ...)
-    std::string symbol;    ///< "M", "F_B", ...
+    std::string key;     ///< result-document key ("mass_kg", "breakaway_N", ...)
+    std::string symbol;  ///< "M", "F_B", ...
     std::string unit;
     double nominal{0.0};
     double standard_error{0.0};  ///< expected standard error [unit of the parameter]; inf when not determined
@@ -134,8 +134,8 @@ struct ParameterPrediction {
 struct IdentifiabilityPrediction {
     double step1_condition_number{0.0};  ///< of the step-1 regressor [x'', x', sgn x'] as the trace will give it
     std::size_t step1_samples{0};
-    std::size_t step2_levels{0};         ///< constant-velocity friction levels (passes x directions) for step 2
-    double slowest_cruise_speed{0.0};    ///< [m/s]
+    std::size_t step2_levels{0};       ///< constant-velocity friction levels (passes x directions) for step 2
+    double slowest_cruise_speed{0.0};  ///< [m/s]
     std::vector<ParameterPrediction> parameters;
     std::vector<std::string> diagnostics;
 

@@ -30,19 +30,19 @@ std::string_view role_name(Role role);
 std::optional<Role> parse_role(std::string_view name);
 
 struct Channel {
-    std::string name;          ///< As in the source file.
+    std::string name;  ///< As in the source file.
     Role role{Role::other};
-    std::string unit;          ///< SI unit of `values` ("m", "A", ...); empty when the source gave none.
-    std::string source_unit;   ///< The unit the source file stated (empty when none).
+    std::string unit;         ///< SI unit of `values` ("m", "A", ...); empty when the source gave none.
+    std::string source_unit;  ///< The unit the source file stated (empty when none).
     std::vector<double> values;
 };
 
 /// Statistics of the time base: the sample time and how regular it is.
 struct TimeBase {
-    double sample_time_s{0.0};        ///< Mean of the regular steps (within half the median step of it) [s].
-    double max_deviation_s{0.0};      ///< Largest |dt - sample_time_s| over all steps, gaps included [s].
-    double duration_s{0.0};           ///< Last minus first time stamp [s].
-    bool jittery{false};              ///< max deviation above 1 % of the sample time.
+    double sample_time_s{0.0};    ///< Mean of the regular steps (within half the median step of it) [s].
+    double max_deviation_s{0.0};  ///< Largest |dt - sample_time_s| over all steps, gaps included [s].
+    double duration_s{0.0};       ///< Last minus first time stamp [s].
+    bool jittery{false};          ///< max deviation above 1 % of the sample time.
 };
 
 class Trace {

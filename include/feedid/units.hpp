@@ -10,18 +10,18 @@ namespace feedid {
 
 enum class Quantity {
     dimensionless,
-    length,            ///< SI: m
-    angle,             ///< SI: rad
-    time,              ///< SI: s
-    velocity,          ///< SI: m/s
-    angular_velocity,  ///< SI: rad/s
-    acceleration,      ///< SI: m/s^2
+    length,                ///< SI: m
+    angle,                 ///< SI: rad
+    time,                  ///< SI: s
+    velocity,              ///< SI: m/s
+    angular_velocity,      ///< SI: rad/s
+    acceleration,          ///< SI: m/s^2
     angular_acceleration,  ///< SI: rad/s^2
-    current,           ///< SI: A
-    voltage,           ///< SI: V
-    force,             ///< SI: N
-    torque,            ///< SI: N*m
-    frequency,         ///< SI: 1/s
+    current,               ///< SI: A
+    voltage,               ///< SI: V
+    force,                 ///< SI: N
+    torque,                ///< SI: N*m
+    frequency,             ///< SI: 1/s
 };
 
 /// The SI unit symbol feedid uses for a quantity ("m", "rad/s", "N*m", ...).
@@ -38,8 +38,8 @@ struct UnitConversion {
 /// What some units need to be converted: rpm needs the lead (motor revolutions to table travel),
 /// a percentage needs the rated value it is a percentage of.
 struct UnitContext {
-    std::optional<double> lead_m;          ///< Table travel per motor revolution [m]; makes rpm a linear velocity.
-    std::optional<double> rated_value_si;  ///< What 100 % means, in SI (e.g. rated current 18 A).
+    std::optional<double> lead_m;            ///< Table travel per motor revolution [m]; makes rpm a linear velocity.
+    std::optional<double> rated_value_si;    ///< What 100 % means, in SI (e.g. rated current 18 A).
     std::optional<Quantity> rated_quantity;  ///< The quantity of that rating (current, torque, ...).
 };
 

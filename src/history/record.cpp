@@ -24,8 +24,8 @@ RunRecord prepare_run(const nlohmann::json& result, const std::string& source, c
                                      context.recorded_at));
     RunRecord run = run_from_result(result, source);
     if (!std::filesystem::is_regular_file(context.trace))
-        throw InputError(fmt::format("{}: the trace file is not found (needed for its content hash)",
-                                     context.trace.string()));
+        throw InputError(
+            fmt::format("{}: the trace file is not found (needed for its content hash)", context.trace.string()));
     run.machine = context.machine;
     run.axis = context.axis;
     run.location = context.location;

@@ -82,8 +82,10 @@ public:
         return *this;
     }
     Statement& bind(int index, const std::optional<double>& value) {
-        if (value && std::isfinite(*value)) sqlite3_bind_double(statement_, index, *value);
-        else sqlite3_bind_null(statement_, index);
+        if (value && std::isfinite(*value))
+            sqlite3_bind_double(statement_, index, *value);
+        else
+            sqlite3_bind_null(statement_, index);
         return *this;
     }
     /// True while a row is available.
@@ -99,7 +101,8 @@ public:
     }
     [[nodiscard]] std::string text(int column) const {
         const auto* p = sqlite3_column_text(statement_, column);
-        return p ? std::string(reinterpret_cast<const char*>(p), static_cast<std::size_t>(sqlite3_column_bytes(statement_, column)))
+        return p ? std::string(reinterpret_cast<const char*>(p),
+                               static_cast<std::size_t>(sqlite3_column_bytes(statement_, column)))
                  : std::string();
     }
     [[nodiscard]] std::int64_t integer(int column) const { return sqlite3_column_int64(statement_, column); }
@@ -195,15 +198,15 @@ public:
 
             // A file kept at an older schema (tests of the migrations) has no result_json column.
             const bool with_result = schema_version_ >= 3;
-            Statement insert(db_,
-                             with_result
-                                 ? "INSERT INTO runs (machine, axis, location, recorded_at, trace_path, trace_sha256, "
-                                   "feedid_version, model, status, options_json, fit_json, diagnostics_json, stored_at, "
-                                   "result_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)"
-                                 : "INSERT INTO runs (machine, axis, location, recorded_at, trace_path, trace_sha256, "
-                                   "feedid_version, model, status, options_json, fit_json, diagnostics_json, stored_at) "
-                                   "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)",
-                             path_);
+            Statement insert(
+                db_,
+                with_result ? "INSERT INTO runs (machine, axis, location, recorded_at, trace_path, trace_sha256, "
+                              "feedid_version, model, status, options_json, fit_json, diagnostics_json, stored_at, "
+                              "result_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)"
+                            : "INSERT INTO runs (machine, axis, location, recorded_at, trace_path, trace_sha256, "
+                              "feedid_version, model, status, options_json, fit_json, diagnostics_json, stored_at) "
+                              "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)",
+                path_);
             insert.bind(1, run.machine).bind(2, run.axis).bind(3, run.location).bind(4, run.recorded_at);
             insert.bind(5, run.trace_path).bind(6, run.trace_sha256).bind(7, run.feedid_version).bind(8, run.model);
             insert.bind(9, run.status).bind(10, options_json).bind(11, fit_json).bind(12, diagnostics_json);
@@ -229,14 +232,15 @@ public:
         std::vector<RunRecord> result;
         exec("BEGIN");  // one snapshot for both queries
         try {
-            const char* where = " WHERE (?1 = '' OR r.machine = ?1) AND (?2 = '' OR r.axis = ?2) "
-                                "AND (?3 = '' OR r.location = ?3)";
+            const char* where =
+                " WHERE (?1 = '' OR r.machine = ?1) AND (?2 = '' OR r.axis = ?2) "
+                "AND (?3 = '' OR r.location = ?3)";
             Statement select(db_,
                              (std::string("SELECT r.id, r.machine, r.axis, r.location, r.recorded_at, r.trace_path, "
                                           "r.trace_sha256, r.feedid_version, r.model, r.status, r.options_json, "
                                           "r.fit_json, r.diagnostics_json, r.stored_at, ") +
-                                  (schema_version_ >= 3 ? "r.result_json" : "'{}'") + " FROM runs r" +
-                              where + " ORDER BY r.recorded_at, r.id")
+                              (schema_version_ >= 3 ? "r.result_json" : "'{}'") + " FROM runs r" + where +
+                              " ORDER BY r.recorded_at, r.id")
                                  .c_str(),
                              path_);
             select.bind(1, filter.machine).bind(2, filter.axis).bind(3, filter.location);
@@ -394,12 +398,13 @@ private:
         const int tables = pragma_integer("SELECT count(*) FROM sqlite_master");
         const bool empty = found_application == 0 && schema_version_ == 0 && tables == 0;
         if (!empty && found_application != application_id)
-            throw InputError(fmt::format("{}: not a feedid history database (a SQLite file of another application)",
-                                         path_));
+            throw InputError(
+                fmt::format("{}: not a feedid history database (a SQLite file of another application)", path_));
         if (schema_version_ > sqlite_schema_version)
-            throw InputError(fmt::format("{}: the history database has schema version {}, newer than this feedid "
-                                         "understands ({}); use a newer feedid",
-                                         path_, schema_version_, sqlite_schema_version));
+            throw InputError(
+                fmt::format("{}: the history database has schema version {}, newer than this feedid "
+                            "understands ({}); use a newer feedid",
+                            path_, schema_version_, sqlite_schema_version));
         if (read_only_) {
             if (empty) throw InputError(fmt::format("{}: the history database is empty (no run recorded yet)", path_));
             return;
@@ -446,7 +451,8 @@ bool looks_like_sqlite(const std::filesystem::path& path) {
     std::ifstream in(path, std::ios::binary);
     char header[16] = {};
     in.read(header, sizeof header);
-    return in.gcount() == sizeof header && std::string_view(header, sizeof header) == std::string_view("SQLite format 3\0", 16);
+    return in.gcount() == sizeof header &&
+           std::string_view(header, sizeof header) == std::string_view("SQLite format 3\0", 16);
 }
 
 std::string file_modification_time_utc(const std::filesystem::path& path) {
@@ -510,9 +516,9 @@ RunRecord run_from_result(const nlohmann::json& result, const std::string& sourc
 nlohmann::json to_json(const RunRecord& run) {
     nlohmann::json parameters = nlohmann::json::object();
     for (const auto& [key, estimate] : run.parameters) {
-        parameters[key] = {{"value", estimate.value ? nlohmann::json(*estimate.value) : nlohmann::json(nullptr)},
-                           {"stderr", estimate.standard_error ? nlohmann::json(*estimate.standard_error)
-                                                              : nlohmann::json(nullptr)}};
+        parameters[key] = {
+            {"value", estimate.value ? nlohmann::json(*estimate.value) : nlohmann::json(nullptr)},
+            {"stderr", estimate.standard_error ? nlohmann::json(*estimate.standard_error) : nlohmann::json(nullptr)}};
     }
     return {{"id", run.id},
             {"machine", run.machine},

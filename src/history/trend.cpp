@@ -52,10 +52,11 @@ std::string TrendOptions::validate() const {
 }
 
 std::string Alarm::message() const {
-    return fmt::format("drift alarm: machine '{}' axis '{}' parameter {} at run #{} (recorded {}): {} by {:+.4g} "
-                       "({:+.1f} %, {:+.1f} combined standard errors), CUSUM {:.1f}",
-                       machine, axis, parameter, run_id, recorded_at, direction == "up" ? "rose" : "fell", change,
-                       change_pct, z, cusum);
+    return fmt::format(
+        "drift alarm: machine '{}' axis '{}' parameter {} at run #{} (recorded {}): {} by {:+.4g} "
+        "({:+.1f} %, {:+.1f} combined standard errors), CUSUM {:.1f}",
+        machine, axis, parameter, run_id, recorded_at, direction == "up" ? "rose" : "fell", change, change_pct, z,
+        cusum);
 }
 
 SeriesTrend analyse_series(const std::string& machine, const std::string& axis, const std::vector<RunRecord>& runs,
@@ -68,12 +69,13 @@ SeriesTrend analyse_series(const std::string& machine, const std::string& axis, 
     // Where the baseline starts: the first run, or the pinned one.
     std::size_t start = 0;
     if (options.pinned_run) {
-        const auto pinned = std::find_if(runs.begin(), runs.end(),
-                                         [&](const RunRecord& run) { return run.id == *options.pinned_run; });
+        const auto pinned =
+            std::find_if(runs.begin(), runs.end(), [&](const RunRecord& run) { return run.id == *options.pinned_run; });
         if (pinned == runs.end()) {
-            series.notes.push_back(fmt::format("pinned run #{} is not among this axis's runs; the baseline starts at "
-                                               "the first run",
-                                               *options.pinned_run));
+            series.notes.push_back(
+                fmt::format("pinned run #{} is not among this axis's runs; the baseline starts at "
+                            "the first run",
+                            *options.pinned_run));
             series.pinned_run.reset();
         } else {
             start = static_cast<std::size_t>(pinned - runs.begin());
@@ -136,7 +138,8 @@ SeriesTrend analyse_series(const std::string& machine, const std::string& axis, 
         }
         const double scatter_bound = trend.scatter_factor * scatter;
         const double sigma_mean = n > 0 ? std::max(stderr_rms, scatter_bound) / std::sqrt(static_cast<double>(n)) : 0.0;
-        if (n == 0) trend.note = "no baseline run has this parameter";
+        if (n == 0)
+            trend.note = "no baseline run has this parameter";
         else if (std::max(stderr_rms, scatter_bound) <= 0.0)
             trend.note = "neither a standard error nor a run-to-run scatter is known; no change can be judged";
 

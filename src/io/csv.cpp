@@ -66,8 +66,10 @@ char detect_separator(std::string_view header) {
         std::size_t count = 0;
         bool quoted = false;
         for (const char c : header) {
-            if (c == '"') quoted = !quoted;
-            else if (c == candidate && !quoted) ++count;
+            if (c == '"')
+                quoted = !quoted;
+            else if (c == candidate && !quoted)
+                ++count;
         }
         if (count > best_count) {
             best_count = count;
@@ -82,8 +84,10 @@ std::string printable(std::string_view cell) {
     std::string out;
     for (const char c : cell.substr(0, 40)) {
         const auto byte = static_cast<unsigned char>(c);
-        if (byte < 0x20 || byte == 0x7F) out += fmt::format("\\x{:02X}", byte);
-        else out += c;
+        if (byte < 0x20 || byte == 0x7F)
+            out += fmt::format("\\x{:02X}", byte);
+        else
+            out += c;
     }
     if (cell.size() > 40) out += "...";
     return out;
@@ -93,16 +97,17 @@ std::string printable(std::string_view cell) {
 // means the file is binary (an image, a compressed archive, a binary scope format) and not a CSV at all.
 void reject_binary(std::string_view text, const std::string& source) {
     if (text.starts_with("\xFF\xFE") || text.starts_with("\xFE\xFF")) {
-        throw InputError(fmt::format("{}: UTF-16 text (as Excel's \"Unicode text\" writes it); save it as UTF-8 CSV",
-                                     source));
+        throw InputError(
+            fmt::format("{}: UTF-16 text (as Excel's \"Unicode text\" writes it); save it as UTF-8 CSV", source));
     }
     const auto head = text.substr(0, 65536);
     for (std::size_t k = 0; k < head.size(); ++k) {
         const auto byte = static_cast<unsigned char>(head[k]);
         if ((byte < 0x20 && byte != '\t' && byte != '\n' && byte != '\r' && byte != '\f') || byte == 0x7F) {
-            throw InputError(fmt::format("{}: not a text file (byte {} is the control character 0x{:02X}); a CSV "
-                                         "trace is text with a header row like 'time [s],x [mm],i [A]'",
-                                         source, k + 1, byte));
+            throw InputError(
+                fmt::format("{}: not a text file (byte {} is the control character 0x{:02X}); a CSV "
+                            "trace is text with a header row like 'time [s],x [mm],i [A]'",
+                            source, k + 1, byte));
         }
     }
 }
@@ -122,7 +127,8 @@ std::size_t estimate_rows(std::string_view text, std::size_t position) {
         const auto part = rest.substr(start, window);
         lines += static_cast<std::size_t>(std::count(part.begin(), part.end(), '\n'));
     }
-    const double mean_length = static_cast<double>(window * windows) / static_cast<double>(std::max<std::size_t>(lines, 1));
+    const double mean_length =
+        static_cast<double>(window * windows) / static_cast<double>(std::max<std::size_t>(lines, 1));
     return static_cast<std::size_t>(static_cast<double>(rest.size()) / mean_length * 1.03) + 16;
 }
 
@@ -166,8 +172,8 @@ void read_constant(std::string_view line, std::map<std::string, double>& constan
     for (const char decimal_point : {'.', ','}) {
         double value = 0.0;
         const fast_float::parse_options options{fast_float::chars_format::general, decimal_point};
-        const auto parsed = fast_float::from_chars_advanced(value_text.data(), value_text.data() + value_text.size(),
-                                                            value, options);
+        const auto parsed =
+            fast_float::from_chars_advanced(value_text.data(), value_text.data() + value_text.size(), value, options);
         if (parsed.ec == std::errc() && parsed.ptr == value_text.data() + value_text.size()) {
             constants[std::string(name)] = value;
             return;
@@ -263,9 +269,10 @@ Trace parse_csv_text(std::string_view text, const std::string& source,
         double probe = 0.0;
         const auto* first = name.data();
         if (fast_float::from_chars(first, first + name.size(), probe).ptr == first + name.size() && unit.empty()) {
-            throw InputError(fmt::format("{}:{}: the first row holds numbers, not a header of channel names "
-                                         "(write one like 'time [s],x [mm],i [A]')",
-                                         source, header_line));
+            throw InputError(
+                fmt::format("{}:{}: the first row holds numbers, not a header of channel names "
+                            "(write one like 'time [s],x [mm],i [A]')",
+                            source, header_line));
         }
         trace.channels.push_back(Channel{name, Role::other, "", unit, {}});
     }
@@ -292,11 +299,11 @@ Trace parse_csv_text(std::string_view text, const std::string& source,
         const char* cell_end = std::find(cell_start, end, separator);
         const auto cell = trim(std::string_view(cell_start, static_cast<std::size_t>(cell_end - cell_start)));
         if (c >= columns) {
-            return InputError(fmt::format("{}:{}: row has more cells than the header's {} columns", source,
-                                          line_number, columns));
+            return InputError(
+                fmt::format("{}:{}: row has more cells than the header's {} columns", source, line_number, columns));
         }
-        return InputError(fmt::format("{}:{}: column {} ('{}') holds '{}', which is not a number", source,
-                                      line_number, c + 1, trace.channels[c].name, printable(cell)));
+        return InputError(fmt::format("{}:{}: column {} ('{}') holds '{}', which is not a number", source, line_number,
+                                      c + 1, trace.channels[c].name, printable(cell)));
     };
     while (next_line(line)) {
         if (position >= next_release) {
@@ -328,7 +335,8 @@ Trace parse_csv_text(std::string_view text, const std::string& source,
                     const char* cell_end = *cell_start == '"' ? std::find(cell_start + 1, end, '"') + 1
                                                               : std::find(cell_start, end, separator);
                     cell_end = std::min(cell_end, end);
-                    const auto cell = trim(std::string_view(cell_start, static_cast<std::size_t>(cell_end - cell_start)));
+                    const auto cell =
+                        trim(std::string_view(cell_start, static_cast<std::size_t>(cell_end - cell_start)));
                     if (cell == "NA" || cell == "N/A" || cell == "n/a" || cell == "-" || cell == "\"\"") {
                         value = missing;
                     } else if (!parse_quoted(cell, options, value)) {
@@ -342,8 +350,9 @@ Trace parse_csv_text(std::string_view text, const std::string& source,
             while (p < end && (*p == ' ' || *p == '\t' || *p == '\r') && *p != separator) ++p;
             if (c >= columns) {
                 // one empty cell after a trailing separator is no extra column
-                const bool empty_cell = std::isnan(value) &&
-                                        trim(std::string_view(cell_start, static_cast<std::size_t>(p - cell_start))).empty();
+                const bool empty_cell =
+                    std::isnan(value) &&
+                    trim(std::string_view(cell_start, static_cast<std::size_t>(p - cell_start))).empty();
                 if (!(c == columns && empty_cell && p >= end)) {
                     throw InputError(fmt::format("{}:{}: row has more cells than the header's {} columns", source,
                                                  line_number, columns));
@@ -357,14 +366,15 @@ Trace parse_csv_text(std::string_view text, const std::string& source,
             ++p;  // past the separator
         }
         if (c != columns) {
-            throw InputError(fmt::format("{}:{}: row has {} cells, the header has {} columns", source, line_number, c,
-                                         columns));
+            throw InputError(
+                fmt::format("{}:{}: row has {} cells, the header has {} columns", source, line_number, c, columns));
         }
         ++data_rows;
     }
     if (data_rows == 0) throw InputError(fmt::format("{}: the file has a header but no data rows", source));
     for (auto& channel : trace.channels) {
-        if (channel.values.capacity() > channel.values.size() + channel.values.size() / 4) channel.values.shrink_to_fit();
+        if (channel.values.capacity() > channel.values.size() + channel.values.size() / 4)
+            channel.values.shrink_to_fit();
     }
     return trace;
 }
@@ -423,14 +433,17 @@ Trace read_csv(const std::filesystem::path& path) {
 
 std::string write_csv(const Trace& trace) {
     fmt::memory_buffer out;
-    for (const auto& [name, value] : trace.constants) fmt::format_to(std::back_inserter(out), "# {} = {}\n", name, value);
+    for (const auto& [name, value] : trace.constants)
+        fmt::format_to(std::back_inserter(out), "# {} = {}\n", name, value);
     for (std::size_t c = 0; c < trace.channels.size(); ++c) {
         const auto& channel = trace.channels[c];
         if (c > 0) out.push_back(',');
         // a name holding the separator is quoted so that it reads back as one column
         const char* quote = channel.name.find(',') != std::string::npos ? "\"" : "";
-        if (channel.unit.empty()) fmt::format_to(std::back_inserter(out), "{}{}{}", quote, channel.name, quote);
-        else fmt::format_to(std::back_inserter(out), "{}{} [{}]{}", quote, channel.name, channel.unit, quote);
+        if (channel.unit.empty())
+            fmt::format_to(std::back_inserter(out), "{}{}{}", quote, channel.name, quote);
+        else
+            fmt::format_to(std::back_inserter(out), "{}{} [{}]{}", quote, channel.name, channel.unit, quote);
     }
     out.push_back('\n');
     const std::size_t n = trace.samples();

@@ -44,7 +44,9 @@ std::optional<double> sampling_period(std::string_view line) {
     return nanoseconds * 1e-9;
 }
 
-bool ends_with(std::string_view text, std::string_view suffix) { return text.ends_with(suffix); }
+bool ends_with(std::string_view text, std::string_view suffix) {
+    return text.ends_with(suffix);
+}
 
 // Roles from HAL pin names: joint.N.motor-pos-fb, joint.N.pos-cmd, joint.N.vel-cmd, ... (LinuxCNC's motion pins).
 void guess_roles(Trace& trace) {
@@ -52,17 +54,20 @@ void guess_roles(Trace& trace) {
         std::string_view suffix;
         Role role;
     };
-    static constexpr Rule rules[] = {{"pos-fb", Role::position},           {"pos-cmd", Role::reference_position},
-                                     {"vel-cmd", Role::velocity_command}, {"vel-fb", Role::velocity},
+    static constexpr Rule rules[] = {{"pos-fb", Role::position},
+                                     {"pos-cmd", Role::reference_position},
+                                     {"vel-cmd", Role::velocity_command},
+                                     {"vel-fb", Role::velocity},
                                      {"current", Role::current}};
     for (const auto& rule : rules) {
         if (trace.has(rule.role)) continue;
         for (auto& channel : trace.channels) {
             if (channel.role != Role::other || !ends_with(channel.name, rule.suffix)) continue;
             channel.role = rule.role;
-            trace.findings.push_back(fmt::format("channel '{}' taken as {} (guessed from the HAL pin name; set it "
-                                                 "with --channel {}=NAME)",
-                                                 channel.name, role_name(rule.role), role_name(rule.role)));
+            trace.findings.push_back(
+                fmt::format("channel '{}' taken as {} (guessed from the HAL pin name; set it "
+                            "with --channel {}=NAME)",
+                            channel.name, role_name(rule.role), role_name(rule.role)));
             break;
         }
     }
@@ -178,9 +183,10 @@ Trace parse_old_layout(std::string_view text, std::size_t position, const std::s
     std::size_t keep = shortest;
     if (shortest == longest && shortest > 1 && interlaced) keep = shortest - 1;
     if (keep < longest) {
-        trace.findings.push_back(fmt::format("the last {} sample(s) were dropped: the halscope writer before 2.9 "
-                                             "prints a sample past the end of the capture",
-                                             longest - keep));
+        trace.findings.push_back(
+            fmt::format("the last {} sample(s) were dropped: the halscope writer before 2.9 "
+                        "prints a sample past the end of the capture",
+                        longest - keep));
     }
     if (keep == 0) throw InputError(fmt::format("{}: no complete sample", source));
     for (auto& channel : trace.channels) channel.values.resize(keep);
@@ -220,9 +226,10 @@ Trace parse_halsampler(std::string_view text, const std::string& source, std::op
     }
     if (columns.empty()) throw InputError(fmt::format("{}: no samples", source));
     if (!period_s) {
-        throw InputError(fmt::format("{}: halsampler output carries no sampling period: state it (the thread period "
-                                     "times the sampler's decimation) with --sample-time SECONDS",
-                                     source));
+        throw InputError(
+            fmt::format("{}: halsampler output carries no sampling period: state it (the thread period "
+                        "times the sampler's decimation) with --sample-time SECONDS",
+                        source));
     }
     check_period(*period_s, source, 1);
     // A first column of whole numbers that increase is the sample number written by `halsampler -t`.
@@ -232,9 +239,10 @@ Trace parse_halsampler(std::string_view text, const std::string& source, std::op
         tagged = tag >= 0 && tag == std::floor(tag) && (k == 0 || tag > columns[0][k - 1]);
     }
     if (overruns > 0 && !tagged) {
-        throw InputError(fmt::format("{}: {} 'overrun' line(s) mark lost samples, but the lines carry no sample "
-                                     "number (halsampler -t), so the time after a gap is unknown",
-                                     source, overruns));
+        throw InputError(
+            fmt::format("{}: {} 'overrun' line(s) mark lost samples, but the lines carry no sample "
+                        "number (halsampler -t), so the time after a gap is unknown",
+                        source, overruns));
     }
     const std::size_t samples = columns[0].size();
     std::vector<double> time(samples);
@@ -247,8 +255,8 @@ Trace parse_halsampler(std::string_view text, const std::string& source, std::op
     }
     if (tagged) trace.findings.push_back("first column taken as the sample number (halsampler -t)");
     if (overruns > 0) {
-        trace.findings.push_back(fmt::format("{} overrun(s): samples were lost; the time follows the sample numbers",
-                                             overruns));
+        trace.findings.push_back(
+            fmt::format("{} overrun(s): samples were lost; the time follows the sample numbers", overruns));
     }
     return trace;
 }
@@ -286,11 +294,12 @@ Trace parse_halscope(std::string_view text, const std::string& source, std::opti
     if (const auto period = sampling_period(first)) {
         check_period(*period, source, 1);
         trace = scan::trim(first).starts_with("#") ? parse_new_layout(text, position, source, *period)
-                                                  : parse_old_layout(text, position, source, *period);
+                                                   : parse_old_layout(text, position, source, *period);
         if (sample_time_s && std::abs(*sample_time_s - *period) > 1e-9 * *period) {
-            trace.findings.push_back(fmt::format("the file states a sampling period of {} s; the stated {} s is "
-                                                 "ignored",
-                                                 *period, *sample_time_s));
+            trace.findings.push_back(
+                fmt::format("the file states a sampling period of {} s; the stated {} s is "
+                            "ignored",
+                            *period, *sample_time_s));
         }
     } else {
         trace = parse_halsampler(text, source, sample_time_s);

@@ -21,7 +21,8 @@ namespace {
 std::string lower_alnum(std::string_view name) {
     std::string out;
     for (const char c : name) {
-        if (std::isalnum(static_cast<unsigned char>(c))) out += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        if (std::isalnum(static_cast<unsigned char>(c)))
+            out += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
     }
     return out;
 }
@@ -33,18 +34,23 @@ struct RoleNames {
 };
 constexpr std::array<RoleNames, 7> common_names{{
     {Role::time, {"t", "time", "times", "zeit", "timestamp", "tsec", "ts"}},
-    {Role::position, {"x", "pos", "position", "qm", "q", "xact", "posact", "actpos", "actualposition", "xmeas",
-                      "measpos", "y", "z", "phi", "angle"}},
-    {Role::reference_position, {"xref", "xset", "xcmd", "qg", "qr", "qref", "posref", "posset", "poscmd", "cmdpos",
-                                "setpos", "possetpoint", "reference", "ref", "xr"}},
+    {Role::position,
+     {"x", "pos", "position", "qm", "q", "xact", "posact", "actpos", "actualposition", "xmeas", "measpos", "y", "z",
+      "phi", "angle"}},
+    {Role::reference_position,
+     {"xref", "xset", "xcmd", "qg", "qr", "qref", "posref", "posset", "poscmd", "cmdpos", "setpos", "possetpoint",
+      "reference", "ref", "xr"}},
     {Role::velocity, {"v", "vel", "velocity", "dq", "qd", "vact", "velact", "actvel", "speed"}},
-    {Role::velocity_command, {"vset", "vcmd", "vref", "velset", "velcmd", "velref", "cmdvel", "velocitycommand",
-                              "velocitysetpoint", "nset", "speedsetpoint"}},
+    {Role::velocity_command,
+     {"vset", "vcmd", "vref", "velset", "velcmd", "velref", "cmdvel", "velocitycommand", "velocitysetpoint", "nset",
+      "speedsetpoint"}},
     {Role::current, {"i", "iq", "current", "cur", "iact", "iqact", "actcurr", "actcurrent", "id", "idrive"}},
     {Role::force, {"f", "force", "fd", "fdrive", "driveforce"}},
 }};
 
-std::string where(const Trace& trace) { return trace.source_path.empty() ? std::string("trace") : trace.source_path; }
+std::string where(const Trace& trace) {
+    return trace.source_path.empty() ? std::string("trace") : trace.source_path;
+}
 
 bool compatible(Role role, Quantity quantity) {
     switch (role) {
@@ -101,9 +107,10 @@ void assign_roles(Trace& trace, const ImportOptions& options) {
             const std::string key = lower_alnum(channel.name);
             if (std::find(names.begin(), names.end(), key) != names.end() && !key.empty()) {
                 channel.role = role;
-                trace.findings.push_back(fmt::format("channel '{}' taken as {} (guessed from its name; set it with "
-                                                     "--channel {}=NAME)",
-                                                     channel.name, role_name(role), role_name(role)));
+                trace.findings.push_back(
+                    fmt::format("channel '{}' taken as {} (guessed from its name; set it with "
+                                "--channel {}=NAME)",
+                                channel.name, role_name(role), role_name(role)));
                 break;
             }
         }
@@ -114,7 +121,8 @@ void convert_units(Trace& trace, const ImportOptions& options) {
     // Decide rotary/linear from the position unit first (it decides what an SI default means for the rest).
     for (auto& channel : trace.channels) {
         const auto override_unit = options.units.find(channel.role);
-        if (channel.role != Role::other && override_unit != options.units.end()) channel.source_unit = override_unit->second;
+        if (channel.role != Role::other && override_unit != options.units.end())
+            channel.source_unit = override_unit->second;
     }
     if (const auto* position = trace.find(Role::position); position != nullptr && !position->source_unit.empty()) {
         if (auto conversion = parse_unit(position->source_unit, options.unit_context)) {
@@ -126,10 +134,10 @@ void convert_units(Trace& trace, const ImportOptions& options) {
         if (channel.source_unit.empty()) {
             if (channel.role != Role::other) {
                 channel.unit = std::string(default_si_unit(channel.role, trace.rotary));
-                trace.findings.push_back(fmt::format("channel '{}' ({}) carries no unit: taken as {} (state it with "
-                                                     "--unit {}=UNIT)",
-                                                     channel.name, role_name(channel.role), channel.unit,
-                                                     role_name(channel.role)));
+                trace.findings.push_back(
+                    fmt::format("channel '{}' ({}) carries no unit: taken as {} (state it with "
+                                "--unit {}=UNIT)",
+                                channel.name, role_name(channel.role), channel.unit, role_name(channel.role)));
             }
             continue;
         }
@@ -141,9 +149,10 @@ void convert_units(Trace& trace, const ImportOptions& options) {
                 throw InputError(fmt::format("{}: {}", where(trace), e.what()));
             }
             if (!compatible(channel.role, conversion->quantity)) {
-                throw InputError(fmt::format("{}: channel '{}' is used as {} but its unit '{}' is not one for that "
-                                             "role",
-                                             where(trace), channel.name, role_name(channel.role), channel.source_unit));
+                throw InputError(
+                    fmt::format("{}: channel '{}' is used as {} but its unit '{}' is not one for that "
+                                "role",
+                                where(trace), channel.name, role_name(channel.role), channel.source_unit));
             }
         } else {
             conversion = parse_unit(channel.source_unit, options.unit_context);
@@ -173,9 +182,10 @@ std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::s
     }
     const auto role = parse_role(text.substr(0, equals));
     if (!role || *role == Role::other) {
-        throw InputError(fmt::format("{} {}: unknown role '{}' (roles: time, position, reference_position, velocity, "
-                                     "velocity_command, current, force, external_force)",
-                                     option, text, text.substr(0, equals)));
+        throw InputError(
+            fmt::format("{} {}: unknown role '{}' (roles: time, position, reference_position, velocity, "
+                        "velocity_command, current, force, external_force)",
+                        option, text, text.substr(0, equals)));
     }
     return {*role, std::string(text.substr(equals + 1))};
 }
@@ -188,7 +198,8 @@ void prepare_trace(Trace& trace, const ImportOptions& options) {
 
 std::string read_file_bytes(const std::filesystem::path& path) {
     std::error_code error;
-    if (std::filesystem::is_directory(path, error)) throw InputError(fmt::format("{}: is a directory, not a file", path.string()));
+    if (std::filesystem::is_directory(path, error))
+        throw InputError(fmt::format("{}: is a directory, not a file", path.string()));
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(fmt::format("{}: cannot open the file", path.string()));
     in.seekg(0, std::ios::end);
@@ -206,9 +217,9 @@ std::string format_from_content(std::string_view head, const std::filesystem::pa
     if (head.substr(0, 6) == "MATLAB" || head.substr(0, 4) == "\x89HDF") return "mat";
     if (head.find("<traceSession") != std::string_view::npos) return "sinumerik-trace";
     // TwinCAT Scope: "Name<separator>scope name", then "File<separator>..." and "Starttime of export".
-    if (head.size() > 5 && head.starts_with("Name") && std::string_view("\t ;:,").find(head[4]) != std::string_view::npos &&
-        (head.find("Starttime of export") != std::string_view::npos ||
-         head.find("\nFile") != std::string_view::npos)) {
+    if (head.size() > 5 && head.starts_with("Name") &&
+        std::string_view("\t ;:,").find(head[4]) != std::string_view::npos &&
+        (head.find("Starttime of export") != std::string_view::npos || head.find("\nFile") != std::string_view::npos)) {
         return "twincat-scope";
     }
     // halscope: the first non-blank line states the sampling period ("# Sampling period is N ns" from 2.9 on).
@@ -248,10 +259,15 @@ Trace read_trace(const std::filesystem::path& path, const ImportOptions& options
     } else {
         const std::string bytes = read_file_bytes(path);
         if (bytes.empty()) throw InputError(fmt::format("{}: empty file", path.string()));
-        if (format == "sinumerik-trace") trace = parse_sinumerik_trace(bytes, path.string(), options.axis);
-        else if (format == "twincat-scope") trace = parse_twincat_scope(bytes, path.string());
-        else if (format == "halscope") trace = parse_halscope(bytes, path.string(), options.sample_time_s);
-        else throw InputError(fmt::format("--format {}: unknown format (csv, mat, sinumerik-trace, twincat-scope, halscope)", format));
+        if (format == "sinumerik-trace")
+            trace = parse_sinumerik_trace(bytes, path.string(), options.axis);
+        else if (format == "twincat-scope")
+            trace = parse_twincat_scope(bytes, path.string());
+        else if (format == "halscope")
+            trace = parse_halscope(bytes, path.string(), options.sample_time_s);
+        else
+            throw InputError(fmt::format(
+                "--format {}: unknown format (csv, mat, sinumerik-trace, twincat-scope, halscope)", format));
     }
     trace.source_path = path.string();
     if (trace.format.empty()) trace.format = format;

@@ -160,7 +160,8 @@ private:
         bool more() {
             while (!finished_) {
                 if (stream_.avail_in == 0) {
-                    const auto chunk = static_cast<std::streamsize>(std::min<std::uint64_t>(input_.size(), input_left_));
+                    const auto chunk =
+                        static_cast<std::streamsize>(std::min<std::uint64_t>(input_.size(), input_left_));
                     in_.clear();
                     in_.seekg(static_cast<std::streamoff>(next_input_));
                     if (chunk == 0 || !in_.read(input_.data(), chunk)) {
@@ -214,10 +215,9 @@ private:
         return swap_ ? __builtin_bswap32(little) : little;
     }
     [[noreturn]] void damaged(std::string_view problem) const {
-        throw InputError(fmt::format("{}: the file is damaged or truncated after variable '{}' ({} {})", source_,
-                                     previous_,
-                                     variable_.empty() ? std::string("the next variable") : "variable '" + variable_ + "'",
-                                     problem));
+        throw InputError(fmt::format(
+            "{}: the file is damaged or truncated after variable '{}' ({} {})", source_, previous_,
+            variable_.empty() ? std::string("the next variable") : "variable '" + variable_ + "'", problem));
     }
     [[noreturn]] void claims_too_much(std::string_view what) const {
         damaged(fmt::format("claims {}, more than the file holds", what));
@@ -232,7 +232,8 @@ private:
         const std::uint32_t first = word(tag.data());
         Element found{};
         if ((first >> 16) != 0) {
-            if ((first >> 16) > 4) claims_too_much(fmt::format("{} of {} bytes in a 4-byte element", what, first >> 16));
+            if ((first >> 16) > 4)
+                claims_too_much(fmt::format("{} of {} bytes in a 4-byte element", what, first >> 16));
             found = {first & 0xFFFF, position + 4, first >> 16, position + 8};
         } else {
             const std::uint64_t bytes = word(tag.data() + 4);
@@ -270,7 +271,8 @@ private:
         const auto class_type = word(flag_word.data()) & 0xFF;
         const auto dimensions = element(flags.next, end, "dimensions", miINT32);
         // libmatio reads bytes / 4 dimensions and goes on from there, not from the padded end
-        if (dimensions.bytes % 4 != 0) damaged(fmt::format("has dimensions of {} bytes, not whole int32", dimensions.bytes));
+        if (dimensions.bytes % 4 != 0)
+            damaged(fmt::format("has dimensions of {} bytes, not whole int32", dimensions.bytes));
         const auto elements = product(words(dimensions));
         const auto name = element(dimensions.next, end, "a name", miINT8);
         if (depth == 0) {
@@ -302,8 +304,8 @@ private:
             }
             return;
         }
-        claims_too_much(fmt::format("{} cells or fields", children == UINT64_MAX ? std::string("2^64 or more")
-                                                                        : std::to_string(children)));
+        claims_too_much(fmt::format("{} cells or fields",
+                                    children == UINT64_MAX ? std::string("2^64 or more") : std::to_string(children)));
     }
 
     std::ifstream in_;
@@ -351,13 +353,14 @@ void check_version4_headers(const std::filesystem::path& path, const std::string
         constexpr std::array<std::uint64_t, 6> element_bytes{8, 4, 4, 2, 2, 1};
         const std::uint64_t rest = size - position - 20;
         std::uint64_t data = 0;
-        const bool overflow = __builtin_mul_overflow(std::uint64_t{fields[1]}, std::uint64_t{fields[2]}, &data) ||
-                              __builtin_mul_overflow(data, element_bytes[(type / 10) % 10] * (fields[3] != 0 ? 2 : 1),
-                                                     &data);
+        const bool overflow =
+            __builtin_mul_overflow(std::uint64_t{fields[1]}, std::uint64_t{fields[2]}, &data) ||
+            __builtin_mul_overflow(data, element_bytes[(type / 10) % 10] * (fields[3] != 0 ? 2 : 1), &data);
         if (fields[4] > rest || overflow || data > rest - fields[4]) {
-            throw InputError(fmt::format("{}: the file is damaged or truncated after variable '{}' (a v4 variable "
-                                         "claims a {}-byte name and {}x{} values, more than the file holds)",
-                                         source, previous, fields[4], fields[1], fields[2]));
+            throw InputError(
+                fmt::format("{}: the file is damaged or truncated after variable '{}' (a v4 variable "
+                            "claims a {}-byte name and {}x{} values, more than the file holds)",
+                            source, previous, fields[4], fields[1], fields[2]));
         }
         std::string name(std::min<std::uint32_t>(fields[4], 63), '\0');
         in.read(name.data(), static_cast<std::streamsize>(name.size()));
@@ -444,9 +447,10 @@ Trace read_mat(const std::filesystem::path& path) {
         // compressed variables, the deflate filter of v7.3's HDF5) expands at most 1032-fold.
         const std::uintmax_t expansion = hdf5 || info->compression == MAT_COMPRESSION_ZLIB ? 1032 : 1;
         if (!counted || *counted / expansion > file_bytes) {
-            throw InputError(fmt::format("{}: variable '{}' claims to be {}, more than the {}-byte file can hold (the "
-                                         "file is damaged)",
-                                         source, name, dimensions(*info), file_bytes));
+            throw InputError(
+                fmt::format("{}: variable '{}' claims to be {}, more than the {}-byte file can hold (the "
+                            "file is damaged)",
+                            source, name, dimensions(*info), file_bytes));
         }
         const std::size_t elements = *counted;
         std::size_t longest_dimension = 0;
@@ -456,9 +460,10 @@ Trace read_mat(const std::filesystem::path& path) {
             continue;
         }
         if (elements != longest_dimension) {
-            left_out.push_back(fmt::format("variable '{}' is a {} matrix, not a vector: left out (save each signal "
-                                           "as a vector of its own)",
-                                           name, dimensions(*info)));
+            left_out.push_back(
+                fmt::format("variable '{}' is a {} matrix, not a vector: left out (save each signal "
+                            "as a vector of its own)",
+                            name, dimensions(*info)));
             continue;
         }
         last_matio_message().clear();
@@ -471,9 +476,10 @@ Trace read_mat(const std::filesystem::path& path) {
         // What was read must be what the header announced, and hold data for every element.
         if (!same_shape(*info, *variable) || variable->isComplex ||
             variable->nbytes / std::max<std::size_t>(Mat_SizeOf(variable->data_type), 1) < elements) {
-            throw InputError(fmt::format("{}: variable '{}' reads back other than its header says (the file is "
-                                         "damaged)",
-                                         source, name));
+            throw InputError(
+                fmt::format("{}: variable '{}' reads back other than its header says (the file is "
+                            "damaged)",
+                            source, name));
         }
         std::vector<double> values;
         if (!to_doubles(*variable, elements, values)) {

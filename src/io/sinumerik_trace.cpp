@@ -65,7 +65,9 @@ bool contains_ci(std::string_view text, std::string_view pattern) {
     return false;
 }
 
-bool equals_ci(std::string_view a, std::string_view b) { return a.size() == b.size() && contains_ci(a, b); }
+bool equals_ci(std::string_view a, std::string_view b) {
+    return a.size() == b.size() && contains_ci(a, b);
+}
 
 // "/Nck/!SD/nckServoDataActPos2ndEnc64 [u1, 1]" -> variable "nckServoDataActPos2ndEnc64", axis "1".
 void split_signal_name(std::string_view name, std::string& variable, std::string& axis) {
@@ -91,9 +93,8 @@ std::optional<std::string> unit_of(std::string_view units_type) {
         std::string_view unit;
     };
     static constexpr Entry table[] = {
-        {"posn", "mm"},   {"velo", "mm/min"}, {"current", "A"},  {"torque", "N*m"}, {"percent", "%"},
-        {"accel", "m/s^2"}, {"time", "s"},    {"voltage", "V"},  {"force", "N"},    {"freq", "Hz"},
-        {"angle", "deg"}, {"speed", "rpm"},
+        {"posn", "mm"}, {"velo", "mm/min"}, {"current", "A"}, {"torque", "N*m"}, {"percent", "%"}, {"accel", "m/s^2"},
+        {"time", "s"},  {"voltage", "V"},   {"force", "N"},   {"freq", "Hz"},    {"angle", "deg"}, {"speed", "rpm"},
     };
     for (const auto& entry : table) {
         if (equals_ci(units_type, entry.type)) return std::string(entry.unit);
@@ -169,7 +170,8 @@ Session read_declarations(const pugi::xml_document& document, std::string_view x
                                      line_of_node(xml, session_node)));
     }
     frame = data.child("dataFrame");
-    if (!frame) throw InputError(fmt::format("{}: line {}: <traceData> holds no <dataFrame>", source, line_of_node(xml, data)));
+    if (!frame)
+        throw InputError(fmt::format("{}: line {}: <traceData> holds no <dataFrame>", source, line_of_node(xml, data)));
 
     Session session;
     session.input_bytes = xml.size();
@@ -184,8 +186,10 @@ Session read_declarations(const pugi::xml_document& document, std::string_view x
     for (const auto& section : session_node.children()) {
         const std::string_view name = section.name();
         pugi::xml_node list;
-        if (name.starts_with("traceDisplaySetup")) list = section.child("signals");
-        else if (name.starts_with("traceCaptureSetup")) list = section.child("signalSettings");
+        if (name.starts_with("traceDisplaySetup"))
+            list = section.child("signals");
+        else if (name.starts_with("traceCaptureSetup"))
+            list = section.child("signalSettings");
         if (!list) continue;
         for (const auto& signal : list.children("signal")) {
             auto& entry = setup[signal.attribute("key").value()];
@@ -213,8 +217,8 @@ Session read_declarations(const pugi::xml_document& document, std::string_view x
         }
         const auto interval = node.attribute("interval");
         if (!interval) {
-            throw InputError(fmt::format("{}: line {}: <dataSignal id=\"{}\"> has no interval", source, line(),
-                                         signal.id));
+            throw InputError(
+                fmt::format("{}: line {}: <dataSignal id=\"{}\"> has no interval", source, line(), signal.id));
         }
         signal.interval_s = parse_attribute_number(xml, source, node, interval);
         if (!(signal.interval_s > 0.0)) {
@@ -223,14 +227,14 @@ Session read_declarations(const pugi::xml_document& document, std::string_view x
         }
         if (const auto count = node.attribute("datapointCount")) signal.datapoint_count = count.as_llong(-1);
         if (!ids.insert(signal.id).second) {
-            throw InputError(fmt::format("{}: line {}: <dataSignal id=\"{}\"> is declared twice", source, line(),
-                                         signal.id));
+            throw InputError(
+                fmt::format("{}: line {}: <dataSignal id=\"{}\"> is declared twice", source, line(), signal.id));
         }
         session.signals.push_back(std::move(signal));
     }
     if (session.signals.empty()) {
-        throw InputError(fmt::format("{}: line {}: <dataFrame> declares no <dataSignal>", source,
-                                     line_of_node(xml, frame)));
+        throw InputError(
+            fmt::format("{}: line {}: <dataFrame> declares no <dataSignal>", source, line_of_node(xml, frame)));
     }
 
     return session;
@@ -249,9 +253,10 @@ void read_dom_records(Session& session, const pugi::xml_node& frame, std::string
         }
         const double time = parse_attribute_number(xml, source, rec, time_attribute);
         if (time < previous) {
-            throw InputError(fmt::format("{}: line {}: <rec time=\"{}\"> goes back in time (the record before is at "
-                                         "{} s)",
-                                         source, line_of_node(xml, rec), time_attribute.value(), previous));
+            throw InputError(
+                fmt::format("{}: line {}: <rec time=\"{}\"> goes back in time (the record before is at "
+                            "{} s)",
+                            source, line_of_node(xml, rec), time_attribute.value(), previous));
         }
         previous = time;
         if (std::isnan(session.first_time)) session.first_time = time;
@@ -275,12 +280,12 @@ void read_dom_records(Session& session, const pugi::xml_node& frame, std::string
         }
     }
     if (std::isnan(session.first_time)) {
-        throw InputError(fmt::format("{}: line {}: <dataFrame> holds no <rec> records", source,
-                                     line_of_node(xml, frame)));
+        throw InputError(
+            fmt::format("{}: line {}: <dataFrame> holds no <rec> records", source, line_of_node(xml, frame)));
     }
     if (unknown_attributes > 0) {
-        session.findings.push_back(fmt::format("{} record values belong to no declared <dataSignal> and were ignored",
-                                               unknown_attributes));
+        session.findings.push_back(
+            fmt::format("{} record values belong to no declared <dataSignal> and were ignored", unknown_attributes));
     }
 }
 
@@ -293,9 +298,15 @@ void read_dom_records(Session& session, const pugi::xml_node& frame, std::string
 
 constexpr std::string_view records_placeholder = "<feedidRecords/>";
 
-bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n'; }
-bool is_name_start(char c) { return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || c == '_' || c == ':'; }
-bool is_name_char(char c) { return is_name_start(c) || (c >= '0' && c <= '9') || c == '.' || c == '-'; }
+bool is_blank(char c) {
+    return c == ' ' || c == '\t' || c == '\r' || c == '\n';
+}
+bool is_name_start(char c) {
+    return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || c == '_' || c == ':';
+}
+bool is_name_char(char c) {
+    return is_name_start(c) || (c >= '0' && c <= '9') || c == '.' || c == '-';
+}
 
 struct RawAttribute {
     std::string_view name;
@@ -352,8 +363,8 @@ bool read_plain_records(Session& session, std::string_view records) {
         if (!starts_record(records, p)) return false;
         p = scan_record(records, p, attributes);
         if (p == std::string_view::npos) return false;
-        const auto time_attribute = std::find_if(attributes.begin(), attributes.end(),
-                                                 [](const RawAttribute& a) { return a.name == "time"; });
+        const auto time_attribute =
+            std::find_if(attributes.begin(), attributes.end(), [](const RawAttribute& a) { return a.name == "time"; });
         double time = 0.0;
         if (time_attribute == attributes.end() || !scan::parse_number(time_attribute->value, time) ||
             !std::isfinite(time) || time < previous) {
@@ -382,8 +393,8 @@ bool read_plain_records(Session& session, std::string_view records) {
     }
     if (std::isnan(session.first_time)) return false;
     if (unknown_attributes > 0) {
-        session.findings.push_back(fmt::format("{} record values belong to no declared <dataSignal> and were ignored",
-                                               unknown_attributes));
+        session.findings.push_back(
+            fmt::format("{} record values belong to no declared <dataSignal> and were ignored", unknown_attributes));
     }
     return true;
 }
@@ -427,12 +438,13 @@ std::optional<Session> read_session_fast(std::string_view xml, const std::string
 Session read_session(std::string_view xml, const std::string& source) {
     if (auto session = read_session_fast(xml, source)) return std::move(*session);
     pugi::xml_document document;
-    const auto parsed = document.load_buffer(xml.data(), xml.size(), pugi::parse_minimal | pugi::parse_escapes,
-                                             pugi::encoding_utf8);
+    const auto parsed =
+        document.load_buffer(xml.data(), xml.size(), pugi::parse_minimal | pugi::parse_escapes, pugi::encoding_utf8);
     if (!parsed) {
-        throw InputError(fmt::format("{}: line {}: not well-formed XML ({})", source,
-                                     scan::line_of(xml, static_cast<std::size_t>(std::max<std::ptrdiff_t>(0, parsed.offset))),
-                                     parsed.description()));
+        throw InputError(
+            fmt::format("{}: line {}: not well-formed XML ({})", source,
+                        scan::line_of(xml, static_cast<std::size_t>(std::max<std::ptrdiff_t>(0, parsed.offset))),
+                        parsed.description()));
     }
     pugi::xml_node frame;
     Session session = read_declarations(document, xml, source, frame);
@@ -474,23 +486,28 @@ std::vector<RoleGuess> guess_roles(const std::vector<Signal>& signals, const std
     if (const auto command = find({"CmdVel", "VelSetpoint", "SetVel"}, "velo")) {
         guesses.push_back({*command, Role::velocity_command});
     }
-    if (const auto velocity = find({"ActVel", "measVel"}, "velo", encoder)) guesses.push_back({*velocity, Role::velocity});
-    if (const auto current = find({"ActCurr", "CurrAct", "iqAct"}, "current")) guesses.push_back({*current, Role::current});
+    if (const auto velocity = find({"ActVel", "measVel"}, "velo", encoder))
+        guesses.push_back({*velocity, Role::velocity});
+    if (const auto current = find({"ActCurr", "CurrAct", "iqAct"}, "current"))
+        guesses.push_back({*current, Role::current});
     return guesses;
 }
 
 // What a few bytes of a hostile file may make us compute and allocate, in cells (samples x channels, plus one per
 // signal scanned for each axis): a real trace writes a record for nearly every fine sample, so cells far beyond the
 // file size mean a broken time or interval attribute, or a flood of axes.
-double cell_budget(const Session& session) { return std::max(16.0e6, 2.0 * static_cast<double>(session.input_bytes)); }
+double cell_budget(const Session& session) {
+    return std::max(16.0e6, 2.0 * static_cast<double>(session.input_bytes));
+}
 
 Trace build_axis(const Session& session, const std::string& axis, const std::string& source, double& budget) {
     const auto& signals = session.signals;
     budget -= static_cast<double>(signals.size());
     if (budget < 0.0) {
-        throw InputError(fmt::format("{}: the trace declares more axes and signals than its records could fill "
-                                     "({} signals)",
-                                     source, signals.size()));
+        throw InputError(
+            fmt::format("{}: the trace declares more axes and signals than its records could fill "
+                        "({} signals)",
+                        source, signals.size()));
     }
     std::vector<std::size_t> members;
     for (std::size_t k = 0; k < signals.size(); ++k) {
@@ -503,8 +520,8 @@ Trace build_axis(const Session& session, const std::string& axis, const std::str
     std::vector<std::size_t> kept;
     for (const auto index : members) {
         if (signals[index].times.empty()) {
-            trace.findings.push_back(fmt::format("signal '{}' has no samples in the records; left out",
-                                                 signals[index].variable));
+            trace.findings.push_back(
+                fmt::format("signal '{}' has no samples in the records; left out", signals[index].variable));
         } else {
             kept.push_back(index);
         }
@@ -523,9 +540,10 @@ Trace build_axis(const Session& session, const std::string& axis, const std::str
     const double count_real = std::floor(span / step + 1e-6) + 1.0;
     const double cells = count_real * static_cast<double>(kept.size() + 1);
     if (!(count_real >= 1.0) || !(cells <= budget)) {
-        throw InputError(fmt::format("{}: records from {} s to {} s at an interval of {} s would make {:.0f} samples, "
-                                     "far more than the file holds records for",
-                                     source, session.first_time, session.last_time, step, count_real));
+        throw InputError(
+            fmt::format("{}: records from {} s to {} s at an interval of {} s would make {:.0f} samples, "
+                        "far more than the file holds records for",
+                        source, session.first_time, session.last_time, step, count_real));
     }
     budget -= cells;
     const auto n = static_cast<std::size_t>(count_real);
@@ -564,18 +582,21 @@ Trace build_axis(const Session& session, const std::string& axis, const std::str
     // Roles, each guess said.
     const auto guesses = guess_roles(signals, kept);
     for (const auto& guess : guesses) {
-        const auto position = static_cast<std::size_t>(std::find(kept.begin(), kept.end(), guess.signal) - kept.begin());
+        const auto position =
+            static_cast<std::size_t>(std::find(kept.begin(), kept.end(), guess.signal) - kept.begin());
         auto& channel = channels[position];
         channel.role = guess.role;
         const auto& description = signals[guess.signal].description;
-        trace.findings.push_back(fmt::format("channel '{}'{} taken as {} (guessed from the NC variable name; set it "
-                                             "with --channel {}=NAME)",
-                                             channel.name, description.empty() ? "" : " (" + description + ")",
-                                             role_name(guess.role), role_name(guess.role)));
+        trace.findings.push_back(
+            fmt::format("channel '{}'{} taken as {} (guessed from the NC variable name; set it "
+                        "with --channel {}=NAME)",
+                        channel.name, description.empty() ? "" : " (" + description + ")", role_name(guess.role),
+                        role_name(guess.role)));
     }
     if (!guesses.empty()) {
-        trace.findings.push_back("SINUMERIK units taken for a linear metric axis: posn in mm, velo in mm/min (state "
-                                 "others with --unit ROLE=UNIT, e.g. --unit position=deg for a rotary axis)");
+        trace.findings.push_back(
+            "SINUMERIK units taken for a linear metric axis: posn in mm, velo in mm/min (state "
+            "others with --unit ROLE=UNIT, e.g. --unit position=deg for a rotary axis)");
     }
 
     // The trace starts where every role channel has a value (sparse signals on coarser grids may start later).
@@ -588,9 +609,10 @@ Trace build_axis(const Session& session, const std::string& axis, const std::str
     }
     if (first >= n) throw InputError(fmt::format("{}: no sample where all role channels have values", source));
     if (first > 0) {
-        trace.findings.push_back(fmt::format("the first {} samples were dropped: not every role channel had a value "
-                                             "yet",
-                                             first));
+        trace.findings.push_back(
+            fmt::format("the first {} samples were dropped: not every role channel had a value "
+                        "yet",
+                        first));
     }
     for (const auto index : kept) {
         const auto& signal = signals[index];

@@ -19,7 +19,9 @@ namespace {
 
 constexpr double not_a_number = std::numeric_limits<double>::quiet_NaN();
 
-bool is_blank(std::string_view cell) { return scan::trim(cell).empty(); }
+bool is_blank(std::string_view cell) {
+    return scan::trim(cell).empty();
+}
 
 // Splits a line on the separator. With a space separator a blank cell (" ") between two separators reads as two
 // empty tokens, so pairs of empty tokens are one blank cell there.
@@ -56,10 +58,10 @@ struct HeaderRow {
 
 // Header keys, longest first, so that "Unit ScaleFactor" is not read as "Unit" (with a space separator the key
 // itself is split in tokens).
-constexpr std::string_view known_keys[] = {"Unit ScaleFactor", "Unit Offset", "SampleTime[ms]", "SymbolComment",
-                                           "VariableSize", "SymbolBased", "IndexGroup", "IndexOffset", "SymbolName",
-                                           "ScaleFactor", "Data-Type", "BitMask", "Offset", "NetID", "Port", "Unit",
-                                           "Name"};
+constexpr std::string_view known_keys[] = {
+    "Unit ScaleFactor", "Unit Offset", "SampleTime[ms]", "SymbolComment", "VariableSize", "SymbolBased",
+    "IndexGroup",       "IndexOffset", "SymbolName",     "ScaleFactor",   "Data-Type",    "BitMask",
+    "Offset",           "NetID",       "Port",           "Unit",          "Name"};
 
 std::string_view key_of(std::string_view line, char separator) {
     for (const auto key : known_keys) {
@@ -175,8 +177,8 @@ Trace parse_twincat_scope(std::string_view text, const std::string& source) {
     const std::string_view first = scan::next_line(text, position);
     ++line_number;
     if (first.size() < 5 || !first.starts_with("Name")) {
-        throw InputError(fmt::format("{}: line 1: not a TwinCAT Scope export (it starts with 'Name' and a separator)",
-                                     source));
+        throw InputError(
+            fmt::format("{}: line 1: not a TwinCAT Scope export (it starts with 'Name' and a separator)", source));
     }
     const char separator = first[4];
     if (separator != '\t' && separator != ' ' && separator != ':' && separator != ';' && separator != ',') {
@@ -201,8 +203,8 @@ Trace parse_twincat_scope(std::string_view text, const std::string& source) {
         if (!header.contains(key)) header[key] = {line, line_number};
     }
     if (header_line == 0) {
-        throw InputError(fmt::format("{}: no channel header (a line starting with 'Name' after the file information)",
-                                     source));
+        throw InputError(
+            fmt::format("{}: no channel header (a line starting with 'Name' after the file information)", source));
     }
 
     // The column layout from the Data-Type row (its cells never hold a separator), else from the Name row.
@@ -216,15 +218,16 @@ Trace parse_twincat_scope(std::string_view text, const std::string& source) {
         if (scan::trim(cells[c]) == layout_key) {
             groups.push_back({c, {}});
         } else if (groups.empty()) {
-            throw InputError(fmt::format("{}: line {}: the {} row does not start with its key", source,
-                                         layout_row.line, layout_key));
+            throw InputError(fmt::format("{}: line {}: the {} row does not start with its key", source, layout_row.line,
+                                         layout_key));
         } else {
             groups.back().channel_columns.push_back(c);
         }
     }
     const std::size_t columns = cells.size();
     std::erase_if(groups, [](const Group& group) { return group.channel_columns.empty(); });
-    if (groups.empty()) throw InputError(fmt::format("{}: line {}: no channels in the header", source, layout_row.line));
+    if (groups.empty())
+        throw InputError(fmt::format("{}: line {}: no channels in the header", source, layout_row.line));
     std::size_t channel_count = 0;
     for (const auto& group : groups) channel_count += group.channel_columns.size();
 
@@ -234,8 +237,9 @@ Trace parse_twincat_scope(std::string_view text, const std::string& source) {
         names = std::move(*row);
     } else if (separator == ' ') {
         for (std::size_t k = 0; k < channel_count; ++k) names.push_back(fmt::format("channel {}", k + 1));
-        findings.push_back("the channel names of this space-separated export cannot be told apart (a name holds a "
-                           "space); channels are named 'channel 1', 'channel 2', ... in column order");
+        findings.push_back(
+            "the channel names of this space-separated export cannot be told apart (a name holds a "
+            "space); channels are named 'channel 1', 'channel 2', ... in column order");
     } else {
         throw InputError(fmt::format("{}: line {}: the Name row does not match the columns of the {} row", source,
                                      header_line, layout_key));
@@ -253,9 +257,10 @@ Trace parse_twincat_scope(std::string_view text, const std::string& source) {
         if (auto row = row_cells(header["Unit"].text, "Unit", separator, groups, columns)) {
             for (std::size_t k = 0; k < channel_count; ++k) units[k] = unit_symbol((*row)[k]);
         } else {
-            findings.push_back(fmt::format("line {}: the Unit row does not match the columns; channels taken without "
-                                           "units",
-                                           header["Unit"].line));
+            findings.push_back(
+                fmt::format("line {}: the Unit row does not match the columns; channels taken without "
+                            "units",
+                            header["Unit"].line));
         }
     }
     // Scalings the Scope already applied (informational; see the header).
@@ -333,13 +338,14 @@ Trace parse_twincat_scope(std::string_view text, const std::string& source) {
                                              line_number, scan::trim(time_cell), names[first_channel[g]]));
             }
             if (!times[g].empty() && !(time > times[g].back())) {
-                throw InputError(fmt::format("{}: line {}: time stamps of channel '{}' do not increase ({} ms after "
-                                             "{} ms)",
-                                             source, line_number, names[first_channel[g]], time, times[g].back()));
+                throw InputError(
+                    fmt::format("{}: line {}: time stamps of channel '{}' do not increase ({} ms after "
+                                "{} ms)",
+                                source, line_number, names[first_channel[g]], time, times[g].back()));
             }
             if (ended[g]) {
-                throw InputError(fmt::format("{}: line {}: channel '{}' resumes after blank cells", source,
-                                             line_number, names[first_channel[g]]));
+                throw InputError(fmt::format("{}: line {}: channel '{}' resumes after blank cells", source, line_number,
+                                             names[first_channel[g]]));
             }
             times[g].push_back(time);
             for (std::size_t c = 0; c < group.channel_columns.size(); ++c) {
@@ -378,9 +384,10 @@ Trace parse_twincat_scope(std::string_view text, const std::string& source) {
         end = std::min(end, times[g].back());
     }
     if (!(end >= begin)) {
-        throw InputError(fmt::format("{}: the channels do not overlap in time (one ends at {} ms before another "
-                                     "starts at {} ms)",
-                                     source, end, begin));
+        throw InputError(
+            fmt::format("{}: the channels do not overlap in time (one ends at {} ms before another "
+                        "starts at {} ms)",
+                        source, end, begin));
     }
     const double tolerance = std::isfinite(steps[finest]) ? 1e-6 * steps[finest] : 1e-9;
     std::vector<double> base;
@@ -399,19 +406,19 @@ Trace parse_twincat_scope(std::string_view text, const std::string& source) {
     if (mixed || base.size() < longest) {
         std::vector<double> distinct;
         for (const double step : steps) {
-            if (std::isfinite(step) && std::none_of(distinct.begin(), distinct.end(), [&](double d) {
-                    return std::abs(d - step) <= tolerance;
-                })) {
+            if (std::isfinite(step) && std::none_of(distinct.begin(), distinct.end(),
+                                                    [&](double d) { return std::abs(d - step) <= tolerance; })) {
                 distinct.push_back(step);
             }
         }
         std::sort(distinct.begin(), distinct.end());
         std::string list;
         for (const double step : distinct) list += fmt::format("{}{:g}", list.empty() ? "" : ", ", step);
-        trace.findings.push_back(fmt::format("channels sampled at {} ms: all are put on the finest time stamps "
-                                             "({:g} ms) from {:g} ms to {:g} ms, where every channel has samples; a "
-                                             "slower channel holds its latest sample",
-                                             list, steps[finest], begin, end));
+        trace.findings.push_back(
+            fmt::format("channels sampled at {} ms: all are put on the finest time stamps "
+                        "({:g} ms) from {:g} ms to {:g} ms, where every channel has samples; a "
+                        "slower channel holds its latest sample",
+                        list, steps[finest], begin, end));
     }
 
     trace.channels.push_back(Channel{"time", Role::time, "", "ms", base});
@@ -421,8 +428,8 @@ Trace parse_twincat_scope(std::string_view text, const std::string& source) {
             const std::size_t k = first_channel[g] + c;
             Channel channel{names[k], Role::other, "", units[k], {}};
             if (g == finest) {
-                const auto offset = static_cast<std::size_t>(std::lower_bound(t.begin(), t.end(), begin - tolerance) -
-                                                             t.begin());
+                const auto offset =
+                    static_cast<std::size_t>(std::lower_bound(t.begin(), t.end(), begin - tolerance) - t.begin());
                 channel.values.assign(values[k].begin() + static_cast<std::ptrdiff_t>(offset),
                                       values[k].begin() + static_cast<std::ptrdiff_t>(offset + base.size()));
             } else {

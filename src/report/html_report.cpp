@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <cmath>
 #include <filesystem>
 #include <limits>
-#include <cmath>
 #include <map>
 #include <set>
 
@@ -31,8 +31,10 @@ constexpr std::size_t max_plot_points = 800;
 std::string slug(const std::string& text) {
     std::string out;
     for (const char c : text) {
-        if (std::isalnum(static_cast<unsigned char>(c))) out += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-        else if (!out.empty() && out.back() != '-') out += '-';
+        if (std::isalnum(static_cast<unsigned char>(c)))
+            out += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        else if (!out.empty() && out.back() != '-')
+            out += '-';
     }
     while (!out.empty() && out.back() == '-') out.pop_back();
     return out.empty() ? "plot" : out;
@@ -51,7 +53,9 @@ std::optional<double> number_at(const nlohmann::json& object, const char* key) {
     return std::nullopt;
 }
 
-std::string with_unit(const ParameterLabel& label) { return fmt::format("{} [{}]", label.name, label.unit); }
+std::string with_unit(const ParameterLabel& label) {
+    return fmt::format("{} [{}]", label.name, label.unit);
+}
 
 std::string format_estimate(const std::optional<double>& value, const std::optional<double>& error,
                             const std::string& unit) {
@@ -127,9 +131,10 @@ SimulationSeries read_simulation_series(const nlohmann::json& simulation, const 
             throw wrong_kind(fmt::format("'tracking_error_mae_m.{}' is not a number", key));
     if (!number_at(simulation, "modelling_error_mae_m")) throw wrong_kind("'modelling_error_mae_m' is not a number");
     if (!simulation.contains("series") || !simulation["series"].is_object())
-        throw InputError(fmt::format("{}: the simulate document has no 'series' of errors over time (written by an "
-                                     "older feedid; run feedid simulate --json again)",
-                                     source));
+        throw InputError(
+            fmt::format("{}: the simulate document has no 'series' of errors over time (written by an "
+                        "older feedid; run feedid simulate --json again)",
+                        source));
     SimulationSeries out;
     if (simulation.contains("rotary")) {
         if (!simulation["rotary"].is_boolean())
@@ -170,7 +175,9 @@ SimulationSeries read_simulation_series(const nlohmann::json& simulation, const 
 
 /// Lengths are shown in mm (mrad on a rotary axis): tracking errors of feed drives are fractions of a millimetre.
 constexpr double display_scale = 1e3;
-const char* display_unit(bool rotary) { return rotary ? "mrad" : "mm"; }
+const char* display_unit(bool rotary) {
+    return rotary ? "mrad" : "mm";
+}
 
 std::vector<double> scaled(const std::vector<double>& values) {
     std::vector<double> out(values.size());
@@ -308,8 +315,7 @@ std::vector<Plot> result_plots(const nlohmann::json& result, const std::string& 
 }
 
 std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
-                                const std::vector<history::SeriesTrend>& trends,
-                                const history::TrendOptions& options) {
+                                const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options) {
     std::vector<Plot> plots;
     for (const auto& trend : trends) {
         // Runs of this axis in recording order; the plots' x axis is the position in that order.
@@ -338,8 +344,8 @@ std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
             series.name = "value ± 2 standard errors";
             series.style = Series::Style::line_and_points;
             Series upper;
-            upper.name = fmt::format("one-run alarm limit: baseline ± (h + k) σ = ± {:g} σ",
-                                     options.cusum_h + options.cusum_k);
+            upper.name =
+                fmt::format("one-run alarm limit: baseline ± (h + k) σ = ± {:g} σ", options.cusum_h + options.cusum_k);
             upper.style = Series::Style::step;
             upper.colour = red;
             upper.dashed = true;
@@ -402,16 +408,16 @@ std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
             if (up.x.empty()) continue;
             cusum.series.push_back(std::move(up));
             cusum.series.push_back(std::move(down));
-            cusum.horizontal.push_back({fmt::format("decision interval h = {:g}", options.cusum_h), options.cusum_h, red,
-                                        true});
+            cusum.horizontal.push_back(
+                {fmt::format("decision interval h = {:g}", options.cusum_h), options.cusum_h, red, true});
             plots.push_back(std::move(cusum));
         }
 
         // The latest run whose stored result holds a friction curve.
         for (auto run = series_runs.rbegin(); run != series_runs.rend(); ++run) {
-            auto curve = friction_curve_plot(
-                (*run)->result, fmt::format("friction-{}", prefix),
-                fmt::format("Friction against speed — {}, latest run #{} ({})", where, (*run)->id, (*run)->recorded_at));
+            auto curve = friction_curve_plot((*run)->result, fmt::format("friction-{}", prefix),
+                                             fmt::format("Friction against speed — {}, latest run #{} ({})", where,
+                                                         (*run)->id, (*run)->recorded_at));
             if (curve) {
                 plots.push_back(std::move(*curve));
                 break;
@@ -434,10 +440,11 @@ figure { margin: 1.5em 0; } figcaption { font-size: 0.85em; color: #555; }
 )";
 
 std::string page(const std::string& title, const std::string& body) {
-    return fmt::format("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{}</title>\n"
-                       "<style>{}</style>\n</head>\n<body>\n<h1>{}</h1>\n{}<p class=\"note\">Written by feedid {}.</p>\n"
-                       "</body>\n</html>\n",
-                       escape_xml(title), page_style, escape_xml(title), body, feedid::version);
+    return fmt::format(
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{}</title>\n"
+        "<style>{}</style>\n</head>\n<body>\n<h1>{}</h1>\n{}<p class=\"note\">Written by feedid {}.</p>\n"
+        "</body>\n</html>\n",
+        escape_xml(title), page_style, escape_xml(title), body, feedid::version);
 }
 
 std::string figure(const Plot& plot, const std::string& caption) {
@@ -469,39 +476,44 @@ std::string validation_section(const SimulationDocument& simulation, const std::
     body += fmt::format("<p>Simulation <code>{}</code>{}{}.</p>\n", escape_xml(simulation.source), of_trace, samples);
     if (!simulated_trace.empty() &&
         std::filesystem::path(simulated_trace).filename() != std::filesystem::path(result_trace).filename())
-        body += fmt::format("<p class=\"alarm\">The simulation ran on <code>{}</code>, the result was identified from "
-                            "<code>{}</code>.</p>\n",
-                            escape_xml(simulated_trace), escape_xml(result_trace));
+        body += fmt::format(
+            "<p class=\"alarm\">The simulation ran on <code>{}</code>, the result was identified from "
+            "<code>{}</code>.</p>\n",
+            escape_xml(simulated_trace), escape_xml(result_trace));
     const auto mae = object("tracking_error_mae_m");
     const auto largest = object("tracking_error_max_m");
-    body += fmt::format("<table>\n<tr><th class=\"text\">error</th><th>model</th><th>machine</th>"
-                        "<th class=\"text\">unit</th></tr>\n"
-                        "<tr><td class=\"text\">mean absolute tracking error</td><td>{}</td><td>{}</td>"
-                        "<td class=\"text\">{}</td></tr>\n"
-                        "<tr><td class=\"text\">largest tracking error</td><td>{}</td><td>{}</td>"
-                        "<td class=\"text\">{}</td></tr>\n"
-                        "<tr><td class=\"text\">mean absolute modelling error e_m</td><td colspan=\"2\">{}</td>"
-                        "<td class=\"text\">{}</td></tr>\n"
-                        "<tr><td class=\"text\">largest modelling error e_m</td><td colspan=\"2\">{}</td>"
-                        "<td class=\"text\">{}</td></tr>\n</table>\n",
-                        cell(number_at(mae, "model"), display_scale), cell(number_at(mae, "machine"), display_scale),
-                        unit, cell(number_at(largest, "model"), display_scale),
-                        cell(number_at(largest, "machine"), display_scale), unit,
-                        cell(number_at(document, "modelling_error_mae_m"), display_scale), unit,
-                        cell(number_at(document, "modelling_error_max_m"), display_scale), unit);
+    body += fmt::format(
+        "<table>\n<tr><th class=\"text\">error</th><th>model</th><th>machine</th>"
+        "<th class=\"text\">unit</th></tr>\n"
+        "<tr><td class=\"text\">mean absolute tracking error</td><td>{}</td><td>{}</td>"
+        "<td class=\"text\">{}</td></tr>\n"
+        "<tr><td class=\"text\">largest tracking error</td><td>{}</td><td>{}</td>"
+        "<td class=\"text\">{}</td></tr>\n"
+        "<tr><td class=\"text\">mean absolute modelling error e_m</td><td colspan=\"2\">{}</td>"
+        "<td class=\"text\">{}</td></tr>\n"
+        "<tr><td class=\"text\">largest modelling error e_m</td><td colspan=\"2\">{}</td>"
+        "<td class=\"text\">{}</td></tr>\n</table>\n",
+        cell(number_at(mae, "model"), display_scale), cell(number_at(mae, "machine"), display_scale), unit,
+        cell(number_at(largest, "model"), display_scale), cell(number_at(largest, "machine"), display_scale), unit,
+        cell(number_at(document, "modelling_error_mae_m"), display_scale), unit,
+        cell(number_at(document, "modelling_error_max_m"), display_scale), unit);
     const auto relative = object("relative_error_pct");
-    body += "<table>\n<tr><th class=\"text\">relative error 100·‖y − y_sim‖/‖y‖</th><th>position</th>"
-            "<th>velocity</th><th>acceleration</th><th>force</th></tr>\n<tr><td class=\"text\">%</td>";
+    body +=
+        "<table>\n<tr><th class=\"text\">relative error 100·‖y − y_sim‖/‖y‖</th><th>position</th>"
+        "<th>velocity</th><th>acceleration</th><th>force</th></tr>\n<tr><td class=\"text\">%</td>";
     for (const char* key : {"position", "velocity", "acceleration", "force"})
         body += fmt::format("<td>{}</td>", cell(number_at(relative, key), 1.0));
     body += "</tr>\n</table>\n";
     std::string thinned;
     if (const auto series = object("series"); number_at(series, "samples") && series.contains("time_s"))
-        thinned = fmt::format(" The plots show {} of the {:.0f} samples: in each stretch of time the samples where an "
-                              "error is smallest or largest, so no peak is lost.",
-                              series["time_s"].size(), *number_at(series, "samples"));
-    body += figure(plots.at(0), "The tracking error of the machine (measured) and of the model (simulated in closed "
-                                "loop with the identified gains) on the same reference." + thinned);
+        thinned = fmt::format(
+            " The plots show {} of the {:.0f} samples: in each stretch of time the samples where an "
+            "error is smallest or largest, so no peak is lost.",
+            series["time_s"].size(), *number_at(series, "samples"));
+    body += figure(plots.at(0),
+                   "The tracking error of the machine (measured) and of the model (simulated in closed "
+                   "loop with the identified gains) on the same reference." +
+                       thinned);
     body += figure(plots.at(1), "The modelling error: measured minus simulated position." + thinned);
     return body;
 }
@@ -522,8 +534,9 @@ std::string result_report_html(const nlohmann::json& result, const std::string& 
     body += fmt::format("<p>Trace <code>{}</code>; model <b>{}</b>; status <b>{}</b>.</p>\n", escape_xml(trace_path),
                         escape_xml(result.value("model", std::string())),
                         escape_xml(result.value("status", std::string("—"))));
-    body += "<table>\n<tr><th class=\"text\">parameter</th><th>value</th><th>standard error</th>"
-            "<th class=\"text\">unit</th></tr>\n";
+    body +=
+        "<table>\n<tr><th class=\"text\">parameter</th><th>value</th><th>standard error</th>"
+        "<th class=\"text\">unit</th></tr>\n";
     for (const auto& [key, entry] : result["parameters"].items()) {
         const auto label = parameter_label(key);
         const auto value = number_at(entry, "value");
@@ -535,10 +548,11 @@ std::string result_report_html(const nlohmann::json& result, const std::string& 
     body += "</table>\n";
     if (result.contains("fit") && result["fit"].is_object()) {
         const auto& fit = result["fit"];
-        body += fmt::format("<p>Step-1 batch least squares: relative error {} %, condition number {}, {} samples.</p>\n",
-                            number_at(fit, "relative_error_pct") ? fmt::format("{:.3g}", *number_at(fit, "relative_error_pct")) : "—",
-                            number_at(fit, "condition_number") ? fmt::format("{:.3g}", *number_at(fit, "condition_number")) : "—",
-                            number_at(fit, "samples_used") ? fmt::format("{:.0f}", *number_at(fit, "samples_used")) : "—");
+        body += fmt::format(
+            "<p>Step-1 batch least squares: relative error {} %, condition number {}, {} samples.</p>\n",
+            number_at(fit, "relative_error_pct") ? fmt::format("{:.3g}", *number_at(fit, "relative_error_pct")) : "—",
+            number_at(fit, "condition_number") ? fmt::format("{:.3g}", *number_at(fit, "condition_number")) : "—",
+            number_at(fit, "samples_used") ? fmt::format("{:.0f}", *number_at(fit, "samples_used")) : "—");
     }
     if (result.contains("diagnostics") && result["diagnostics"].is_array() && !result["diagnostics"].empty()) {
         body += "<h2>Diagnostics</h2>\n<ul>\n";
@@ -556,25 +570,27 @@ std::string result_report_html(const nlohmann::json& result, const std::string& 
                                  : "Quasi-static friction binned by speed, per direction, with the fitted model "
                                    "(viscous, Coulomb and, where identified, Stribeck terms).");
     }
-    if (simulation) body += validation_section(*simulation, trace_path, validation_plots);
+    if (simulation)
+        body += validation_section(*simulation, trace_path, validation_plots);
     else
-        body += "<p class=\"note\">Tracking-error plots (the paper's Fig. 6) need a simulation: give its document with "
-                "--simulation (feedid simulate --json).</p>\n";
+        body +=
+            "<p class=\"note\">Tracking-error plots (the paper's Fig. 6) need a simulation: give its document with "
+            "--simulation (feedid simulate --json).</p>\n";
     return page(fmt::format("feedid identification report: {}", std::filesystem::path(trace_path).filename().string()),
                 body);
 }
 
 std::string history_report_html(const std::vector<history::RunRecord>& runs,
-                                const std::vector<history::SeriesTrend>& trends,
-                                const history::TrendOptions& options, const std::string& source) {
+                                const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options,
+                                const std::string& source) {
     std::string body;
     std::size_t alarm_count = 0;
     for (const auto& trend : trends) alarm_count += trend.alarms.size();
-    body += fmt::format("<p>History <code>{}</code>: {} run(s) of {} axis/axes. Baseline: the first {} runs of each "
-                        "axis (or from a pinned run); CUSUM allowance k = {:g}, decision interval h = {:g} "
-                        "(combined standard errors).</p>\n",
-                        escape_xml(source), runs.size(), trends.size(), options.baseline_runs, options.cusum_k,
-                        options.cusum_h);
+    body += fmt::format(
+        "<p>History <code>{}</code>: {} run(s) of {} axis/axes. Baseline: the first {} runs of each "
+        "axis (or from a pinned run); CUSUM allowance k = {:g}, decision interval h = {:g} "
+        "(combined standard errors).</p>\n",
+        escape_xml(source), runs.size(), trends.size(), options.baseline_runs, options.cusum_k, options.cusum_h);
     body += alarm_count == 0 ? std::string("<p>No drift alarm.</p>\n")
                              : fmt::format("<p class=\"alarm\">{} drift alarm(s).</p>\n", alarm_count);
     for (const auto& trend : trends) {
@@ -620,14 +636,17 @@ std::string history_report_html(const std::vector<history::RunRecord>& runs,
         for (const auto& plot : history_plots(runs, {trend}, options)) {
             std::string caption;
             if (plot.id.rfind("trend-", 0) == 0)
-                caption = "Each run's value with a band of ± 2 standard errors, the baseline mean, and the change that "
-                          "raises the alarm in a single run; a red ring marks a run in alarm.";
+                caption =
+                    "Each run's value with a band of ± 2 standard errors, the baseline mean, and the change that "
+                    "raises the alarm in a single run; a red ring marks a run in alarm.";
             else if (plot.id.rfind("cusum-", 0) == 0)
-                caption = "Two-sided CUSUM of the change in combined standard errors over the runs after the baseline; "
-                          "the alarm fires when it crosses h.";
+                caption =
+                    "Two-sided CUSUM of the change in combined standard errors over the runs after the baseline; "
+                    "the alarm fires when it crosses h.";
             else
-                caption = "Quasi-static friction of the latest run with a stored friction curve, per direction, with "
-                          "the fitted model.";
+                caption =
+                    "Quasi-static friction of the latest run with a stored friction curve, per direction, with "
+                    "the fitted model.";
             body += figure(plot, caption);
         }
     }

@@ -42,7 +42,9 @@ Range drawable(Range range) {
     return range;
 }
 
-std::string number(double value) { return fmt::format("{:.2f}", value); }
+std::string number(double value) {
+    return fmt::format("{:.2f}", value);
+}
 
 std::string tick_label(double value, double step) {
     if (std::abs(value) < step * 1e-9) value = 0.0;
@@ -52,7 +54,12 @@ std::string tick_label(double value, double step) {
 class Canvas {
 public:
     Canvas(const Plot& plot, Range x, Range y)
-        : plot_(plot), x_(x), y_(y), left_(84.0), right_(plot.width - 24.0), top_(40.0),
+        : plot_(plot),
+          x_(x),
+          y_(y),
+          left_(84.0),
+          right_(plot.width - 24.0),
+          top_(40.0),
           bottom_(plot.height - 64.0) {}  // the legend grows the image below this, see render_svg
 
     [[nodiscard]] double px(double x) const {
@@ -73,7 +80,9 @@ public:
     double left_, right_, top_, bottom_;
 };
 
-std::string dash(bool dashed) { return dashed ? R"( stroke-dasharray="6 4")" : ""; }
+std::string dash(bool dashed) {
+    return dashed ? R"( stroke-dasharray="6 4")" : "";
+}
 
 }  // namespace
 
@@ -89,8 +98,10 @@ std::string escape_xml(std::string_view text) {
             case '\'': out += "&apos;"; break;
             default:
                 // Control characters other than tab and newline are not allowed in XML 1.0.
-                if (static_cast<unsigned char>(c) < 0x20 && c != '\t' && c != '\n') out += ' ';
-                else out += c;
+                if (static_cast<unsigned char>(c) < 0x20 && c != '\t' && c != '\n')
+                    out += ' ';
+                else
+                    out += c;
         }
     }
     return out;
@@ -194,8 +205,8 @@ std::string render_svg(const Plot& plot) {
                        escape_xml(id), escape_xml(plot.title));
     svg += fmt::format(R"(<defs><clipPath id="{}-clip"><rect x="{}" y="{}" width="{}" height="{}"/></clipPath></defs>)"
                        "\n",
-                       escape_xml(id), number(canvas.left_), number(canvas.top_),
-                       number(canvas.right_ - canvas.left_), number(canvas.bottom_ - canvas.top_));
+                       escape_xml(id), number(canvas.left_), number(canvas.top_), number(canvas.right_ - canvas.left_),
+                       number(canvas.bottom_ - canvas.top_));
     svg += fmt::format(R"(<rect x="0" y="0" width="{}" height="{}" fill="#ffffff"/>)"
                        "\n",
                        number(plot.width), number(height));
@@ -207,8 +218,8 @@ std::string render_svg(const Plot& plot) {
     // Grid and ticks.
     svg += R"(<g class="grid" stroke="#e3e3e3" stroke-width="1">)";
     for (const double t : y_ticks)
-        svg += fmt::format(R"(<line x1="{}" y1="{}" x2="{}" y2="{}"/>)", number(canvas.left_),
-                           number(canvas.py(t)), number(canvas.right_), number(canvas.py(t)));
+        svg += fmt::format(R"(<line x1="{}" y1="{}" x2="{}" y2="{}"/>)", number(canvas.left_), number(canvas.py(t)),
+                           number(canvas.right_), number(canvas.py(t)));
     for (const double t : x_ticks) {
         const double x = canvas.px(plot.log_x ? std::pow(10.0, t) : t);
         svg += fmt::format(R"(<line x1="{}" y1="{}" x2="{}" y2="{}"/>)", number(x), number(canvas.top_), number(x),
@@ -258,9 +269,10 @@ std::string render_svg(const Plot& plot) {
                     for (auto i = run.rbegin(); i != run.rend(); ++i)
                         points += fmt::format("{},{} ", number(canvas.px(series.x[*i])),
                                               number(canvas.py(series.y[*i] - series.band[*i])));
-                    svg += fmt::format(R"(<polygon class="band" points="{}" fill="{}" fill-opacity="0.18" stroke="none"/>)"
-                                       "\n",
-                                       points, series.colour);
+                    svg +=
+                        fmt::format(R"(<polygon class="band" points="{}" fill="{}" fill-opacity="0.18" stroke="none"/>)"
+                                    "\n",
+                                    points, series.colour);
                 }
                 run.clear();
             };
@@ -317,10 +329,11 @@ std::string render_svg(const Plot& plot) {
         }
     }
     for (const auto& line : plot.horizontal) {
-        svg += fmt::format(R"(<line class="reference" x1="{}" y1="{}" x2="{}" y2="{}" stroke="{}" stroke-width="1.2"{}/>)"
-                           "\n",
-                           number(canvas.left_), number(canvas.py(line.y)), number(canvas.right_),
-                           number(canvas.py(line.y)), line.colour, dash(line.dashed));
+        svg +=
+            fmt::format(R"(<line class="reference" x1="{}" y1="{}" x2="{}" y2="{}" stroke="{}" stroke-width="1.2"{}/>)"
+                        "\n",
+                        number(canvas.left_), number(canvas.py(line.y)), number(canvas.right_),
+                        number(canvas.py(line.y)), line.colour, dash(line.dashed));
     }
     for (const auto& line : plot.vertical) {
         if (plot.log_x && line.x <= 0.0) continue;

@@ -31,21 +31,21 @@ struct StoredEstimate {
 
 /// One test run of one axis.
 struct RunRecord {
-    std::int64_t id{0};             ///< assigned by the store (increasing in insertion order)
-    std::string machine;            ///< e.g. "DMU-50 #3"
-    std::string axis;               ///< e.g. "X"
-    std::string location;           ///< site, for multi-centre tests ("" when not given)
-    std::string recorded_at;        ///< when the trace was recorded, ISO 8601 UTC ("2026-11-23T09:30:21.250Z")
-    std::string trace_path;         ///< the trace file as given when recorded
-    std::string trace_sha256;       ///< lower-case hex SHA-256 of the trace file's bytes
-    std::string feedid_version;     ///< version that produced the result
-    std::string model;              ///< "symmetric", "asymmetric", ...
-    std::string status;             ///< the result's status ("ok", "partial", ...), "" when it had none
+    std::int64_t id{0};          ///< assigned by the store (increasing in insertion order)
+    std::string machine;         ///< e.g. "DMU-50 #3"
+    std::string axis;            ///< e.g. "X"
+    std::string location;        ///< site, for multi-centre tests ("" when not given)
+    std::string recorded_at;     ///< when the trace was recorded, ISO 8601 UTC ("2026-11-23T09:30:21.250Z")
+    std::string trace_path;      ///< the trace file as given when recorded
+    std::string trace_sha256;    ///< lower-case hex SHA-256 of the trace file's bytes
+    std::string feedid_version;  ///< version that produced the result
+    std::string model;           ///< "symmetric", "asymmetric", ...
+    std::string status;          ///< the result's status ("ok", "partial", ...), "" when it had none
     nlohmann::json options = nlohmann::json::object();  ///< identification options used (canonical key order)
-    std::map<std::string, StoredEstimate> parameters;  ///< keys as in the result document ("coulomb_N", ...)
+    std::map<std::string, StoredEstimate> parameters;   ///< keys as in the result document ("coulomb_N", ...)
     nlohmann::json fit = nlohmann::json::object();      ///< {relative_error_pct, condition_number, samples_used}
     std::vector<std::string> diagnostics;
-    std::string stored_at;          ///< when the store wrote it, ISO 8601 UTC
+    std::string stored_at;  ///< when the store wrote it, ISO 8601 UTC
     /// The result document as recorded, without the bulky RLS history (keeps the friction curve, selection and
     /// Stribeck fit for the report); an empty object for runs stored before schema version 3.
     nlohmann::json result = nlohmann::json::object();
@@ -60,8 +60,8 @@ struct RunFilter {
 
 /// What add_run did.
 struct AddOutcome {
-    std::int64_t id{0};     ///< the new run, or the existing one it duplicates
-    bool inserted{false};   ///< false: the same trace with the same options was already recorded
+    std::int64_t id{0};    ///< the new run, or the existing one it duplicates
+    bool inserted{false};  ///< false: the same trace with the same options was already recorded
 };
 
 /// A pinned baseline: trends of (machine, axis) are measured against runs from this one on.
@@ -92,8 +92,8 @@ public:
 inline constexpr int sqlite_schema_version = 3;
 
 struct SqliteOpenOptions {
-    bool read_only{false};   ///< open for reading only; the file must exist and is never written
-    bool create{true};       ///< create the file when missing (ignored when read_only)
+    bool read_only{false};  ///< open for reading only; the file must exist and is never written
+    bool create{true};      ///< create the file when missing (ignored when read_only)
     /// Migrate no further than this schema version (tests of the migrations create older files with it).
     int target_schema_version{sqlite_schema_version};
     int busy_timeout_ms{30000};  ///< how long a writer waits for another process's transaction [ms]
@@ -105,7 +105,8 @@ struct SqliteOpenOptions {
 /// Test hook: when the environment variable FEEDID_TEST_ABORT_AFTER_STATEMENT=N is set, the store calls std::abort()
 /// right after executing its N-th write statement of the process (counting from 1), to test that an interrupted
 /// write leaves the file whole. Never set it outside tests.
-std::unique_ptr<HistoryStore> open_sqlite_store(const std::filesystem::path& path, const SqliteOpenOptions& options = {});
+std::unique_ptr<HistoryStore> open_sqlite_store(const std::filesystem::path& path,
+                                                const SqliteOpenOptions& options = {});
 
 /// True when the file starts with the SQLite 3 header ("SQLite format 3\0").
 bool looks_like_sqlite(const std::filesystem::path& path);
@@ -127,11 +128,11 @@ RunRecord run_from_result(const nlohmann::json& result, const std::string& sourc
 
 /// Where a run comes from, for record_run.
 struct RecordContext {
-    std::string machine;                 ///< required
-    std::string axis;                    ///< required
+    std::string machine;  ///< required
+    std::string axis;     ///< required
     std::string location;
-    std::filesystem::path trace;         ///< the trace file (hashed); required
-    std::string recorded_at;             ///< ISO 8601 UTC; default: the trace file's modification time
+    std::filesystem::path trace;                        ///< the trace file (hashed); required
+    std::string recorded_at;                            ///< ISO 8601 UTC; default: the trace file's modification time
     nlohmann::json options = nlohmann::json::object();  ///< the identification options used
 };
 

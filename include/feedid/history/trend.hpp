@@ -33,9 +33,9 @@
 namespace feedid::history {
 
 struct TrendOptions {
-    int baseline_runs{8};        ///< runs in the baseline (from the first run, or from the pinned run)
-    double cusum_k{1.0};         ///< CUSUM allowance [combined standard errors]
-    double cusum_h{6.0};         ///< CUSUM decision interval [combined standard errors]
+    int baseline_runs{8};                    ///< runs in the baseline (from the first run, or from the pinned run)
+    double cusum_k{1.0};                     ///< CUSUM allowance [combined standard errors]
+    double cusum_h{6.0};                     ///< CUSUM decision interval [combined standard errors]
     std::optional<std::int64_t> pinned_run;  ///< overrides a pin stored in the history
 
     /// What is wrong ("" when nothing).
@@ -55,7 +55,7 @@ struct TrendPoint {
     std::optional<double> z;               ///< change / sigma
     double cusum_up{0.0};
     double cusum_down{0.0};
-    bool alarm{false};                     ///< the CUSUM is above h at this run
+    bool alarm{false};  ///< the CUSUM is above h at this run
 };
 
 struct ParameterTrend {
@@ -75,7 +75,7 @@ struct Alarm {
     std::string parameter;
     std::int64_t run_id{0};
     std::string recorded_at;
-    std::string direction;   ///< "up" or "down"
+    std::string direction;  ///< "up" or "down"
     double cusum{0.0};
     double change{0.0};      ///< value - mu_0 at that run
     double change_pct{0.0};  ///< 100 * change / |mu_0| (0 when mu_0 is 0)
@@ -89,7 +89,7 @@ struct SeriesTrend {
     std::string machine;
     std::string axis;
     std::vector<std::int64_t> baseline_run_ids;
-    bool baseline_complete{false};       ///< as many baseline runs as asked for
+    bool baseline_complete{false};  ///< as many baseline runs as asked for
     std::optional<std::int64_t> pinned_run;
     std::vector<ParameterTrend> parameters;
     std::vector<Alarm> alarms;
