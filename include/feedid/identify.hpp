@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "feedid/drive.hpp"
+#include "feedid/estimate.hpp"
 #include "feedid/friction.hpp"
 #include "feedid/rls.hpp"
 #include "feedid/trace.hpp"
@@ -47,12 +48,6 @@ struct IdentifyOptions {
 
     /// What is wrong with these options ("" when nothing).
     [[nodiscard]] std::string validate() const;
-};
-
-/// A value with its standard error; both null when the data cannot determine it.
-struct Estimate {
-    std::optional<double> value;
-    std::optional<double> standard_error;
 };
 
 /// One reported parameter, keyed as in the result document ("mass_kg", "coulomb_forward_N", ...).
