@@ -55,7 +55,7 @@ void BM_IdentifyMillionSampleCsv(benchmark::State& state) {
         const auto trace = feedid::read_trace(path);
         const auto result = feedid::identify(trace, options);
         benchmark::DoNotOptimize(result.status);
-        if (result.status == "failed") state.SkipWithError("identification failed");
+        if (result.status == feedid::Status::failed) state.SkipWithError("identification failed");
     }
     state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * 1'000'000);
 }

@@ -34,7 +34,7 @@ int main(int argc, char** argv) {
             }
         }
         for (const auto& d : result.diagnostics) fmt::print("note: {}\n", d);
-        return result.status == "failed" ? 1 : 0;
+        return result.status == feedid::Status::failed ? 1 : 0;
     } catch (const feedid::InputError& e) {
         fmt::print(stderr, "{}\n", e.what());
         return 2;

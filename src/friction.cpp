@@ -5,10 +5,8 @@
 namespace feedid {
 
 double FrictionBranch::magnitude(double speed) const {
-    // eq. (3): B*|v| + F_C + (F_B - F_C)*exp(-|v|/v_s)
-    double value = viscous * speed + coulomb;
-    if (has_stribeck()) value += (*breakaway - coulomb) * std::exp(-speed / *stribeck_velocity);
-    return value;
+    if (!has_stribeck()) return friction_magnitude(speed, viscous, coulomb, 0.0, 0.0);
+    return friction_magnitude(speed, viscous, coulomb, *breakaway - coulomb, *stribeck_velocity);
 }
 
 double Friction::force(double velocity) const {

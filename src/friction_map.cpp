@@ -6,6 +6,7 @@
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
+#include "feedid/result_document.hpp"
 #include "feedid/version.hpp"
 
 namespace feedid {
@@ -202,10 +203,10 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
             location.result = identify(segment, options.identify);
         } catch (const InputError& e) {
             location.error = e.what();
-            location.result.status = "failed";
+            location.result.status = Status::failed;
         } catch (const AnalysisError& e) {
             location.error = e.what();
-            location.result.status = "failed";
+            location.result.status = Status::failed;
         }
         map.locations.push_back(std::move(location));
     }
@@ -265,7 +266,7 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
                              {"status", location.result.status},
                              {"deviation_pct", deviations[l]},
                              {"stands_out", stands_out[l]}};
-        const auto& document = location.result.document;
+        const nlohmann::json document = location.result;
         entry["parameters"] = document.contains("parameters") ? document["parameters"] : nlohmann::json::object();
         if (document.contains("fit")) entry["fit"] = document["fit"];
         entry["diagnostics"] = location.result.diagnostics;

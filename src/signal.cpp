@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <deque>
+#include <functional>
 #include <numbers>
 #include <stdexcept>
 
@@ -246,6 +248,42 @@ double noise_floor(std::span<const double> x) {
     const double centre = median_of(d);
     for (double& v : d) v = std::abs(v - centre);
     return 1.4826 * median_of(d) / std::numbers::sqrt2;
+}
+
+double percentile(std::vector<double> values, double fraction) {
+    if (values.empty()) return 0.0;
+    const auto index =
+        static_cast<std::size_t>(std::clamp(fraction, 0.0, 1.0) * static_cast<double>(values.size() - 1));
+    std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(index), values.end());
+    return values[index];
+}
+
+namespace {
+template <class Compare>
+std::vector<double> running_extreme(std::span<const double> x, std::size_t half, Compare better) {
+    const std::size_t n = x.size();
+    std::vector<double> out(n);
+    std::deque<std::size_t> queue;
+    std::size_t next = 0;  // the next index to enter the window
+    for (std::size_t k = 0; k < n; ++k) {
+        const std::size_t last = std::min(n - 1, k + half);
+        for (; next <= last; ++next) {
+            while (!queue.empty() && !better(x[queue.back()], x[next])) queue.pop_back();
+            queue.push_back(next);
+        }
+        while (queue.front() + half < k) queue.pop_front();
+        out[k] = x[queue.front()];
+    }
+    return out;
+}
+}  // namespace
+
+std::vector<double> running_minimum(std::span<const double> x, std::size_t half) {
+    return running_extreme(x, half, std::less<>{});
+}
+
+std::vector<double> running_maximum(std::span<const double> x, std::size_t half) {
+    return running_extreme(x, half, std::greater<>{});
 }
 
 }  // namespace feedid

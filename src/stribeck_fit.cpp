@@ -1,5 +1,8 @@
 #include "stribeck_fit.hpp"
 
+#include "feedid/friction.hpp"
+#include "feedid/parameters.hpp"
+
 #include <cmath>
 #include <limits>
 
@@ -14,11 +17,11 @@ LogLinearStribeck fit_log_linear(const FitSamples& samples, double mass, double 
     Rls<2> rls(rls_options);
     for (std::size_t k = 0; k < samples.size(); ++k) {
         const double v = samples.velocity[k];
-        const double sign = v > 0.0 ? 1.0 : -1.0;
+        const double direction = v > 0.0 ? 1.0 : -1.0;
         // eq. (12): what the first step's model leaves unexplained is the Stribeck part
         const double stribeck =
-            samples.force[k] - mass * samples.acceleration[k] - viscous * v - coulomb * sign - offset;
-        if (stribeck * sign <= 0.0) {
+            samples.force[k] - mass * samples.acceleration[k] - viscous * v - coulomb * direction - offset;
+        if (stribeck * direction <= 0.0) {
             ++result.wrong_sign;
             continue;
         }
@@ -55,10 +58,11 @@ CurveLayout::CurveLayout(const CurveModel& model) {
 }
 
 double CurveLayout::friction(const Eigen::VectorXd& x, double velocity, bool asymmetric) const {
-    const double sign = velocity > 0.0 ? 1.0 : (velocity < 0.0 ? -1.0 : 0.0);
     const int g = group(velocity, asymmetric);
-    double f = x(viscous[g]) * velocity + x(coulomb[g]) * sign;
-    if (delta[g] >= 0) f += sign * x(delta[g]) * std::exp(-std::abs(velocity) / std::exp(x(log_vs[g])));
+    const bool stribeck = delta[g] >= 0;
+    const double rise = stribeck ? x(delta[g]) : 0.0;
+    const double vs = stribeck ? std::exp(x(log_vs[g])) : 0.0;
+    double f = sign(velocity) * friction_magnitude(std::abs(velocity), x(viscous[g]), x(coulomb[g]), rise, vs);
     if (offset >= 0) f += x(offset);
     return f;
 }
@@ -84,17 +88,17 @@ struct CurveFunctor : Eigen::DenseFunctor<double> {
         for (std::size_t k = 0; k < samples_.size(); ++k) {
             const auto row = static_cast<Eigen::Index>(k);
             const double v = samples_.velocity[k];
-            const double sign = v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
+            const double s = sign(v);
             const int g = layout_.group(v, model_.asymmetric);
             if (layout_.mass >= 0) jacobian(row, layout_.mass) = samples_.acceleration[k];
             jacobian(row, layout_.viscous[g]) = v;
-            jacobian(row, layout_.coulomb[g]) = sign;
+            jacobian(row, layout_.coulomb[g]) = s;
             if (layout_.delta[g] >= 0) {
                 const double vs = std::exp(x(layout_.log_vs[g]));
                 const double decay = std::exp(-std::abs(v) / vs);
-                jacobian(row, layout_.delta[g]) = sign * decay;
+                jacobian(row, layout_.delta[g]) = s * decay;
                 // d/d(ln v_s) exp(-|v|/v_s) = exp(-|v|/v_s) * |v|/v_s
-                jacobian(row, layout_.log_vs[g]) = sign * x(layout_.delta[g]) * decay * std::abs(v) / vs;
+                jacobian(row, layout_.log_vs[g]) = s * x(layout_.delta[g]) * decay * std::abs(v) / vs;
             }
             if (layout_.offset >= 0) jacobian(row, layout_.offset) = 1.0;
         }
@@ -123,12 +127,12 @@ double solve_linear_part(const FitSamples& samples, const CurveModel& model, con
     for (std::size_t k = 0; k < samples.size(); ++k) {
         row.setZero();
         const double v = samples.velocity[k];
-        const double sign = v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
+        const double s = sign(v);
         const int g = layout.group(v, model.asymmetric);
         if (layout.mass >= 0) row(layout.mass) = samples.acceleration[k];
         row(layout.viscous[g]) = v;
-        row(layout.coulomb[g]) = sign;
-        if (layout.delta[g] >= 0) row(layout.delta[g]) = sign * std::exp(-std::abs(v) / std::exp(x(layout.log_vs[g])));
+        row(layout.coulomb[g]) = s;
+        if (layout.delta[g] >= 0) row(layout.delta[g]) = s * std::exp(-std::abs(v) / std::exp(x(layout.log_vs[g])));
         if (layout.offset >= 0) row(layout.offset) = 1.0;
         normal.selfadjointView<Eigen::Lower>().rankUpdate(row);
         rhs += row * samples.force[k];
@@ -157,26 +161,25 @@ double solve_linear_part(const FitSamples& samples, const CurveModel& model, con
 
 }  // namespace
 
-CurveFit fit_friction_curve(const FitSamples& samples, const CurveModel& model, double vs_low, double vs_high) {
-    const CurveLayout layout(model);
-    CurveFit fit;
-    fit.samples = samples.size();
-    const int p = layout.size;
-    if (samples.size() <= static_cast<std::size_t>(p) + 2 || !(vs_low > 0.0) || !(vs_high > vs_low)) return fit;
+namespace {
 
-    Eigen::VectorXd x = Eigen::VectorXd::Zero(p);
+/// Starting values for Levenberg-Marquardt: a grid search over ln v_s, one group at a time (twice round for two
+/// groups), on an evenly spread subsample of at most 20000 samples, with the linear parameters projected out. It only
+/// has to find the basin; Levenberg-Marquardt then uses every sample.
+Eigen::VectorXd grid_search(const FitSamples& samples, const CurveModel& model, const CurveLayout& layout,
+                            double vs_low, double vs_high) {
+    constexpr std::size_t coarse_samples = 20000;
+    constexpr int grid_points = 41;
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(layout.size);
     const double mid = std::sqrt(vs_low * vs_high);
     for (int g = 0; g < 2; ++g) {
         if (layout.log_vs[g] >= 0) x(layout.log_vs[g]) = std::log(mid);
     }
-    // Grid search over ln v_s, one group at a time (twice round for two groups), on an evenly spread subsample of at
-    // most 20000 samples: it only has to find the basin for Levenberg-Marquardt, which then uses every sample.
     FitSamples coarse;
-    const std::size_t coarse_stride = std::max<std::size_t>(1, samples.size() / 20000);
+    const std::size_t coarse_stride = std::max<std::size_t>(1, samples.size() / coarse_samples);
     for (std::size_t k = 0; k < samples.size(); k += coarse_stride) {
         coarse.push(samples.acceleration[k], samples.velocity[k], samples.force[k]);
     }
-    constexpr int grid_points = 41;
     const int rounds = model.asymmetric ? 2 : 1;
     double best_rss = solve_linear_part(coarse, model, layout, x);
     for (int round = 0; round < rounds; ++round) {
@@ -196,24 +199,14 @@ CurveFit fit_friction_curve(const FitSamples& samples, const CurveModel& model, 
             x = best;
         }
     }
-    if (layout.log_vs[0] < 0 && layout.log_vs[1] < 0) {
-        // linear model: the projection is the answer
-        (void)solve_linear_part(samples, model, layout, x);
-        fit.converged = true;
-    } else {
-        CurveFunctor functor(samples, model, layout);
-        Eigen::LevenbergMarquardt<CurveFunctor> solver(functor);
-        solver.setMaxfev(400);
-        const auto status = solver.minimize(x);
-        fit.iterations = static_cast<int>(solver.nfev());
-        fit.converged = status == Eigen::LevenbergMarquardtSpace::RelativeReductionTooSmall ||
-                        status == Eigen::LevenbergMarquardtSpace::RelativeErrorTooSmall ||
-                        status == Eigen::LevenbergMarquardtSpace::RelativeErrorAndReductionTooSmall ||
-                        status == Eigen::LevenbergMarquardtSpace::CosinusTooSmall;
-        if (!x.allFinite()) fit.converged = false;
-    }
+    return x;
+}
 
-    // Residuals, standard errors from J^T J at the solution.
+/// Residual statistics and the covariance sigma^2 (J^T J)^-1 at the solution x (with ln v_s); the v_s entries are
+/// turned into v_s by the delta method.
+void fill_statistics(const FitSamples& samples, const CurveModel& model, const CurveLayout& layout,
+                     const Eigen::VectorXd& x, CurveFit& fit) {
+    const int p = layout.size;
     CurveFunctor functor(samples, model, layout);
     Eigen::VectorXd residual(static_cast<Eigen::Index>(samples.size()));
     functor(x, residual);
@@ -239,6 +232,35 @@ CurveFit fit_friction_curve(const FitSamples& samples, const CurveModel& model, 
         }
     }
     fit.standard_errors = fit.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+}
+
+}  // namespace
+
+CurveFit fit_curve(const FitSamples& samples, const CurveModel& model, double vs_low, double vs_high) {
+    const CurveLayout layout(model);
+    CurveFit fit;
+    fit.samples = samples.size();
+    if (samples.size() <= static_cast<std::size_t>(layout.size) + 2 || !(vs_low > 0.0) || !(vs_high > vs_low)) {
+        return fit;
+    }
+    Eigen::VectorXd x = grid_search(samples, model, layout, vs_low, vs_high);
+    if (layout.log_vs[0] < 0 && layout.log_vs[1] < 0) {
+        // linear model: the projection is the answer
+        (void)solve_linear_part(samples, model, layout, x);
+        fit.converged = true;
+    } else {
+        CurveFunctor functor(samples, model, layout);
+        Eigen::LevenbergMarquardt<CurveFunctor> solver(functor);
+        solver.setMaxfev(400);
+        const auto status = solver.minimize(x);
+        fit.iterations = static_cast<int>(solver.nfev());
+        fit.converged = status == Eigen::LevenbergMarquardtSpace::RelativeReductionTooSmall ||
+                        status == Eigen::LevenbergMarquardtSpace::RelativeErrorTooSmall ||
+                        status == Eigen::LevenbergMarquardtSpace::RelativeErrorAndReductionTooSmall ||
+                        status == Eigen::LevenbergMarquardtSpace::CosinusTooSmall;
+        if (!x.allFinite()) fit.converged = false;
+    }
+    fill_statistics(samples, model, layout, x, fit);
     return fit;
 }
 

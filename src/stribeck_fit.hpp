@@ -1,5 +1,5 @@
 #pragma once
-// Step 2 of the identification (internal): the paper's log-linear Stribeck RLS and the nonlinear least-squares fit
+// The numerics of step 2 (internal): the paper's log-linear Stribeck RLS and the nonlinear least-squares fit
 // of the whole friction curve.
 
 #include <cstddef>
@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 
 #include "feedid/rls.hpp"
+#include "feedid/step2.hpp"
 
 namespace feedid::detail {
 
@@ -28,13 +29,6 @@ struct FitSamples {
 /// The paper's step 2 for one direction (eq. 12-14): F_stri = F - M*a - B*v - F_C*sgn(v) - F_0;
 /// ln|F_stri| = ln|F_B - F_C| - |v|/v_s, by RLS. Samples where F_stri has the wrong sign or lies below the noise
 /// level are excluded and counted.
-struct LogLinearStribeck {
-    std::optional<double> breakaway;          ///< F_B [N]
-    std::optional<double> stribeck_velocity;  ///< v_s [m/s]
-    std::size_t used{0};
-    std::size_t wrong_sign{0};
-    std::size_t below_noise{0};
-};
 LogLinearStribeck fit_log_linear(const FitSamples& samples, double mass, double viscous, double coulomb, double offset,
                                  double noise_level, const RlsOptions& rls_options);
 
@@ -79,6 +73,6 @@ struct CurveLayout {
 
 /// Fits the whole friction curve (with mass and offset) by a grid search over v_s (variable projection) followed by
 /// Levenberg-Marquardt. `vs_low`..`vs_high` bound the grid [m/s].
-CurveFit fit_friction_curve(const FitSamples& samples, const CurveModel& model, double vs_low, double vs_high);
+CurveFit fit_curve(const FitSamples& samples, const CurveModel& model, double vs_low, double vs_high);
 
 }  // namespace feedid::detail

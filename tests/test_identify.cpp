@@ -15,6 +15,7 @@
 #include "feedid/error.hpp"
 #include "feedid/identify.hpp"
 #include "feedid/io/csv.hpp"
+#include "feedid/result_document.hpp"
 #include "feedid/synth.hpp"
 #include "testing.hpp"
 
@@ -199,6 +200,10 @@ feedid::Trace synthetic_trace(const Drive& drive, const std::vector<double>& fee
     return trace;
 }
 
+nlohmann::json document_of(const feedid::IdentifyResult& r) {
+    return r;
+}
+
 feedid::IdentifyOptions options_for(feedid::FrictionModelKind model, bool offset = false) {
     feedid::IdentifyOptions options;
     options.model = model;
@@ -220,7 +225,7 @@ double estimate(const feedid::IdentifyResult& r, const std::string& key) {
 TEST(IdentifySynthetic, PerDirectionFrictionWithSlowPasses) {
     const auto trace = synthetic_trace(asymmetric_drive, slow_and_fast, 7);
     const auto r = feedid::identify(trace, options_for(feedid::FrictionModelKind::asymmetric));
-    ASSERT_NE(r.status, "failed") << r.document.dump(1);
+    ASSERT_NE(r.status, feedid::Status::failed) << document_of(r).dump(1);
     EXPECT_WITHIN_PCT(estimate(r, "mass_kg"), 50.0, 2.0);
     for (const auto& [name, branch] : {std::pair{std::string("forward"), asymmetric_drive.forward},
                                        std::pair{std::string("reverse"), asymmetric_drive.reverse}}) {
@@ -236,7 +241,7 @@ TEST(IdentifySynthetic, SymmetricDriveWithAnOffset) {
     const Drive drive{120.0, {60.0, 300.0, 380.0, 0.003}, {60.0, 300.0, 380.0, 0.003}, 150.0};
     const auto trace = synthetic_trace(drive, slow_and_fast, 11);
     const auto r = feedid::identify(trace, options_for(feedid::FrictionModelKind::symmetric, true));
-    ASSERT_NE(r.status, "failed") << r.document.dump(1);
+    ASSERT_NE(r.status, feedid::Status::failed) << document_of(r).dump(1);
     EXPECT_WITHIN_PCT(estimate(r, "mass_kg"), 120.0, 2.0);
     EXPECT_WITHIN_PCT(estimate(r, "viscous_Ns_per_m"), 60.0, 2.0);
     EXPECT_WITHIN_PCT(estimate(r, "coulomb_N"), 300.0, 2.0);
@@ -248,7 +253,7 @@ TEST(IdentifySynthetic, SymmetricDriveWithAnOffset) {
 TEST(IdentifySynthetic, ThePapersLadderAloneLeavesBreakawayAndStribeckNull) {
     const auto trace = synthetic_trace(asymmetric_drive, papers_ladder, 3);
     const auto r = feedid::identify(trace, options_for(feedid::FrictionModelKind::asymmetric));
-    ASSERT_NE(r.status, "failed") << r.document.dump(1);
+    ASSERT_NE(r.status, feedid::Status::failed) << document_of(r).dump(1);
     for (const std::string name : {"forward", "reverse"}) {
         SCOPED_TRACE(name);
         const auto* fb = r.find("breakaway_" + name + "_N");
@@ -257,7 +262,7 @@ TEST(IdentifySynthetic, ThePapersLadderAloneLeavesBreakawayAndStribeckNull) {
         ASSERT_NE(vs, nullptr);
         EXPECT_FALSE(fb->estimate.value.has_value()) << *fb->estimate.value;
         EXPECT_FALSE(vs->estimate.value.has_value()) << *vs->estimate.value;
-        EXPECT_TRUE(r.document.at("parameters").at("breakaway_" + name + "_N").at("value").is_null());
+        EXPECT_TRUE(document_of(r).at("parameters").at("breakaway_" + name + "_N").at("value").is_null());
     }
     bool explained = false;
     for (const auto& d : r.diagnostics) explained |= d.find("F_B and v_s") != std::string::npos;
@@ -277,14 +282,14 @@ TEST(IdentifySynthetic, ARotaryAxisReportsInertiaAndTorques) {
     trace.rotary = true;
     trace.find(feedid::Role::position)->unit = "rad";
     const auto r = feedid::identify(trace, options_for(feedid::FrictionModelKind::symmetric));
-    ASSERT_NE(r.status, "failed") << r.document.dump(1);
-    EXPECT_TRUE(r.document.at("rotary").get<bool>());
+    ASSERT_NE(r.status, feedid::Status::failed) << document_of(r).dump(1);
+    EXPECT_TRUE(document_of(r).at("rotary").get<bool>());
     EXPECT_WITHIN_PCT(estimate(r, "inertia_kgm2"), 0.8, 2.0);
     EXPECT_WITHIN_PCT(estimate(r, "viscous_Nms_per_rad"), 0.5, 2.0);
     EXPECT_WITHIN_PCT(estimate(r, "coulomb_Nm"), 12.0, 2.0);
     EXPECT_WITHIN_PCT(estimate(r, "breakaway_Nm"), 15.0, 5.0);
     EXPECT_WITHIN_PCT(estimate(r, "stribeck_velocity_rad_per_s"), 0.02, 15.0);
-    EXPECT_FALSE(r.document.at("parameters").contains("mass_kg"));
+    EXPECT_FALSE(document_of(r).at("parameters").contains("mass_kg"));
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -317,13 +322,14 @@ TEST(IdentifyClosedLoop, TheTransientsDoNotBiasTheFrictionCurve) {
     spec.sensors.current_resolution_A = 0.0;
     const auto truth = truth_of(spec);
     const auto r = identify_closed_loop(spec);
-    ASSERT_EQ(r.status, "ok") << r.document.dump(1);
+    ASSERT_EQ(r.status, feedid::Status::ok) << document_of(r).dump(1);
     EXPECT_WITHIN_PCT(estimate(r, "mass_kg"), truth.mass, 2.0);
     EXPECT_WITHIN_PCT(estimate(r, "viscous_Ns_per_m"), truth.viscous, 2.0);
     EXPECT_WITHIN_PCT(estimate(r, "coulomb_N"), truth.coulomb, 2.0);
     EXPECT_WITHIN_PCT(estimate(r, "breakaway_N"), truth.breakaway, 5.0);
     EXPECT_WITHIN_PCT(estimate(r, "stribeck_velocity_m_per_s"), truth.stribeck_velocity, 15.0);
-    EXPECT_EQ(r.document.at("stribeck").at("nonlinear").at("method"), "quasi-static curve, mass from the transients");
+    EXPECT_EQ(document_of(r).at("stribeck").at("nonlinear").at("method"),
+              "quasi-static curve, mass from the transients");
 }
 
 TEST(IdentifyClosedLoop, StandardErrorsMatchTheScatterOverRepeatedRuns) {
@@ -344,7 +350,7 @@ TEST(IdentifyClosedLoop, StandardErrorsMatchTheScatterOverRepeatedRuns) {
         feedid::SynthSpec spec = base;
         spec.seed = 100 + static_cast<std::uint64_t>(run);
         const auto r = identify_closed_loop(spec);
-        ASSERT_EQ(r.status, "ok") << "seed " << spec.seed << ": " << r.document.dump(1);
+        ASSERT_EQ(r.status, feedid::Status::ok) << "seed " << spec.seed << ": " << document_of(r).dump(1);
         for (std::size_t i = 0; i < parameters.size(); ++i) {
             const auto* p = r.find(parameters[i].first);
             ASSERT_TRUE(p && p->estimate.value && p->estimate.standard_error) << parameters[i].first;
@@ -378,17 +384,18 @@ TEST(IdentifyClosedLoop, StandardErrorsMatchTheScatterOverRepeatedRuns) {
 TEST(IdentifySynthetic, TheDocumentHasTheContractsKeys) {
     const auto trace = synthetic_trace(asymmetric_drive, slow_and_fast, 5);
     const auto r = feedid::identify(trace, options_for(feedid::FrictionModelKind::symmetric));
+    const Json document = document_of(r);
     for (const std::string key : {"feedid_version", "trace", "model", "parameters", "fit", "rls", "selection",
                                   "preprocessing", "status", "diagnostics"}) {
-        EXPECT_TRUE(r.document.contains(key)) << key;
+        EXPECT_TRUE(document.contains(key)) << key;
     }
     for (const std::string key :
          {"mass_kg", "viscous_Ns_per_m", "coulomb_N", "breakaway_N", "stribeck_velocity_m_per_s"}) {
-        ASSERT_TRUE(r.document.at("parameters").contains(key)) << key;
-        EXPECT_TRUE(r.document.at("parameters").at(key).contains("value")) << key;
-        EXPECT_TRUE(r.document.at("parameters").at(key).contains("stderr")) << key;
+        ASSERT_TRUE(document.at("parameters").contains(key)) << key;
+        EXPECT_TRUE(document.at("parameters").at(key).contains("value")) << key;
+        EXPECT_TRUE(document.at("parameters").at(key).contains("stderr")) << key;
     }
-    const auto& selection = r.document.at("selection");
+    const auto& selection = document.at("selection");
     EXPECT_GT(selection.at("step1").get<std::size_t>(), 1000u);
     EXPECT_GT(selection.at("step2").get<std::size_t>(), 100u);
     EXPECT_FALSE(selection.at("notes").empty());

@@ -10,6 +10,7 @@
 #include "feedid/error.hpp"
 #include "feedid/friction_map.hpp"
 #include "feedid/identify.hpp"
+#include "feedid/result_document.hpp"
 #include "record_arguments.hpp"
 
 namespace feedid::cli {
@@ -24,8 +25,6 @@ struct IdentifyCommand {
     std::string differentiation{"butterworth"};
     std::string rls_variant{"directional"};
     bool no_stribeck{false};
-    std::optional<double> cutoff, from, to, split, moving;
-    std::optional<std::size_t> edge;
     std::string json_path;
     bool by_location{false};
     std::vector<double> centers_mm;
@@ -56,28 +55,29 @@ struct IdentifyCommand {
                         "then central differences), central (the paper), savitzky-golay")
             ->check(CLI::IsMember({"butterworth", "central", "savitzky-golay"}))
             ->capture_default_str();
-        pre->add_option("--filter-order", options.filter_order, "Butterworth order")->capture_default_str();
-        pre->add_option("--cutoff", cutoff, "Butterworth cut-off [Hz] (default: min(100 Hz, sample rate / 10))");
-        pre->add_option("--sg-window", options.savitzky_golay_window,
+        pre->add_option("--filter-order", options.preprocess.filter_order, "Butterworth order")->capture_default_str();
+        pre->add_option("--cutoff", options.preprocess.cutoff_hz,
+                        "Butterworth cut-off [Hz] (default: min(100 Hz, sample rate / 10))");
+        pre->add_option("--sg-window", options.preprocess.savitzky_golay_window,
                         "Savitzky-Golay window [samples, odd] (default: about 20 ms)");
-        pre->add_option("--sg-order", options.savitzky_golay_order, "Savitzky-Golay polynomial order")
+        pre->add_option("--sg-order", options.preprocess.savitzky_golay_order, "Savitzky-Golay polynomial order")
             ->capture_default_str();
-        pre->add_option("--decimate", options.decimation,
+        pre->add_option("--decimate", options.preprocess.decimation,
                         "Decimate every regressor column and the force by this factor (order-8 Chebyshev anti-alias "
                         "filter, forwards and backwards; default 1 = none)");
-        pre->add_option("--edge-samples", edge,
+        pre->add_option("--edge-samples", options.preprocess.edge_samples,
                         "Samples dropped at each end after filtering (default: 2.5 filter periods, fs/cutoff*2.5)");
         auto* select = sub.add_option_group("Data selection");
-        select->add_option("--from", from, "Start of the analysis window [s]");
-        select->add_option("--to", to, "End of the analysis window [s]");
-        select->add_option("--split-velocity", split,
+        select->add_option("--from", options.preprocess.from_s, "Start of the analysis window [s]");
+        select->add_option("--to", options.preprocess.to_s, "End of the analysis window [s]");
+        select->add_option("--split-velocity", options.selection.split_velocity,
                            "Step 1 uses |v| above, step 2 the quasi-static samples below [m/s or rad/s] (default: a "
                            "tenth of the typical constant-velocity speed)");
-        select->add_option("--moving-threshold", moving,
+        select->add_option("--moving-threshold", options.selection.moving_threshold,
                            "|v| above which a sample counts as moving [m/s] (default: 5x the velocity noise floor)");
         auto* rls = sub.add_option_group("RLS");
-        rls->add_option("--lambda", options.rls.forgetting_factor, "Forgetting factor")->capture_default_str();
-        rls->add_option("--p0", options.rls.initial_covariance, "Initial covariance P(0) = p0 * I")
+        rls->add_option("--lambda", options.step1.rls.forgetting_factor, "Forgetting factor")->capture_default_str();
+        rls->add_option("--p0", options.step1.rls.initial_covariance, "Initial covariance P(0) = p0 * I")
             ->capture_default_str();
         rls->add_option("--rls", rls_variant,
                         "RLS variant: directional (forgetting only where the data excites; robust) or paper "
@@ -90,46 +90,20 @@ struct IdentifyCommand {
         IdentifyOptions o = options;
         o.drive = drive_arguments.constants();
         o.model = model == "asymmetric" ? FrictionModelKind::asymmetric : FrictionModelKind::symmetric;
-        o.differentiation = differentiation == "central"          ? Differentiation::central
-                            : differentiation == "savitzky-golay" ? Differentiation::savitzky_golay
-                                                                  : Differentiation::butterworth;
-        o.rls.variant = rls_variant == "paper" ? RlsVariant::exponential : RlsVariant::directional;
+        o.preprocess.differentiation = differentiation == "central"          ? Differentiation::central
+                                       : differentiation == "savitzky-golay" ? Differentiation::savitzky_golay
+                                                                             : Differentiation::butterworth;
+        o.step1.rls.variant = rls_variant == "paper" ? RlsVariant::exponential : RlsVariant::directional;
         o.stribeck = !no_stribeck;
-        o.cutoff_hz = cutoff;
-        o.from_s = from;
-        o.to_s = to;
-        o.split_velocity = split;
-        o.moving_threshold = moving;
-        o.edge_samples = edge;
-        if (o.decimation == 0) o.decimation = 1;
         return o;
     }
 
-    /// The options that shape the result (canonical key order), stored with a recorded run: the same trace with
-    /// other options is another run.
-    nlohmann::json options_json() const {
+    /// What only the command line knows of the options that shape the result (as given, for the history).
+    nlohmann::json command_line_options() const {
         const auto optional = [](const auto& value) {
             return value ? nlohmann::json(*value) : nlohmann::json(nullptr);
         };
-        return {{"model", model},
-                {"offset", options.offset},
-                {"stribeck", !no_stribeck},
-                {"differentiation", differentiation},
-                {"filter_order", options.filter_order},
-                {"cutoff_hz", optional(cutoff)},
-                {"savitzky_golay_window", options.savitzky_golay_window},
-                {"savitzky_golay_order", options.savitzky_golay_order},
-                {"decimation", options.decimation},
-                {"edge_samples", optional(edge)},
-                {"from_s", optional(from)},
-                {"to_s", optional(to)},
-                {"split_velocity", optional(split)},
-                {"moving_threshold", optional(moving)},
-                {"rls",
-                 {{"variant", rls_variant},
-                  {"forgetting_factor", options.rls.forgetting_factor},
-                  {"initial_covariance", options.rls.initial_covariance}}},
-                {"drive",
+        return {{"drive",
                  {{"kt_Nm_per_A", optional(drive_arguments.kt)},
                   {"lead_mm", optional(drive_arguments.lead_mm)},
                   {"gear_ratio", drive_arguments.gear_ratio},
@@ -149,14 +123,14 @@ struct IdentifyCommand {
         record.check(trace_arguments.axis);
         const Trace trace = read_trace_for_drive(trace_arguments, drive_arguments);
         if (by_location) return run_by_location(trace, o);
-        const IdentifyResult result = identify(trace, o);
+        IdentifyResult result = identify(trace, o);
         // The options go into the document too, so that recording it later (feedid history --record) gives the
         // same run as --record here.
-        nlohmann::json document = result.document;
-        document["options"] = options_json();
+        result.options = identify_options_document(o, command_line_options());
+        const nlohmann::json document = result;
         if (!json_path.empty()) write_json(document, json_path);
         if (json_path != "-") print_table(result);
-        if (result.status == "failed") {
+        if (result.status == Status::failed) {
             for (const auto& d : result.diagnostics) fmt::print(stderr, "feedid: {}\n", d);
             return 1;
         }
@@ -174,7 +148,7 @@ struct IdentifyCommand {
         const FrictionMap map = friction_map(trace, map_options);
         if (!json_path.empty()) write_json(map.document, json_path);
         const bool any = std::any_of(map.locations.begin(), map.locations.end(),
-                                     [](const LocationResult& l) { return l.result.status != "failed"; });
+                                     [](const LocationResult& l) { return l.result.status != Status::failed; });
         if (json_path != "-") print_map(trace, map);
         if (!any) {
             std::string why;
@@ -232,10 +206,8 @@ struct IdentifyCommand {
     }
 
     static void print_table(const IdentifyResult& result) {
-        const auto& doc = result.document;
-        fmt::print("{} ({} samples, {:.6g} s)\n", doc["trace"]["path"].get<std::string>(),
-                   doc["trace"]["samples"].get<std::size_t>(), doc["trace"]["duration_s"].get<double>());
-        fmt::print("model: {}{}\n\n", result.model, result.offset ? " with offset" : "");
+        fmt::print("{} ({} samples, {:.6g} s)\n", result.trace.path, result.trace.samples, result.trace.duration_s);
+        fmt::print("model: {}{}\n\n", result.model_name(), result.offset ? " with offset" : "");
         fmt::print("  {:<6} {:>14}   {:<12} {:<10}\n", "", "value", "std. error", "unit");
         for (const auto& p : result.parameters) {
             if (p.estimate.value) {
@@ -245,27 +217,31 @@ struct IdentifyCommand {
                 fmt::print("  {:<6} {:>14}   {:<12} {:<10}\n", p.symbol, "—", "", p.unit);
             }
         }
-        if (doc.contains("fit")) {
+        if (result.step1) {
             fmt::print("\n  step-1 batch QR: relative error {:.3f} %, condition number {:.3g}, {} samples\n",
-                       doc["fit"]["relative_error_pct"].get<double>(), doc["fit"]["condition_number"].get<double>(),
-                       doc["fit"]["samples_used"].get<std::size_t>());
+                       result.step1->relative_error_pct, result.step1->condition_number, result.step1->samples_used);
         }
-        if (doc.contains("rls")) {
-            fmt::print("  RLS ({}): settled at {:.3g} s{}\n", doc["rls"]["variant"].get<std::string>(),
-                       doc["rls"]["transient_end_s"].get<double>(),
-                       doc["rls"]["settled"].get<bool>() ? "" : " (did not settle)");
-            for (const auto& [key, value] : doc["rls"]["final"].items()) {
-                fmt::print("    {:<28} final {:>12.6g}   averaged {:>12.6g}\n", key, value.get<double>(),
-                           doc["rls"]["averaged"][key].get<double>());
-            }
-        }
-        if (doc.contains("selection")) {
+        if (result.rls) print_rls(*result.rls);
+        if (result.selection) {
             fmt::print("  data:\n");
-            for (const auto& note : doc["selection"]["notes"]) fmt::print("    - {}\n", note.get<std::string>());
+            for (const auto& note : result.selection->notes) fmt::print("    - {}\n", note);
         }
-        if (!result.diagnostics.empty() && result.status != "failed") {
+        if (!result.diagnostics.empty() && result.status != Status::failed) {
             fmt::print("  diagnostics:\n");
             for (const auto& d : result.diagnostics) fmt::print("    - {}\n", d);
+        }
+    }
+
+    static void print_rls(const RlsReport& rls) {
+        fmt::print("  RLS ({}): settled at {:.3g} s{}\n",
+                   rls.options.variant == RlsVariant::exponential ? "exponential" : "directional", rls.transient_end_s,
+                   rls.settled ? "" : " (did not settle)");
+        std::vector<std::size_t> order(rls.keys.size());  // by key, as the document lists them
+        for (std::size_t c = 0; c < order.size(); ++c) order[c] = c;
+        std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return rls.keys[a] < rls.keys[b]; });
+        for (const auto c : order) {
+            fmt::print("    {:<28} final {:>12.6g}   averaged {:>12.6g}\n", rls.keys[c], rls.final_estimate[c],
+                       rls.averaged[c]);
         }
     }
 };

@@ -5,9 +5,21 @@
 // (gravity on a vertical axis, a current-sensor offset) is part of the axis model, not of friction.
 // Linear axes in N, N*s/m, m/s; rotary axes in N*m, N*m*s/rad, rad/s.
 
+#include <cmath>
 #include <optional>
 
 namespace feedid {
+
+/// The friction law, eq. (3), for one direction: the magnitude at `speed` = |v| >= 0,
+///   B*|v| + F_C + (F_B - F_C)*exp(-|v|/v_s),
+/// with `rise` = F_B - F_C (0: no Stribeck term; then v_s is not read). Every model of friction in feedid (the
+/// identified axis, the simulator, the synthetic drive, step 2's curve fit) evaluates this one function.
+[[nodiscard]] inline double friction_magnitude(double speed, double viscous, double coulomb, double rise,
+                                               double stribeck_velocity) {
+    double value = viscous * speed + coulomb;
+    if (rise != 0.0) value += rise * std::exp(-speed / stribeck_velocity);
+    return value;
+}
 
 struct FrictionBranch {
     double viscous{0.0};                      ///< B [N*s/m]

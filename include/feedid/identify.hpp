@@ -1,10 +1,13 @@
 #pragma once
 // The identification pipeline: a Trace and options in, a result with values, uncertainties and diagnostics out.
-//   step 1 (the paper's eq. 11, or per direction): y = F_d, phi = [x'', x', sgn(x') (, 1)], theta = [M, B, F_C (, F_0)]
-//          on samples fast enough for the Stribeck term to be negligible; RLS and batch QR side by side;
-//   step 2: Stribeck on the slow samples: the paper's log-linear RLS (eq. 12-14) and a Levenberg-Marquardt fit of the
-//          whole friction curve, per direction; null where the data cannot determine F_B and v_s.
+// identify() wires four stages, each a pure function with a typed record (see README, "Architecture"):
+//   preprocess()         preprocess.hpp  x' and x'' from the position: filter, differentiate, trim, decimate
+//   select_samples()     selection.hpp   moving, quasi-static, step-1 and step-2 samples, each drop explained
+//   fit_step1()          step1.hpp       eq. (11) by batch QR and RLS (eq. 7-9), transient detected
+//   fit_friction_curve() step2.hpp       eq. (12-14) log-linear RLS, then the nonlinear fit of the whole curve
+// The result document (DESIGN.md keys) is written and read only by result_document.hpp.
 
+#include <array>
 #include <optional>
 #include <string>
 #include <vector>
@@ -14,37 +17,27 @@
 #include "feedid/drive.hpp"
 #include "feedid/estimate.hpp"
 #include "feedid/friction.hpp"
+#include "feedid/parameters.hpp"
+#include "feedid/preprocess.hpp"
 #include "feedid/rls.hpp"
+#include "feedid/selection.hpp"
+#include "feedid/status.hpp"
+#include "feedid/step1.hpp"
+#include "feedid/step2.hpp"
 #include "feedid/trace.hpp"
 
 namespace feedid {
-
-enum class FrictionModelKind { symmetric, asymmetric };
-enum class Differentiation { central, butterworth, savitzky_golay };
 
 struct IdentifyOptions {
     FrictionModelKind model{FrictionModelKind::symmetric};
     bool offset{false};  ///< also estimate a constant force offset F_0 (gravity, sensor offset)
     DriveConstants drive;
-    bool stribeck{true};  ///< run step 2
+    bool stribeck{true};  ///< run step 2 (identify() sets selection.stribeck from it)
 
-    // Preprocessing
-    Differentiation differentiation{Differentiation::butterworth};
-    int filter_order{4};              ///< Butterworth order
-    std::optional<double> cutoff_hz;  ///< default: min(100 Hz, 0.1 * sample rate)
-    int savitzky_golay_window{0};     ///< default: odd number of samples spanning ~20 ms
-    int savitzky_golay_order{3};
-    int decimation{0};                        ///< 0 = automatic (1 for sample rates <= 1 kHz... see README); 1 = none
-    std::optional<std::size_t> edge_samples;  ///< samples dropped at each end (default: derived from the filter)
-
-    // Data selection
-    std::optional<double> from_s;            ///< time window start [s]
-    std::optional<double> to_s;              ///< time window end [s]
-    std::optional<double> split_velocity;    ///< step 1 above, step 2 below [m/s or rad/s]; default from the data
-    std::optional<double> moving_threshold;  ///< |v| above which a sample is "moving"; default from the noise floor
-
-    // RLS
-    RlsOptions rls;
+    PreprocessOptions preprocess;
+    SelectionOptions selection;
+    Step1Options step1;           ///< with the RLS options
+    FrictionFitOptions friction;  ///< step 2
 
     /// What is wrong with these options ("" when nothing).
     [[nodiscard]] std::string validate() const;
@@ -56,34 +49,93 @@ struct Parameter {
     std::string symbol;  ///< "M", "B", "F_C+", ...
     std::string unit;    ///< "kg", "N*s/m", ...
     Estimate estimate;
+    Term term{Term::mass};
+    Direction direction{Direction::both};
 };
 
-struct SelectionReport {
-    std::size_t total{0};            ///< samples in the trace
-    std::size_t window{0};           ///< inside --from/--to and the edge trim
-    std::size_t moving{0};           ///< |v| above the moving threshold
-    std::size_t step1{0};            ///< used in step 1 (after decimation)
-    std::size_t step2{0};            ///< used in step 2
-    double moving_threshold{0.0};    ///< [m/s]
-    double split_velocity{0.0};      ///< [m/s]
-    std::vector<std::string> notes;  ///< why samples were dropped, in words
+/// The parameters a model reports, in document order (M; B, F_C per direction; F_0; F_B, v_s per direction), all
+/// null.
+std::vector<Parameter> model_parameters(FrictionModelKind model, bool offset, bool rotary);
+
+/// The axis model the parameters describe (0 for a null value; no Stribeck term where F_B or v_s is null).
+AxisModel axis_from_parameters(const std::vector<Parameter>& parameters, FrictionModelKind model, bool rotary);
+
+/// The trace the result came from.
+struct TraceSummary {
+    std::string path;
+    std::string format;
+    std::size_t samples{0};
+    double sample_time_s{0.0};
+    double duration_s{0.0};
+};
+
+/// Step 1's batch fit as reported: per column its key and estimate, and the fit's figures of merit.
+struct Step1Report {
+    std::vector<std::string> keys;
+    std::vector<Estimate> batch;
+    double relative_error_pct{0.0};
+    double condition_number{0.0};
+    std::size_t samples_used{0};
+    double residual_std{0.0};
+    std::vector<double> r_diagonal;  ///< |diag R| of the QR factorisation
+};
+
+/// Step 1's RLS as reported.
+struct RlsReport {
+    RlsOptions options;
+    std::vector<std::string> keys;
+    std::vector<double> final_estimate;
+    std::vector<double> averaged;
+    bool settled{false};
+    double transient_end_s{0.0};
+    std::vector<double> history_time;          ///< [s]
+    std::vector<std::vector<double>> history;  ///< history[c][i]: column c at history_time[i]
+};
+
+/// Step 2 as reported.
+struct StribeckReport {
+    std::array<std::optional<LogLinearStribeck>, 2> log_linear;  ///< forward, reverse
+    std::optional<NonlinearFitReport> nonlinear;
+};
+
+/// The friction curve for plots: the quasi-static samples binned by speed, per direction, with the fitted curve.
+struct FrictionCurvePoints {
+    std::vector<double> speed;   ///< [m/s]
+    std::vector<double> force;   ///< friction magnitude [N]
+    std::vector<double> fitted;  ///< the identified curve at `speed` [N]
+};
+struct FrictionCurveReport {
+    std::optional<FrictionCurvePoints> forward;
+    std::optional<FrictionCurvePoints> reverse;
 };
 
 struct IdentifyResult {
-    std::string status{"ok"};  ///< "ok", "partial" (some parameters null), "failed"
-    std::string model;         ///< "symmetric" | "asymmetric"
+    Status status{Status::ok};
+    FrictionModelKind model{FrictionModelKind::symmetric};
     bool offset{false};
     bool rotary{false};
+    std::string feedid_version;  ///< of the program that identified it
+    TraceSummary trace;
     std::vector<Parameter> parameters;
-    AxisModel axis;           ///< the identified model (no Stribeck term where F_B / v_s are null)
-    nlohmann::json document;  ///< the full result document of DESIGN.md (stable keys)
+    AxisModel axis;  ///< the identified model (no Stribeck term where F_B / v_s are null)
+    // The stages' records, each present once the pipeline got that far.
+    std::optional<PreprocessReport> preprocessing;
+    std::optional<SelectionReport> selection;
+    std::optional<Step1Report> step1;
+    std::optional<RlsReport> rls;
+    std::optional<StribeckReport> stribeck;
+    std::optional<FrictionCurveReport> friction_curve;
     std::vector<std::string> diagnostics;
+    /// The options that shape the result, recorded with it (identify_options_document); null when not set.
+    nlohmann::json options;
 
     [[nodiscard]] const Parameter* find(const std::string& key) const;
+    [[nodiscard]] const Parameter* find(Term term, Direction direction = Direction::both) const;
+    [[nodiscard]] std::string model_name() const;
 };
 
 /// Runs the whole pipeline. Throws InputError for a trace that lacks what is needed (position, drive signal);
-/// numerical trouble (nothing identifiable) comes back as status "failed" with diagnostics, never an exception.
+/// numerical trouble (nothing identifiable) comes back as Status::failed with diagnostics, never an exception.
 IdentifyResult identify(const Trace& trace, const IdentifyOptions& options);
 
 }  // namespace feedid

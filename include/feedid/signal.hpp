@@ -50,4 +50,12 @@ std::vector<std::size_t> extreme_preserving_indices(std::span<const std::span<co
 /// (the standard deviation of white noise on the samples).
 double noise_floor(std::span<const double> x);
 
+/// The value below which `fraction` (0..1) of the values lie: the element of rank floor(fraction * (n - 1)), no
+/// interpolation; 0 for no values.
+double percentile(std::vector<double> values, double fraction);
+
+/// The minimum (maximum) of x over [k - half, k + half], for every k, in O(n) (a monotonic queue of indices).
+std::vector<double> running_minimum(std::span<const double> x, std::size_t half);
+std::vector<double> running_maximum(std::span<const double> x, std::size_t half);
+
 }  // namespace feedid

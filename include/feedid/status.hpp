@@ -11,7 +11,8 @@ enum class Status {
     failed,   ///< nothing usable; the diagnostics say why and what data would help
 };
 
-NLOHMANN_JSON_SERIALIZE_ENUM(Status, {{Status::ok, "ok"}, {Status::partial, "partial"}, {Status::failed, "failed"}})
+// An unknown string reads as the first entry: failed, never a silent "ok".
+NLOHMANN_JSON_SERIALIZE_ENUM(Status, {{Status::failed, "failed"}, {Status::ok, "ok"}, {Status::partial, "partial"}})
 
 /// "ok", "partial" or "failed".
 [[nodiscard]] inline const char* to_string(Status status) {

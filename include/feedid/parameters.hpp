@@ -1,0 +1,40 @@
+#pragma once
+// The parameters of the axis model and how the result document names them: keys with their SI unit in the name
+// ("mass_kg", "coulomb_forward_N"; rotary "inertia_kgm2", "coulomb_forward_Nm"), symbols ("M", "F_C+") and units.
+// The one place where a parameter key is spelled.
+
+#include <string>
+
+namespace feedid {
+
+/// A term of the model F = M*x'' + B*x' + sgn(x')*(F_C + (F_B - F_C)*exp(-|x'|/v_s)) (+ F_0), by its parameter.
+enum class Term { mass, viscous, coulomb, breakaway, stribeck_velocity, offset };
+/// Which branch of the friction law a parameter belongs to: both (symmetric model), forward (v > 0), reverse (v < 0).
+enum class Direction { both, forward, reverse };
+
+/// Sign of v: +1, -1, or 0 at v == 0 (the paper's sgn in eq. 3 and 11).
+[[nodiscard]] constexpr double sign(double v) {
+    return v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
+}
+
+/// Keys, symbols and units of a linear axis (m, N) or a rotary one (rad, N*m).
+struct ParameterNaming {
+    bool rotary{false};
+
+    /// Result-document key: "mass_kg", "viscous_forward_Ns_per_m", "stribeck_velocity_rad_per_s", ...
+    [[nodiscard]] std::string key(Term term, Direction direction = Direction::both) const;
+    /// "kg", "N*s/m", ... (rotary: "kg*m^2", "N*m*s/rad", ...)
+    [[nodiscard]] std::string unit(Term term) const;
+    /// "M", "B+", "F_C-", ...
+    [[nodiscard]] static std::string symbol(Term term, Direction direction);
+
+    [[nodiscard]] std::string force_unit() const { return rotary ? "N*m" : "N"; }
+    /// Messages show linear speeds in mm/s, rotary ones in rad/s.
+    [[nodiscard]] double display_velocity_scale() const { return rotary ? 1.0 : 1000.0; }
+    [[nodiscard]] std::string display_velocity_unit() const { return rotary ? "rad/s" : "mm/s"; }
+    /// Keys of the friction-curve plot series.
+    [[nodiscard]] std::string curve_velocity_key() const { return rotary ? "velocity_rad_per_s" : "velocity_m_per_s"; }
+    [[nodiscard]] std::string curve_force_key() const { return rotary ? "torque_Nm" : "force_N"; }
+};
+
+}  // namespace feedid

@@ -1,0 +1,89 @@
+#pragma once
+// Stage 1 of identify: from a trace's position and drive force to velocity and acceleration on the samples that are
+// analysed (the paper's section 3: x' and x'' by differentiation of the measured position). Filter, differentiate,
+// trim the filter's edges, decimate.
+
+#include <cstddef>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "feedid/trace.hpp"
+
+namespace feedid {
+
+enum class Differentiation { central, butterworth, savitzky_golay };
+
+struct PreprocessOptions {
+    Differentiation differentiation{Differentiation::butterworth};
+    int filter_order{4};                      ///< Butterworth order
+    std::optional<double> cutoff_hz;          ///< [Hz]; default min(max_default_cutoff_hz, default_cutoff_fraction*fs)
+    int savitzky_golay_window{0};             ///< [samples], odd; 0 = the odd count spanning savitzky_golay_span_s
+    int savitzky_golay_order{3};              ///< polynomial order
+    int decimation{0};                        ///< keep every N-th sample after the anti-alias filter; 0 or 1 = none
+    std::optional<std::size_t> edge_samples;  ///< dropped at each end; default from the filter (below)
+    std::optional<double> from_s;             ///< analysis window start [s]
+    std::optional<double> to_s;               ///< analysis window end [s]
+
+    /// Default cut-off ceiling [Hz]: the EMPS/IDIM practice (Janot, Gautier, Brunot 2019 filter position at 100 Hz
+    /// for a 1 kHz log before differentiating twice).
+    double max_default_cutoff_hz{100.0};
+    /// Default cut-off as a fraction of the sample rate (fs/10 keeps the filter well inside the Nyquist band).
+    double default_cutoff_fraction{0.1};
+    /// Default edge trim after the Butterworth filter, in periods of the cut-off frequency: the forward-backward
+    /// filter's start-up transient has decayed by then (EMPS's reference trims 49 samples at 1 kHz / 100 Hz).
+    double filter_settling_periods{2.5};
+    /// Default Savitzky-Golay window span [s].
+    double savitzky_golay_span_s{0.02};
+    /// Fewer samples than this in the window (beyond the trimmed edges) cannot identify anything.
+    std::size_t minimum_samples{20};
+};
+
+/// What preprocess() did: the values it used, which may differ from the options given (defaults resolved).
+struct PreprocessReport {
+    std::string differentiation;  ///< "central", "butterworth", "savitzky-golay"
+    int filter_order{0};          ///< as given (used only by the Butterworth)
+    double cutoff_hz{0.0};        ///< the cut-off used [Hz] (resolved default; reported for every method)
+    int decimation{1};            ///< the factor used (1 = none)
+    std::size_t edge_samples{0};  ///< the edge trim used, at each end
+};
+
+/// Velocity, acceleration and force on the analysed samples (after the window, the edge trim and the decimation),
+/// all the same length.
+struct Derivatives {
+    PreprocessReport used;
+    bool rotary{false};
+    std::string source;            ///< the trace's path, for messages
+    std::size_t total{0};          ///< samples in the trace
+    std::size_t window{0};         ///< samples inside --from/--to and the edge trim (before decimation)
+    double sample_time_s{0.0};     ///< of the trace (before decimation) [s]
+    double velocity_noise{0.0};    ///< noise floor of the velocity at the full rate [m/s]
+    double position_quantum{0.0};  ///< smallest step of the position signal (its resolution) [m]
+
+    std::vector<double> time;          ///< [s]
+    std::vector<double> velocity;      ///< x' [m/s]
+    std::vector<double> acceleration;  ///< x'' [m/s^2]
+    std::vector<double> force;         ///< F_d [N]
+    /// The full-rate velocity and acceleration when decimating (empty otherwise): regressor columns are formed at the
+    /// full rate and decimated afterwards (IDIM practice: sgn(x') goes through the anti-alias filter like every
+    /// column).
+    std::vector<double> full_rate_velocity;
+    std::vector<double> full_rate_acceleration;
+
+    /// Why nothing can be identified from this trace ("" when the stage succeeded).
+    std::string failure;
+    [[nodiscard]] bool failed() const { return !failure.empty(); }
+    [[nodiscard]] std::size_t size() const { return velocity.size(); }
+};
+
+/// Differentiates the trace's position and lines up `force` (the drive force, one value per trace sample) with it.
+/// Throws InputError for impossible options (a cut-off at or above Nyquist); a trace too short or without motion
+/// comes back with `failure` set.
+Derivatives preprocess(const Trace& trace, std::span<const double> force, const PreprocessOptions& options);
+
+/// Smallest step the position signal takes (its quantisation), ignoring round-off: the 1st percentile of the nonzero
+/// sample-to-sample steps.
+double position_quantum(std::span<const double> position);
+
+}  // namespace feedid

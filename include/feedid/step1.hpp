@@ -1,0 +1,104 @@
+#pragma once
+// Stage 3 of identify, the paper's step 1: the linear model of eq. (11) on the samples fast enough for the Stribeck
+// term to be negligible,
+//   y = F_d,  phi = [x'', x', sgn(x') (, 1)],  theta = [M, B, F_C (, F_0)],
+// or per direction [x'', x'+, x'-, s+, s- (, 1)] with x'+ = max(x', 0), x'- = min(x', 0), s+ = [x' > 0],
+// s- = -[x' < 0] (so the reverse Coulomb friction comes out as a positive magnitude, as in EMPS eq. 12).
+// Estimated by batch Householder QR (the certified reference, with standard errors) and by RLS (the paper's
+// eq. 7-9, or directional forgetting) with the transient detected from the data.
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "feedid/least_squares.hpp"
+#include "feedid/parameters.hpp"
+#include "feedid/preprocess.hpp"
+#include "feedid/rls.hpp"
+
+namespace feedid {
+
+enum class FrictionModelKind { symmetric, asymmetric };
+
+/// One column of the step-1 regressor and the parameter it estimates.
+struct RegressorColumn {
+    Term term;
+    Direction direction;
+};
+
+/// The columns of eq. (11) (or per direction), with the offset column last when `offset`.
+std::vector<RegressorColumn> linear_columns(FrictionModelKind model, bool offset);
+
+/// The regressor of eq. (11) on every analysed sample: one column per parameter, formed at the full rate and
+/// decimated like the force (Derivatives), and the output y = F_d.
+struct Regressors {
+    std::vector<RegressorColumn> columns;
+    std::vector<std::vector<double>> values;  ///< values[c][k]: column c at sample k
+    std::vector<double> output;               ///< y[k] = F_d
+
+    /// Phi over the given samples (rows in that order).
+    [[nodiscard]] Eigen::MatrixXd matrix(const std::vector<std::size_t>& rows) const;
+    /// y over the given samples.
+    [[nodiscard]] Eigen::VectorXd outputs(const std::vector<std::size_t>& rows) const;
+    [[nodiscard]] std::size_t parameters() const { return columns.size(); }
+};
+
+Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind model, bool offset);
+
+struct Step1Options {
+    RlsOptions rls;
+    /// Step 1 needs at least this many samples per parameter.
+    std::size_t minimum_samples_per_parameter{10};
+    /// M is usable only when its standard error is below this fraction of it (the acceleration explains a
+    /// significant part of the force).
+    double mass_relative_standard_error{0.25};
+    /// The RLS transient ends where every parameter stays within max(this fraction of |batch estimate|,
+    /// rls_settle_standard_errors * its batch standard error) of the final RLS estimate.
+    double rls_settle_fraction{0.02};
+    double rls_settle_standard_errors{3.0};
+    /// The RLS trajectory is kept at about this many points (history for plots and the transient).
+    std::size_t rls_history_points{2000};
+};
+
+/// The RLS run over the step-1 samples in time order.
+struct RlsRun {
+    Eigen::VectorXd final_estimate;  ///< the last estimate
+    Eigen::VectorXd averaged;        ///< the paper's value: the mean after the transient (the final one if unsettled)
+    std::size_t settled_index{0};    ///< first step-1 sample of the settled part
+    double transient_end_s{0.0};     ///< its time [s]
+    bool settled{false};
+    bool wound_up{false};      ///< the covariance grew without bound (paper's variant)
+    bool covariance_ok{true};  ///< finite and symmetric at the end
+    std::vector<double> history_time;
+    std::vector<Eigen::VectorXd> history;
+};
+
+struct Step1Fit {
+    std::vector<RegressorColumn> columns;
+    std::size_t samples{0};        ///< step-1 samples offered
+    LeastSquaresResult batch;      ///< batch QR on them (empty when too few)
+    std::optional<RlsRun> rls;     ///< run only when the batch fit determines the mass
+    RlsOptions rls_options;        ///< the RLS options used
+    double max_acceleration{0.0};  ///< largest |x''| among the samples used [m/s^2]
+
+    /// Why step 1 cannot identify the model ("" when it can); when set, `batch` may still hold the attempted fit.
+    std::string failure;
+    [[nodiscard]] bool failed() const { return !failure.empty(); }
+    /// The batch estimate of a parameter (0 when the model has no such column).
+    [[nodiscard]] double coefficient(Term term, Direction direction) const;
+};
+
+/// Batch QR and RLS on the step-1 samples `rows` (ascending, i.e. in time order). `source` names the trace in
+/// messages.
+Step1Fit fit_step1(const Regressors& regressors, const Derivatives& derivatives, const std::vector<std::size_t>& rows,
+                   const Step1Options& options);
+
+/// RLS over the rows of phi in order, with a thinned history and transient detection (the first point after which
+/// every parameter stays within `tolerance` of the final estimate).
+RlsRun run_rls(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, const std::vector<double>& time,
+               const RlsOptions& options, const Eigen::VectorXd& tolerance, std::size_t history_points);
+
+}  // namespace feedid

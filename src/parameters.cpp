@@ -1,0 +1,49 @@
+#include "feedid/parameters.hpp"
+
+namespace feedid {
+
+namespace {
+std::string suffix(Direction direction, const char* forward, const char* reverse) {
+    return direction == Direction::forward ? forward : direction == Direction::reverse ? reverse : "";
+}
+}  // namespace
+
+std::string ParameterNaming::key(Term term, Direction direction) const {
+    const std::string dir = suffix(direction, "_forward", "_reverse");
+    switch (term) {
+        case Term::mass: return rotary ? "inertia_kgm2" : "mass_kg";
+        case Term::viscous: return "viscous" + dir + (rotary ? "_Nms_per_rad" : "_Ns_per_m");
+        case Term::coulomb: return "coulomb" + dir + (rotary ? "_Nm" : "_N");
+        case Term::breakaway: return "breakaway" + dir + (rotary ? "_Nm" : "_N");
+        case Term::stribeck_velocity: return "stribeck_velocity" + dir + (rotary ? "_rad_per_s" : "_m_per_s");
+        case Term::offset: return rotary ? "offset_Nm" : "offset_N";
+    }
+    return {};
+}
+
+std::string ParameterNaming::unit(Term term) const {
+    switch (term) {
+        case Term::mass: return rotary ? "kg*m^2" : "kg";
+        case Term::viscous: return rotary ? "N*m*s/rad" : "N*s/m";
+        case Term::coulomb:
+        case Term::breakaway:
+        case Term::offset: return rotary ? "N*m" : "N";
+        case Term::stribeck_velocity: return rotary ? "rad/s" : "m/s";
+    }
+    return {};
+}
+
+std::string ParameterNaming::symbol(Term term, Direction direction) {
+    const std::string dir = suffix(direction, "+", "-");
+    switch (term) {
+        case Term::mass: return "M";
+        case Term::viscous: return "B" + dir;
+        case Term::coulomb: return "F_C" + dir;
+        case Term::breakaway: return "F_B" + dir;
+        case Term::stribeck_velocity: return "v_s" + dir;
+        case Term::offset: return "F_0";
+    }
+    return {};
+}
+
+}  // namespace feedid

@@ -1,0 +1,157 @@
+#include "feedid/preprocess.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <fmt/core.h>
+
+#include "feedid/error.hpp"
+#include "feedid/signal.hpp"
+
+namespace feedid {
+
+double position_quantum(std::span<const double> position) {
+    double range = 0.0;
+    if (!position.empty()) {
+        const auto [low, high] = std::minmax_element(position.begin(), position.end());
+        range = *high - *low;
+    }
+    std::vector<double> steps;
+    for (std::size_t k = 1; k < position.size(); ++k) {
+        const double d = std::abs(position[k] - position[k - 1]);
+        if (d > 1e-12 * std::max(range, 1e-300)) steps.push_back(d);
+    }
+    if (steps.empty()) return 0.0;
+    return percentile(std::move(steps), 0.01);
+}
+
+namespace {
+
+struct Differentiated {
+    std::vector<double> velocity, acceleration;
+    std::size_t default_edge{2};  ///< central differences: one-sided at the ends
+};
+
+/// x' and x'' of the window's position by the chosen method, and the edge trim that method needs.
+Differentiated differentiate(std::span<const double> x, double dt, const PreprocessOptions& options,
+                             PreprocessReport& used) {
+    const double fs = 1.0 / dt;
+    Differentiated out;
+    switch (options.differentiation) {
+        case Differentiation::central:
+            used.differentiation = "central";
+            out.velocity = central_difference(x, dt);
+            out.acceleration = central_difference(out.velocity, dt);
+            break;
+        case Differentiation::butterworth: {
+            used.differentiation = "butterworth";
+            if (!(used.cutoff_hz < 0.5 * fs)) {
+                throw InputError(
+                    fmt::format("--cutoff {} Hz must be below half the sample rate ({} Hz)", used.cutoff_hz, 0.5 * fs));
+            }
+            const auto filtered = filtfilt(butterworth_lowpass(options.filter_order, used.cutoff_hz, fs), x);
+            out.velocity = central_difference(filtered, dt);
+            out.acceleration = central_difference(out.velocity, dt);
+            out.default_edge =
+                static_cast<std::size_t>(std::ceil(options.filter_settling_periods * fs / used.cutoff_hz));
+            break;
+        }
+        case Differentiation::savitzky_golay: {
+            used.differentiation = "savitzky-golay";
+            const int window = options.savitzky_golay_window != 0
+                                   ? options.savitzky_golay_window
+                                   : std::max(5, static_cast<int>(std::lround(options.savitzky_golay_span_s * fs)) | 1);
+            if (static_cast<std::size_t>(window) > x.size()) return out;  // the caller reports it
+            out.velocity = savitzky_golay(x, window, options.savitzky_golay_order, 1, dt);
+            out.acceleration = savitzky_golay(x, window, options.savitzky_golay_order, 2, dt);
+            out.default_edge = static_cast<std::size_t>(window / 2 + 1);
+            break;
+        }
+    }
+    return out;
+}
+
+std::vector<double> slice(std::span<const double> column, std::size_t first, std::size_t last) {
+    return {column.begin() + static_cast<std::ptrdiff_t>(first), column.begin() + static_cast<std::ptrdiff_t>(last)};
+}
+
+/// Every column through the same anti-alias filter, then every N-th sample (IDIM practice).
+void decimate_columns(Derivatives& d, int factor) {
+    d.full_rate_velocity = std::move(d.velocity);
+    d.full_rate_acceleration = std::move(d.acceleration);
+    d.velocity = decimate(d.full_rate_velocity, factor);
+    d.acceleration = decimate(d.full_rate_acceleration, factor);
+    d.force = decimate(d.force, factor);
+    std::vector<double> time;
+    for (const auto k : decimation_indices(d.time.size(), factor)) time.push_back(d.time[k]);
+    d.time = std::move(time);
+}
+
+}  // namespace
+
+Derivatives preprocess(const Trace& trace, std::span<const double> force, const PreprocessOptions& options) {
+    Derivatives d;
+    d.rotary = trace.rotary;
+    d.source = trace.source_path.empty() ? "trace" : trace.source_path;
+    d.total = trace.samples();
+    d.used.filter_order = options.filter_order;
+    const auto time = trace.column(Role::time);
+    const auto position = trace.column(Role::position);
+
+    // ---- the analysis window
+    std::size_t first = 0, last = d.total;
+    if (options.from_s)
+        first = static_cast<std::size_t>(std::lower_bound(time.begin(), time.end(), *options.from_s) - time.begin());
+    if (options.to_s)
+        last = static_cast<std::size_t>(std::upper_bound(time.begin(), time.end(), *options.to_s) - time.begin());
+    if (last <= first + options.minimum_samples) {
+        d.failure = fmt::format(
+            "{}: only {} samples in the analysis window: too short to identify anything (record "
+            "at least a few seconds of motion)",
+            d.source, last > first ? last - first : 0);
+        return d;
+    }
+    const std::span<const double> x(position.data() + first, last - first);
+    if (const auto [low, high] = std::minmax_element(x.begin(), x.end()); !(*high > *low)) {
+        d.failure = fmt::format(
+            "{}: the position never changes in the analysis window: the axis did not move, so "
+            "nothing can be identified",
+            d.source);
+        return d;
+    }
+
+    // ---- derivatives
+    d.sample_time_s = d.total >= 2 ? trace.time_base().sample_time_s : 0.0;
+    const double fs = 1.0 / d.sample_time_s;
+    d.used.cutoff_hz =
+        options.cutoff_hz.value_or(std::min(options.max_default_cutoff_hz, options.default_cutoff_fraction * fs));
+    Differentiated derivatives = differentiate(x, d.sample_time_s, options, d.used);
+    if (derivatives.velocity.empty()) {
+        d.failure = fmt::format("{}: the trace is shorter than the Savitzky-Golay window", d.source);
+        return d;
+    }
+
+    // ---- edge trim
+    const std::size_t edge = options.edge_samples.value_or(derivatives.default_edge);
+    d.used.edge_samples = edge;
+    if (x.size() <= 2 * edge + options.minimum_samples) {
+        d.failure = fmt::format("{}: {} samples in the window, {} dropped at each edge: too short to identify anything",
+                                d.source, x.size(), edge);
+        return d;
+    }
+    const std::size_t keep_first = edge, keep_last = x.size() - edge;
+    d.window = keep_last - keep_first;
+    d.time = slice(time, first + keep_first, first + keep_last);
+    d.force = slice(force, first + keep_first, first + keep_last);
+    d.velocity = slice(derivatives.velocity, keep_first, keep_last);
+    d.acceleration = slice(derivatives.acceleration, keep_first, keep_last);
+    d.velocity_noise = noise_floor(d.velocity);
+    d.position_quantum = position_quantum(x);
+
+    // ---- decimation
+    d.used.decimation = std::max(1, options.decimation);
+    if (d.used.decimation > 1) decimate_columns(d, d.used.decimation);
+    return d;
+}
+
+}  // namespace feedid
