@@ -6,11 +6,10 @@ floor), for tests/test_signal.cpp. Not a test dependency: run it by hand after c
     /usr/bin/python3 scripts/reference/signal_reference.py     (Debian's python3-scipy and python3-numpy)
 
 feedid follows MATLAB's conventions, so SciPy is called the way that computes the same thing:
-  - filtfilt: sosfiltfilt(sos, x, padtype="odd", padlen=6 * sections, clamped to n - 1). feedid reflects 3 * 2 samples
-    per section (3 * order for an even order, as MATLAB, but 3 * (order + 1) for an odd one); SciPy's default is
-    3 * (2 * sections + 1), less one if there are first-order sections, and the transients of that difference reach
-    far into a 200-sample signal, so the padding is passed explicitly. SciPy accepts a padding up to n - 1, as feedid
-    clamps it; MATLAB refuses a signal that short.
+  - filtfilt: sosfiltfilt(sos, x, padtype="odd", padlen=3 * order, clamped to n - 1), which is MATLAB's
+    filtfilt(b, a, x). SciPy's default padding is 3 * (2 * sections + 1), less one if there are first-order sections,
+    and the transients of that difference reach far into a 200-sample signal, so the padding is passed explicitly.
+    SciPy accepts a padding up to n - 1, as feedid clamps it; MATLAB refuses a signal that short.
   - decimate: feedid keeps every factor-th sample ending on the last one (MATLAB); scipy.signal.decimate keeps x[::q]
     and filters with SciPy's default padding (27 instead of 24 for the order-8 filter). The reference is therefore
     sosfiltfilt(cheby1(8, 0.05, 0.8 / q), padlen=24) at feedid's indices; below it is checked that
@@ -44,7 +43,10 @@ def drive_trace(n):
 
 
 def feedid_padding(sos, n):
-    return min(6 * len(sos), n - 1)
+    """MATLAB's 3 * filtord: the degree of the cascade's transfer function."""
+    b, a = signal.sos2tf(sos)
+    order = max(len(np.trim_zeros(b, "b")), len(np.trim_zeros(a, "b"))) - 1
+    return min(max(1, 3 * order), n - 1)
 
 
 def filtfilt(sos, x):
@@ -88,6 +90,10 @@ for (order, ripple_db, cutoff_hz, sample_rate_hz), samples in [((4, None, 100.0,
                                                                ((4, None, 100.0, SAMPLE_RATE), 10)]:
     sos = design(order, ripple_db, cutoff_hz, sample_rate_hz)
     signal_in = x[:samples]
+    # the same as MATLAB's filtfilt(b, a, x) on the transfer function (but for the rounding of its coefficients)
+    b, a = signal.sos2tf(sos)
+    by_transfer_function = signal.filtfilt(b, a, signal_in, padtype="odd", padlen=feedid_padding(sos, samples))
+    assert np.max(np.abs(by_transfer_function - filtfilt(sos, signal_in))) < 1e-9 * np.max(np.abs(signal_in))
     filtfilt_cases.append(((order, ripple_db, cutoff_hz, sample_rate_hz), sos, samples, filtfilt(sos, signal_in),
                            feedid_padding(sos, samples)))
 
