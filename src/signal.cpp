@@ -78,6 +78,20 @@ void filter_in_place(const SecondOrderSections& filter, std::vector<double>& x) 
     }
 }
 
+// The order of the cascade's transfer function (MATLAB's filtord): the larger of the numerator's and the
+// denominator's degree in z^-1, each the sum over the sections of its highest non-zero power. A first-order section
+// (b2 = a2 = 0) adds one, so an odd-order design has an odd order, not twice its number of sections.
+std::size_t filter_order(const SecondOrderSections& filter) {
+    auto degree = [](double c1, double c2) -> std::size_t { return c2 != 0.0 ? 2 : c1 != 0.0 ? 1 : 0; };
+    std::size_t numerator = 0;
+    std::size_t denominator = 0;
+    for (const auto& s : filter.sections) {
+        numerator += degree(s[1], s[2]);
+        denominator += degree(s[4], s[5]);
+    }
+    return std::max(numerator, denominator);
+}
+
 }  // namespace
 
 SecondOrderSections butterworth_lowpass(int order, double cutoff_hz, double sample_rate_hz) {
@@ -109,9 +123,9 @@ std::vector<double> filtfilt(const SecondOrderSections& filter, std::span<const 
     const std::size_t n = x.size();
     if (n == 0) return {};
     if (n == 1) return {x[0]};
-    // odd reflection about the end points, 3 * (filter order) samples, as MATLAB's filtfilt
-    std::size_t pad = 3 * 2 * filter.sections.size();
-    pad = std::min(pad, n - 1);
+    // odd reflection about the end points, max(1, 3 * (filter order)) samples, as MATLAB's filtfilt (which refuses a
+    // signal of no more samples than that; here the padding is cut to n - 1)
+    const std::size_t pad = std::min(std::max<std::size_t>(1, 3 * filter_order(filter)), n - 1);
     std::vector<double> y;
     y.reserve(n + 2 * pad);
     for (std::size_t k = pad; k >= 1; --k) y.push_back(2.0 * x[0] - x[k]);

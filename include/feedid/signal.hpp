@@ -20,8 +20,8 @@ SecondOrderSections butterworth_lowpass(int order, double cutoff_hz, double samp
 /// Chebyshev type I low-pass (pass-band ripple [dB]) as MATLAB's cheby1; used for decimation (order 8, 0.05 dB).
 SecondOrderSections chebyshev1_lowpass(int order, double ripple_db, double cutoff_hz, double sample_rate_hz);
 
-/// Forward-backward (zero-phase) filtering with odd reflection padding at both ends and steady-state initial
-/// conditions, as MATLAB's filtfilt.
+/// Forward-backward (zero-phase) filtering with odd reflection padding of 3 * (filter order) samples at both ends (at
+/// most n - 1) and steady-state initial conditions, as MATLAB's filtfilt(b, a, x) on the cascade's transfer function.
 std::vector<double> filtfilt(const SecondOrderSections& filter, std::span<const double> x);
 
 /// Central differences: d[k] = (x[k+1] - x[k-1]) / (2*dt); one-sided at the ends.
