@@ -236,6 +236,20 @@ void fill_statistics(const FitSamples& samples, const CurveModel& model, const C
 
 }  // namespace
 
+Eigen::VectorXd curve_residuals(const FitSamples& samples, const CurveModel& model, const Eigen::VectorXd& x) {
+    const CurveLayout layout(model);
+    Eigen::VectorXd residual(static_cast<Eigen::Index>(samples.size()));
+    CurveFunctor(samples, model, layout)(x, residual);
+    return residual;
+}
+
+Eigen::MatrixXd curve_jacobian(const FitSamples& samples, const CurveModel& model, const Eigen::VectorXd& x) {
+    const CurveLayout layout(model);
+    Eigen::MatrixXd jacobian(static_cast<Eigen::Index>(samples.size()), layout.size);
+    CurveFunctor(samples, model, layout).df(x, jacobian);
+    return jacobian;
+}
+
 CurveFit fit_curve(const FitSamples& samples, const CurveModel& model, double vs_low, double vs_high) {
     const CurveLayout layout(model);
     CurveFit fit;

@@ -71,6 +71,11 @@ struct CurveLayout {
     [[nodiscard]] double friction(const Eigen::VectorXd& x, double velocity, bool asymmetric) const;
 };
 
+/// The curve fit's residuals (model - force) and their analytic Jacobian at x (the fit's internal form, with ln v_s),
+/// as Levenberg-Marquardt sees them; for checking the Jacobian against finite differences.
+Eigen::VectorXd curve_residuals(const FitSamples& samples, const CurveModel& model, const Eigen::VectorXd& x);
+Eigen::MatrixXd curve_jacobian(const FitSamples& samples, const CurveModel& model, const Eigen::VectorXd& x);
+
 /// Fits the whole friction curve (with mass and offset) by a grid search over v_s (variable projection) followed by
 /// Levenberg-Marquardt. `vs_low`..`vs_high` bound the grid [m/s].
 CurveFit fit_curve(const FitSamples& samples, const CurveModel& model, double vs_low, double vs_high);
