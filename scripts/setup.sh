@@ -8,7 +8,7 @@ set -euo pipefail
 packages=(cmake g++ make pkg-config libeigen3-dev libcli11-dev libfmt-dev nlohmann-json3-dev libfast-float-dev
           libmatio-dev zlib1g-dev libpugixml-dev libsqlite3-dev libssl-dev libgtest-dev libgmock-dev libbenchmark-dev
           libtomlplusplus-dev)
-extra=(linuxcnc-uspace chromium clang libclang-rt-14-dev)
+extra=(linuxcnc-uspace chromium clang libclang-rt-14-dev universal-ctags)
 
 missing=()
 for p in "${packages[@]}"; do

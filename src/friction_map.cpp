@@ -119,10 +119,17 @@ std::vector<double> detect_centers(const Trace& trace, const FrictionMapOptions&
     return centers;
 }
 
-FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) {
-    if (auto problem = options.validate(); !problem.empty()) throw InputError("friction map: " + problem + ".");
-    const std::string where = trace.source_path.empty() ? std::string("trace") : trace.source_path;
-    FrictionMap map;
+namespace {
+
+struct Span {
+    int center;
+    std::size_t first;
+    std::size_t last;  ///< one past
+};
+
+/// The centres to cut at: as given, or found from the strokes (sorted).
+std::vector<double> map_centers(const Trace& trace, const FrictionMapOptions& options, const std::string& where,
+                                FrictionMap& map) {
     std::vector<double> centers = options.centers;
     if (centers.empty()) {
         centers = detect_centers(trace, options);
@@ -135,9 +142,12 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
         }
     }
     std::sort(centers.begin(), centers.end());
+    return centers;
+}
 
-    // Each sample to its nearest centre; segments in time order, cut where the nearest centre changes for good.
-    const auto x = stroke_signal(trace);
+/// Each sample to its nearest centre; segments in time order, cut where the nearest centre changes for good.
+std::vector<Span> segment_spans(std::span<const double> x, const std::vector<double>& centers, const std::string& where,
+                                FrictionMap& map) {
     const std::size_t n = x.size();
     std::vector<int> nearest(n);
     for (std::size_t k = 0; k < n; ++k) {
@@ -146,11 +156,6 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
         if (index == centers.size() || (index > 0 && x[k] - centers[index - 1] < centers[index] - x[k])) --index;
         nearest[k] = static_cast<int>(index);
     }
-    struct Span {
-        int center;
-        std::size_t first;
-        std::size_t last;
-    };
     std::vector<Span> spans;
     for (std::size_t c = 0; c < centers.size(); ++c) {
         const auto first = std::find(nearest.begin(), nearest.end(), static_cast<int>(c));
@@ -173,6 +178,12 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
         }
         spans[s].last = spans[s + 1].first;  // the samples between two visits go to the earlier segment
     }
+    return spans;
+}
+
+/// Identifies each segment, from its first to its last turning point.
+void identify_segments(const Trace& trace, std::span<const double> x, const std::vector<double>& centers,
+                       std::vector<Span> spans, const FrictionMapOptions& options, FrictionMap& map) {
     // Each segment from its first to its last turning point: the positioning moves from and to the other centres
     // are left out. They are the fastest motion in a segment, so they would weigh most on the viscous friction, and
     // they run over stretches of the axis that belong to no centre's strokes.
@@ -210,8 +221,11 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
         }
         map.locations.push_back(std::move(location));
     }
+}
 
-    // Which locations stand out: each parameter against the median over the locations.
+/// Which locations stand out: each parameter against the median over the locations.
+void find_outstanding(const FrictionMapOptions& options, FrictionMap& map, std::vector<nlohmann::json>& deviations,
+                      std::vector<std::vector<std::string>>& stands_out) {
     std::vector<std::string> keys;
     for (const auto& location : map.locations) {
         for (const auto& parameter : location.result.parameters) {
@@ -219,8 +233,8 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
                 keys.push_back(parameter.key);
         }
     }
-    std::vector<nlohmann::json> deviations(map.locations.size(), nlohmann::json::object());
-    std::vector<std::vector<std::string>> stands_out(map.locations.size());
+    deviations.assign(map.locations.size(), nlohmann::json::object());
+    stands_out.assign(map.locations.size(), {});
     for (const auto& key : keys) {
         std::vector<double> values;
         std::vector<double> errors;
@@ -253,7 +267,12 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
             }
         }
     }
+}
 
+/// The friction-map document.
+nlohmann::json map_document(const Trace& trace, const FrictionMapOptions& options, const FrictionMap& map,
+                            const std::vector<nlohmann::json>& deviations,
+                            const std::vector<std::vector<std::string>>& stands_out) {
     nlohmann::json locations = nlohmann::json::array();
     for (std::size_t l = 0; l < map.locations.size(); ++l) {
         const auto& location = map.locations[l];
@@ -274,16 +293,31 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
         locations.push_back(std::move(entry));
     }
     const auto base = trace.time_base();
-    map.document = {{"feedid_version", version},
-                    {"trace",
-                     {{"path", trace.source_path},
-                      {"samples", trace.samples()},
-                      {"sample_time_s", finite_or_null(base.sample_time_s)},
-                      {"duration_s", finite_or_null(base.duration_s)}}},
-                    {"model", options.identify.model == FrictionModelKind::asymmetric ? "asymmetric" : "symmetric"},
-                    {"centers_detected", map.centers_detected},
-                    {"locations", locations},
-                    {"findings", map.findings}};
+    return {{"feedid_version", version},
+            {"trace",
+             {{"path", trace.source_path},
+              {"samples", trace.samples()},
+              {"sample_time_s", finite_or_null(base.sample_time_s)},
+              {"duration_s", finite_or_null(base.duration_s)}}},
+            {"model", options.identify.model == FrictionModelKind::asymmetric ? "asymmetric" : "symmetric"},
+            {"centers_detected", map.centers_detected},
+            {"locations", locations},
+            {"findings", map.findings}};
+}
+
+}  // namespace
+
+FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) {
+    if (auto problem = options.validate(); !problem.empty()) throw InputError("friction map: " + problem + ".");
+    const std::string where = trace.source_path.empty() ? std::string("trace") : trace.source_path;
+    FrictionMap map;
+    const std::vector<double> centers = map_centers(trace, options, where, map);
+    const auto x = stroke_signal(trace);
+    identify_segments(trace, x, centers, segment_spans(x, centers, where, map), options, map);
+    std::vector<nlohmann::json> deviations;
+    std::vector<std::vector<std::string>> stands_out;
+    find_outstanding(options, map, deviations, stands_out);
+    map.document = map_document(trace, options, map, deviations, stands_out);
     return map;
 }
 

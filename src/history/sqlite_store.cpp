@@ -141,11 +141,6 @@ void Statement::fail(const char* what) const {
     throw SqliteError(fmt::format("{}: {}: {}", path_, what, describe(code, db_)), code);
 }
 
-std::optional<double> json_number(const nlohmann::json& value) {
-    if (value.is_number()) return value.get<double>();
-    return std::nullopt;
-}
-
 class SqliteStore final : public HistoryStore {
 public:
     SqliteStore(const std::filesystem::path& path, const SqliteOpenOptions& options)
@@ -493,10 +488,11 @@ RunRecord run_from_result(const nlohmann::json& result, const std::string& sourc
     for (const auto& [key, entry] : result["parameters"].items()) {
         if (!entry.is_object() || !entry.contains("value"))
             throw not_a_result(fmt::format("parameter \"{}\" has no \"value\"", key));
-        StoredEstimate estimate;
-        estimate.value = json_number(entry["value"]);
-        if (entry.contains("stderr")) estimate.standard_error = json_number(entry["stderr"]);
-        run.parameters[key] = estimate;
+        try {
+            run.parameters[key] = entry.get<Estimate>();
+        } catch (const nlohmann::json::exception&) {
+            throw not_a_result(fmt::format("parameter \"{}\" is not a number or null", key));
+        }
     }
     if (result.contains("feedid_version") && result["feedid_version"].is_string())
         run.feedid_version = result["feedid_version"].get<std::string>();
@@ -514,12 +510,7 @@ RunRecord run_from_result(const nlohmann::json& result, const std::string& sourc
 }
 
 nlohmann::json to_json(const RunRecord& run) {
-    nlohmann::json parameters = nlohmann::json::object();
-    for (const auto& [key, estimate] : run.parameters) {
-        parameters[key] = {
-            {"value", estimate.value ? nlohmann::json(*estimate.value) : nlohmann::json(nullptr)},
-            {"stderr", estimate.standard_error ? nlohmann::json(*estimate.standard_error) : nlohmann::json(nullptr)}};
-    }
+    const nlohmann::json parameters(run.parameters);
     return {{"id", run.id},
             {"machine", run.machine},
             {"axis", run.axis},

@@ -21,13 +21,13 @@
 
 #include <nlohmann/json.hpp>
 
+#include "feedid/estimate.hpp"
+
 namespace feedid::history {
 
 /// A value with its standard error, in the SI unit its key names; both absent when the data could not determine it.
-struct StoredEstimate {
-    std::optional<double> value;
-    std::optional<double> standard_error;
-};
+/// A stored parameter: the result document's {value, stderr}.
+using StoredEstimate = Estimate;
 
 /// One test run of one axis.
 struct RunRecord {
