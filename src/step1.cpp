@@ -123,16 +123,9 @@ Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind mo
     const auto& v = decimated ? derivatives.full_rate_velocity : derivatives.velocity;
     for (const auto& column : r.columns) {
         std::vector<double> values = regressor_column(column, a, v);
-        if (decimated) {
-            // a column of ones (the offset; a sign column of a trace that moves one way) stays exactly one: the
-            // anti-alias filter would ripple it at the ends
-            const bool ones =
-                !values.empty() && std::all_of(values.begin(), values.end(), [](double c) { return c == 1.0; });
-            if (ones)
-                values.assign(derivatives.size(), 1.0);
-            else
-                values = decimate(values, factor);
-        }
+        // every column through the same anti-alias filter, the constant one too: the filter passes a constant scaled
+        // by its DC gain squared (-0.1 dB for the order-8 Chebyshev, forwards and backwards), as it scales the force
+        if (decimated) values = decimate(values, factor);
         r.values.push_back(std::move(values));
     }
     return r;
