@@ -535,7 +535,7 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
             estimate_json(scaled(result.velocity_integral_gain_N_per_m, per));
         document["signal"] = {{"unit", options.signal_unit}, {"force_per_signal", options.force_per_signal}};
     }
-    const auto kv = scaled(result.position_gain_per_s, 0.06);
+    const auto kv = scaled(result.position_gain_per_s, m_per_min_per_mm_per_1_per_s);
     const auto tn = scaled(result.reset_time_s, 1000.0);
     document["nc_units"] = {
         {"kv_m_per_min_per_mm", kv.value ? nlohmann::json(*kv.value) : nlohmann::json()},

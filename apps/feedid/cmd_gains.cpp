@@ -49,7 +49,7 @@ struct GainsCommand {
                        ? "position and velocity loop each from the logged velocity command"
                        : "from reference, position and drive signal");
         fmt::print("  position loop  K_v   {:<28} ({})\n", format_estimate(result.position_gain_per_s, "1/s"),
-                   format_estimate(result.position_gain_per_s, "(m/min)/mm", 0.06));
+                   format_estimate(result.position_gain_per_s, "(m/min)/mm", m_per_min_per_mm_per_1_per_s));
         if (result.velocity_feedforward.value) {
             fmt::print("                 k_ff  {}\n", format_estimate(result.velocity_feedforward, ""));
         }

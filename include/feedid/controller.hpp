@@ -21,6 +21,10 @@
 
 namespace feedid {
 
+/// (m/min)/mm per 1/s: the SINUMERIK servo gain factor K_V is stated in (m/min)/mm, and
+/// 1 (m/min)/mm = (1/60 m/s) / (1e-3 m) = 1000/60 1/s, so K_V [(m/min)/mm] = K_v [1/s] * 60/1000.
+inline constexpr double m_per_min_per_mm_per_1_per_s = 60.0 / 1000.0;
+
 /// The gains and structure of a cascaded P-PI controller. Linear axes: m, m/s, N; rotary axes: rad, rad/s, N*m.
 struct ControllerModel {
     double position_gain_per_s{0.0};             ///< K_v [1/s]: velocity command per following error
@@ -33,8 +37,8 @@ struct ControllerModel {
     double velocity_cycle_s{0.0};                ///< velocity loop sample time [s]; 0 = the position loop's
     int velocity_difference_samples{1};          ///< n of the velocity measurement above, 1..8
 
-    /// K_v in the SINUMERIK unit (m/min)/mm: K_v[1/s] * 60 / 1000.
-    [[nodiscard]] double kv_m_per_min_per_mm() const { return position_gain_per_s * 0.06; }
+    /// K_v in the SINUMERIK unit (m/min)/mm.
+    [[nodiscard]] double kv_m_per_min_per_mm() const { return position_gain_per_s * m_per_min_per_mm_per_1_per_s; }
     /// Reset time T_n = K_p / K_i [s]; none for a P-only velocity loop.
     [[nodiscard]] std::optional<double> reset_time_s() const;
     /// What is wrong with this model ("" when nothing).
@@ -43,7 +47,7 @@ struct ControllerModel {
 
 /// K_v [1/s] from the SINUMERIK servo gain [(m/min)/mm].
 constexpr double position_gain_from_kv(double kv_m_per_min_per_mm) {
-    return kv_m_per_min_per_mm / 0.06;
+    return kv_m_per_min_per_mm / m_per_min_per_mm_per_1_per_s;
 }
 
 /// The controller's discrete state: one instance per simulation; steps allocate nothing and never throw.
