@@ -21,8 +21,8 @@
 #include <fmt/core.h>
 #include <Eigen/Dense>
 
-#include "feedid/controller.hpp"
 #include "feedid/error.hpp"
+#include "feedid/gains.hpp"
 #include "feedid/least_squares.hpp"
 
 namespace feedid {

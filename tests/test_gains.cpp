@@ -3,8 +3,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "feedid/controller.hpp"
 #include "feedid/drive.hpp"
+#include "feedid/gains.hpp"
 #include "feedid/io/import.hpp"
 #include "feedid/simulate.hpp"
 // synth.hpp (later)

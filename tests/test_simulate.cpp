@@ -12,6 +12,7 @@
 #include "feedid/controller.hpp"
 #include "feedid/drive.hpp"
 #include "feedid/error.hpp"
+#include "feedid/gains.hpp"
 #include "feedid/io/import.hpp"
 #include "feedid/signal.hpp"
 #include "feedid/simulate.hpp"

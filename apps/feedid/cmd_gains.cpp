@@ -5,8 +5,8 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
-#include "feedid/controller.hpp"
 #include "feedid/error.hpp"
+#include "feedid/gains.hpp"
 #include "gain_arguments.hpp"
 
 namespace feedid::cli {
