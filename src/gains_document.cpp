@@ -12,46 +12,38 @@
 namespace feedid {
 
 namespace {
-nlohmann::json estimate_json(const Estimate& estimate) {
-    nlohmann::json value = estimate.value ? nlohmann::json(*estimate.value) : nlohmann::json();
-    nlohmann::json error = estimate.standard_error && std::isfinite(*estimate.standard_error)
-                               ? nlohmann::json(*estimate.standard_error)
-                               : nlohmann::json();
-    return {{"value", value}, {"stderr", error}};
-}
 
+// The estimate in other units: value * factor, standard error * |factor|.
 Estimate scaled(const Estimate& estimate, double factor) {
     Estimate out;
     if (estimate.value) out.value = *estimate.value * factor;
     if (estimate.standard_error) out.standard_error = *estimate.standard_error * std::abs(factor);
     return out;
 }
+
 }  // namespace
 
 nlohmann::json gains_document(const GainResult& result, const GainOptions& options) {
     nlohmann::json document;
     document["gains"] = {
-        {"position_gain_per_s", estimate_json(result.position_gain_per_s)},
-        {"velocity_gain_N_s_per_m", estimate_json(result.velocity_gain_N_s_per_m)},
-        {"velocity_integral_gain_N_per_m", estimate_json(result.velocity_integral_gain_N_per_m)},
-        {"velocity_feedforward", estimate_json(result.velocity_feedforward)},
+        {"position_gain_per_s", result.position_gain_per_s},
+        {"velocity_gain_N_s_per_m", result.velocity_gain_N_s_per_m},
+        {"velocity_integral_gain_N_per_m", result.velocity_integral_gain_N_per_m},
+        {"velocity_feedforward", result.velocity_feedforward},
     };
     if (options.force_per_signal != 0.0) {
         const double per = 1.0 / options.force_per_signal;
-        document["gains"]["velocity_gain_signal_per_m_per_s"] =
-            estimate_json(scaled(result.velocity_gain_N_s_per_m, per));
-        document["gains"]["velocity_integral_gain_signal_per_m"] =
-            estimate_json(scaled(result.velocity_integral_gain_N_per_m, per));
+        document["gains"]["velocity_gain_signal_per_m_per_s"] = scaled(result.velocity_gain_N_s_per_m, per);
+        document["gains"]["velocity_integral_gain_signal_per_m"] = scaled(result.velocity_integral_gain_N_per_m, per);
         document["signal"] = {{"unit", options.signal_unit}, {"force_per_signal", options.force_per_signal}};
     }
     const auto kv = scaled(result.position_gain_per_s, m_per_min_per_mm_per_1_per_s);
     const auto tn = scaled(result.reset_time_s, 1000.0);
     document["nc_units"] = {
-        {"kv_m_per_min_per_mm", kv.value ? nlohmann::json(*kv.value) : nlohmann::json()},
-        {"kv_m_per_min_per_mm_stderr", kv.standard_error ? nlohmann::json(*kv.standard_error) : nlohmann::json()},
-        {"tn_ms", tn.value ? nlohmann::json(*tn.value) : nlohmann::json()},
-        {"tn_ms_stderr", tn.standard_error && std::isfinite(*tn.standard_error) ? nlohmann::json(*tn.standard_error)
-                                                                                : nlohmann::json()},
+        {"kv_m_per_min_per_mm", kv.value},
+        {"kv_m_per_min_per_mm_stderr", kv.standard_error},
+        {"tn_ms", tn.value},
+        {"tn_ms_stderr", tn.standard_error},
     };
     document["structure"] = {
         {"method", result.method},
@@ -60,8 +52,7 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
         {"reference_delay_samples", result.reference_delay_samples},
         {"current_lag_s", result.current_lag_s},
         {"drive_delay_samples", result.drive_delay_samples},
-        {"saturation_N",
-         result.controller.saturation_N ? nlohmann::json(*result.controller.saturation_N) : nlohmann::json()},
+        {"saturation_N", result.controller.saturation_N},
         {"sample_time_s", result.controller.velocity_cycle_s},
     };
     document["fit"] = {{"relative_error_pct", result.relative_error_pct},
