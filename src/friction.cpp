@@ -1,14 +1,10 @@
 #include "feedid/friction.hpp"
 
-#include <cmath>
-
 namespace feedid {
 
-double FrictionBranch::magnitude(double speed) const {
-    // eq. (3): B*|v| + F_C + (F_B - F_C)*exp(-|v|/v_s)
-    double value = viscous * speed + coulomb;
-    if (has_stribeck()) value += (*breakaway - coulomb) * std::exp(-speed / *stribeck_velocity);
-    return value;
+FrictionLaw FrictionBranch::law() const {
+    if (!has_stribeck()) return {viscous, coulomb, 0.0, 0.0};
+    return {viscous, coulomb, *breakaway - coulomb, 1.0 / *stribeck_velocity};
 }
 
 double Friction::force(double velocity) const {

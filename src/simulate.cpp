@@ -93,27 +93,20 @@ void simulate(const AxisModel& axis, const ControllerModel& model, const Simulat
     const double mass = axis.mass;
     const double inverse_mass = 1.0 / mass;
     const Breakaway breakaway{axis.friction.breakaway_force(true), axis.friction.breakaway_force(false)};
-    // Friction per direction, unpacked once: B*|v| + F_C + (F_B - F_C)*exp(-|v|/v_s).
-    struct Branch {
-        double viscous, coulomb, stribeck_rise, inverse_stribeck_velocity;
-    };
-    const auto unpack = [](const FrictionBranch& b) {
-        return b.has_stribeck() ? Branch{b.viscous, b.coulomb, *b.breakaway - b.coulomb, 1.0 / *b.stribeck_velocity}
-                                : Branch{b.viscous, b.coulomb, 0.0, 0.0};
-    };
-    const Branch forward = unpack(axis.friction.forward);
-    const Branch reverse = unpack(axis.friction.reverse);
-    // Friction zones: the same branches with Coulomb and breakaway scaled (sized here, not in the loop).
+    // Friction per direction, unpacked once.
+    const FrictionLaw forward = axis.friction.forward.law();
+    const FrictionLaw reverse = axis.friction.reverse.law();
+    // Friction zones: the same laws with Coulomb and breakaway scaled (sized here, not in the loop).
     struct Zone {
         double from, to;
-        Branch forward, reverse;
+        FrictionLaw forward, reverse;
         Breakaway breakaway;
     };
     std::vector<Zone> zones;
     zones.reserve(options.friction_zones.size());
     for (const auto& zone : options.friction_zones) {
         const double f = zone.coulomb_factor;
-        const auto scaled = [f](Branch b) {
+        const auto scaled = [f](FrictionLaw b) {
             b.coulomb *= f;
             b.stribeck_rise *= f;
             return b;
@@ -121,11 +114,6 @@ void simulate(const AxisModel& axis, const ControllerModel& model, const Simulat
         zones.push_back(
             {zone.from_m, zone.to_m, scaled(forward), scaled(reverse), {breakaway.forward * f, breakaway.reverse * f}});
     }
-    const auto friction_magnitude = [](const Branch& b, double speed) {
-        double value = b.viscous * speed + b.coulomb;
-        if (b.stribeck_rise != 0.0) value += b.stribeck_rise * std::exp(-speed * b.inverse_stribeck_velocity);
-        return value;
-    };
     const double resolution = options.position_resolution_m.value_or(0.0);
     const double inverse_resolution = resolution > 0.0 ? 1.0 / resolution : 0.0;
     const auto measure = [resolution, inverse_resolution](double x) {
@@ -175,8 +163,8 @@ void simulate(const AxisModel& axis, const ControllerModel& model, const Simulat
             const double v_sample = v;
 
             // Plant over one step [t, t+h] with the drive force held.
-            const Branch* forward_branch = &forward;
-            const Branch* reverse_branch = &reverse;
+            const FrictionLaw* forward_branch = &forward;
+            const FrictionLaw* reverse_branch = &reverse;
             const Breakaway* static_friction = &breakaway;
             for (const auto& zone : zones) {
                 if (x >= zone.from && x <= zone.to) {
@@ -199,8 +187,7 @@ void simulate(const AxisModel& axis, const ControllerModel& model, const Simulat
                 x += 0.5 * v_next * h;
                 v = v_next;
             } else {
-                const double friction =
-                    v > 0.0 ? friction_magnitude(*forward_branch, v) : -friction_magnitude(*reverse_branch, -v);
+                const double friction = v > 0.0 ? forward_branch->magnitude(v) : -reverse_branch->magnitude(-v);
                 acceleration = (applied - friction) * inverse_mass;
                 const double v_next = v + acceleration * h;
                 if ((v > 0.0 && v_next <= 0.0) || (v < 0.0 && v_next >= 0.0)) {

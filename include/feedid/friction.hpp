@@ -5,9 +5,27 @@
 // (gravity on a vertical axis, a current-sensor offset) is part of the axis model, not of friction.
 // Linear axes in N, N*s/m, m/s; rotary axes in N*m, N*m*s/rad, rad/s.
 
+#include <cmath>
 #include <optional>
 
 namespace feedid {
+
+/// One direction's friction law with the Stribeck term unpacked: what FrictionBranch::magnitude evaluates, and what
+/// the simulator evaluates in its time loop (no optionals to test, no division, inline).
+struct FrictionLaw {
+    double viscous{0.0};                    ///< B [N*s/m]
+    double coulomb{0.0};                    ///< F_C [N]
+    double stribeck_rise{0.0};              ///< F_B - F_C [N]; 0 = no Stribeck term
+    double inverse_stribeck_velocity{0.0};  ///< 1/v_s [s/m]; 0 = no Stribeck term
+
+    /// Friction magnitude at speed |v| = speed >= 0 [N].
+    [[nodiscard]] double magnitude(double speed) const noexcept {
+        // eq. (3): B*|v| + F_C + (F_B - F_C)*exp(-|v|/v_s)
+        double value = viscous * speed + coulomb;
+        if (stribeck_rise != 0.0) value += stribeck_rise * std::exp(-speed * inverse_stribeck_velocity);
+        return value;
+    }
+};
 
 struct FrictionBranch {
     double viscous{0.0};                      ///< B [N*s/m]
@@ -16,8 +34,10 @@ struct FrictionBranch {
     std::optional<double> stribeck_velocity;  ///< v_s [m/s]; none = no Stribeck term
 
     /// Friction magnitude at speed |v| = speed >= 0.
-    [[nodiscard]] double magnitude(double speed) const;
+    [[nodiscard]] double magnitude(double speed) const { return law().magnitude(speed); }
     [[nodiscard]] bool has_stribeck() const { return breakaway && stribeck_velocity && *stribeck_velocity > 0.0; }
+    /// The law unpacked (no Stribeck term without has_stribeck()).
+    [[nodiscard]] FrictionLaw law() const;
 };
 
 struct Friction {
