@@ -511,4 +511,69 @@ Trace simulation_trace(const SimulationOutput& output, bool rotary) {
     return trace;
 }
 
+namespace {
+
+// What the options set in place of the document's: settings of the drive the gains are simulated on.
+ControllerModel with_options(ControllerModel model, const GainOptions& options) {
+    if (options.saturation_N) model.saturation_N = options.saturation_N;
+    if (options.current_lag_s) model.current_lag_s = *options.current_lag_s;
+    if (options.velocity_difference_samples) model.velocity_difference_samples = *options.velocity_difference_samples;
+    return model;
+}
+
+}  // namespace
+
+TwinController documented_twin_controller(const nlohmann::json& gains_document, const std::string& source,
+                                          const GainOptions& options, const Trace& trace) {
+    TwinController controller;
+    controller.model = with_options(controller_from_document(gains_document, source), options);
+    ControllerModel& model = controller.model;
+    if (model.position_cycle_s == 0.0) model.position_cycle_s = trace.time_base().sample_time_s;
+    if (model.velocity_cycle_s == 0.0) model.velocity_cycle_s = model.position_cycle_s;
+    return controller;
+}
+
+TwinController identified_twin_controller(const Trace& trace, std::span<const double> drive_force,
+                                          const GainOptions& options) {
+    TwinController controller;
+    controller.model = identify_gains(trace, drive_force, options).controller;
+    controller.notes.push_back(
+        fmt::format("gains identified from the trace: K_v {:.6g} 1/s, K_p {:.6g} N*s/m, K_i {:.6g} N/m",
+                    controller.model.position_gain_per_s, controller.model.velocity_gain_N_s_per_m,
+                    controller.model.velocity_integral_gain_N_per_m));
+    return controller;
+}
+
+TraceSimulation simulate_trace(const Trace& trace, std::span<const double> drive_force, const AxisModel& axis,
+                               const ControllerModel& controller, SimulationOptions options) {
+    SimulationInput input;
+    input.sample_time_s = trace.time_base().sample_time_s;
+    input.reference = trace.column(Role::reference_position);
+    if (const auto* external = trace.find(Role::external_force)) input.external_force = external->values;
+    if (!options.initial_position_m) options.initial_position_m = trace.column(Role::position)[0];
+    TraceSimulation simulation;
+    simulation.output = simulate(axis, controller, input, options);
+    simulation.metrics = validate_simulation(trace, drive_force, simulation.output);
+    return simulation;
+}
+
+nlohmann::json simulation_document(const Trace& trace, const TwinController& controller,
+                                   const TraceSimulation& simulation) {
+    const ControllerModel& model = controller.model;
+    nlohmann::json document = validation_document(simulation.metrics);
+    document["trace"] = {
+        {"path", trace.source_path}, {"samples", trace.samples()}, {"sample_time_s", trace.time_base().sample_time_s}};
+    document["controller"] = {{"position_gain_per_s", model.position_gain_per_s},
+                              {"velocity_gain_N_s_per_m", model.velocity_gain_N_s_per_m},
+                              {"velocity_integral_gain_N_per_m", model.velocity_integral_gain_N_per_m},
+                              {"saturation_N", model.saturation_N},
+                              {"current_lag_s", model.current_lag_s},
+                              {"velocity_difference_samples", model.velocity_difference_samples}};
+    document["rotary"] = trace.rotary;
+    // The paper's Fig. 6 for `feedid report --simulation`: the errors over time, thinned for plotting.
+    document["series"] = validation_series_document(validation_series(trace, simulation.output), trace.rotary);
+    document["diagnostics"] = controller.notes;
+    return document;
+}
+
 }  // namespace feedid
