@@ -23,7 +23,7 @@ Estimate scaled(const Estimate& estimate, double factor) {
 
 }  // namespace
 
-nlohmann::json gains_document(const GainResult& result, const GainOptions& options) {
+nlohmann::json gains_document(const GainResult& result, const GainOptions& options, const Trace& trace) {
     nlohmann::json document;
     document["gains"] = {
         {"position_gain_per_s", result.position_gain_per_s},
@@ -61,6 +61,7 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
                                                             : nlohmann::json()},
                        {"samples_used", result.samples_used}};
     document["diagnostics"] = result.diagnostics;
+    document["trace"] = {{"path", trace.source_path}, {"samples", trace.samples()}};
     return document;
 }
 

@@ -39,9 +39,7 @@ struct GainsCommand {
         const GainOptions options = gain_arguments.options(trace, drive);
         const GainResult result = identify_gains(trace, force, options);
         if (!json_path.empty()) {
-            auto document = gains_document(result, options);
-            document["trace"] = {{"path", trace.source_path}, {"samples", trace.samples()}};
-            write_json(document, json_path);
+            write_json(gains_document(result, options, trace), json_path);
             if (json_path == "-") return 0;
         }
         fmt::print("{}: controller gains ({} samples, {})\n", trace.source_path, result.samples_used,

@@ -61,8 +61,9 @@ struct GainResult {
 /// the gains (no following error, too few samples).
 GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options = {});
 
-/// The gain result document of DESIGN.md (`feedid gains --json`).
-nlohmann::json gains_document(const GainResult& result, const GainOptions& options);
+/// The gain result document of DESIGN.md (`feedid gains --json`) of the gains identified from `trace` (its path and
+/// length are in the document).
+nlohmann::json gains_document(const GainResult& result, const GainOptions& options, const Trace& trace);
 
 /// Reads a controller from a gains document (as written by gains_document), InputError naming `source` when a
 /// required key is missing.
