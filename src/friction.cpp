@@ -1,12 +1,10 @@
 #include "feedid/friction.hpp"
 
-#include <cmath>
-
 namespace feedid {
 
-double FrictionBranch::magnitude(double speed) const {
-    if (!has_stribeck()) return friction_magnitude(speed, viscous, coulomb, 0.0, 0.0);
-    return friction_magnitude(speed, viscous, coulomb, *breakaway - coulomb, *stribeck_velocity);
+FrictionLaw FrictionBranch::law() const {
+    if (!has_stribeck()) return {viscous, coulomb, 0.0, 0.0};
+    return {viscous, coulomb, *breakaway - coulomb, 1.0 / *stribeck_velocity};
 }
 
 double Friction::force(double velocity) const {

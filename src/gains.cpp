@@ -21,8 +21,8 @@
 #include <fmt/core.h>
 #include <Eigen/Dense>
 
-#include "feedid/controller.hpp"
 #include "feedid/error.hpp"
+#include "feedid/gains.hpp"
 #include "feedid/least_squares.hpp"
 
 namespace feedid {
@@ -174,11 +174,25 @@ Fit fit(const Problem& problem, const RlsOptions& options) {
     return result;
 }
 
-Estimate make_estimate(double value, double variance) {
+// A gain and its standard error from the fit's variance: sqrt(variance) where that is a finite number >= 0, none
+// otherwise (Estimate's rule). Unlike Estimate::of, a value that is not finite is kept as computed: the document
+// writes it as null, and the controller and the printed report see what the fit gave.
+Estimate estimate_from_variance(double value, double variance) {
     Estimate estimate;
     estimate.value = value;
-    estimate.standard_error = variance >= 0.0 && std::isfinite(variance) ? std::sqrt(variance) : std::nan("");
+    if (variance >= 0.0 && std::isfinite(variance)) estimate.standard_error = std::sqrt(variance);
     return estimate;
+}
+
+// Where K_p and K_i sit in the velocity loop's theta: (K_p, K_i, c) with the velocity command, and
+// (K_p*K_v, K_p, K_i*K_v, K_i, c) from the structure alone.
+struct GainIndices {
+    Eigen::Index velocity_gain;
+    Eigen::Index integral_gain;
+};
+
+GainIndices gain_indices(bool logged_command) {
+    return logged_command ? GainIndices{0, 1} : GainIndices{1, 3};
 }
 
 // Var(a/b) by the delta method from the covariance of (a, b).
@@ -222,383 +236,406 @@ double lag_coefficient(double lag_s, double dt) {
     return lag_s > 0.0 ? std::exp(-dt / lag_s) : 0.0;
 }
 
-}  // namespace
+// e(k) = x_ref(k - d) - x(k): the following error against the reference delayed by d samples.
+Column following_error(std::span<const double> reference, std::span<const double> position, int delay) {
+    Column error(position.size());
+    for (std::size_t k = 0; k < error.size(); ++k) {
+        const std::size_t j = k >= static_cast<std::size_t>(delay) ? k - static_cast<std::size_t>(delay) : 0;
+        error[k] = reference[j] - position[k];
+    }
+    return error;
+}
 
-GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options) {
-    if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
-    const std::string source = trace.source_path.empty() ? std::string("trace") : trace.source_path;
+// The signals the gains are identified from.
+struct GainSignals {
+    std::string source;  // the trace's file, for messages
+    std::size_t samples{0};
+    double dt{0.0};                     // T [s]
+    std::span<const double> position;   // x [m]
+    std::span<const double> reference;  // x_ref [m]
+    const Channel* velocity{nullptr};   // the logged velocity, when there is one
+    bool logged_command{false};         // whether the trace holds the velocity command
+    Column velocity_command;            // v_cmd [m/s], when logged
+    Column force;                       // F [N]
+};
+
+// The trace's position, reference, velocity command and velocity, and the drive force, checked: position and
+// reference there, as many force samples as trace samples, and enough of them.
+GainSignals gain_signals(const Trace& trace, std::span<const double> drive_force) {
+    GainSignals signals;
+    signals.source = trace.source_path.empty() ? std::string("trace") : trace.source_path;
     const auto* reference_channel = trace.find(Role::reference_position);
     const auto* position_channel = trace.find(Role::position);
     if (position_channel == nullptr) {
-        throw InputError(fmt::format("{}: no position channel: map one with --channel position=NAME", source));
+        throw InputError(fmt::format("{}: no position channel: map one with --channel position=NAME", signals.source));
     }
     if (reference_channel == nullptr) {
         throw InputError(
             fmt::format("{}: no reference position channel, which the position loop's following error "
                         "needs: map one with --channel reference_position=NAME",
-                        source));
+                        signals.source));
     }
     const std::size_t n = trace.samples();
     if (drive_force.size() != n)
         throw InputError(
-            fmt::format("{}: the drive force has {} samples, the trace {}", source, drive_force.size(), n));
-    if (n < 50) throw AnalysisError(fmt::format("{}: {} samples are too few to identify controller gains", source, n));
-    const double dt = trace.time_base().sample_time_s;
-    const std::span<const double> x = position_channel->values;
-    const std::span<const double> reference = reference_channel->values;
-    const auto* command_channel = trace.find(Role::velocity_command);
-    const auto* velocity_channel = trace.find(Role::velocity);
+            fmt::format("{}: the drive force has {} samples, the trace {}", signals.source, drive_force.size(), n));
+    if (n < 50) {
+        throw AnalysisError(fmt::format("{}: {} samples are too few to identify controller gains", signals.source, n));
+    }
+    signals.samples = n;
+    signals.dt = trace.time_base().sample_time_s;
+    signals.position = position_channel->values;
+    signals.reference = reference_channel->values;
+    signals.velocity = trace.find(Role::velocity);
+    if (const auto* command_channel = trace.find(Role::velocity_command)) {
+        signals.logged_command = true;
+        signals.velocity_command.assign(command_channel->values.begin(), command_channel->values.end());
+    }
+    signals.force.assign(drive_force.begin(), drive_force.end());
+    return signals;
+}
 
-    GainResult result;
-    result.method = command_channel != nullptr ? "velocity_command" : "structure";
-    const std::vector<double> y(drive_force.begin(), drive_force.end());
-
-    // Following error: it must carry signal, or no position gain can be seen.
+// The following error must carry signal, or no position gain can be seen.
+void require_following_error(const GainSignals& signals) {
     double following_rms = 0.0;
-    for (std::size_t k = 0; k < n; ++k) following_rms += (reference[k] - x[k]) * (reference[k] - x[k]);
-    following_rms = std::sqrt(following_rms / static_cast<double>(n));
+    for (std::size_t k = 0; k < signals.samples; ++k) {
+        following_rms += (signals.reference[k] - signals.position[k]) * (signals.reference[k] - signals.position[k]);
+    }
+    following_rms = std::sqrt(following_rms / static_cast<double>(signals.samples));
     if (!(following_rms > 0.0)) {
         throw AnalysisError(
             fmt::format("{}: the position equals the reference everywhere (no following error), so the "
                         "position gain cannot be identified; a trace of a motion with the position "
                         "loop closed would",
-                        source));
+                        signals.source));
     }
+}
 
-    // Rows used: past the start-up of the differences and filters, not at the force limit.
+// Every row but the first ones, where the differences and filters start up.
+std::vector<char> rows_past_start_up(std::size_t n) {
     std::vector<char> use(n, 1);
     for (std::size_t k = 0; k < std::min<std::size_t>(n, 10); ++k) use[k] = 0;
-    std::size_t saturated = 0;
-    if (options.saturation_N) {
-        for (std::size_t k = 0; k < n; ++k) {
-            if (std::abs(y[k]) >= 0.999 * *options.saturation_N) {
+    return use;
+}
+
+// The velocity loop's rows: past the start-up, not at the force limit, with a finite force.
+std::vector<char> velocity_loop_rows(const Column& force, std::optional<double> saturation_N,
+                                     std::vector<std::string>& diagnostics) {
+    std::vector<char> use = rows_past_start_up(force.size());
+    if (saturation_N) {
+        std::size_t saturated = 0;
+        for (std::size_t k = 0; k < force.size(); ++k) {
+            if (std::abs(force[k]) >= 0.999 * *saturation_N) {
                 use[k] = 0;
                 ++saturated;
             }
         }
-        if (saturated > 0) {
-            result.diagnostics.push_back(fmt::format("{} samples at the force limit left out", saturated));
-        }
+        if (saturated > 0) diagnostics.push_back(fmt::format("{} samples at the force limit left out", saturated));
     }
-    for (std::size_t k = 0; k < n; ++k) {
-        if (!std::isfinite(y[k])) use[k] = 0;
+    for (std::size_t k = 0; k < force.size(); ++k) {
+        if (!std::isfinite(force[k])) use[k] = 0;
     }
+    return use;
+}
 
-    std::vector<int> differences;
+// The structures the search chooses from.
+struct SearchSpace {
+    std::vector<int> differences;       // n of the velocity measurement; 0 = the logged velocity
+    std::vector<int> reference_delays;  // d
+    std::vector<double> lags;           // tau [s]
+};
+
+SearchSpace search_space(const GainSignals& signals, const GainOptions& options) {
+    SearchSpace space;
     if (options.velocity_difference_samples)
-        differences.push_back(*options.velocity_difference_samples);
+        space.differences.push_back(*options.velocity_difference_samples);
     else
-        differences = {1, 2, 3, 4};
-    if (velocity_channel != nullptr && !options.velocity_difference_samples) differences.push_back(0);
-    const std::vector<int> reference_delays =
-        command_channel != nullptr ? std::vector<int>{0} : std::vector<int>{0, 1, 2};
-    std::vector<double> lags;
+        space.differences = {1, 2, 3, 4};
+    if (signals.velocity != nullptr && !options.velocity_difference_samples) space.differences.push_back(0);
+    space.reference_delays = signals.logged_command ? std::vector<int>{0} : std::vector<int>{0, 1, 2};
     if (options.current_lag_s)
-        lags.push_back(*options.current_lag_s);
+        space.lags.push_back(*options.current_lag_s);
     else
-        for (const double samples : lag_grid) lags.push_back(samples * dt);
+        for (const double samples : lag_grid) space.lags.push_back(samples * signals.dt);
+    return space;
+}
 
-    const auto velocity_for = [&](int difference) {
-        return difference == 0 ? Column(velocity_channel->values.begin(), velocity_channel->values.end())
-                               : difference_velocity(x, difference, dt);
-    };
-
-    // Position loop (only with a logged velocity command): v_cmd = K_v*e(k-d) [+ k_ff*x_ref'(k-d)].
-    Column velocity_command;
-    if (command_channel != nullptr) {
-        velocity_command.assign(command_channel->values.begin(), command_channel->values.end());
-        const Column reference_velocity = difference_velocity(reference, 1, dt);
-        double best_rss = std::numeric_limits<double>::infinity();
-        Problem best;
-        std::vector<char> position_use(n, 1);
-        for (std::size_t k = 0; k < std::min<std::size_t>(n, 10); ++k) position_use[k] = 0;
-        for (int d : {0, 1, 2}) {
-            Problem problem;
-            Column error(n);
-            for (std::size_t k = 0; k < n; ++k) {
-                const std::size_t j = k >= static_cast<std::size_t>(d) ? k - static_cast<std::size_t>(d) : 0;
-                error[k] = reference[j] - x[k];
-            }
-            problem.columns.push_back(std::move(error));
-            if (options.feedforward) problem.columns.push_back(delayed(reference_velocity, d));
-            problem.y = &velocity_command;
-            problem.use = &position_use;
-            const double rss = residual_sum_of_squares(problem);
-            if (rss < best_rss) {
-                best_rss = rss;
-                best = std::move(problem);
-                result.reference_delay_samples = d;
-            }
-        }
-        const Fit position_fit = fit(best, options.rls);
-        if (position_fit.rank_deficient) {
-            throw AnalysisError(fmt::format("{}: the following error does not determine the position gain", source));
-        }
-        result.position_gain_per_s = make_estimate(position_fit.estimate(0), position_fit.covariance(0, 0));
-        result.position_loop_relative_error_pct = position_fit.relative_error_pct;
-        if (options.feedforward) {
-            result.velocity_feedforward = make_estimate(position_fit.estimate(1), position_fit.covariance(1, 1));
+// Position loop (only with a logged velocity command): v_cmd = K_v*e(k-d) [+ k_ff*x_ref'(k-d)], the delay d by the
+// smallest residual. Sets K_v (and k_ff), d and the position loop's relative error.
+void identify_position_loop(const GainSignals& signals, const GainOptions& options, GainResult& result) {
+    const Column reference_velocity = difference_velocity(signals.reference, 1, signals.dt);
+    const std::vector<char> use = rows_past_start_up(signals.samples);
+    double best_rss = std::numeric_limits<double>::infinity();
+    Problem best;
+    for (int d : {0, 1, 2}) {
+        Problem problem;
+        problem.columns.push_back(following_error(signals.reference, signals.position, d));
+        if (options.feedforward) problem.columns.push_back(delayed(reference_velocity, d));
+        problem.y = &signals.velocity_command;
+        problem.use = &use;
+        const double rss = residual_sum_of_squares(problem);
+        if (rss < best_rss) {
+            best_rss = rss;
+            best = std::move(problem);
+            result.reference_delay_samples = d;
         }
     }
+    const Fit position_fit = fit(best, options.rls);
+    if (position_fit.rank_deficient) {
+        throw AnalysisError(
+            fmt::format("{}: the following error does not determine the position gain", signals.source));
+    }
+    result.position_gain_per_s = estimate_from_variance(position_fit.estimate(0), position_fit.covariance(0, 0));
+    result.position_loop_relative_error_pct = position_fit.relative_error_pct;
+    if (options.feedforward) {
+        result.velocity_feedforward = estimate_from_variance(position_fit.estimate(1), position_fit.covariance(1, 1));
+    }
+}
 
-    const auto build = [&](const Structure& s, bool integral) {
+// The velocity the controller measures: (x_k - x_{k-n})/(n*T), or the logged velocity for n = 0.
+Column measured_velocity(const GainSignals& signals, int difference) {
+    if (difference == 0) return Column(signals.velocity->values.begin(), signals.velocity->values.end());
+    return difference_velocity(signals.position, difference, signals.dt);
+}
+
+// With the velocity command: F = K_p*e_v [+ K_i*E_v + c],  e_v = v_cmd - v,  E_v = sum(e_v*T).
+std::vector<Column> command_columns(const GainSignals& signals, const Column& v, bool integral) {
+    Column error(signals.samples);
+    for (std::size_t k = 0; k < signals.samples; ++k) error[k] = signals.velocity_command[k] - v[k];
+    std::vector<Column> columns;
+    if (integral) {
+        Column error_sum = running_sum(error, signals.dt);
+        columns.push_back(std::move(error));
+        columns.push_back(std::move(error_sum));
+        columns.push_back(Column(signals.samples, 1.0));
+    } else {
+        columns.push_back(std::move(error));
+    }
+    return columns;
+}
+
+// From the structure alone: F = th1*e + th2*(-v) [+ th3*sum(T*e) + th4*(-sum(T*v)) + c],  e = x_ref(k - d) - x.
+std::vector<Column> structure_columns(const GainSignals& signals, const Column& v, int reference_delay, bool integral) {
+    Column error = following_error(signals.reference, signals.position, reference_delay);
+    Column minus_v(signals.samples);
+    for (std::size_t k = 0; k < signals.samples; ++k) minus_v[k] = -v[k];
+    std::vector<Column> columns;
+    if (integral) {
+        Column error_sum = running_sum(error, signals.dt);
+        Column minus_v_sum = running_sum(minus_v, signals.dt);
+        columns.push_back(std::move(error));
+        columns.push_back(std::move(minus_v));
+        columns.push_back(std::move(error_sum));
+        columns.push_back(std::move(minus_v_sum));
+        columns.push_back(Column(signals.samples, 1.0));
+    } else {
+        columns.push_back(std::move(error));
+        columns.push_back(std::move(minus_v));
+    }
+    return columns;
+}
+
+// The velocity loop's regression on its rows: one problem per structure, every column through the drive filter L.
+struct VelocityLoopRegression {
+    const GainSignals& signals;
+    const std::vector<char>& use;
+
+    [[nodiscard]] Problem problem(const Structure& s, bool integral) const {
         Problem problem;
-        const Column v = velocity_for(s.difference);
-        if (command_channel != nullptr) {
-            Column error(n);
-            for (std::size_t k = 0; k < n; ++k) error[k] = velocity_command[k] - v[k];
-            if (integral) {
-                problem.columns.push_back(running_sum(error, dt));
-                problem.columns.push_back(Column(n, 1.0));
-            }
-            problem.columns.insert(problem.columns.begin(), std::move(error));
-        } else {
-            Column error(n), minus_v(n);
-            for (std::size_t k = 0; k < n; ++k) {
-                const std::size_t j = k >= static_cast<std::size_t>(s.reference_delay)
-                                          ? k - static_cast<std::size_t>(s.reference_delay)
-                                          : 0;
-                error[k] = reference[j] - x[k];
-                minus_v[k] = -v[k];
-            }
-            if (integral) {
-                Column error_sum = running_sum(error, dt);
-                Column minus_v_sum = running_sum(minus_v, dt);
-                problem.columns.push_back(std::move(error));
-                problem.columns.push_back(std::move(minus_v));
-                problem.columns.push_back(std::move(error_sum));
-                problem.columns.push_back(std::move(minus_v_sum));
-                problem.columns.push_back(Column(n, 1.0));
-            } else {
-                problem.columns.push_back(std::move(error));
-                problem.columns.push_back(std::move(minus_v));
-            }
-        }
-        const double a = lag_coefficient(s.lag_s, dt);
+        const Column v = measured_velocity(signals, s.difference);
+        problem.columns = signals.logged_command ? command_columns(signals, v, integral)
+                                                 : structure_columns(signals, v, s.reference_delay, integral);
+        const double a = lag_coefficient(s.lag_s, signals.dt);
         for (auto& column : problem.columns) apply_drive_filter(column, a, s.mu);
-        problem.y = &y;
+        problem.y = &signals.force;
         problem.use = &use;
         return problem;
-    };
+    }
+};
 
-    const auto search = [&](bool integral) {
-        Structure best;
-        double best_rss = std::numeric_limits<double>::infinity();
-        const auto consider = [&](const Structure& s) {
-            const double rss = residual_sum_of_squares(build(s, integral));
-            if (rss < best_rss) {
-                best_rss = rss;
-                best = s;
-            }
-        };
-        // Staged: the velocity measurement and reference delay first (no lag, a few delays), then the lag and the
-        // fractional delay for them, then the first stage again with the lag found.
-        const double first_lag = options.current_lag_s.value_or(0.0);
-        for (int difference : differences) {
-            for (int d : reference_delays) {
-                for (double mu : {0.0, 0.5, 1.0}) consider({difference, d, first_lag, mu});
-            }
-        }
-        for (double lag : lags) {
-            for (double mu : mu_grid) consider({best.difference, best.reference_delay, lag, mu});
-        }
-        const Structure lagged = best;
-        for (int difference : differences) {
-            for (int d : reference_delays) consider({difference, d, lagged.lag_s, lagged.mu});
-        }
-        // Refine tau and mu by coordinate search with shrinking steps (the residual is smooth in both).
-        double lag_step = options.current_lag_s ? 0.0 : 0.1 * dt;
-        double mu_step = 0.1;
-        for (int round = 0; round < 12; ++round) {
-            bool improved = false;
-            for (const auto& [dl, dm] : {std::pair{lag_step, 0.0}, std::pair{-lag_step, 0.0}, std::pair{0.0, mu_step},
-                                         std::pair{0.0, -mu_step}}) {
-                Structure s = best;
-                s.lag_s = std::max(0.0, s.lag_s + dl);
-                s.mu = std::clamp(s.mu + dm, 0.0, 1.0);
-                if (s.lag_s == best.lag_s && s.mu == best.mu) continue;
-                const double rss = residual_sum_of_squares(build(s, integral));
-                if (rss < best_rss) {
-                    best_rss = rss;
-                    best = s;
-                    improved = true;
-                }
-            }
-            if (!improved) {
-                lag_step *= 0.5;
-                mu_step *= 0.5;
-            }
-        }
-        return best;
-    };
+// The structure of the smallest residual so far.
+class StructureSearch {
+public:
+    StructureSearch(const VelocityLoopRegression& regression, bool integral)
+        : regression_(regression), integral_(integral) {}
 
-    bool integral = options.velocity_loop != VelocityLoopStructure::p;
-    Structure structure = search(integral);
-    Fit force_fit = fit(build(structure, integral), options.rls);
-    const int integral_index = command_channel != nullptr ? 1 : 3;
-    if (integral && options.velocity_loop == VelocityLoopStructure::automatic) {
-        const double ki = force_fit.estimate(integral_index);
-        const double se = std::sqrt(std::max(0.0, force_fit.covariance(integral_index, integral_index)));
-        if (force_fit.rank_deficient || !(ki > 3.0 * se)) {
-            result.diagnostics.push_back(
-                fmt::format("no significant integral action in the velocity loop (K_i = {:.4g} +- {:.2g} N/m): "
-                            "identified as P only",
-                            force_fit.rank_deficient ? 0.0 : ki, force_fit.rank_deficient ? 0.0 : se));
-            integral = false;
-            structure = search(false);
-            force_fit = fit(build(structure, false), options.rls);
+    // Fits `s`; true when it is the best so far.
+    bool consider(const Structure& s) {
+        const double rss = residual_sum_of_squares(regression_.problem(s, integral_));
+        if (!(rss < best_rss_)) return false;
+        best_rss_ = rss;
+        best_ = s;
+        return true;
+    }
+    [[nodiscard]] const Structure& best() const { return best_; }
+
+private:
+    const VelocityLoopRegression& regression_;
+    bool integral_;
+    Structure best_;
+    double best_rss_{std::numeric_limits<double>::infinity()};
+};
+
+// Staged: the velocity measurement and reference delay first (no lag, a few delays), then the lag and the
+// fractional delay for them, then the first stage again with the lag found.
+void search_grid(StructureSearch& search, const SearchSpace& space, const GainOptions& options) {
+    const double first_lag = options.current_lag_s.value_or(0.0);
+    for (int difference : space.differences) {
+        for (int d : space.reference_delays) {
+            for (double mu : {0.0, 0.5, 1.0}) search.consider({difference, d, first_lag, mu});
         }
     }
-    if (force_fit.rank_deficient) {
+    for (double lag : space.lags) {
+        for (double mu : mu_grid) search.consider({search.best().difference, search.best().reference_delay, lag, mu});
+    }
+    const Structure lagged = search.best();
+    for (int difference : space.differences) {
+        for (int d : space.reference_delays) search.consider({difference, d, lagged.lag_s, lagged.mu});
+    }
+}
+
+// Refines tau and mu by coordinate search with shrinking steps (the residual is smooth in both).
+void refine_lag_and_delay(StructureSearch& search, const GainOptions& options, double dt) {
+    double lag_step = options.current_lag_s ? 0.0 : 0.1 * dt;
+    double mu_step = 0.1;
+    for (int round = 0; round < 12; ++round) {
+        bool improved = false;
+        for (const auto& [dl, dm] :
+             {std::pair{lag_step, 0.0}, std::pair{-lag_step, 0.0}, std::pair{0.0, mu_step}, std::pair{0.0, -mu_step}}) {
+            Structure s = search.best();
+            s.lag_s = std::max(0.0, s.lag_s + dl);
+            s.mu = std::clamp(s.mu + dm, 0.0, 1.0);
+            if (s.lag_s == search.best().lag_s && s.mu == search.best().mu) continue;
+            if (search.consider(s)) improved = true;
+        }
+        if (!improved) {
+            lag_step *= 0.5;
+            mu_step *= 0.5;
+        }
+    }
+}
+
+Structure search_structure(const VelocityLoopRegression& regression, const SearchSpace& space,
+                           const GainOptions& options, bool integral) {
+    StructureSearch search(regression, integral);
+    search_grid(search, space, options);
+    refine_lag_and_delay(search, options, regression.signals.dt);
+    return search.best();
+}
+
+struct VelocityLoopFit {
+    Structure structure;
+    Fit fit;
+    bool integral{false};
+};
+
+// The velocity loop, PI or P as asked; automatic: PI, and P when the integral gain is not significant (not above
+// three standard errors).
+VelocityLoopFit fit_velocity_loop(const VelocityLoopRegression& regression, const SearchSpace& space,
+                                  const GainOptions& options, std::vector<std::string>& diagnostics) {
+    VelocityLoopFit loop;
+    loop.integral = options.velocity_loop != VelocityLoopStructure::p;
+    loop.structure = search_structure(regression, space, options, loop.integral);
+    loop.fit = fit(regression.problem(loop.structure, loop.integral), options.rls);
+    if (loop.integral && options.velocity_loop == VelocityLoopStructure::automatic) {
+        const Eigen::Index index = gain_indices(regression.signals.logged_command).integral_gain;
+        const double ki = loop.fit.estimate(index);
+        const double se = std::sqrt(std::max(0.0, loop.fit.covariance(index, index)));
+        if (loop.fit.rank_deficient || !(ki > 3.0 * se)) {
+            diagnostics.push_back(
+                fmt::format("no significant integral action in the velocity loop (K_i = {:.4g} +- {:.2g} N/m): "
+                            "identified as P only",
+                            loop.fit.rank_deficient ? 0.0 : ki, loop.fit.rank_deficient ? 0.0 : se));
+            loop.integral = false;
+            loop.structure = search_structure(regression, space, options, false);
+            loop.fit = fit(regression.problem(loop.structure, false), options.rls);
+        }
+    }
+    if (loop.fit.rank_deficient) {
         throw AnalysisError(
             fmt::format("{}: the velocity error does not determine the velocity-loop gains (the axis "
                         "barely moved); a trace of a motion would",
-                        source));
+                        regression.signals.source));
     }
+    return loop;
+}
 
-    const auto& theta = force_fit.estimate;
-    const auto& covariance = force_fit.covariance;
-    if (command_channel != nullptr) {
-        result.velocity_gain_N_s_per_m = make_estimate(theta(0), covariance(0, 0));
-        if (integral) result.velocity_integral_gain_N_per_m = make_estimate(theta(1), covariance(1, 1));
+// K_p, K_i and T_n = K_p/K_i from the velocity loop's fit; from the structure alone also K_v = th1/th2 and the
+// reference delay.
+void set_velocity_loop_gains(const VelocityLoopFit& loop, bool logged_command, GainResult& result) {
+    const auto& theta = loop.fit.estimate;
+    const auto& covariance = loop.fit.covariance;
+    if (logged_command) {
+        result.velocity_gain_N_s_per_m = estimate_from_variance(theta(0), covariance(0, 0));
+        if (loop.integral) result.velocity_integral_gain_N_per_m = estimate_from_variance(theta(1), covariance(1, 1));
     } else {
         // th1 = K_p*K_v, th2 = K_p
         const double kv = theta(0) / theta(1);
-        result.position_gain_per_s =
-            make_estimate(kv, ratio_variance(theta(0), theta(1), covariance(0, 0), covariance(1, 1), covariance(0, 1)));
-        result.velocity_gain_N_s_per_m = make_estimate(theta(1), covariance(1, 1));
-        if (integral) result.velocity_integral_gain_N_per_m = make_estimate(theta(3), covariance(3, 3));
-        result.reference_delay_samples = structure.reference_delay;
+        result.position_gain_per_s = estimate_from_variance(
+            kv, ratio_variance(theta(0), theta(1), covariance(0, 0), covariance(1, 1), covariance(0, 1)));
+        result.velocity_gain_N_s_per_m = estimate_from_variance(theta(1), covariance(1, 1));
+        if (loop.integral) result.velocity_integral_gain_N_per_m = estimate_from_variance(theta(3), covariance(3, 3));
+        result.reference_delay_samples = loop.structure.reference_delay;
     }
-    if (integral) {
-        const int kp = command_channel != nullptr ? 0 : 1;
-        const int ki = integral_index;
-        result.reset_time_s = make_estimate(
+    if (loop.integral) {
+        const auto [kp, ki] = gain_indices(logged_command);
+        result.reset_time_s = estimate_from_variance(
             theta(kp) / theta(ki),
             ratio_variance(theta(kp), theta(ki), covariance(kp, kp), covariance(ki, ki), covariance(kp, ki)));
     }
+}
+
+// The structure found and the velocity loop's fit figures, with a note on a logged velocity used and one on gains of
+// the wrong sign.
+void set_structure_and_fit(const VelocityLoopFit& loop, bool logged_command, GainResult& result) {
+    const Structure& structure = loop.structure;
     result.velocity_difference_samples = structure.difference == 0 ? 1 : structure.difference;
     if (structure.difference == 0) result.diagnostics.push_back("velocity loop fitted on the logged velocity channel");
     result.current_lag_s = structure.lag_s;
     result.drive_delay_samples = structure.mu > 0.5 ? 1 : 0;
-    result.relative_error_pct = force_fit.relative_error_pct;
-    result.samples_used = force_fit.samples;
-    if (!(result.position_gain_per_s.value.value_or(0.0) > 0.0) || !(theta(command_channel != nullptr ? 0 : 1) > 0.0)) {
+    result.relative_error_pct = loop.fit.relative_error_pct;
+    result.samples_used = loop.fit.samples;
+    if (!(result.position_gain_per_s.value.value_or(0.0) > 0.0) ||
+        !(loop.fit.estimate(gain_indices(logged_command).velocity_gain) > 0.0)) {
         result.diagnostics.push_back(
             "a gain came out negative: the channels' signs or roles may be wrong (is the "
             "reference mapped to the reference, the drive signal to the current?)");
     }
+}
 
-    ControllerModel& controller = result.controller;
+// The identified controller, for simulation: the gains (0 where the data did not determine them), the structure
+// found, both loops at the trace's sample time.
+ControllerModel identified_controller(const GainResult& result, const GainOptions& options, double dt) {
+    ControllerModel controller;
     controller.position_gain_per_s = result.position_gain_per_s.value.value_or(0.0);
     controller.velocity_gain_N_s_per_m = result.velocity_gain_N_s_per_m.value.value_or(0.0);
     controller.velocity_integral_gain_N_per_m = result.velocity_integral_gain_N_per_m.value.value_or(0.0);
     controller.velocity_feedforward = result.velocity_feedforward.value.value_or(0.0);
     controller.saturation_N = options.saturation_N;
-    controller.current_lag_s = structure.lag_s;
+    controller.current_lag_s = result.current_lag_s;
     controller.position_cycle_s = dt;
     controller.velocity_cycle_s = dt;
     controller.velocity_difference_samples = result.velocity_difference_samples;
-    return result;
+    return controller;
 }
 
-namespace {
-nlohmann::json estimate_json(const Estimate& estimate) {
-    nlohmann::json value = estimate.value ? nlohmann::json(*estimate.value) : nlohmann::json();
-    nlohmann::json error = estimate.standard_error && std::isfinite(*estimate.standard_error)
-                               ? nlohmann::json(*estimate.standard_error)
-                               : nlohmann::json();
-    return {{"value", value}, {"stderr", error}};
-}
-
-Estimate scaled(const Estimate& estimate, double factor) {
-    Estimate out;
-    if (estimate.value) out.value = *estimate.value * factor;
-    if (estimate.standard_error) out.standard_error = *estimate.standard_error * std::abs(factor);
-    return out;
-}
 }  // namespace
 
-nlohmann::json gains_document(const GainResult& result, const GainOptions& options) {
-    nlohmann::json document;
-    document["gains"] = {
-        {"position_gain_per_s", estimate_json(result.position_gain_per_s)},
-        {"velocity_gain_N_s_per_m", estimate_json(result.velocity_gain_N_s_per_m)},
-        {"velocity_integral_gain_N_per_m", estimate_json(result.velocity_integral_gain_N_per_m)},
-        {"velocity_feedforward", estimate_json(result.velocity_feedforward)},
-    };
-    if (options.force_per_signal != 0.0) {
-        const double per = 1.0 / options.force_per_signal;
-        document["gains"]["velocity_gain_signal_per_m_per_s"] =
-            estimate_json(scaled(result.velocity_gain_N_s_per_m, per));
-        document["gains"]["velocity_integral_gain_signal_per_m"] =
-            estimate_json(scaled(result.velocity_integral_gain_N_per_m, per));
-        document["signal"] = {{"unit", options.signal_unit}, {"force_per_signal", options.force_per_signal}};
-    }
-    const auto kv = scaled(result.position_gain_per_s, 0.06);
-    const auto tn = scaled(result.reset_time_s, 1000.0);
-    document["nc_units"] = {
-        {"kv_m_per_min_per_mm", kv.value ? nlohmann::json(*kv.value) : nlohmann::json()},
-        {"kv_m_per_min_per_mm_stderr", kv.standard_error ? nlohmann::json(*kv.standard_error) : nlohmann::json()},
-        {"tn_ms", tn.value ? nlohmann::json(*tn.value) : nlohmann::json()},
-        {"tn_ms_stderr", tn.standard_error && std::isfinite(*tn.standard_error) ? nlohmann::json(*tn.standard_error)
-                                                                                : nlohmann::json()},
-    };
-    document["structure"] = {
-        {"method", result.method},
-        {"velocity_loop", result.velocity_integral_gain_N_per_m.value ? "PI" : "P"},
-        {"velocity_difference_samples", result.velocity_difference_samples},
-        {"reference_delay_samples", result.reference_delay_samples},
-        {"current_lag_s", result.current_lag_s},
-        {"drive_delay_samples", result.drive_delay_samples},
-        {"saturation_N",
-         result.controller.saturation_N ? nlohmann::json(*result.controller.saturation_N) : nlohmann::json()},
-        {"sample_time_s", result.controller.velocity_cycle_s},
-    };
-    document["fit"] = {{"relative_error_pct", result.relative_error_pct},
-                       {"position_loop_relative_error_pct",
-                        result.method == "velocity_command" ? nlohmann::json(result.position_loop_relative_error_pct)
-                                                            : nlohmann::json()},
-                       {"samples_used", result.samples_used}};
-    document["diagnostics"] = result.diagnostics;
-    return document;
-}
-
-ControllerModel controller_from_document(const nlohmann::json& document, const std::string& source) {
-    const auto value_of = [&](const nlohmann::json& parent, const char* key) -> std::optional<double> {
-        if (!parent.is_object() || !parent.contains(key)) return std::nullopt;
-        const auto& entry = parent[key];
-        const auto& value = entry.is_object() ? entry.value("value", nlohmann::json()) : entry;
-        if (value.is_number()) return value.get<double>();
-        return std::nullopt;
-    };
-    if (!document.is_object() || !document.contains("gains")) {
-        throw InputError(fmt::format("{}: not a gains document (no \"gains\" object)", source));
-    }
-    const auto& gains = document["gains"];
-    ControllerModel model;
-    const auto kv = value_of(gains, "position_gain_per_s");
-    const auto kp = value_of(gains, "velocity_gain_N_s_per_m");
-    if (!kv) throw InputError(fmt::format("{}: gains.position_gain_per_s.value is missing or null", source));
-    if (!kp) throw InputError(fmt::format("{}: gains.velocity_gain_N_s_per_m.value is missing or null", source));
-    model.position_gain_per_s = *kv;
-    model.velocity_gain_N_s_per_m = *kp;
-    model.velocity_integral_gain_N_per_m = value_of(gains, "velocity_integral_gain_N_per_m").value_or(0.0);
-    model.velocity_feedforward = value_of(gains, "velocity_feedforward").value_or(0.0);
-    if (document.contains("structure") && document["structure"].is_object()) {
-        const auto& structure = document["structure"];
-        if (const auto n = value_of(structure, "velocity_difference_samples")) {
-            model.velocity_difference_samples = static_cast<int>(std::lround(*n));
-        }
-        model.current_lag_s = value_of(structure, "current_lag_s").value_or(0.0);
-        model.saturation_N = value_of(structure, "saturation_N");
-        model.position_cycle_s = value_of(structure, "sample_time_s").value_or(0.0);
-        model.velocity_cycle_s = model.position_cycle_s;
-    }
-    if (const auto problem = model.validate(); !problem.empty()) {
-        throw InputError(fmt::format("{}: {}", source, problem));
-    }
-    return model;
+GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options) {
+    if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
+    const GainSignals signals = gain_signals(trace, drive_force);
+    require_following_error(signals);
+    GainResult result;
+    result.method = signals.logged_command ? "velocity_command" : "structure";
+    const std::vector<char> use = velocity_loop_rows(signals.force, options.saturation_N, result.diagnostics);
+    if (signals.logged_command) identify_position_loop(signals, options, result);
+    const VelocityLoopRegression regression{signals, use};
+    const VelocityLoopFit velocity_loop =
+        fit_velocity_loop(regression, search_space(signals, options), options, result.diagnostics);
+    set_velocity_loop_gains(velocity_loop, signals.logged_command, result);
+    set_structure_and_fit(velocity_loop, signals.logged_command, result);
+    result.controller = identified_controller(result, options, signals.dt);
+    return result;
 }
 
 }  // namespace feedid

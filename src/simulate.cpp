@@ -42,11 +42,233 @@ std::string validate_axis(const AxisModel& axis) {
     return {};
 }
 
+void check_simulation(const AxisModel& axis, const ControllerModel& model, const SimulationInput& input,
+                      const SimulationOptions& options) {
+    if (const auto problem = validate_axis(axis); !problem.empty()) throw InputError("simulation: " + problem);
+    if (const auto problem = model.validate(); !problem.empty()) throw InputError("simulation: " + problem);
+    if (const auto problem = options.validate(); !problem.empty()) throw InputError("simulation: " + problem);
+    if (!(input.sample_time_s > 0.0 && std::isfinite(input.sample_time_s))) {
+        throw InputError("simulation: the sample time must be positive");
+    }
+    if (!input.external_force.empty() && input.external_force.size() != input.reference.size()) {
+        throw InputError("simulation: the external force must have as many samples as the reference");
+    }
+}
+
+// Cleared and reserved, not resized: each column is written once, in order (no zero-filling pass over ~40 MB for
+// 60 s at 8 kHz); a reused output keeps its memory.
+void prepare_output(SimulationOutput& out, std::size_t samples) {
+    for (auto* column :
+         {&out.time, &out.reference, &out.position, &out.measured_position, &out.velocity, &out.acceleration,
+          &out.velocity_command, &out.force_command, &out.force, &out.tracking_error}) {
+        column->clear();
+        column->reserve(samples);
+    }
+    out.stick_transitions = 0;
+}
+
 // Friction at 0+ in each direction: what the drive must exceed to break away.
 struct Breakaway {
     double forward;
     double reverse;
 };
+
+// The friction of a stretch of the axis: the law of each direction and the breakaway forces.
+struct FrictionSection {
+    FrictionLaw forward;
+    FrictionLaw reverse;
+    Breakaway breakaway;
+};
+
+FrictionSection section_of(const Friction& friction) {
+    return {friction.forward.law(),
+            friction.reverse.law(),
+            {friction.breakaway_force(true), friction.breakaway_force(false)}};
+}
+
+// In a friction zone the Coulomb and breakaway friction, so the Stribeck rise F_B - F_C, scale by its factor.
+FrictionSection scaled(FrictionSection section, double factor) {
+    for (FrictionLaw* law : {&section.forward, &section.reverse}) {
+        law->coulomb *= factor;
+        law->stribeck_rise *= factor;
+    }
+    section.breakaway = {section.breakaway.forward * factor, section.breakaway.reverse * factor};
+    return section;
+}
+
+struct Zone {
+    double from;
+    double to;
+    FrictionSection friction;
+};
+
+// The axis, unpacked once for the time loop: M*x'' = F_a - F_f(x'),  F_a = F_d + F_ext - F_0.
+struct Plant {
+    double inverse_mass{0.0};
+    double offset{0.0};  // F_0 [N]
+    FrictionSection friction;
+    std::vector<Zone> zones;  // sized here, not in the loop
+
+    // The first zone that holds the position, or the axis' own friction.
+    [[nodiscard]] const FrictionSection& friction_at(double x) const {
+        for (const auto& zone : zones) {
+            if (x >= zone.from && x <= zone.to) return zone.friction;
+        }
+        return friction;
+    }
+};
+
+Plant make_plant(const AxisModel& axis, const std::vector<FrictionZone>& friction_zones) {
+    Plant plant;
+    plant.inverse_mass = 1.0 / axis.mass;
+    plant.offset = axis.offset;
+    plant.friction = section_of(axis.friction);
+    plant.zones.reserve(friction_zones.size());
+    for (const auto& zone : friction_zones) {
+        plant.zones.push_back({zone.from_m, zone.to_m, scaled(plant.friction, zone.coulomb_factor)});
+    }
+    return plant;
+}
+
+struct Motion {
+    double position;  // x [m]
+    double velocity;  // x' [m/s]
+};
+
+// One integration step [t, t+h] at rest with the applied force held: the axis stays exactly where it is while
+// static friction balances the force, and starts in its direction once it exceeds the breakaway force.
+double step_from_rest(const Breakaway& breakaway, double inverse_mass, double applied, double h, Motion& motion) {
+    double acceleration = 0.0;
+    if (applied > breakaway.forward) {
+        acceleration = (applied - breakaway.forward) * inverse_mass;
+    } else if (applied < -breakaway.reverse) {
+        acceleration = (applied + breakaway.reverse) * inverse_mass;
+    }
+    const double v_next = acceleration * h;
+    motion.position += 0.5 * v_next * h;
+    motion.velocity = v_next;
+    return acceleration;
+}
+
+// One integration step [t, t+h] in motion with the applied force held (trapezoidal position); an axis whose velocity
+// would pass through zero within the step stops there, at t + v/(v - v_next)*h, and counts as a stick transition.
+double step_moving(const FrictionSection& friction, double inverse_mass, double applied, double h, Motion& motion,
+                   std::size_t& stick_transitions) {
+    const double v = motion.velocity;
+    const double friction_force = v > 0.0 ? friction.forward.magnitude(v) : -friction.reverse.magnitude(-v);
+    const double acceleration = (applied - friction_force) * inverse_mass;
+    const double v_next = v + acceleration * h;
+    if ((v > 0.0 && v_next <= 0.0) || (v < 0.0 && v_next >= 0.0)) {
+        const double until = v / (v - v_next) * h;
+        motion.position += 0.5 * v * until;
+        motion.velocity = 0.0;
+        ++stick_transitions;
+    } else {
+        motion.position += 0.5 * (v + v_next) * h;
+        motion.velocity = v_next;
+    }
+    return acceleration;
+}
+
+// The plant over one integration step; returns the acceleration during it.
+double step_plant(const Plant& plant, double applied, double h, Motion& motion, std::size_t& stick_transitions) {
+    const FrictionSection& friction = plant.friction_at(motion.position);
+    if (motion.velocity == 0.0) return step_from_rest(friction.breakaway, plant.inverse_mass, applied, h, motion);
+    return step_moving(friction, plant.inverse_mass, applied, h, motion, stick_transitions);
+}
+
+// The position as the controller measures it: quantised to the encoder's resolution, or exact.
+struct PositionSensor {
+    double resolution{0.0};
+    double inverse_resolution{0.0};
+
+    explicit PositionSensor(std::optional<double> resolution_m)
+        : resolution(resolution_m.value_or(0.0)), inverse_resolution(resolution > 0.0 ? 1.0 / resolution : 0.0) {}
+    [[nodiscard]] double measure(double x) const {
+        return resolution > 0.0 ? resolution * std::nearbyint(x * inverse_resolution) : x;
+    }
+};
+
+// The controller on the integration grid: each loop runs every whole number of integration steps, then the current
+// loop F_d' = (F_cmd - F_d)/tau, exact over a step with F_cmd held.
+class DriveLoops {
+public:
+    DriveLoops(const ControllerModel& model, double sample_time_s, double h)
+        : position_every_(std::max(1L, std::lround(position_cycle(model, sample_time_s) / h))),
+          velocity_every_(std::max(1L, std::lround(velocity_cycle(model, sample_time_s) / h))),
+          reference_step_(static_cast<double>(position_every_) * h),
+          lag_(model.current_lag_s > 0.0 ? std::exp(-h / model.current_lag_s) : 0.0),
+          controller_(model, reference_step_, static_cast<double>(velocity_every_) * h) {}
+
+    // At rest at the measured position, on the first reference sample, the integrator holding `held_force` [N] (and
+    // the force command with it, when there is an integrator).
+    void start(double measured, double reference, double held_force) {
+        controller_.reset(measured, held_force);
+        force_command_ = controller_.model().velocity_integral_gain_N_per_m > 0.0 ? held_force : 0.0;
+        drive_force_ = force_command_;
+        previous_reference_ = reference;
+    }
+
+    // One integration step. The reference between samples is interpolated linearly (exact at the samples) at
+    // `fraction` of the way from `reference_now` to `reference_next`.
+    void step(double reference_now, double reference_next, double fraction, double measured) noexcept {
+        if (position_countdown_ == 0) {
+            position_countdown_ = position_every_;
+            const double reference = reference_now + fraction * (reference_next - reference_now);
+            const double reference_velocity = first_ ? 0.0 : (reference - previous_reference_) / reference_step_;
+            first_ = false;
+            previous_reference_ = reference;
+            velocity_command_ = controller_.position_step(reference, reference_velocity, measured);
+        }
+        --position_countdown_;
+        if (velocity_countdown_ == 0) {
+            velocity_countdown_ = velocity_every_;
+            force_command_ = controller_.velocity_step(velocity_command_, measured);
+        }
+        --velocity_countdown_;
+        drive_force_ = lag_ * drive_force_ + (1.0 - lag_) * force_command_;
+    }
+
+    [[nodiscard]] double velocity_command() const noexcept { return velocity_command_; }
+    [[nodiscard]] double force_command() const noexcept { return force_command_; }
+    [[nodiscard]] double drive_force() const noexcept { return drive_force_; }
+
+private:
+    static double position_cycle(const ControllerModel& model, double sample_time_s) {
+        return model.position_cycle_s > 0.0 ? model.position_cycle_s : sample_time_s;
+    }
+    static double velocity_cycle(const ControllerModel& model, double sample_time_s) {
+        return model.velocity_cycle_s > 0.0 ? model.velocity_cycle_s : position_cycle(model, sample_time_s);
+    }
+
+    long position_every_;
+    long velocity_every_;
+    double reference_step_;  // the position loop's period [s], for the reference velocity
+    double lag_;             // exp(-h/tau)
+    Controller controller_;
+    long position_countdown_{0};  // steps until the position loop runs again
+    long velocity_countdown_{0};
+    bool first_{true};
+    double previous_reference_{0.0};
+    double velocity_command_{0.0};
+    double force_command_{0.0};
+    double drive_force_{0.0};
+};
+
+// The signals at a sample instant, `at_sample` the motion there.
+void record_sample(SimulationOutput& out, double time, double reference, const Motion& at_sample, double measured,
+                   double acceleration, const DriveLoops& drive) {
+    out.time.push_back(time);
+    out.reference.push_back(reference);
+    out.position.push_back(at_sample.position);
+    out.measured_position.push_back(measured);
+    out.velocity.push_back(at_sample.velocity);
+    out.acceleration.push_back(acceleration);
+    out.velocity_command.push_back(drive.velocity_command());
+    out.force_command.push_back(drive.force_command());
+    out.force.push_back(drive.drive_force());
+    out.tracking_error.push_back(reference - at_sample.position);
+}
 
 }  // namespace
 
@@ -59,172 +281,34 @@ SimulationOutput simulate(const AxisModel& axis, const ControllerModel& model, c
 
 void simulate(const AxisModel& axis, const ControllerModel& model, const SimulationInput& input,
               const SimulationOptions& options, SimulationOutput& out) {
-    if (const auto problem = validate_axis(axis); !problem.empty()) throw InputError("simulation: " + problem);
-    if (const auto problem = model.validate(); !problem.empty()) throw InputError("simulation: " + problem);
-    if (const auto problem = options.validate(); !problem.empty()) throw InputError("simulation: " + problem);
-    if (!(input.sample_time_s > 0.0 && std::isfinite(input.sample_time_s))) {
-        throw InputError("simulation: the sample time must be positive");
-    }
-    if (!input.external_force.empty() && input.external_force.size() != input.reference.size()) {
-        throw InputError("simulation: the external force must have as many samples as the reference");
-    }
+    check_simulation(axis, model, input, options);
     const std::size_t n = input.reference.size();
+    prepare_output(out, n);
+    if (n == 0) return;
     const int substeps = options.substeps;
     const double dt = input.sample_time_s;
     const double h = dt / substeps;
-    // Each loop runs every whole number of integration steps.
-    const double position_cycle = model.position_cycle_s > 0.0 ? model.position_cycle_s : dt;
-    const double velocity_cycle = model.velocity_cycle_s > 0.0 ? model.velocity_cycle_s : position_cycle;
-    const long position_every = std::max(1L, std::lround(position_cycle / h));
-    const long velocity_every = std::max(1L, std::lround(velocity_cycle / h));
-    Controller controller(model, static_cast<double>(position_every) * h, static_cast<double>(velocity_every) * h);
+    const Plant plant = make_plant(axis, options.friction_zones);
+    const PositionSensor sensor(options.position_resolution_m);
+    DriveLoops drive(model, dt, h);
+    Motion motion{options.initial_position_m.value_or(input.reference[0]), 0.0};
+    drive.start(sensor.measure(motion.position), input.reference[0], options.hold_offset ? axis.offset : 0.0);
 
-    // Cleared and reserved, not resized: each column is written once, in order (no zero-filling pass over ~40 MB
-    // for 60 s at 8 kHz); a reused output keeps its memory.
-    for (auto* column :
-         {&out.time, &out.reference, &out.position, &out.measured_position, &out.velocity, &out.acceleration,
-          &out.velocity_command, &out.force_command, &out.force, &out.tracking_error}) {
-        column->clear();
-        column->reserve(n);
-    }
-    out.stick_transitions = 0;
-    if (n == 0) return;
-
-    const double mass = axis.mass;
-    const double inverse_mass = 1.0 / mass;
-    const Breakaway breakaway{axis.friction.breakaway_force(true), axis.friction.breakaway_force(false)};
-    // Friction per direction, unpacked once: B*|v| + F_C + (F_B - F_C)*exp(-|v|/v_s).
-    struct Branch {
-        double viscous, coulomb, stribeck_rise, inverse_stribeck_velocity;
-    };
-    const auto unpack = [](const FrictionBranch& b) {
-        return b.has_stribeck() ? Branch{b.viscous, b.coulomb, *b.breakaway - b.coulomb, 1.0 / *b.stribeck_velocity}
-                                : Branch{b.viscous, b.coulomb, 0.0, 0.0};
-    };
-    const Branch forward = unpack(axis.friction.forward);
-    const Branch reverse = unpack(axis.friction.reverse);
-    // Friction zones: the same branches with Coulomb and breakaway scaled (sized here, not in the loop).
-    struct Zone {
-        double from, to;
-        Branch forward, reverse;
-        Breakaway breakaway;
-    };
-    std::vector<Zone> zones;
-    zones.reserve(options.friction_zones.size());
-    for (const auto& zone : options.friction_zones) {
-        const double f = zone.coulomb_factor;
-        const auto scaled = [f](Branch b) {
-            b.coulomb *= f;
-            b.stribeck_rise *= f;
-            return b;
-        };
-        zones.push_back(
-            {zone.from_m, zone.to_m, scaled(forward), scaled(reverse), {breakaway.forward * f, breakaway.reverse * f}});
-    }
-    const auto friction_magnitude = [](const Branch& b, double speed) {
-        double value = b.viscous * speed + b.coulomb;
-        if (b.stribeck_rise != 0.0) value += b.stribeck_rise * std::exp(-speed * b.inverse_stribeck_velocity);
-        return value;
-    };
-    const double resolution = options.position_resolution_m.value_or(0.0);
-    const double inverse_resolution = resolution > 0.0 ? 1.0 / resolution : 0.0;
-    const auto measure = [resolution, inverse_resolution](double x) {
-        return resolution > 0.0 ? resolution * std::nearbyint(x * inverse_resolution) : x;
-    };
-    // Current loop: F_d' = (F_cmd - F_d)/tau, exact over a step with F_cmd held.
-    const double lag = model.current_lag_s > 0.0 ? std::exp(-h / model.current_lag_s) : 0.0;
-
-    double x = options.initial_position_m.value_or(input.reference[0]);
-    double v = 0.0;
-    controller.reset(measure(x), options.hold_offset ? axis.offset : 0.0);
-    double velocity_command = 0.0;
-    double force_command = options.hold_offset && model.velocity_integral_gain_N_per_m > 0.0 ? axis.offset : 0.0;
-    double drive_force = force_command;
-    double previous_reference = input.reference[0];
-    const double reference_step = static_cast<double>(position_every) * h;
     const double inverse_substeps = 1.0 / substeps;
     std::size_t stick_transitions = 0;
-    long position_countdown = 0;  // steps until the position loop runs again
-    long velocity_countdown = 0;
-    bool first = true;
-
     for (std::size_t k = 0; k < n; ++k) {
         const double reference_now = input.reference[k];
         const double reference_next = k + 1 < n ? input.reference[k + 1] : reference_now;
         const double external = input.external_force.empty() ? 0.0 : input.external_force[k];
         for (int sub = 0; sub < substeps; ++sub) {
-            const double measured = measure(x);
-            if (position_countdown == 0) {
-                position_countdown = position_every;
-                // The reference between samples: linear interpolation (exact at the samples).
-                const double fraction = static_cast<double>(sub) * inverse_substeps;
-                const double reference = reference_now + fraction * (reference_next - reference_now);
-                const double reference_velocity = first ? 0.0 : (reference - previous_reference) / reference_step;
-                first = false;
-                previous_reference = reference;
-                velocity_command = controller.position_step(reference, reference_velocity, measured);
-            }
-            --position_countdown;
-            if (velocity_countdown == 0) {
-                velocity_countdown = velocity_every;
-                force_command = controller.velocity_step(velocity_command, measured);
-            }
-            --velocity_countdown;
-            drive_force = lag * drive_force + (1.0 - lag) * force_command;
-            const double x_sample = x;
-            const double v_sample = v;
-
-            // Plant over one step [t, t+h] with the drive force held.
-            const Branch* forward_branch = &forward;
-            const Branch* reverse_branch = &reverse;
-            const Breakaway* static_friction = &breakaway;
-            for (const auto& zone : zones) {
-                if (x >= zone.from && x <= zone.to) {
-                    forward_branch = &zone.forward;
-                    reverse_branch = &zone.reverse;
-                    static_friction = &zone.breakaway;
-                    break;
-                }
-            }
-            const double applied = drive_force + external - axis.offset;
-            double acceleration = 0.0;
-            if (v == 0.0) {
-                if (applied > static_friction->forward) {
-                    acceleration = (applied - static_friction->forward) * inverse_mass;
-                } else if (applied < -static_friction->reverse) {
-                    acceleration = (applied + static_friction->reverse) * inverse_mass;
-                }
-                // else: static friction balances the applied force; the axis stays exactly where it is.
-                const double v_next = acceleration * h;
-                x += 0.5 * v_next * h;
-                v = v_next;
-            } else {
-                const double friction =
-                    v > 0.0 ? friction_magnitude(*forward_branch, v) : -friction_magnitude(*reverse_branch, -v);
-                acceleration = (applied - friction) * inverse_mass;
-                const double v_next = v + acceleration * h;
-                if ((v > 0.0 && v_next <= 0.0) || (v < 0.0 && v_next >= 0.0)) {
-                    // Comes to rest within the step, at t + v/(v - v_next)*h: stop there.
-                    const double until = v / (v - v_next) * h;
-                    x += 0.5 * v * until;
-                    v = 0.0;
-                    ++stick_transitions;
-                } else {
-                    x += 0.5 * (v + v_next) * h;
-                    v = v_next;
-                }
-            }
+            const double measured = sensor.measure(motion.position);
+            drive.step(reference_now, reference_next, static_cast<double>(sub) * inverse_substeps, measured);
+            const Motion at_sample = motion;
+            const double applied = drive.drive_force() + external - plant.offset;
+            const double acceleration = step_plant(plant, applied, h, motion, stick_transitions);
             if (sub == 0) {
-                out.time.push_back(static_cast<double>(k) * dt);
-                out.reference.push_back(reference_now);
-                out.position.push_back(x_sample);
-                out.measured_position.push_back(measured);
-                out.velocity.push_back(v_sample);
-                out.acceleration.push_back(acceleration);
-                out.velocity_command.push_back(velocity_command);
-                out.force_command.push_back(force_command);
-                out.force.push_back(drive_force);
-                out.tracking_error.push_back(reference_now - x_sample);
+                record_sample(out, static_cast<double>(k) * dt, reference_now, at_sample, measured, acceleration,
+                              drive);
             }
         }
     }
@@ -425,6 +509,71 @@ Trace simulation_trace(const SimulationOutput& output, bool rotary) {
     trace.set("F", Role::force, force, output.force);
     trace.set("e_t", Role::other, length, output.tracking_error);
     return trace;
+}
+
+namespace {
+
+// What the options set in place of the document's: settings of the drive the gains are simulated on.
+ControllerModel with_options(ControllerModel model, const GainOptions& options) {
+    if (options.saturation_N) model.saturation_N = options.saturation_N;
+    if (options.current_lag_s) model.current_lag_s = *options.current_lag_s;
+    if (options.velocity_difference_samples) model.velocity_difference_samples = *options.velocity_difference_samples;
+    return model;
+}
+
+}  // namespace
+
+TwinController documented_twin_controller(const nlohmann::json& gains_document, const std::string& source,
+                                          const GainOptions& options, const Trace& trace) {
+    TwinController controller;
+    controller.model = with_options(controller_from_document(gains_document, source), options);
+    ControllerModel& model = controller.model;
+    if (model.position_cycle_s == 0.0) model.position_cycle_s = trace.time_base().sample_time_s;
+    if (model.velocity_cycle_s == 0.0) model.velocity_cycle_s = model.position_cycle_s;
+    return controller;
+}
+
+TwinController identified_twin_controller(const Trace& trace, std::span<const double> drive_force,
+                                          const GainOptions& options) {
+    TwinController controller;
+    controller.model = identify_gains(trace, drive_force, options).controller;
+    controller.notes.push_back(
+        fmt::format("gains identified from the trace: K_v {:.6g} 1/s, K_p {:.6g} N*s/m, K_i {:.6g} N/m",
+                    controller.model.position_gain_per_s, controller.model.velocity_gain_N_s_per_m,
+                    controller.model.velocity_integral_gain_N_per_m));
+    return controller;
+}
+
+TraceSimulation simulate_trace(const Trace& trace, std::span<const double> drive_force, const AxisModel& axis,
+                               const ControllerModel& controller, SimulationOptions options) {
+    SimulationInput input;
+    input.sample_time_s = trace.time_base().sample_time_s;
+    input.reference = trace.column(Role::reference_position);
+    if (const auto* external = trace.find(Role::external_force)) input.external_force = external->values;
+    if (!options.initial_position_m) options.initial_position_m = trace.column(Role::position)[0];
+    TraceSimulation simulation;
+    simulation.output = simulate(axis, controller, input, options);
+    simulation.metrics = validate_simulation(trace, drive_force, simulation.output);
+    return simulation;
+}
+
+nlohmann::json simulation_document(const Trace& trace, const TwinController& controller,
+                                   const TraceSimulation& simulation) {
+    const ControllerModel& model = controller.model;
+    nlohmann::json document = validation_document(simulation.metrics);
+    document["trace"] = {
+        {"path", trace.source_path}, {"samples", trace.samples()}, {"sample_time_s", trace.time_base().sample_time_s}};
+    document["controller"] = {{"position_gain_per_s", model.position_gain_per_s},
+                              {"velocity_gain_N_s_per_m", model.velocity_gain_N_s_per_m},
+                              {"velocity_integral_gain_N_per_m", model.velocity_integral_gain_N_per_m},
+                              {"saturation_N", model.saturation_N},
+                              {"current_lag_s", model.current_lag_s},
+                              {"velocity_difference_samples", model.velocity_difference_samples}};
+    document["rotary"] = trace.rotary;
+    // The paper's Fig. 6 for `feedid report --simulation`: the errors over time, thinned for plotting.
+    document["series"] = validation_series_document(validation_series(trace, simulation.output), trace.rotary);
+    document["diagnostics"] = controller.notes;
+    return document;
 }
 
 }  // namespace feedid

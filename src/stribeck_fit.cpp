@@ -61,8 +61,9 @@ double CurveLayout::friction(const Eigen::VectorXd& x, double velocity, bool asy
     const int g = group(velocity, asymmetric);
     const bool stribeck = delta[g] >= 0;
     const double rise = stribeck ? x(delta[g]) : 0.0;
-    const double vs = stribeck ? std::exp(x(log_vs[g])) : 0.0;
-    double f = sign(velocity) * friction_magnitude(std::abs(velocity), x(viscous[g]), x(coulomb[g]), rise, vs);
+    const double inverse_vs = stribeck ? std::exp(-x(log_vs[g])) : 0.0;
+    const FrictionLaw law{x(viscous[g]), x(coulomb[g]), rise, inverse_vs};
+    double f = sign(velocity) * law.magnitude(std::abs(velocity));
     if (offset >= 0) f += x(offset);
     return f;
 }

@@ -64,6 +64,8 @@ TEST(Controller, NcUnits) {
     model.position_gain_per_s = feedid::position_gain_from_kv(1.0);
     EXPECT_NEAR(model.position_gain_per_s, 16.6667, 1e-4);  // 1 (m/min)/mm = 1000/60 1/s
     EXPECT_NEAR(model.kv_m_per_min_per_mm(), 1.0, 1e-12);
+    // 1 (m/min)/mm = (1/60 m/s) / (1e-3 m)
+    EXPECT_DOUBLE_EQ(1.0 / feedid::m_per_min_per_mm_per_1_per_s, (1.0 / 60.0) / 1e-3);
     model.velocity_gain_N_s_per_m = 1.0;
     EXPECT_FALSE(model.reset_time_s());
 }

@@ -3,8 +3,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "feedid/controller.hpp"
 #include "feedid/drive.hpp"
+#include "feedid/gains.hpp"
 #include "feedid/io/import.hpp"
 #include "feedid/simulate.hpp"
 // synth.hpp (later)
@@ -65,6 +65,45 @@ TEST(Gains, MissingReferenceIsBadInput) {
                                 "--force-constant gtau");
     EXPECT_EQ(result.exit_code, 2) << result.err;
     EXPECT_EQ(feedid::testing::count_lines(result.err), 1) << result.err;
+}
+
+TEST(Gains, DocumentCarriesTheTraceAndReadsBackAsTheController) {
+    feedid::GainResult result;
+    result.position_gain_per_s = feedid::Estimate::of(50.0, 0.5);
+    result.velocity_gain_N_s_per_m = feedid::Estimate::of(2000.0, 10.0);
+    result.velocity_integral_gain_N_per_m = feedid::Estimate::of(1e5, 1e3);
+    result.reset_time_s = feedid::Estimate::of(0.02, 1e-4);
+    result.method = "structure";
+    result.velocity_difference_samples = 2;
+    result.current_lag_s = 3e-4;
+    result.controller.saturation_N = 900.0;
+    result.controller.velocity_cycle_s = 1e-3;
+    feedid::GainOptions options;
+    options.force_per_signal = 10.0;
+    options.signal_unit = "V";
+    feedid::Trace trace;
+    trace.source_path = "axis.csv";
+    trace.set("t", feedid::Role::time, "s", {0.0, 1e-3, 2e-3});
+
+    const auto document = feedid::gains_document(result, options, trace);
+    EXPECT_EQ(document["trace"]["path"], "axis.csv");
+    EXPECT_EQ(document["trace"]["samples"], 3);
+    EXPECT_DOUBLE_EQ(document["nc_units"]["kv_m_per_min_per_mm"].get<double>(), 3.0);  // 50 1/s = 3 (m/min)/mm
+    EXPECT_DOUBLE_EQ(document["nc_units"]["tn_ms"].get<double>(), 20.0);
+    EXPECT_DOUBLE_EQ(document["gains"]["velocity_gain_signal_per_m_per_s"]["value"].get<double>(), 200.0);
+    EXPECT_TRUE(document["gains"]["velocity_feedforward"]["value"].is_null());
+    EXPECT_TRUE(document["gains"]["velocity_feedforward"]["stderr"].is_null());
+    EXPECT_EQ(document["structure"]["velocity_loop"], "PI");
+
+    const auto model = feedid::controller_from_document(nlohmann::json::parse(document.dump()), "gains.json");
+    EXPECT_EQ(model.position_gain_per_s, 50.0);
+    EXPECT_EQ(model.velocity_gain_N_s_per_m, 2000.0);
+    EXPECT_EQ(model.velocity_integral_gain_N_per_m, 1e5);
+    EXPECT_EQ(model.velocity_difference_samples, 2);
+    EXPECT_EQ(model.current_lag_s, 3e-4);
+    EXPECT_EQ(model.saturation_N, 900.0);
+    EXPECT_EQ(model.position_cycle_s, 1e-3);
+    EXPECT_EQ(model.velocity_cycle_s, 1e-3);
 }
 
 }  // namespace

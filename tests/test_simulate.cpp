@@ -12,9 +12,11 @@
 #include "feedid/controller.hpp"
 #include "feedid/drive.hpp"
 #include "feedid/error.hpp"
+#include "feedid/gains.hpp"
 #include "feedid/io/import.hpp"
 #include "feedid/signal.hpp"
 #include "feedid/simulate.hpp"
+#include "feedid/synth.hpp"
 #include "testing.hpp"
 
 namespace {
@@ -492,6 +494,108 @@ TEST(Simulate, MissingResultFileIsExitCode2) {
                 "--result /nonexistent/result.json");
     EXPECT_EQ(result.exit_code, 2);
     EXPECT_EQ(feedid::testing::count_lines(result.err), 1) << result.err;
+}
+
+// A trace of 100 samples at 1 ms: enough for documented_twin_controller to read the sample time from.
+feedid::Trace millisecond_trace() {
+    feedid::Trace trace;
+    std::vector<double> time(100);
+    for (std::size_t k = 0; k < time.size(); ++k) time[k] = 1e-3 * static_cast<double>(k);
+    trace.set("t", feedid::Role::time, "s", time);
+    return trace;
+}
+
+TEST(Simulate, TwinControllerFromAGainsDocumentTakesTheOptionsDriveSettings) {
+    const auto document = nlohmann::json::parse(R"({"gains": {
+        "position_gain_per_s": {"value": 30.0, "stderr": 0.1}, "velocity_gain_N_s_per_m": {"value": 1000.0},
+        "velocity_integral_gain_N_per_m": {"value": 5e4}},
+        "structure": {"velocity_difference_samples": 1, "current_lag_s": 1e-4, "saturation_N": 80}})");
+    const auto trace = millisecond_trace();
+    const auto as_documented = feedid::documented_twin_controller(document, "gains.json", {}, trace);
+    EXPECT_EQ(as_documented.model.position_gain_per_s, 30.0);
+    EXPECT_EQ(as_documented.model.velocity_integral_gain_N_per_m, 5e4);
+    EXPECT_EQ(as_documented.model.saturation_N, 80.0);
+    EXPECT_EQ(as_documented.model.current_lag_s, 1e-4);
+    EXPECT_TRUE(as_documented.notes.empty());
+    // The document has no sample time: both loops run at the trace's.
+    EXPECT_NEAR(as_documented.model.position_cycle_s, 1e-3, 1e-12);
+    EXPECT_EQ(as_documented.model.velocity_cycle_s, as_documented.model.position_cycle_s);
+
+    feedid::GainOptions options;
+    options.saturation_N = 50.0;
+    options.current_lag_s = 2e-4;
+    options.velocity_difference_samples = 2;
+    const auto overridden = feedid::documented_twin_controller(document, "gains.json", options, trace);
+    EXPECT_EQ(overridden.model.saturation_N, 50.0);
+    EXPECT_EQ(overridden.model.current_lag_s, 2e-4);
+    EXPECT_EQ(overridden.model.velocity_difference_samples, 2);
+    EXPECT_EQ(overridden.model.velocity_gain_N_s_per_m, 1000.0);
+
+    try {
+        (void)feedid::documented_twin_controller(nlohmann::json::parse(R"({"gains": {}})"), "gains.json", {}, trace);
+        FAIL() << "expected an InputError";
+    } catch (const feedid::InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("gains.json"), std::string::npos) << e.what();
+    }
+}
+
+// The demo drive's synthetic trace, its drive force, and its true axis and controller.
+struct SyntheticRecording {
+    feedid::SynthSpec spec = feedid::demo_spec();
+    feedid::Trace trace;
+    std::vector<double> force;
+    SyntheticRecording() {
+        spec.test.feedrates_mm_per_min = {1250, 4000};
+        spec.test.slow_passes = false;
+        trace = feedid::synthesize(spec);
+        feedid::DriveConstants drive;
+        drive.force_constant_name = "force_constant_N_per_A";
+        force = feedid::drive_force(trace, drive);
+    }
+};
+
+TEST(Simulate, TwinControllerWithoutADocumentIsIdentifiedFromTheTrace) {
+    const SyntheticRecording recording;
+    const auto controller = feedid::identified_twin_controller(recording.trace, recording.force, {});
+    const auto identified = feedid::identify_gains(recording.trace, recording.force).controller;
+    EXPECT_EQ(controller.model.position_gain_per_s, identified.position_gain_per_s);
+    EXPECT_EQ(controller.model.velocity_gain_N_s_per_m, identified.velocity_gain_N_s_per_m);
+    EXPECT_EQ(controller.model.velocity_integral_gain_N_per_m, identified.velocity_integral_gain_N_per_m);
+    EXPECT_NEAR(controller.model.velocity_gain_N_s_per_m, recording.spec.controller.velocity_gain_N_s_per_m,
+                0.03 * recording.spec.controller.velocity_gain_N_s_per_m);
+    ASSERT_EQ(controller.notes.size(), 1u);
+    EXPECT_EQ(controller.notes[0].rfind("gains identified from the trace: K_v ", 0), 0u) << controller.notes[0];
+}
+
+TEST(Simulate, TraceSimulationStartsWhereTheMachineStartedAndItsDocumentSaysWhatRan) {
+    const SyntheticRecording recording;
+    const feedid::TwinController controller{recording.spec.controller, {"a note"}};
+    const auto simulation =
+        feedid::simulate_trace(recording.trace, recording.force, recording.spec.axis, controller.model);
+
+    // The same as simulate() on the trace's reference, from the trace's first position.
+    feedid::SimulationInput input;
+    input.sample_time_s = recording.trace.time_base().sample_time_s;
+    input.reference = recording.trace.column(feedid::Role::reference_position);
+    feedid::SimulationOptions options;
+    options.initial_position_m = recording.trace.column(feedid::Role::position)[0];
+    const auto direct = feedid::simulate(recording.spec.axis, controller.model, input, options);
+    EXPECT_EQ(simulation.output.position, direct.position);
+    EXPECT_EQ(simulation.output.force, direct.force);
+    // The true axis and controller reproduce the machine.
+    EXPECT_LT(simulation.metrics.modelling_error_mae_m, 0.02 * simulation.metrics.tracking_error_mae_machine_m);
+
+    const auto document = feedid::simulation_document(recording.trace, controller, simulation);
+    EXPECT_EQ(document["relative_error_pct"], feedid::validation_document(simulation.metrics)["relative_error_pct"]);
+    EXPECT_EQ(document["trace"]["samples"].get<std::size_t>(), recording.trace.samples());
+    EXPECT_EQ(document["trace"]["sample_time_s"].get<double>(), input.sample_time_s);
+    EXPECT_EQ(document["controller"]["velocity_gain_N_s_per_m"].get<double>(),
+              controller.model.velocity_gain_N_s_per_m);
+    ASSERT_TRUE(controller.model.saturation_N);
+    EXPECT_EQ(document["controller"]["saturation_N"].get<double>(), *controller.model.saturation_N);
+    EXPECT_FALSE(document["rotary"].get<bool>());
+    EXPECT_TRUE(document["series"].contains("tracking_error_machine_m"));
+    EXPECT_EQ(document["diagnostics"], nlohmann::json::array({"a note"}));
 }
 
 }  // namespace

@@ -7,8 +7,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "feedid/controller.hpp"
 #include "feedid/drive.hpp"
+#include "feedid/gains.hpp"
 #include "feedid/io/import.hpp"
 #include "feedid/synth.hpp"
 #include "testing.hpp"

@@ -5,8 +5,8 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
-#include "feedid/controller.hpp"
 #include "feedid/error.hpp"
+#include "feedid/gains.hpp"
 #include "gain_arguments.hpp"
 
 namespace feedid::cli {
@@ -39,9 +39,7 @@ struct GainsCommand {
         const GainOptions options = gain_arguments.options(trace, drive);
         const GainResult result = identify_gains(trace, force, options);
         if (!json_path.empty()) {
-            auto document = gains_document(result, options);
-            document["trace"] = {{"path", trace.source_path}, {"samples", trace.samples()}};
-            write_json(document, json_path);
+            write_json(gains_document(result, options, trace), json_path);
             if (json_path == "-") return 0;
         }
         fmt::print("{}: controller gains ({} samples, {})\n", trace.source_path, result.samples_used,
@@ -49,7 +47,7 @@ struct GainsCommand {
                        ? "position and velocity loop each from the logged velocity command"
                        : "from reference, position and drive signal");
         fmt::print("  position loop  K_v   {:<28} ({})\n", format_estimate(result.position_gain_per_s, "1/s"),
-                   format_estimate(result.position_gain_per_s, "(m/min)/mm", 0.06));
+                   format_estimate(result.position_gain_per_s, "(m/min)/mm", m_per_min_per_mm_per_1_per_s));
         if (result.velocity_feedforward.value) {
             fmt::print("                 k_ff  {}\n", format_estimate(result.velocity_feedforward, ""));
         }

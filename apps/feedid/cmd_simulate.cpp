@@ -35,64 +35,28 @@ struct SimulateCommand {
         const DriveConstants drive = drive_arguments.constants();
         const std::vector<double> force = drive_force(trace, drive);
         const GainOptions gain_options = gain_arguments.options(trace, drive);
-        ControllerModel controller;
-        std::vector<std::string> notes;
-        if (gains_document) {
-            controller = controller_from_document(*gains_document, gains_path);
-            if (gain_options.saturation_N) controller.saturation_N = gain_options.saturation_N;
-            if (gain_options.current_lag_s) controller.current_lag_s = *gain_options.current_lag_s;
-            if (gain_options.velocity_difference_samples) {
-                controller.velocity_difference_samples = *gain_options.velocity_difference_samples;
-            }
-        } else {
-            const GainResult gains = identify_gains(trace, force, gain_options);
-            controller = gains.controller;
-            notes.push_back(
-                fmt::format("gains identified from the trace: K_v {:.6g} 1/s, K_p {:.6g} N*s/m, K_i {:.6g} N/m",
-                            controller.position_gain_per_s, controller.velocity_gain_N_s_per_m,
-                            controller.velocity_integral_gain_N_per_m));
-        }
-        const double dt = trace.time_base().sample_time_s;
-        if (controller.position_cycle_s == 0.0) controller.position_cycle_s = dt;
-        if (controller.velocity_cycle_s == 0.0) controller.velocity_cycle_s = controller.position_cycle_s;
-
-        SimulationInput input;
-        input.sample_time_s = dt;
-        input.reference = trace.column(Role::reference_position);
-        if (const auto* external = trace.find(Role::external_force)) input.external_force = external->values;
+        const TwinController controller =
+            gains_document ? documented_twin_controller(*gains_document, gains_path, gain_options, trace)
+                           : identified_twin_controller(trace, force, gain_options);
         SimulationOptions options;
         options.substeps = substeps;
-        options.initial_position_m = trace.column(Role::position)[0];
-        const SimulationOutput simulated = simulate(axis, controller, input, options);
-        const ValidationMetrics metrics = validate_simulation(trace, force, simulated);
+        const TraceSimulation simulation = simulate_trace(trace, force, axis, controller.model, options);
+        const ValidationMetrics& metrics = simulation.metrics;
 
         if (!out_path.empty()) {
             std::ofstream out(out_path, std::ios::binary);
-            const std::string text = write_csv(simulation_trace(simulated, trace.rotary));
+            const std::string text = write_csv(simulation_trace(simulation.output, trace.rotary));
             out << text;
             if (!out) throw InputError(fmt::format("{}: cannot write the file", out_path));
         }
         if (!json_path.empty()) {
-            nlohmann::json document = validation_document(metrics);
-            document["trace"] = {{"path", trace.source_path}, {"samples", trace.samples()}, {"sample_time_s", dt}};
-            document["controller"] = {
-                {"position_gain_per_s", controller.position_gain_per_s},
-                {"velocity_gain_N_s_per_m", controller.velocity_gain_N_s_per_m},
-                {"velocity_integral_gain_N_per_m", controller.velocity_integral_gain_N_per_m},
-                {"saturation_N", controller.saturation_N ? nlohmann::json(*controller.saturation_N) : nlohmann::json()},
-                {"current_lag_s", controller.current_lag_s},
-                {"velocity_difference_samples", controller.velocity_difference_samples}};
-            document["rotary"] = trace.rotary;
-            // The paper's Fig. 6 for `feedid report --simulation`: the errors over time, thinned for plotting.
-            document["series"] = validation_series_document(validation_series(trace, simulated), trace.rotary);
-            document["diagnostics"] = notes;
-            write_json(document, json_path);
+            write_json(simulation_document(trace, controller, simulation), json_path);
             if (json_path == "-") return 0;
         }
         const char* unit = trace.rotary ? "mrad" : "mm";
         fmt::print("{}: closed-loop simulation of the identified axis on the recorded reference ({} samples)\n",
                    trace.source_path, trace.samples());
-        for (const auto& note : notes) fmt::print("  {}\n", note);
+        for (const auto& note : controller.notes) fmt::print("  {}\n", note);
         fmt::print("  {:<32} {:>12} {:>12}\n", "", "model", "machine");
         fmt::print("  {:<32} {:>12.4g} {:>12.4g}   {}\n", "mean absolute tracking error",
                    metrics.tracking_error_mae_model_m * 1e3, metrics.tracking_error_mae_machine_m * 1e3, unit);

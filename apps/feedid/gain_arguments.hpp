@@ -6,8 +6,8 @@
 #include <string>
 
 #include "cli.hpp"
-#include "feedid/controller.hpp"
 #include "feedid/error.hpp"
+#include "feedid/gains.hpp"
 
 namespace feedid::cli {
 

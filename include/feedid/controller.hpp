@@ -1,5 +1,5 @@
 #pragma once
-// The NC's cascaded P-PI position control loop, and the identification of its gains from a trace.
+// The NC's cascaded P-PI position control loop (its gains are identified from a trace by gains.hpp).
 //   position loop (P, optional velocity feed-forward):   v_cmd = K_v*(x_ref - x) + k_ff*x_ref'
 //   velocity loop (PI; P only when K_i = 0):               F_cmd = K_p*e_v + K_i*integral(e_v dt),  e_v = v_cmd - v
 //   current loop: ideal or a first-order lag of time constant tau;  output saturation |F_cmd| <= F_max
@@ -11,15 +11,13 @@
 
 #include <array>
 #include <optional>
-#include <span>
 #include <string>
-#include <vector>
-
-#include "feedid/identify.hpp"
-#include "feedid/rls.hpp"
-#include "feedid/trace.hpp"
 
 namespace feedid {
+
+/// (m/min)/mm per 1/s: the SINUMERIK servo gain factor K_V is stated in (m/min)/mm, and
+/// 1 (m/min)/mm = (1/60 m/s) / (1e-3 m) = 1000/60 1/s, so K_V [(m/min)/mm] = K_v [1/s] * 60/1000.
+inline constexpr double m_per_min_per_mm_per_1_per_s = 60.0 / 1000.0;
 
 /// The gains and structure of a cascaded P-PI controller. Linear axes: m, m/s, N; rotary axes: rad, rad/s, N*m.
 struct ControllerModel {
@@ -33,8 +31,8 @@ struct ControllerModel {
     double velocity_cycle_s{0.0};                ///< velocity loop sample time [s]; 0 = the position loop's
     int velocity_difference_samples{1};          ///< n of the velocity measurement above, 1..8
 
-    /// K_v in the SINUMERIK unit (m/min)/mm: K_v[1/s] * 60 / 1000.
-    [[nodiscard]] double kv_m_per_min_per_mm() const { return position_gain_per_s * 0.06; }
+    /// K_v in the SINUMERIK unit (m/min)/mm.
+    [[nodiscard]] double kv_m_per_min_per_mm() const { return position_gain_per_s * m_per_min_per_mm_per_1_per_s; }
     /// Reset time T_n = K_p / K_i [s]; none for a P-only velocity loop.
     [[nodiscard]] std::optional<double> reset_time_s() const;
     /// What is wrong with this model ("" when nothing).
@@ -43,7 +41,7 @@ struct ControllerModel {
 
 /// K_v [1/s] from the SINUMERIK servo gain [(m/min)/mm].
 constexpr double position_gain_from_kv(double kv_m_per_min_per_mm) {
-    return kv_m_per_min_per_mm / 0.06;
+    return kv_m_per_min_per_mm / m_per_min_per_mm_per_1_per_s;
 }
 
 /// The controller's discrete state: one instance per simulation; steps allocate nothing and never throw.
@@ -75,55 +73,5 @@ private:
     double integrator_{0.0};  // K_i * integral(e_v dt) [N]
     double measured_velocity_{0.0};
 };
-
-enum class VelocityLoopStructure { automatic, p, pi };
-
-struct GainOptions {
-    /// P or PI velocity loop; automatic: PI, falling back to P when the integral gain is not significant.
-    VelocityLoopStructure velocity_loop{VelocityLoopStructure::automatic};
-    bool feedforward{false};                            ///< also estimate a velocity feed-forward k_ff
-    std::optional<int> velocity_difference_samples;     ///< n of the velocity measurement; none = chosen from the data
-    std::optional<double> current_lag_s;                ///< tau [s]; none = estimated from the data
-    std::optional<double> saturation_N;                 ///< samples at this force command limit are left out [N]
-    double force_per_signal{0.0};                       ///< N per unit of the logged drive signal (0 = unknown)
-    std::string signal_unit;                            ///< the logged drive signal's unit ("V", "A"), for reporting
-    RlsOptions rls{1.0, 1e6, RlsVariant::directional};  ///< constant gains: no forgetting by default
-
-    [[nodiscard]] std::string validate() const;
-};
-
-struct GainResult {
-    ControllerModel controller;               ///< the identified controller (for simulation)
-    Estimate position_gain_per_s;             ///< K_v
-    Estimate velocity_gain_N_s_per_m;         ///< K_p
-    Estimate velocity_integral_gain_N_per_m;  ///< K_i (null for a P-only loop)
-    Estimate velocity_feedforward;            ///< k_ff (null unless asked for)
-    Estimate reset_time_s;                    ///< T_n = K_p / K_i
-    /// "velocity_command" when the trace holds the velocity command (each loop identified on its own), or
-    /// "structure" when only reference, position and drive signal are there (v = K_p*(K_v*e - v) [+ integral]).
-    std::string method;
-    int velocity_difference_samples{1};
-    int reference_delay_samples{0};  ///< samples by which the controller's reference lags the logged one
-    int drive_delay_samples{0};      ///< samples by which the logged drive signal lags the command
-    double current_lag_s{0.0};
-    double relative_error_pct{0.0};                ///< of the velocity loop's force fit, 100*||F - F_hat||/||F||
-    double position_loop_relative_error_pct{0.0};  ///< of the position loop's fit (velocity_command method)
-    std::size_t samples_used{0};
-    std::vector<std::string> diagnostics;
-};
-
-/// Identifies the controller gains from a trace (reference position, position, and a velocity command when present)
-/// and the drive force [N] per sample (drive_force() of drive.hpp). Estimates by RLS (GainOptions::rls; with
-/// lambda = 1 it equals batch least squares) on normalised regressors; standard errors from the batch residuals.
-/// Throws InputError when the trace lacks a reference or position; AnalysisError when the data cannot determine
-/// the gains (no following error, too few samples).
-GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options = {});
-
-/// The gain result document of DESIGN.md (`feedid gains --json`).
-nlohmann::json gains_document(const GainResult& result, const GainOptions& options);
-
-/// Reads a controller from a gains document (as written by gains_document), InputError naming `source` when a
-/// required key is missing.
-ControllerModel controller_from_document(const nlohmann::json& document, const std::string& source);
 
 }  // namespace feedid

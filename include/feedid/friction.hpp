@@ -10,16 +10,23 @@
 
 namespace feedid {
 
-/// The friction law, eq. (3), for one direction: the magnitude at `speed` = |v| >= 0,
-///   B*|v| + F_C + (F_B - F_C)*exp(-|v|/v_s),
-/// with `rise` = F_B - F_C (0: no Stribeck term; then v_s is not read). Every model of friction in feedid (the
-/// identified axis, the simulator, the synthetic drive, step 2's curve fit) evaluates this one function.
-[[nodiscard]] inline double friction_magnitude(double speed, double viscous, double coulomb, double rise,
-                                               double stribeck_velocity) {
-    double value = viscous * speed + coulomb;
-    if (rise != 0.0) value += rise * std::exp(-speed / stribeck_velocity);
-    return value;
-}
+/// The friction law, eq. (3), for one direction, with the Stribeck term unpacked. Every model of friction in feedid
+/// evaluates it: the identified axis (FrictionBranch::magnitude), the simulator's time loop (no optionals to test, no
+/// division, inline), the synthetic drive and step 2's curve fit.
+struct FrictionLaw {
+    double viscous{0.0};                    ///< B [N*s/m]
+    double coulomb{0.0};                    ///< F_C [N]
+    double stribeck_rise{0.0};              ///< F_B - F_C [N]; 0 = no Stribeck term
+    double inverse_stribeck_velocity{0.0};  ///< 1/v_s [s/m]; 0 = no Stribeck term
+
+    /// Friction magnitude at speed |v| = speed >= 0 [N].
+    [[nodiscard]] double magnitude(double speed) const noexcept {
+        // eq. (3): B*|v| + F_C + (F_B - F_C)*exp(-|v|/v_s)
+        double value = viscous * speed + coulomb;
+        if (stribeck_rise != 0.0) value += stribeck_rise * std::exp(-speed * inverse_stribeck_velocity);
+        return value;
+    }
+};
 
 struct FrictionBranch {
     double viscous{0.0};                      ///< B [N*s/m]
@@ -28,8 +35,10 @@ struct FrictionBranch {
     std::optional<double> stribeck_velocity;  ///< v_s [m/s]; none = no Stribeck term
 
     /// Friction magnitude at speed |v| = speed >= 0.
-    [[nodiscard]] double magnitude(double speed) const;
+    [[nodiscard]] double magnitude(double speed) const { return law().magnitude(speed); }
     [[nodiscard]] bool has_stribeck() const { return breakaway && stribeck_velocity && *stribeck_velocity > 0.0; }
+    /// The law unpacked (no Stribeck term without has_stribeck()).
+    [[nodiscard]] FrictionLaw law() const;
 };
 
 struct Friction {

@@ -17,6 +17,7 @@
 
 #include "feedid/controller.hpp"
 #include "feedid/friction.hpp"
+#include "feedid/gains.hpp"
 #include "feedid/trace.hpp"
 
 namespace feedid {
@@ -123,6 +124,42 @@ ValidationSeries validation_series(const Trace& trace, const SimulationOutput& s
 /// The "series" object of the simulate document: time_s and the three errors, with the length unit in the key
 /// (`tracking_error_machine_m`, `tracking_error_model_m`, `modelling_error_m`; `_rad` on a rotary axis).
 nlohmann::json validation_series_document(const ValidationSeries& series, bool rotary);
+
+/// The controller of a recorded trace's twin, and how it was obtained.
+struct TwinController {
+    ControllerModel model;           ///< loop sample times resolved (never 0)
+    std::vector<std::string> notes;  ///< how it was obtained, for the simulate document's diagnostics
+};
+
+/// The controller of a gains document (`source` names it in messages) for simulating `trace`: the saturation,
+/// current-loop lag and velocity measurement that `options` sets replace the document's, and loop sample times the
+/// document leaves open become the trace's sample time. InputError as controller_from_document().
+TwinController documented_twin_controller(const nlohmann::json& gains_document, const std::string& source,
+                                          const GainOptions& options, const Trace& trace);
+
+/// The controller identified from the trace and its drive force [N] per sample (identify_gains), with a note giving
+/// its gains. Throws as identify_gains() does.
+TwinController identified_twin_controller(const Trace& trace, std::span<const double> drive_force,
+                                          const GainOptions& options);
+
+/// A recorded trace simulated by its twin, and how the simulation compares with the machine.
+struct TraceSimulation {
+    SimulationOutput output;
+    ValidationMetrics metrics;
+};
+
+/// Simulates the axis in closed loop with `controller` on the trace's reference (and its external force, when
+/// logged), starting where the machine started unless `options` says otherwise, and compares the result with the
+/// trace and its drive force [N] per sample. Throws InputError as simulate() does, and for a trace without a
+/// reference or position.
+TraceSimulation simulate_trace(const Trace& trace, std::span<const double> drive_force, const AxisModel& axis,
+                               const ControllerModel& controller, SimulationOptions options = {});
+
+/// The simulate document of DESIGN.md (`feedid simulate --json`): the validation figures of validation_document(),
+/// the trace (path, samples, sample time), the controller simulated, whether the axis is rotary, the series of errors
+/// (validation_series_document()) and the controller's notes as diagnostics.
+nlohmann::json simulation_document(const Trace& trace, const TwinController& controller,
+                                   const TraceSimulation& simulation);
 
 /// The simulated signals as a trace (time, reference, position, velocity, acceleration, velocity command, force
 /// command, force, tracking error), for `feedid simulate --out`.

@@ -1,0 +1,72 @@
+#pragma once
+// Identification of the cascaded P-PI controller's gains (controller.hpp) from a trace: the position loop's K_v, the
+// velocity loop's K_p and K_i, and the structure between them (velocity measurement, reference delay, current-loop
+// lag), by RLS on the loop equations; and the gains document that carries them to `feedid simulate`.
+
+#include <cstddef>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "feedid/controller.hpp"
+#include "feedid/estimate.hpp"
+#include "feedid/rls.hpp"
+#include "feedid/trace.hpp"
+
+namespace feedid {
+
+enum class VelocityLoopStructure { automatic, p, pi };
+
+struct GainOptions {
+    /// P or PI velocity loop; automatic: PI, falling back to P when the integral gain is not significant.
+    VelocityLoopStructure velocity_loop{VelocityLoopStructure::automatic};
+    bool feedforward{false};                            ///< also estimate a velocity feed-forward k_ff
+    std::optional<int> velocity_difference_samples;     ///< n of the velocity measurement; none = chosen from the data
+    std::optional<double> current_lag_s;                ///< tau [s]; none = estimated from the data
+    std::optional<double> saturation_N;                 ///< samples at this force command limit are left out [N]
+    double force_per_signal{0.0};                       ///< N per unit of the logged drive signal (0 = unknown)
+    std::string signal_unit;                            ///< the logged drive signal's unit ("V", "A"), for reporting
+    RlsOptions rls{1.0, 1e6, RlsVariant::directional};  ///< constant gains: no forgetting by default
+
+    [[nodiscard]] std::string validate() const;
+};
+
+struct GainResult {
+    ControllerModel controller;               ///< the identified controller (for simulation)
+    Estimate position_gain_per_s;             ///< K_v
+    Estimate velocity_gain_N_s_per_m;         ///< K_p
+    Estimate velocity_integral_gain_N_per_m;  ///< K_i (null for a P-only loop)
+    Estimate velocity_feedforward;            ///< k_ff (null unless asked for)
+    Estimate reset_time_s;                    ///< T_n = K_p / K_i
+    /// "velocity_command" when the trace holds the velocity command (each loop identified on its own), or
+    /// "structure" when only reference, position and drive signal are there (v = K_p*(K_v*e - v) [+ integral]).
+    std::string method;
+    int velocity_difference_samples{1};
+    int reference_delay_samples{0};  ///< samples by which the controller's reference lags the logged one
+    int drive_delay_samples{0};      ///< samples by which the logged drive signal lags the command
+    double current_lag_s{0.0};
+    double relative_error_pct{0.0};                ///< of the velocity loop's force fit, 100*||F - F_hat||/||F||
+    double position_loop_relative_error_pct{0.0};  ///< of the position loop's fit (velocity_command method)
+    std::size_t samples_used{0};
+    std::vector<std::string> diagnostics;
+};
+
+/// Identifies the controller gains from a trace (reference position, position, and a velocity command when present)
+/// and the drive force [N] per sample (drive_force() of drive.hpp). Estimates by RLS (GainOptions::rls; with
+/// lambda = 1 it equals batch least squares) on normalised regressors; standard errors from the batch residuals.
+/// Throws InputError when the trace lacks a reference or position; AnalysisError when the data cannot determine
+/// the gains (no following error, too few samples).
+GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options = {});
+
+/// The gain result document of DESIGN.md (`feedid gains --json`) of the gains identified from `trace` (its path and
+/// length are in the document).
+nlohmann::json gains_document(const GainResult& result, const GainOptions& options, const Trace& trace);
+
+/// Reads a controller from a gains document (as written by gains_document), InputError naming `source` when a
+/// required key is missing.
+ControllerModel controller_from_document(const nlohmann::json& document, const std::string& source);
+
+}  // namespace feedid
