@@ -1,5 +1,6 @@
 #include "feedid/simulate.hpp"
 
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -7,6 +8,7 @@
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
+#include "feedid/result_document.hpp"
 #include "feedid/signal.hpp"
 
 namespace feedid {
@@ -333,12 +335,52 @@ bool present(const nlohmann::json& parent, const std::string& key) {
 
 }  // namespace
 
+namespace {
+
+/// The axis of an identify result, read through the result document's own reader (result_document.hpp).
+AxisModel axis_from_result(const nlohmann::json& document, const std::string& source) {
+    IdentifyResult result;
+    try {
+        result = document.get<IdentifyResult>();
+    } catch (const InputError& e) {
+        throw InputError(fmt::format("{}: {}", source, e.what()));
+    }
+    const ParameterNaming naming{result.rotary};
+    const Parameter* mass = result.find(Term::mass);
+    if (mass == nullptr || !mass->estimate.value) {
+        throw InputError(fmt::format("{}: parameters.{}.value is missing or null", source, naming.key(Term::mass)));
+    }
+    const bool asymmetric = result.model == FrictionModelKind::asymmetric;
+    for (const auto direction : asymmetric ? std::vector{Direction::forward, Direction::reverse}
+                                           : std::vector{Direction::both}) {
+        const Parameter* coulomb = result.find(Term::coulomb, direction);
+        if (coulomb == nullptr || !coulomb->estimate.value) {
+            throw InputError(fmt::format("{}: the Coulomb friction (parameters.{}) is missing or null", source,
+                                         naming.key(Term::coulomb, direction)));
+        }
+    }
+    AxisModel axis = result.axis;
+    for (FrictionBranch* branch : {&axis.friction.forward, &axis.friction.reverse}) {
+        branch->coulomb = std::abs(branch->coulomb);  // the reverse values are magnitudes; a sign is forgiven
+        if (branch->breakaway) branch->breakaway = std::abs(*branch->breakaway);
+        if (branch->stribeck_velocity && !(*branch->stribeck_velocity > 0.0)) {
+            branch->breakaway.reset();
+            branch->stribeck_velocity.reset();
+        }
+    }
+    if (const auto problem = validate_axis(axis); !problem.empty()) {
+        throw InputError(fmt::format("{}: {}", source, problem));
+    }
+    return axis;
+}
+
+}  // namespace
+
 AxisModel axis_from_document(const nlohmann::json& document, const std::string& source) {
     if (!document.is_object()) throw InputError(fmt::format("{}: not a JSON object", source));
-    // A result document keeps the values under "parameters"; a drive file may give them under "axis" or at the top.
-    const nlohmann::json& parameters = document.contains("parameters") ? document["parameters"]
-                                       : document.contains("axis")     ? document["axis"]
-                                                                       : document;
+    if (document.contains("parameters")) return axis_from_result(document, source);
+    // A drive file (feedid synth) gives the values under "axis" or at the top, as numbers or {value} objects.
+    const nlohmann::json& parameters = document.contains("axis") ? document["axis"] : document;
     AxisModel axis;
     axis.rotary = present(parameters, "inertia_kgm2") || (document.is_object() && document.value("rotary", false));
     const std::string mass_key = axis.rotary ? "inertia_kgm2" : "mass_kg";
