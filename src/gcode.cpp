@@ -12,15 +12,18 @@
 //   end         ISO, SINUMERIK: M30; LinuxCNC: M2
 // Positions are written with a decimal point always (a Fanuc control without decimal-point programming reads X10 as
 // 10 increments, not 10 mm).
+#include "feedid/gcode.hpp"
+
 #include <cctype>
 #include <cmath>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
-#include "feedid/testplan.hpp"
 #include "feedid/version.hpp"
 
 namespace feedid {
@@ -95,6 +98,22 @@ bool is_single_letter_axis(const std::string& axis) {
 }
 
 }  // namespace
+
+std::string_view dialect_name(Dialect dialect) {
+    switch (dialect) {
+        case Dialect::iso: return "iso";
+        case Dialect::sinumerik: return "sinumerik";
+        case Dialect::linuxcnc: return "linuxcnc";
+    }
+    return "iso";
+}
+
+std::optional<Dialect> parse_dialect(std::string_view name) {
+    for (const auto dialect : {Dialect::iso, Dialect::sinumerik, Dialect::linuxcnc}) {
+        if (dialect_name(dialect) == name) return dialect;
+    }
+    return std::nullopt;
+}
 
 std::string emit_part_program(const TestPlan& plan, Dialect dialect) {
     const auto& o = plan.options;

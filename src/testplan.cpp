@@ -56,24 +56,6 @@ double move_duration(double distance, double feed, double acceleration, std::opt
     return detail::make_profile(std::abs(distance), feed, acceleration, jerk).duration;
 }
 
-// ---- names ----
-
-std::string_view dialect_name(Dialect dialect) {
-    switch (dialect) {
-        case Dialect::iso: return "iso";
-        case Dialect::sinumerik: return "sinumerik";
-        case Dialect::linuxcnc: return "linuxcnc";
-    }
-    return "iso";
-}
-
-std::optional<Dialect> parse_dialect(std::string_view name) {
-    for (const auto dialect : {Dialect::iso, Dialect::sinumerik, Dialect::linuxcnc}) {
-        if (dialect_name(dialect) == name) return dialect;
-    }
-    return std::nullopt;
-}
-
 std::vector<double> paper_feed_ladder() {
     // METHOD.md step 5: 1250 mm/min up to about 9350 mm/min; 1250 + 6 * 1350 = 9350.
     std::vector<double> feeds;

@@ -11,6 +11,7 @@
 
 #include "cli.hpp"
 #include "feedid/error.hpp"
+#include "feedid/gcode.hpp"
 #include "feedid/io/csv.hpp"
 #include "feedid/testplan.hpp"
 #include "feedid/version.hpp"

@@ -2,27 +2,19 @@
 // Test-procedure design (METHOD.md, step 5): constant-velocity back-and-forth strokes at several centres along the
 // axis at rising feedrates (the paper's ladder, 1250 to 9350 mm/min), plus slow passes for the Stribeck curve
 // (log-spaced, strokes shortened so that each pass stays brief). A plan is a list of moves the NC executes; from it
-// come the part program (ISO, SINUMERIK 840D, LinuxCNC), the reference trajectory an ideal NC would command, the
-// predicted duration and a prediction of which parameters the data will identify and how well.
+// come the part program (ISO, SINUMERIK 840D, LinuxCNC; gcode.hpp), the reference trajectory an ideal NC would
+// command, the predicted duration and a prediction of which parameters the data will identify and how well.
 //
 // All quantities in SI (m, m/s, m/s^2, s); the emitters convert to mm and mm/min.
 
 #include <optional>
 #include <string>
-#include <string_view>
 #include <vector>
 
 #include "feedid/friction.hpp"
 #include "feedid/trace.hpp"
 
 namespace feedid {
-
-enum class Dialect { iso, sinumerik, linuxcnc };
-
-/// "iso", "sinumerik", "linuxcnc".
-std::string_view dialect_name(Dialect dialect);
-/// The inverse of dialect_name; nullopt for an unknown name.
-std::optional<Dialect> parse_dialect(std::string_view name);
 
 /// The paper's feedrate ladder: 1250 to 9350 mm/min in six equal steps of 1350 mm/min [m/s].
 std::vector<double> paper_feed_ladder();
@@ -99,11 +91,6 @@ double move_duration(double distance, double feed, double acceleration, std::opt
 /// What an ideal NC commands: the plan's moves as rest-to-rest profiles (every move ends at rest: the programs use
 /// exact stop), sampled at the plan's sample time. Channels `t` [s] (time) and `x_ref` [m] (reference_position).
 Trace reference_trajectory(const TestPlan& plan);
-
-/// The part program in a dialect: absolute positions (G90), mm and mm/min (G94), exact stop, G4 dwells, and a header
-/// comment with the plan's parameters and the feedid version. SINUMERIK gets servo-trace start/stop lines the user
-/// can enable.
-std::string emit_part_program(const TestPlan& plan, Dialect dialect);
 
 // ---- identifiability prediction ----
 
