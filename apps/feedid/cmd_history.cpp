@@ -7,6 +7,7 @@
 
 #include "cli.hpp"
 #include "feedid/error.hpp"
+#include "feedid/history/record.hpp"
 #include "feedid/history/store.hpp"
 #include "feedid/history/trend.hpp"
 #include "feedid/progress.hpp"

@@ -6,6 +6,7 @@
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
+#include "feedid/history/record.hpp"
 #include "feedid/history/store.hpp"
 
 namespace feedid::cli {

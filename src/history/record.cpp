@@ -1,11 +1,12 @@
 // From an identify result document to a history record.
+#include "feedid/history/record.hpp"
 
 #include <regex>
 
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
-#include "feedid/history/store.hpp"
+#include "feedid/history/sha256.hpp"
 #include "feedid/version.hpp"
 
 namespace feedid::history {
