@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "feedid/error.hpp"
 #include "feedid/io/csv.hpp"
@@ -215,6 +216,22 @@ TEST(TestPlan, PredictionForThePapersLadderAloneRefusesStribeck) {
                d.find("slow passes") != std::string::npos;
     });
     EXPECT_TRUE(says_why);
+}
+
+TEST(TestPlan, DocumentHoldsEveryPassAndNullForUndeterminedErrors) {
+    auto options = options_at({-0.3, 0.3});
+    options.slow_feeds.clear();
+    const auto plan = feedid::make_test_plan(options);
+    const auto prediction = feedid::predict_identifiability(plan);
+    const auto document = feedid::plan_document(plan, prediction);
+    EXPECT_EQ(document.at("centers_m").size(), 2u);
+    ASSERT_EQ(document.at("passes").size(), plan.passes.size());
+    EXPECT_EQ(document.at("passes").at(0).at("center"), 1);
+    EXPECT_NEAR(document.at("passes").at(0).at("feed_mm_per_min").get<double>(), 1250.0, 1e-9);
+    EXPECT_EQ(document.at("blocks"), plan.moves.size());
+    const auto& parameters = document.at("prediction").at("parameters");
+    EXPECT_TRUE(parameters.at("mass_kg").at("stderr").is_number());
+    EXPECT_EQ(parameters.at("breakaway_N").at("identifiable"), false);
 }
 
 }  // namespace

@@ -14,7 +14,6 @@
 #include "feedid/gcode.hpp"
 #include "feedid/io/csv.hpp"
 #include "feedid/testplan.hpp"
-#include "feedid/version.hpp"
 
 namespace feedid::cli {
 
@@ -69,48 +68,6 @@ std::vector<double> parse_slow_feeds(const std::string& text) {
         return log_spaced_feeds(low * mm_per_min, high * mm_per_min, count);
     }
     return parse_list(text, "--slow-feeds", mm_per_min);
-}
-
-nlohmann::json plan_document(const TestPlan& plan, const IdentifiabilityPrediction& prediction) {
-    nlohmann::json passes = nlohmann::json::array();
-    for (const auto& pass : plan.passes) {
-        passes.push_back({{"center", pass.center + 1},
-                          {"center_m", pass.center_position},
-                          {"feed_m_per_s", pass.feed},
-                          {"feed_mm_per_min", pass.feed / mm_per_min},
-                          {"stroke_m", pass.stroke},
-                          {"slow", pass.slow},
-                          {"duration_s", pass.duration},
-                          {"cruise_time_s", pass.cruise_time}});
-    }
-    nlohmann::json parameters = nlohmann::json::object();
-    for (const auto& p : prediction.parameters) {
-        parameters[p.key] = {
-            {"nominal", p.nominal},
-            {"stderr", std::isfinite(p.standard_error) ? nlohmann::json(p.standard_error) : nlohmann::json()},
-            {"identifiable", p.identifiable}};
-    }
-    const auto& o = plan.options;
-    return {{"feedid_version", version},
-            {"axis", o.axis},
-            {"travel_m", {o.travel_min, o.travel_max}},
-            {"centers_m", o.centers},
-            {"duration_s", plan.duration},
-            {"blocks", plan.moves.size()},
-            {"sample_time_s", o.sample_time},
-            {"passes", passes},
-            {"notes", plan.notes},
-            {"prediction",
-             {{"step1_condition_number", std::isfinite(prediction.step1_condition_number)
-                                             ? nlohmann::json(prediction.step1_condition_number)
-                                             : nlohmann::json()},
-              {"step1_samples", prediction.step1_samples},
-              {"step2_levels", prediction.step2_levels},
-              {"slowest_cruise_speed_m_per_s", std::isfinite(prediction.slowest_cruise_speed)
-                                                   ? nlohmann::json(prediction.slowest_cruise_speed)
-                                                   : nlohmann::json()},
-              {"parameters", parameters},
-              {"diagnostics", prediction.diagnostics}}}};
 }
 
 void print_summary(std::FILE* out, const TestPlan& plan, const IdentifiabilityPrediction& prediction,

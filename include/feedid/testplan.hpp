@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "feedid/friction.hpp"
 #include "feedid/trace.hpp"
 
@@ -135,5 +137,10 @@ struct IdentifiabilityPrediction {
 /// level per constant-velocity pass and direction, weighted by its error, fitted with the nominal friction curve's
 /// Jacobian (Gauss-Newton covariance).
 IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const PredictionOptions& options = {});
+
+/// The plan and its prediction as the `feedid plan --json` document: axis, travel, centres, duration, blocks, sample
+/// time, every pass (centre, feedrate in m/s and mm/min, stroke, durations), the notes, and the prediction with
+/// each parameter's nominal value, standard error (null when not determined) and identifiability.
+nlohmann::json plan_document(const TestPlan& plan, const IdentifiabilityPrediction& prediction);
 
 }  // namespace feedid
