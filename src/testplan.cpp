@@ -1,9 +1,11 @@
 #include "feedid/testplan.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <system_error>
 
 #include <fmt/core.h>
 #include <Eigen/Dense>
@@ -47,6 +49,40 @@ double stroke_for_time(double longest, double feed, int cycles, double dwell, do
     return std::floor(low / (0.01 * mm)) * (0.01 * mm);
 }
 
+// A number as the command line writes it: decimal, finite, nothing before or after.
+double parse_number(std::string_view text, std::string_view option) {
+    double value = 0.0;
+    const auto* begin = text.data();
+    const auto* end = begin + text.size();
+    const auto [ptr, error] = std::from_chars(begin, end, value);
+    if (error != std::errc() || ptr != end || !std::isfinite(value))
+        throw InputError(fmt::format("{}: '{}' is not a number.", option, text));
+    return value;
+}
+
+std::vector<std::string_view> split(std::string_view text, char separator) {
+    std::vector<std::string_view> parts;
+    std::size_t start = 0;
+    while (true) {
+        const auto at = text.find(separator, start);
+        parts.push_back(text.substr(start, at == std::string_view::npos ? std::string_view::npos : at - start));
+        if (at == std::string_view::npos) break;
+        start = at + 1;
+    }
+    return parts;
+}
+
+// The entries of a list option joined as the user wrote them, for messages.
+std::string joined(const std::vector<std::string>& entries) {
+    std::string text;
+    for (std::size_t k = 0; k < entries.size(); ++k) text += (k == 0 ? "" : ",") + entries[k];
+    return text;
+}
+
+bool is_none(const std::vector<std::string>& entries) {
+    return entries.size() == 1 && entries.front() == "none";
+}
+
 std::string describe_center(int index, double position) {
     return fmt::format("centre {} at {:.3f} mm", index + 1, to_mm(position));
 }
@@ -76,6 +112,42 @@ std::vector<double> log_spaced_feeds(double lowest, double highest, int count) {
         if (feeds.empty() || std::abs(rounded - feeds.back()) > 1e-12) feeds.push_back(rounded);
     }
     return feeds;
+}
+
+std::pair<double, double> parse_travel(std::string_view text) {
+    const auto limits = split(text, ':');
+    if (limits.size() != 2) throw InputError(fmt::format("--travel: '{}' is not MIN:MAX [mm].", text));
+    return {parse_number(limits[0], "--travel") * mm, parse_number(limits[1], "--travel") * mm};
+}
+
+std::vector<double> parse_number_list(const std::vector<std::string>& entries, std::string_view option, double scale) {
+    std::vector<double> values;
+    for (const auto& entry : entries) {
+        if (entry.empty()) throw InputError(fmt::format("{}: empty entry in '{}'.", option, joined(entries)));
+        values.push_back(parse_number(entry, option) * scale);
+    }
+    return values;
+}
+
+std::vector<double> parse_feeds(const std::vector<std::string>& entries) {
+    if (is_none(entries)) return {};
+    return parse_number_list(entries, "--feeds", mm_per_min);
+}
+
+std::vector<double> parse_slow_feeds(const std::vector<std::string>& entries) {
+    if (is_none(entries)) return {};
+    if (entries.size() != 1 || entries.front().find(':') == std::string::npos)
+        return parse_number_list(entries, "--slow-feeds", mm_per_min);
+    const std::string_view text = entries.front();
+    const auto parts = split(text, ':');
+    if (parts.size() < 2 || parts.size() > 3)
+        throw InputError(fmt::format("--slow-feeds: '{}' is not LO:HI or LO:HI:N (mm/min).", text));
+    const double low = parse_number(parts[0], "--slow-feeds");
+    const double high = parse_number(parts[1], "--slow-feeds");
+    const int count = parts.size() == 3 ? static_cast<int>(parse_number(parts[2], "--slow-feeds")) : 7;
+    if (!(low > 0.0) || !(high >= low) || count < 1)
+        throw InputError(fmt::format("--slow-feeds: '{}' needs 0 < LO <= HI and N >= 1.", text));
+    return log_spaced_feeds(low * mm_per_min, high * mm_per_min, count);
 }
 
 AxisModel nominal_demo_drive() {

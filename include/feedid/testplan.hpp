@@ -9,6 +9,8 @@
 
 #include <optional>
 #include <string>
+#include <string_view>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -24,6 +26,20 @@ std::vector<double> paper_feed_ladder();
 /// `count` feedrates log-spaced from `lowest` to `highest` [m/s], each rounded to two significant digits in mm/min
 /// (10, 22, 46, 100, ... mm/min) so that the part program reads well; duplicates after rounding are dropped.
 std::vector<double> log_spaced_feeds(double lowest, double highest, int count);
+
+// ---- the plan's options as the command line writes them (mm, mm/min) ----
+// Each parser reads the text of one option (a comma-separated option as its entries, split by the command line) and
+// throws InputError naming the option for a malformed value; TestPlanOptions::validate checks the ranges.
+
+/// --travel "MIN:MAX" [mm] -> {travel_min, travel_max} [m].
+std::pair<double, double> parse_travel(std::string_view text);
+/// The entries of a comma-separated option (--centers C1,C2,...) as numbers, each times `scale` (1e-3: mm -> m).
+std::vector<double> parse_number_list(const std::vector<std::string>& entries, std::string_view option, double scale);
+/// --feeds: F1,F2,... [mm/min], or "none" -> ladder feedrates [m/s].
+std::vector<double> parse_feeds(const std::vector<std::string>& entries);
+/// --slow-feeds: "LO:HI" or "LO:HI:N" [mm/min] (N log-spaced feedrates, default 7; see log_spaced_feeds),
+/// F1,F2,... [mm/min], or "none" -> slow feedrates [m/s].
+std::vector<double> parse_slow_feeds(const std::vector<std::string>& entries);
 
 struct TestPlanOptions {
     std::string axis{"X"};        ///< axis letter as the NC knows it (X, Y, Z, A, ..., X1 on SINUMERIK)
