@@ -199,84 +199,106 @@ std::string TestPlanOptions::validate() const {
     return {};
 }
 
-TestPlan make_test_plan(const TestPlanOptions& options) {
-    if (auto problem = options.validate(); !problem.empty()) throw InputError("test plan: " + problem + ".");
-    TestPlan plan;
-    plan.options = options;
+namespace {
+
+// One feedrate of a centre's sequence: the slow (Stribeck) passes come first, then the ladder.
+struct PlannedFeed {
+    double value;  // [m/s]
+    bool slow;
+};
+
+std::vector<PlannedFeed> feed_sequence(const TestPlanOptions& options) {
+    std::vector<PlannedFeed> sequence;
+    for (const double feed : options.slow_feeds) sequence.push_back({feed, true});
+    for (const double feed : options.feeds) sequence.push_back({feed, false});
+    return sequence;
+}
+
+// The feedrate of the moves between passes: the option's, lowered (with a note) to the feedrate limit.
+double limited_positioning_feed(const TestPlanOptions& options, std::vector<std::string>& notes) {
     double positioning_feed = options.positioning_feed;
     if (options.max_feed && positioning_feed > *options.max_feed) {
         positioning_feed = *options.max_feed;
-        plan.notes.push_back(
+        notes.push_back(
             fmt::format("positioning moves run at the feedrate limit {:.0f} mm/min", to_mm_per_min(positioning_feed)));
     }
+    return positioning_feed;
+}
 
-    struct Feed {
-        double value;
-        bool slow;
-    };
-    std::vector<Feed> sequence;
-    for (const double feed : options.slow_feeds) sequence.push_back({feed, true});
-    for (const double feed : options.feeds) sequence.push_back({feed, false});
-
-    double position = std::numeric_limits<double>::quiet_NaN();
-    for (std::size_t c = 0; c < options.centers.size(); ++c) {
-        const int center = static_cast<int>(c);
-        const double center_position = options.centers[c];
-        for (const auto& feed : sequence) {
-            Pass pass;
-            pass.center = center;
-            pass.center_position = center_position;
-            pass.feed = feed.value;
-            pass.slow = feed.slow;
-            pass.stroke = options.stroke;
-            if (feed.slow) {
-                pass.stroke = stroke_for_time(options.stroke, feed.value, options.cycles, options.dwell,
-                                              options.max_pass_time, options.acceleration, options.jerk);
-                if (pass.stroke < 0.01 * mm) {
-                    throw InputError(fmt::format(
-                        "test plan: at {:.4g} mm/min a stroke that fits the maximum pass time {} s is shorter than "
-                        "0.01 mm; allow a longer pass (--max-pass-time) or fewer cycles.",
-                        to_mm_per_min(feed.value), options.max_pass_time));
-                }
-            }
-            const int pass_index = static_cast<int>(plan.passes.size());
-            const double low = center_position - pass.stroke / 2.0;
-            const double high = center_position + pass.stroke / 2.0;
-            const std::string what =
-                fmt::format("{}, {:.4g} mm/min", describe_center(center, center_position), to_mm_per_min(feed.value));
-            if (!(std::abs(position - low) < 1e-12)) {
-                plan.moves.push_back({MoveKind::feed, low, positioning_feed, 0.0, center, -1,
-                                      fmt::format("{}: move to the start of the pass", what)});
-                if (options.dwell > 0.0)
-                    plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, -1,
-                                          fmt::format("{}: dwell before the pass", what)});
-                position = low;
-            }
-            for (int cycle = 1; cycle <= options.cycles; ++cycle) {
-                plan.moves.push_back({MoveKind::feed, high, feed.value, 0.0, center, pass_index,
-                                      fmt::format("{}, cycle {}, stroke +", what, cycle)});
-                if (options.dwell > 0.0)
-                    plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, pass_index,
-                                          fmt::format("{}, cycle {}, dwell at +", what, cycle)});
-                plan.moves.push_back({MoveKind::feed, low, feed.value, 0.0, center, pass_index,
-                                      fmt::format("{}, cycle {}, stroke -", what, cycle)});
-                if (options.dwell > 0.0)
-                    plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, pass_index,
-                                          fmt::format("{}, cycle {}, dwell at -", what, cycle)});
-            }
-            const auto profile = detail::make_profile(pass.stroke, feed.value, options.acceleration, options.jerk);
-            pass.duration = 2.0 * options.cycles * (profile.duration + options.dwell);
-            pass.cruise_time = 2.0 * options.cycles * profile.cruise_time;
-            if (profile.cruise_time <= 0.0) {
-                plan.notes.push_back(fmt::format(
-                    "{}: the {:.3f} mm stroke is too short to reach the feedrate at {} m/s^2 (peak {:.4g} mm/min); "
-                    "this pass holds no constant-velocity data",
-                    what, to_mm(pass.stroke), options.acceleration, to_mm_per_min(profile.peak_speed)));
-            }
-            plan.passes.push_back(pass);
+// The pass at one centre and feedrate, before timing: a slow pass's stroke is shortened to fit the maximum pass time.
+Pass design_pass(const TestPlanOptions& options, int center, const PlannedFeed& feed) {
+    Pass pass;
+    pass.center = center;
+    pass.center_position = options.centers[static_cast<std::size_t>(center)];
+    pass.feed = feed.value;
+    pass.slow = feed.slow;
+    pass.stroke = options.stroke;
+    if (feed.slow) {
+        pass.stroke = stroke_for_time(options.stroke, feed.value, options.cycles, options.dwell, options.max_pass_time,
+                                      options.acceleration, options.jerk);
+        if (pass.stroke < 0.01 * mm) {
+            throw InputError(
+                fmt::format("test plan: at {:.4g} mm/min a stroke that fits the maximum pass time {} s is shorter than "
+                            "0.01 mm; allow a longer pass (--max-pass-time) or fewer cycles.",
+                            to_mm_per_min(feed.value), options.max_pass_time));
         }
     }
-    // Shortened slow strokes, one note per distinct feed.
+    return pass;
+}
+
+// "centre 2 at -300.000 mm, 1250 mm/min": how the moves and notes name a pass.
+std::string describe_pass(const Pass& pass) {
+    return fmt::format("{}, {:.4g} mm/min", describe_center(pass.center, pass.center_position),
+                       to_mm_per_min(pass.feed));
+}
+
+// The blocks of the next pass (index plan.passes.size()): a move to its start unless the axis stands there (at
+// `position`, updated), then `cycles` strokes + and -, each followed by the dwell.
+void append_pass_moves(TestPlan& plan, const Pass& pass, double positioning_feed, double& position) {
+    const auto& options = plan.options;
+    const int center = pass.center;
+    const int pass_index = static_cast<int>(plan.passes.size());
+    const double low = pass.center_position - pass.stroke / 2.0;
+    const double high = pass.center_position + pass.stroke / 2.0;
+    const std::string what = describe_pass(pass);
+    if (!(std::abs(position - low) < 1e-12)) {
+        plan.moves.push_back({MoveKind::feed, low, positioning_feed, 0.0, center, -1,
+                              fmt::format("{}: move to the start of the pass", what)});
+        if (options.dwell > 0.0)
+            plan.moves.push_back(
+                {MoveKind::dwell, 0.0, 0.0, options.dwell, center, -1, fmt::format("{}: dwell before the pass", what)});
+        position = low;
+    }
+    for (int cycle = 1; cycle <= options.cycles; ++cycle) {
+        plan.moves.push_back({MoveKind::feed, high, pass.feed, 0.0, center, pass_index,
+                              fmt::format("{}, cycle {}, stroke +", what, cycle)});
+        if (options.dwell > 0.0)
+            plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, pass_index,
+                                  fmt::format("{}, cycle {}, dwell at +", what, cycle)});
+        plan.moves.push_back({MoveKind::feed, low, pass.feed, 0.0, center, pass_index,
+                              fmt::format("{}, cycle {}, stroke -", what, cycle)});
+        if (options.dwell > 0.0)
+            plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, pass_index,
+                                  fmt::format("{}, cycle {}, dwell at -", what, cycle)});
+    }
+}
+
+// The pass's duration and time at constant feedrate, with a note when its strokes never reach the feedrate.
+void time_pass(const TestPlanOptions& options, Pass& pass, std::vector<std::string>& notes) {
+    const auto profile = detail::make_profile(pass.stroke, pass.feed, options.acceleration, options.jerk);
+    pass.duration = 2.0 * options.cycles * (profile.duration + options.dwell);
+    pass.cruise_time = 2.0 * options.cycles * profile.cruise_time;
+    if (profile.cruise_time <= 0.0) {
+        notes.push_back(fmt::format(
+            "{}: the {:.3f} mm stroke is too short to reach the feedrate at {} m/s^2 (peak {:.4g} mm/min); "
+            "this pass holds no constant-velocity data",
+            describe_pass(pass), to_mm(pass.stroke), options.acceleration, to_mm_per_min(profile.peak_speed)));
+    }
+}
+
+// One note per distinct slow feedrate whose stroke was shortened.
+void note_shortened_slow_strokes(TestPlan& plan) {
+    const auto& options = plan.options;
     for (const auto& feed : options.slow_feeds) {
         for (const auto& pass : plan.passes) {
             if (pass.slow && pass.feed == feed && pass.stroke < options.stroke) {
@@ -288,8 +310,12 @@ TestPlan make_test_plan(const TestPlanOptions& options) {
             }
         }
     }
+}
 
-    // Safety: every move inside the travel and within the feedrate limit; the first offender is named.
+// Safety: the start and every move inside the travel, every move within the feedrate limit. InputError naming the
+// first offender.
+void check_travel_and_feed_limits(const TestPlan& plan) {
+    const auto& options = plan.options;
     const double tolerance = 1e-9;
     if (options.start_position && (*options.start_position < options.travel_min - tolerance ||
                                    *options.start_position > options.travel_max + tolerance)) {
@@ -319,7 +345,27 @@ TestPlan make_test_plan(const TestPlanOptions& options) {
                 to_mm_per_min(*options.max_feed)));
         }
     }
+}
 
+}  // namespace
+
+TestPlan make_test_plan(const TestPlanOptions& options) {
+    if (auto problem = options.validate(); !problem.empty()) throw InputError("test plan: " + problem + ".");
+    TestPlan plan;
+    plan.options = options;
+    const double positioning_feed = limited_positioning_feed(options, plan.notes);
+    const auto sequence = feed_sequence(options);
+    double position = std::numeric_limits<double>::quiet_NaN();  // the axis's position is unknown at the start
+    for (std::size_t c = 0; c < options.centers.size(); ++c) {
+        for (const auto& feed : sequence) {
+            Pass pass = design_pass(options, static_cast<int>(c), feed);
+            append_pass_moves(plan, pass, positioning_feed, position);
+            time_pass(options, pass, plan.notes);
+            plan.passes.push_back(pass);
+        }
+    }
+    note_shortened_slow_strokes(plan);
+    check_travel_and_feed_limits(plan);
     plan.duration = detail::make_timeline(plan).duration;
     return plan;
 }
@@ -351,34 +397,48 @@ const ParameterPrediction* IdentifiabilityPrediction::find(const std::string& ke
     return nullptr;
 }
 
-IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const PredictionOptions& options) {
-    IdentifiabilityPrediction prediction;
+namespace {
+
+// The nominal drive's parameters the prediction is made for (forward branch; the model is symmetric).
+struct NominalDrive {
+    double mass;
+    double viscous;
+    double coulomb;
+    double breakaway;
+    double stribeck_velocity;
+};
+
+NominalDrive nominal_drive(const PredictionOptions& options) {
     const auto& drive = options.drive;
     const auto& branch = drive.friction.forward;
-    const double mass = drive.mass;
-    const double viscous = branch.viscous;
-    const double coulomb = branch.coulomb;
-    const double breakaway = branch.breakaway.value_or(branch.coulomb);
-    const double stribeck_velocity = branch.stribeck_velocity.value_or(0.0);
-    if (!(mass > 0.0) || !(stribeck_velocity > 0.0) || !(breakaway > coulomb))
+    const NominalDrive nominal{drive.mass, branch.viscous, branch.coulomb, branch.breakaway.value_or(branch.coulomb),
+                               branch.stribeck_velocity.value_or(0.0)};
+    if (!(nominal.mass > 0.0) || !(nominal.stribeck_velocity > 0.0) || !(nominal.breakaway > nominal.coulomb))
         throw InputError("identifiability prediction: the nominal drive needs M > 0, v_s > 0 and F_B > F_C.");
-    const double split = options.split_velocity.value_or(5.0 * stribeck_velocity);
-    const double dt = plan.options.sample_time;
-    const double infinity = std::numeric_limits<double>::infinity();
+    return nominal;
+}
 
-    // Step 1. Differentiating the quantised position (uniform error, variance q^2/12) through a low-pass of cut-off
-    // f_c (the identification's default min(100 Hz, 0.1 f_s)) leaves acceleration noise of variance
-    //   sigma_a^2 = sigma_x^2 * (2/f_s) * integral_0^f_c (2 pi f)^4 df = sigma_x^2 * 2 (2 pi)^4 f_c^5 / (5 f_s),
-    // which enters the equation as force noise M * sigma_a beside the current noise.
-    const double sample_rate = 1.0 / dt;
+// Standard deviation of the force equation's error per sample [N]. Differentiating the quantised position (uniform
+// error, variance q^2/12) through a low-pass of cut-off f_c (the identification's default min(100 Hz, 0.1 f_s))
+// leaves acceleration noise of variance
+//   sigma_a^2 = sigma_x^2 * (2/f_s) * integral_0^f_c (2 pi f)^4 df = sigma_x^2 * 2 (2 pi)^4 f_c^5 / (5 f_s),
+// which enters the equation as force noise M * sigma_a beside the current noise.
+double equation_noise(const PredictionOptions& options, double mass, double sample_time) {
+    const double sample_rate = 1.0 / sample_time;
     const double cutoff = std::min(100.0, 0.1 * sample_rate);
     const double position_variance = options.position_resolution * options.position_resolution / 12.0;
     const double acceleration_variance =
         position_variance * 2.0 * std::pow(2.0 * M_PI, 4) * std::pow(cutoff, 5) / (5.0 * sample_rate);
-    const double sigma = std::sqrt(options.force_noise * options.force_noise + mass * mass * acceleration_variance);
+    return std::sqrt(options.force_noise * options.force_noise + mass * mass * acceleration_variance);
+}
 
+// Step 1: the regressors [x'', x', sgn x'] of the ideal trajectory above the split speed; standard errors of M, B
+// and F_C as sigma*sqrt(diag((Phi^T Phi)^-1)), infinite when the data do not determine them. Sets the step-1 sample
+// count and condition number of the prediction.
+Eigen::Vector3d predict_step1(const TestPlan& plan, double split, double sigma, IdentifiabilityPrediction& prediction) {
+    const double infinity = std::numeric_limits<double>::infinity();
     const auto timeline = detail::make_timeline(plan);
-    const auto samples = detail::sample_timeline(timeline, dt, 0.0, 0.0);
+    const auto samples = detail::sample_timeline(timeline, plan.options.sample_time, 0.0, 0.0);
     Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
     for (const auto& s : samples) {
         if (std::abs(s.velocity) < split) continue;
@@ -402,13 +462,22 @@ IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const Pr
             "no samples above the split speed {:.4g} mm/s: M, B and F_C cannot be identified (add ladder passes)",
             split / mm));
     }
+    return step1_error;
+}
 
-    // Step 2. Each constant-velocity pass gives, per direction, one point of the friction curve
-    //   F(v) = B v + F_C + (F_B - F_C) exp(-v / v_s),
-    // with error sigma_level^2 = sigma^2 / n + level_error^2 (n samples at constant velocity). Gauss-Newton
-    // covariance (J^T W J)^-1 with J = dF/d[B, F_C, F_B, v_s], computed in relative parameters (scaled by the
-    // nominal values) so that the conditioning reflects the data, not the units.
-    const Eigen::Vector4d nominal(viscous > 0.0 ? viscous : 1.0, coulomb, breakaway, stribeck_velocity);
+// Step 2. Each constant-velocity pass gives, per direction, one point of the friction curve
+//   F(v) = B v + F_C + (F_B - F_C) exp(-v / v_s),
+// with error sigma_level^2 = sigma^2 / n + level_error^2 (n samples at constant velocity). Gauss-Newton
+// covariance (J^T W J)^-1 with J = dF/d[B, F_C, F_B, v_s], computed in relative parameters (scaled by the
+// nominal values) so that the conditioning reflects the data, not the units. Returns the relative standard errors of
+// [B, F_C, F_B, v_s] (infinite when not determined); sets the level count and slowest cruise speed.
+Eigen::Vector4d predict_step2(const TestPlan& plan, const NominalDrive& drive, double sigma, double level_error,
+                              IdentifiabilityPrediction& prediction) {
+    const double infinity = std::numeric_limits<double>::infinity();
+    const double dt = plan.options.sample_time;
+    const double stribeck_velocity = drive.stribeck_velocity;
+    const Eigen::Vector4d nominal(drive.viscous > 0.0 ? drive.viscous : 1.0, drive.coulomb, drive.breakaway,
+                                  stribeck_velocity);
     Eigen::Matrix4d level_information = Eigen::Matrix4d::Zero();
     prediction.slowest_cruise_speed = infinity;
     for (const auto& pass : plan.passes) {
@@ -417,10 +486,11 @@ IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const Pr
         prediction.slowest_cruise_speed = std::min(prediction.slowest_cruise_speed, v);
         const double per_direction = pass.cruise_time / 2.0;
         const double n = std::max(1.0, per_direction / dt);
-        const double variance = sigma * sigma / n + options.level_error * options.level_error;
+        const double variance = sigma * sigma / n + level_error * level_error;
         const double decay = std::exp(-v / stribeck_velocity);
-        Eigen::Vector4d jacobian(v, 1.0 - decay, decay,
-                                 (breakaway - coulomb) * decay * v / (stribeck_velocity * stribeck_velocity));
+        Eigen::Vector4d jacobian(
+            v, 1.0 - decay, decay,
+            (drive.breakaway - drive.coulomb) * decay * v / (stribeck_velocity * stribeck_velocity));
         jacobian = jacobian.cwiseProduct(nominal);
         level_information += 2.0 * jacobian * jacobian.transpose() / variance;  // both directions
         prediction.step2_levels += 2;
@@ -432,24 +502,24 @@ IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const Pr
         const double largest = eigen.eigenvalues().maxCoeff();
         if (smallest > 1e-14 * largest) step2_relative = level_information.inverse().diagonal().cwiseSqrt();
     }
+    return step2_relative;
+}
 
-    const auto add = [&](std::string key, std::string symbol, std::string unit, double value, double error) {
-        ParameterPrediction parameter;
-        parameter.key = std::move(key);
-        parameter.symbol = std::move(symbol);
-        parameter.unit = std::move(unit);
-        parameter.nominal = value;
-        parameter.standard_error = error;
-        parameter.identifiable =
-            std::isfinite(error) && std::abs(error) <= options.identifiable_relative_error * std::abs(value);
-        prediction.parameters.push_back(std::move(parameter));
-    };
-    add("mass_kg", "M", "kg", mass, step1_error(0));
-    add("viscous_Ns_per_m", "B", "N*s/m", viscous, step1_error(1));
-    add("coulomb_N", "F_C", "N", coulomb, step1_error(2));
-    add("breakaway_N", "F_B", "N", breakaway, step2_relative(2) * breakaway);
-    add("stribeck_velocity_m_per_s", "v_s", "m/s", stribeck_velocity, step2_relative(3) * stribeck_velocity);
+void add_parameter(IdentifiabilityPrediction& prediction, std::string key, std::string symbol, std::string unit,
+                   double value, double error, double identifiable_relative_error) {
+    ParameterPrediction parameter;
+    parameter.key = std::move(key);
+    parameter.symbol = std::move(symbol);
+    parameter.unit = std::move(unit);
+    parameter.nominal = value;
+    parameter.standard_error = error;
+    parameter.identifiable = std::isfinite(error) && std::abs(error) <= identifiable_relative_error * std::abs(value);
+    prediction.parameters.push_back(std::move(parameter));
+}
 
+// What the plan misses: slow passes for the Stribeck curve, and each parameter it does not identify and why.
+void add_diagnostics(IdentifiabilityPrediction& prediction, double stribeck_velocity,
+                     double identifiable_relative_error) {
     if (!std::isfinite(prediction.slowest_cruise_speed)) {
         prediction.diagnostics.push_back("no pass reaches a constant velocity: the friction curve is not sampled");
     } else if (prediction.slowest_cruise_speed > 3.0 * stribeck_velocity) {
@@ -469,9 +539,29 @@ IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const Pr
                               "the nominal {:.4g} {} (limit {:.3g} %)",
                               parameter.symbol, parameter.standard_error, parameter.unit,
                               100.0 * parameter.standard_error / std::abs(parameter.nominal), parameter.nominal,
-                              parameter.unit, 100.0 * options.identifiable_relative_error)
+                              parameter.unit, 100.0 * identifiable_relative_error)
                 : fmt::format("{} is not identifiable from this plan: the data do not determine it", parameter.symbol));
     }
+}
+
+}  // namespace
+
+IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const PredictionOptions& options) {
+    IdentifiabilityPrediction prediction;
+    const NominalDrive drive = nominal_drive(options);
+    const double split = options.split_velocity.value_or(5.0 * drive.stribeck_velocity);
+    const double sigma = equation_noise(options, drive.mass, plan.options.sample_time);
+    const Eigen::Vector3d step1_error = predict_step1(plan, split, sigma, prediction);
+    const Eigen::Vector4d step2_relative = predict_step2(plan, drive, sigma, options.level_error, prediction);
+
+    const double limit = options.identifiable_relative_error;
+    add_parameter(prediction, "mass_kg", "M", "kg", drive.mass, step1_error(0), limit);
+    add_parameter(prediction, "viscous_Ns_per_m", "B", "N*s/m", drive.viscous, step1_error(1), limit);
+    add_parameter(prediction, "coulomb_N", "F_C", "N", drive.coulomb, step1_error(2), limit);
+    add_parameter(prediction, "breakaway_N", "F_B", "N", drive.breakaway, step2_relative(2) * drive.breakaway, limit);
+    add_parameter(prediction, "stribeck_velocity_m_per_s", "v_s", "m/s", drive.stribeck_velocity,
+                  step2_relative(3) * drive.stribeck_velocity, limit);
+    add_diagnostics(prediction, drive.stribeck_velocity, limit);
     return prediction;
 }
 
