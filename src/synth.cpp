@@ -149,99 +149,111 @@ private:
     std::set<std::string> known_;
 };
 
+// axis: the friction and mass keys axis_from_document reads, and no other.
+void read_axis(const nlohmann::json& axis, const std::string& source, SynthSpec& spec) {
+    spec.axis = axis_from_document(axis, source);
+    for (const auto& [key, value] : axis.items()) {
+        static const std::set<std::string> keys{"mass_kg", "inertia_kgm2", "offset_N", "offset_Nm", "rotary"};
+        const bool friction_key = key.starts_with("viscous_") || key.starts_with("coulomb_") ||
+                                  key.starts_with("breakaway_") || key.starts_with("stribeck_velocity_");
+        if (!keys.contains(key) && !friction_key)
+            throw InputError(fmt::format("{}: unknown key 'axis.{}'", source, key));
+    }
+}
+
+// controller: gains in SI or NC units (K_v in (m/min)/mm, T_n in ms), cycles and lags in ms; saturation_N null
+// removes the limit.
+void read_controller(const nlohmann::json& object, const std::string& source, ControllerModel& model) {
+    Section c(object, "controller", source);
+    if (const auto v = c.number("position_gain_per_s")) model.position_gain_per_s = *v;
+    if (const auto v = c.number("kv_m_per_min_per_mm")) model.position_gain_per_s = position_gain_from_kv(*v);
+    if (const auto v = c.number("velocity_gain_N_s_per_m")) model.velocity_gain_N_s_per_m = *v;
+    if (const auto v = c.number("velocity_integral_gain_N_per_m")) model.velocity_integral_gain_N_per_m = *v;
+    if (const auto v = c.number("tn_ms")) {
+        model.velocity_integral_gain_N_per_m = *v > 0.0 ? model.velocity_gain_N_s_per_m / (*v * 1e-3) : 0.0;
+    }
+    if (const auto v = c.number("velocity_feedforward")) model.velocity_feedforward = *v;
+    if (c.has("saturation_N"))
+        model.saturation_N = c.number("saturation_N");
+    else if (object.contains("saturation_N"))
+        model.saturation_N.reset();
+    c.accept("saturation_N");
+    if (const auto v = c.number("current_lag_ms")) model.current_lag_s = *v * 1e-3;
+    if (const auto v = c.number("position_cycle_ms")) model.position_cycle_s = *v * 1e-3;
+    if (const auto v = c.number("velocity_cycle_ms")) model.velocity_cycle_s = *v * 1e-3;
+    if (const auto v = c.number("velocity_difference_samples"))
+        model.velocity_difference_samples = static_cast<int>(std::lround(*v));
+    c.reject_unknown();
+}
+
+void read_drive(const nlohmann::json& object, const std::string& source, SynthSpec& spec) {
+    Section d(object, "drive", source);
+    if (const auto v = d.number("kt_Nm_per_A")) spec.kt_Nm_per_A = *v;
+    if (const auto v = d.number("lead_mm")) spec.lead_m = *v * 1e-3;
+    if (const auto v = d.number("gear_ratio")) spec.gear_ratio = *v;
+    d.reject_unknown();
+}
+
+void read_sensors(const nlohmann::json& object, const std::string& source, SensorModel& sensors) {
+    Section s(object, "sensors", source);
+    if (const auto v = s.number("sample_time_ms")) sensors.sample_time_s = *v * 1e-3;
+    if (const auto v = s.number("jitter_us")) sensors.jitter_s = *v * 1e-6;
+    if (const auto v = s.number("position_resolution_um")) sensors.position_resolution_m = *v * 1e-6;
+    if (const auto v = s.number("current_noise_A")) sensors.current_noise_A = *v;
+    if (const auto v = s.number("current_resolution_A")) sensors.current_resolution_A = *v;
+    if (const auto v = s.number("substeps")) sensors.substeps = static_cast<int>(std::lround(*v));
+    s.reject_unknown();
+}
+
+void read_test(const nlohmann::json& object, const std::string& source, TestReference& test) {
+    Section t(object, "test", source);
+    if (auto v = t.numbers("feedrates_mm_per_min")) test.feedrates_mm_per_min = std::move(*v);
+    if (const auto v = t.number("stroke_mm")) test.stroke_m = *v * 1e-3;
+    if (const auto v = t.number("cycles")) test.cycles = static_cast<int>(std::lround(*v));
+    if (const auto v = t.boolean("slow_passes")) test.slow_passes = *v;
+    if (auto v = t.numbers("slow_feedrates_mm_per_min")) test.slow_feedrates_mm_per_min = std::move(*v);
+    if (const auto v = t.number("slow_pass_duration_s")) test.slow_pass_duration_s = *v;
+    if (const auto v = t.number("slow_stroke_min_mm")) test.slow_stroke_min_m = *v * 1e-3;
+    if (const auto v = t.number("acceleration_m_per_s2")) test.acceleration_m_per_s2 = *v;
+    if (const auto v = t.number("dwell_s")) test.dwell_s = *v;
+    if (const auto v = t.number("start_mm")) test.start_m = *v * 1e-3;
+    t.reject_unknown();
+}
+
+// friction_zones: a list of {from_mm, to_mm, coulomb_factor}, each key required; replaces the demo's zones.
+std::vector<FrictionZone> read_friction_zones(const nlohmann::json& list, const std::string& source) {
+    if (!list.is_array()) throw InputError(fmt::format("{}: friction_zones must be a list of objects", source));
+    std::vector<FrictionZone> zones;
+    for (std::size_t k = 0; k < list.size(); ++k) {
+        Section z(list[k], fmt::format("friction_zones[{}]", k), source);
+        const auto from = z.number("from_mm");
+        const auto to = z.number("to_mm");
+        const auto factor = z.number("coulomb_factor");
+        z.reject_unknown();
+        if (!from || !to || !factor) {
+            throw InputError(fmt::format("{}: friction_zones[{}] needs from_mm, to_mm and coulomb_factor", source, k));
+        }
+        zones.push_back({*from * 1e-3, *to * 1e-3, *factor});
+    }
+    return zones;
+}
+
 }  // namespace
 
 SynthSpec spec_from_json(const nlohmann::json& document, const std::string& source) {
     SynthSpec spec = demo_spec();
     Section top(document, "", source);
-    if (top.has("axis")) {
-        spec.axis = axis_from_document(document["axis"], source);
-        for (const auto& [key, value] : document["axis"].items()) {
-            static const std::set<std::string> keys{"mass_kg", "inertia_kgm2", "offset_N", "offset_Nm", "rotary"};
-            const bool friction_key = key.starts_with("viscous_") || key.starts_with("coulomb_") ||
-                                      key.starts_with("breakaway_") || key.starts_with("stribeck_velocity_");
-            if (!keys.contains(key) && !friction_key)
-                throw InputError(fmt::format("{}: unknown key 'axis.{}'", source, key));
-        }
-    }
+    if (top.has("axis")) read_axis(document["axis"], source, spec);
     top.accept("axis");
-    if (top.has("controller")) {
-        Section c(document["controller"], "controller", source);
-        auto& model = spec.controller;
-        if (const auto v = c.number("position_gain_per_s")) model.position_gain_per_s = *v;
-        if (const auto v = c.number("kv_m_per_min_per_mm")) model.position_gain_per_s = position_gain_from_kv(*v);
-        if (const auto v = c.number("velocity_gain_N_s_per_m")) model.velocity_gain_N_s_per_m = *v;
-        if (const auto v = c.number("velocity_integral_gain_N_per_m")) model.velocity_integral_gain_N_per_m = *v;
-        if (const auto v = c.number("tn_ms")) {
-            model.velocity_integral_gain_N_per_m = *v > 0.0 ? model.velocity_gain_N_s_per_m / (*v * 1e-3) : 0.0;
-        }
-        if (const auto v = c.number("velocity_feedforward")) model.velocity_feedforward = *v;
-        if (c.has("saturation_N"))
-            model.saturation_N = c.number("saturation_N");
-        else if (document["controller"].contains("saturation_N"))
-            model.saturation_N.reset();
-        c.accept("saturation_N");
-        if (const auto v = c.number("current_lag_ms")) model.current_lag_s = *v * 1e-3;
-        if (const auto v = c.number("position_cycle_ms")) model.position_cycle_s = *v * 1e-3;
-        if (const auto v = c.number("velocity_cycle_ms")) model.velocity_cycle_s = *v * 1e-3;
-        if (const auto v = c.number("velocity_difference_samples"))
-            model.velocity_difference_samples = static_cast<int>(std::lround(*v));
-        c.reject_unknown();
-    }
+    if (top.has("controller")) read_controller(document["controller"], source, spec.controller);
     top.accept("controller");
-    if (top.has("drive")) {
-        Section d(document["drive"], "drive", source);
-        if (const auto v = d.number("kt_Nm_per_A")) spec.kt_Nm_per_A = *v;
-        if (const auto v = d.number("lead_mm")) spec.lead_m = *v * 1e-3;
-        if (const auto v = d.number("gear_ratio")) spec.gear_ratio = *v;
-        d.reject_unknown();
-    }
+    if (top.has("drive")) read_drive(document["drive"], source, spec);
     top.accept("drive");
-    if (top.has("sensors")) {
-        Section s(document["sensors"], "sensors", source);
-        auto& sensors = spec.sensors;
-        if (const auto v = s.number("sample_time_ms")) sensors.sample_time_s = *v * 1e-3;
-        if (const auto v = s.number("jitter_us")) sensors.jitter_s = *v * 1e-6;
-        if (const auto v = s.number("position_resolution_um")) sensors.position_resolution_m = *v * 1e-6;
-        if (const auto v = s.number("current_noise_A")) sensors.current_noise_A = *v;
-        if (const auto v = s.number("current_resolution_A")) sensors.current_resolution_A = *v;
-        if (const auto v = s.number("substeps")) sensors.substeps = static_cast<int>(std::lround(*v));
-        s.reject_unknown();
-    }
+    if (top.has("sensors")) read_sensors(document["sensors"], source, spec.sensors);
     top.accept("sensors");
-    if (top.has("test")) {
-        Section t(document["test"], "test", source);
-        auto& test = spec.test;
-        if (auto v = t.numbers("feedrates_mm_per_min")) test.feedrates_mm_per_min = std::move(*v);
-        if (const auto v = t.number("stroke_mm")) test.stroke_m = *v * 1e-3;
-        if (const auto v = t.number("cycles")) test.cycles = static_cast<int>(std::lround(*v));
-        if (const auto v = t.boolean("slow_passes")) test.slow_passes = *v;
-        if (auto v = t.numbers("slow_feedrates_mm_per_min")) test.slow_feedrates_mm_per_min = std::move(*v);
-        if (const auto v = t.number("slow_pass_duration_s")) test.slow_pass_duration_s = *v;
-        if (const auto v = t.number("slow_stroke_min_mm")) test.slow_stroke_min_m = *v * 1e-3;
-        if (const auto v = t.number("acceleration_m_per_s2")) test.acceleration_m_per_s2 = *v;
-        if (const auto v = t.number("dwell_s")) test.dwell_s = *v;
-        if (const auto v = t.number("start_mm")) test.start_m = *v * 1e-3;
-        t.reject_unknown();
-    }
+    if (top.has("test")) read_test(document["test"], source, spec.test);
     top.accept("test");
-    if (top.has("friction_zones")) {
-        const auto& list = document["friction_zones"];
-        if (!list.is_array()) throw InputError(fmt::format("{}: friction_zones must be a list of objects", source));
-        spec.friction_zones.clear();
-        for (std::size_t k = 0; k < list.size(); ++k) {
-            Section z(list[k], fmt::format("friction_zones[{}]", k), source);
-            const auto from = z.number("from_mm");
-            const auto to = z.number("to_mm");
-            const auto factor = z.number("coulomb_factor");
-            z.reject_unknown();
-            if (!from || !to || !factor) {
-                throw InputError(
-                    fmt::format("{}: friction_zones[{}] needs from_mm, to_mm and coulomb_factor", source, k));
-            }
-            spec.friction_zones.push_back({*from * 1e-3, *to * 1e-3, *factor});
-        }
-    }
+    if (top.has("friction_zones")) spec.friction_zones = read_friction_zones(document["friction_zones"], source);
     top.accept("friction_zones");
     if (const auto v = top.boolean("slow_passes")) spec.test.slow_passes = *v;
     if (const auto v = top.number("seed")) {
