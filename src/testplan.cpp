@@ -21,6 +21,24 @@ namespace {
 constexpr double mm = 1e-3;
 constexpr double mm_per_min = 1e-3 / 60.0;
 
+// The paper's feedrate ladder (METHOD.md step 5): 1250 mm/min up to about 9350 mm/min; 1250 + 6 * 1350 = 9350.
+constexpr double ladder_first_mm_per_min = 1250.0;
+constexpr double ladder_step_mm_per_min = 1350.0;
+constexpr int ladder_steps = 6;
+// Slow strokes are multiples of 0.01 mm, so that the part program (positions to 0.1 um) carries them exactly; a slow
+// stroke below one step cannot be run.
+constexpr double slow_stroke_step = 0.01 * mm;
+// Halvings of the bisection for the slow stroke: 2^-100 of a stroke is far below double precision.
+constexpr int stroke_bisections = 100;
+// Two positions [m] or feedrates [m/s] this close are the same: only the rounding of the arithmetic separates them.
+constexpr double same_position_tolerance = 1e-12;
+constexpr double same_feed_tolerance = 1e-12;
+// A move may pass the travel limits by 1 nm [m] (rounding of centre +- stroke/2; far below encoder resolution) and
+// the feedrate limit by a relative 1e-12 (a feedrate equal to the limit in mm/min but computed another way, as the
+// log-spaced feeds are, differs from it by rounding only).
+constexpr double travel_tolerance = 1e-9;
+constexpr double feed_limit_relative_tolerance = 1e-12;
+
 double to_mm(double metres) {
     return metres / mm;
 }
@@ -41,12 +59,11 @@ double stroke_for_time(double longest, double feed, int cycles, double dwell, do
     if (move_duration(longest, feed, acceleration, jerk) <= per_stroke) return longest;
     double low = 0.0;
     double high = longest;
-    for (int iteration = 0; iteration < 100; ++iteration) {
+    for (int iteration = 0; iteration < stroke_bisections; ++iteration) {
         const double middle = 0.5 * (low + high);
         (move_duration(middle, feed, acceleration, jerk) <= per_stroke ? low : high) = middle;
     }
-    // Round down to 0.01 mm so that the part program carries the same stroke exactly.
-    return std::floor(low / (0.01 * mm)) * (0.01 * mm);
+    return std::floor(low / slow_stroke_step) * slow_stroke_step;
 }
 
 // A number as the command line writes it: decimal, finite, nothing before or after.
@@ -94,9 +111,9 @@ double move_duration(double distance, double feed, double acceleration, std::opt
 }
 
 std::vector<double> paper_feed_ladder() {
-    // METHOD.md step 5: 1250 mm/min up to about 9350 mm/min; 1250 + 6 * 1350 = 9350.
     std::vector<double> feeds;
-    for (int step = 0; step <= 6; ++step) feeds.push_back((1250.0 + 1350.0 * step) * mm_per_min);
+    for (int step = 0; step <= ladder_steps; ++step)
+        feeds.push_back((ladder_first_mm_per_min + ladder_step_mm_per_min * step) * mm_per_min);
     return feeds;
 }
 
@@ -109,7 +126,7 @@ std::vector<double> log_spaced_feeds(double lowest, double highest, int count) {
         // Two significant digits in mm/min.
         const double scale = std::pow(10.0, std::floor(std::log10(value)) - 1.0);
         const double rounded = std::round(value / scale) * scale * mm_per_min;
-        if (feeds.empty() || std::abs(rounded - feeds.back()) > 1e-12) feeds.push_back(rounded);
+        if (feeds.empty() || std::abs(rounded - feeds.back()) > same_feed_tolerance) feeds.push_back(rounded);
     }
     return feeds;
 }
@@ -236,7 +253,7 @@ Pass design_pass(const TestPlanOptions& options, int center, const PlannedFeed& 
     if (feed.slow) {
         pass.stroke = stroke_for_time(options.stroke, feed.value, options.cycles, options.dwell, options.max_pass_time,
                                       options.acceleration, options.jerk);
-        if (pass.stroke < 0.01 * mm) {
+        if (pass.stroke < slow_stroke_step) {
             throw InputError(
                 fmt::format("test plan: at {:.4g} mm/min a stroke that fits the maximum pass time {} s is shorter than "
                             "0.01 mm; allow a longer pass (--max-pass-time) or fewer cycles.",
@@ -261,7 +278,7 @@ void append_pass_moves(TestPlan& plan, const Pass& pass, double positioning_feed
     const double low = pass.center_position - pass.stroke / 2.0;
     const double high = pass.center_position + pass.stroke / 2.0;
     const std::string what = describe_pass(pass);
-    if (!(std::abs(position - low) < 1e-12)) {
+    if (!(std::abs(position - low) < same_position_tolerance)) {
         plan.moves.push_back({MoveKind::feed, low, positioning_feed, 0.0, center, -1,
                               fmt::format("{}: move to the start of the pass", what)});
         if (options.dwell > 0.0)
@@ -316,9 +333,8 @@ void note_shortened_slow_strokes(TestPlan& plan) {
 // first offender.
 void check_travel_and_feed_limits(const TestPlan& plan) {
     const auto& options = plan.options;
-    const double tolerance = 1e-9;
-    if (options.start_position && (*options.start_position < options.travel_min - tolerance ||
-                                   *options.start_position > options.travel_max + tolerance)) {
+    if (options.start_position && (*options.start_position < options.travel_min - travel_tolerance ||
+                                   *options.start_position > options.travel_max + travel_tolerance)) {
         throw InputError(
             fmt::format("test plan: the start position {:.3f} mm lies outside the travel {:.3f}:{:.3f} mm.",
                         to_mm(*options.start_position), to_mm(options.travel_min), to_mm(options.travel_max)));
@@ -326,19 +342,19 @@ void check_travel_and_feed_limits(const TestPlan& plan) {
     for (std::size_t k = 0; k < plan.moves.size(); ++k) {
         const auto& move = plan.moves[k];
         if (move.kind != MoveKind::feed) continue;
-        if (move.target > options.travel_max + tolerance) {
+        if (move.target > options.travel_max + travel_tolerance) {
             throw InputError(
                 fmt::format("test plan: move {} ({}) goes to {:.3f} mm, {:.3f} mm beyond the travel maximum {:.3f} mm.",
                             k + 1, move.description, to_mm(move.target), to_mm(move.target - options.travel_max),
                             to_mm(options.travel_max)));
         }
-        if (move.target < options.travel_min - tolerance) {
+        if (move.target < options.travel_min - travel_tolerance) {
             throw InputError(
                 fmt::format("test plan: move {} ({}) goes to {:.3f} mm, {:.3f} mm beyond the travel minimum {:.3f} mm.",
                             k + 1, move.description, to_mm(move.target), to_mm(options.travel_min - move.target),
                             to_mm(options.travel_min)));
         }
-        if (options.max_feed && move.feed > *options.max_feed * (1.0 + 1e-12)) {
+        if (options.max_feed && move.feed > *options.max_feed * (1.0 + feed_limit_relative_tolerance)) {
             throw InputError(fmt::format(
                 "test plan: move {} ({}) runs at {:.4g} mm/min, {:.4g} mm/min above the feedrate limit {:.4g} mm/min.",
                 k + 1, move.description, to_mm_per_min(move.feed), to_mm_per_min(move.feed - *options.max_feed),
@@ -399,6 +415,26 @@ const ParameterPrediction* IdentifiabilityPrediction::find(const std::string& ke
 
 namespace {
 
+// The identification's default differentiation low-pass (IdentifyOptions::cutoff_hz in identify.hpp):
+// min(100 Hz, 0.1 f_s).
+constexpr double differentiation_cutoff_hz = 100.0;
+constexpr double differentiation_cutoff_per_sample_rate = 0.1;
+// Step 1 fits above 5 v_s by default (PredictionOptions::split_velocity): the Stribeck term is below exp(-5) < 1 %
+// of F_B - F_C there.
+constexpr double split_velocity_per_stribeck_velocity = 5.0;
+// Unknowns of the two steps: M, B, F_C; and B, F_C, F_B, v_s.
+constexpr std::size_t step1_unknowns = 3;
+constexpr std::size_t step2_unknowns = 4;
+// Smallest eigenvalue of the information matrix, relative to the largest, below which the data do not determine the
+// step's parameters: cond(Phi) above 1e6 in step 1 (SI units), cond(J) above 1e7 in step 2 (relative parameters).
+// Inverting in double precision loses about log10 of the ratio of the 16 digits; at these bounds 4 and 2 remain,
+// still enough for a standard error.
+constexpr double step1_rank_tolerance = 1e-12;
+constexpr double step2_rank_tolerance = 1e-14;
+// Slowest constant-velocity pass above 3 v_s: the Stribeck term is below exp(-3) = 5 % of F_B - F_C on every pass,
+// too little to separate F_B and v_s; the prediction says so.
+constexpr double stribeck_visible_below_speeds = 3.0;
+
 // The nominal drive's parameters the prediction is made for (forward branch; the model is symmetric).
 struct NominalDrive {
     double mass;
@@ -425,7 +461,7 @@ NominalDrive nominal_drive(const PredictionOptions& options) {
 // which enters the equation as force noise M * sigma_a beside the current noise.
 double equation_noise(const PredictionOptions& options, double mass, double sample_time) {
     const double sample_rate = 1.0 / sample_time;
-    const double cutoff = std::min(100.0, 0.1 * sample_rate);
+    const double cutoff = std::min(differentiation_cutoff_hz, differentiation_cutoff_per_sample_rate * sample_rate);
     const double position_variance = options.position_resolution * options.position_resolution / 12.0;
     const double acceleration_variance =
         position_variance * 2.0 * std::pow(2.0 * M_PI, 4) * std::pow(cutoff, 5) / (5.0 * sample_rate);
@@ -447,13 +483,13 @@ Eigen::Vector3d predict_step1(const TestPlan& plan, double split, double sigma, 
         ++prediction.step1_samples;
     }
     Eigen::Vector3d step1_error = Eigen::Vector3d::Constant(infinity);
-    if (prediction.step1_samples >= 3) {
+    if (prediction.step1_samples >= step1_unknowns) {
         const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(information);
         const double smallest = eigen.eigenvalues().minCoeff();
         const double largest = eigen.eigenvalues().maxCoeff();
         // cond(Phi) = sqrt(cond(Phi^T Phi)).
         prediction.step1_condition_number = smallest > 0.0 ? std::sqrt(largest / smallest) : infinity;
-        if (smallest > 1e-12 * largest) {
+        if (smallest > step1_rank_tolerance * largest) {
             const Eigen::Matrix3d covariance = sigma * sigma * information.inverse();
             step1_error = covariance.diagonal().cwiseSqrt();
         }
@@ -496,11 +532,12 @@ Eigen::Vector4d predict_step2(const TestPlan& plan, const NominalDrive& drive, d
         prediction.step2_levels += 2;
     }
     Eigen::Vector4d step2_relative = Eigen::Vector4d::Constant(infinity);
-    if (prediction.step2_levels >= 4) {
+    if (prediction.step2_levels >= step2_unknowns) {
         const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eigen(level_information);
         const double smallest = eigen.eigenvalues().minCoeff();
         const double largest = eigen.eigenvalues().maxCoeff();
-        if (smallest > 1e-14 * largest) step2_relative = level_information.inverse().diagonal().cwiseSqrt();
+        if (smallest > step2_rank_tolerance * largest)
+            step2_relative = level_information.inverse().diagonal().cwiseSqrt();
     }
     return step2_relative;
 }
@@ -522,7 +559,7 @@ void add_diagnostics(IdentifiabilityPrediction& prediction, double stribeck_velo
                      double identifiable_relative_error) {
     if (!std::isfinite(prediction.slowest_cruise_speed)) {
         prediction.diagnostics.push_back("no pass reaches a constant velocity: the friction curve is not sampled");
-    } else if (prediction.slowest_cruise_speed > 3.0 * stribeck_velocity) {
+    } else if (prediction.slowest_cruise_speed > stribeck_visible_below_speeds * stribeck_velocity) {
         prediction.diagnostics.push_back(fmt::format(
             "the slowest constant-velocity pass runs at {:.3g} mm/s = {:.3g} v_s (nominal v_s {:.3g} mm/s): the "
             "Stribeck "
@@ -549,7 +586,8 @@ void add_diagnostics(IdentifiabilityPrediction& prediction, double stribeck_velo
 IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const PredictionOptions& options) {
     IdentifiabilityPrediction prediction;
     const NominalDrive drive = nominal_drive(options);
-    const double split = options.split_velocity.value_or(5.0 * drive.stribeck_velocity);
+    const double split =
+        options.split_velocity.value_or(split_velocity_per_stribeck_velocity * drive.stribeck_velocity);
     const double sigma = equation_noise(options, drive.mass, plan.options.sample_time);
     const Eigen::Vector3d step1_error = predict_step1(plan, split, sigma, prediction);
     const Eigen::Vector4d step2_relative = predict_step2(plan, drive, sigma, options.level_error, prediction);

@@ -9,6 +9,11 @@ namespace feedid::detail {
 
 namespace {
 
+// Halvings of the bisection for the peak speed of a short move: 2^-200 of the feedrate is far below double precision.
+constexpr int peak_speed_bisections = 200;
+// A duration that is a whole number of samples, up to the rounding of the division, still gets its last sample.
+constexpr double sample_count_rounding = 1e-9;
+
 // Acceleration phase of a jerk-limited profile from rest to speed v: constant-jerk ramps of T_j = a/j around a
 // constant-acceleration part when v >= a^2/j, otherwise two ramps of sqrt(v/j) with a peak acceleration below a.
 // By symmetry the distance covered is v * T_acc / 2.
@@ -51,7 +56,7 @@ Profile make_profile(double distance, double feed, double acceleration, std::opt
         // Too short to reach the feedrate: the largest peak speed whose acceleration and braking fit the distance.
         double low = 0.0;
         double high = feed;
-        for (int iteration = 0; iteration < 200; ++iteration) {
+        for (int iteration = 0; iteration < peak_speed_bisections; ++iteration) {
             const double middle = 0.5 * (low + high);
             (2.0 * accelerating_distance(middle) <= distance ? low : high) = middle;
         }
@@ -138,7 +143,7 @@ Timeline make_timeline(const TestPlan& plan) {
 std::vector<ProfileState> sample_timeline(const Timeline& timeline, double sample_time, double rest_before,
                                           double rest_after) {
     const double total = rest_before + timeline.duration + rest_after;
-    const auto count = static_cast<std::size_t>(std::floor(total / sample_time + 1e-9)) + 1;
+    const auto count = static_cast<std::size_t>(std::floor(total / sample_time + sample_count_rounding)) + 1;
     std::vector<ProfileState> samples(count);
     const double first_position =
         timeline.segments.empty() ? timeline.end_position : timeline.segments.front().start_position;
