@@ -14,6 +14,30 @@
 
 namespace feedid {
 
+namespace {
+
+// Bounds against typos, not physical limits: 1000 cycles of the default test run for about 13 hours (46 million
+// samples); the synthesis time grows with the integration substeps per sample (default 8).
+constexpr int max_cycles = 1000;
+constexpr int max_substeps = 1000;
+// NC servo traces sample every 0.1 to 10 ms; a sample time above 1 s is a unit mistake.
+constexpr double max_sample_time_s = 1.0;
+// Time stamps that jitter by less than half a sample stay in order.
+constexpr double max_jitter_per_sample_time = 0.5;
+// A sample rate that is a whole number of hertz up to the rounding of 1/T gets time stamps k/f_s.
+constexpr double whole_rate_tolerance = 1e-12;
+
+// The demo controller (feedid synth --help): K_v 2 (m/min)/mm, T_n 20 ms, current lag 0.3 ms, and K_p high enough
+// that sliding is stable down to about 100 mm/min against the Stribeck slope (F_B - F_C)/v_s = 40 kN*s/m; below
+// that the axis stick-slips, as real axes do. The force limit is twice the demo motor's rated 18 A.
+constexpr double demo_kv_m_per_min_per_mm = 2.0;
+constexpr double demo_velocity_gain_N_s_per_m = 40000.0;
+constexpr double demo_integral_time_s = 0.020;
+constexpr double demo_current_lag_s = 0.3e-3;
+constexpr double demo_saturation_A = 36.0;
+
+}  // namespace
+
 std::string TestReference::validate() const {
     if (feedrates_mm_per_min.empty() && !(slow_passes && !slow_feedrates_mm_per_min.empty())) {
         return "the test needs at least one feedrate";
@@ -25,7 +49,8 @@ std::string TestReference::validate() const {
         if (!(f > 0.0 && std::isfinite(f))) return "every slow-pass feedrate must be a positive number [mm/min]";
     }
     if (!(stroke_m > 0.0 && std::isfinite(stroke_m))) return "the stroke must be a positive length";
-    if (cycles < 1 || cycles > 1000) return "the cycles per feedrate must be between 1 and 1000";
+    if (cycles < 1 || cycles > max_cycles)
+        return fmt::format("the cycles per feedrate must be between 1 and {}", max_cycles);
     if (!(slow_pass_duration_s > 0.0) || !(slow_stroke_min_m > 0.0))
         return "slow-pass duration and stroke must be positive";
     if (!(acceleration_m_per_s2 > 0.0 && std::isfinite(acceleration_m_per_s2)))
@@ -36,12 +61,15 @@ std::string TestReference::validate() const {
 }
 
 std::string SensorModel::validate() const {
-    if (!(sample_time_s > 0.0 && sample_time_s <= 1.0)) return "the sample time must lie in (0, 1] s";
-    if (!(jitter_s >= 0.0 && jitter_s < 0.5 * sample_time_s)) return "the jitter must lie in [0, T/2)";
+    if (!(sample_time_s > 0.0 && sample_time_s <= max_sample_time_s))
+        return fmt::format("the sample time must lie in (0, {}] s", max_sample_time_s);
+    if (!(jitter_s >= 0.0 && jitter_s < max_jitter_per_sample_time * sample_time_s))
+        return "the jitter must lie in [0, T/2)";
     if (!(position_resolution_m >= 0.0) || !(current_resolution_A >= 0.0) || !(current_noise_A >= 0.0)) {
         return "resolutions and noise must be >= 0";
     }
-    if (substeps < 1 || substeps > 1000) return "the substeps per sample must be between 1 and 1000";
+    if (substeps < 1 || substeps > max_substeps)
+        return fmt::format("the substeps per sample must be between 1 and {}", max_substeps);
     return {};
 }
 
@@ -77,13 +105,11 @@ SynthSpec demo_spec() {
     branch.stribeck_velocity = 0.005;
     spec.axis.mass = 69.1;
     spec.axis.friction = Friction::symmetric(branch);
-    spec.controller.position_gain_per_s = position_gain_from_kv(2.0);
-    // K_p high enough that sliding is stable down to about 100 mm/min against the Stribeck slope
-    // (F_B - F_C)/v_s = 40 kN*s/m; below that the axis stick-slips, as real axes do.
-    spec.controller.velocity_gain_N_s_per_m = 40000.0;
-    spec.controller.velocity_integral_gain_N_per_m = 40000.0 / 0.020;
-    spec.controller.current_lag_s = 0.3e-3;
-    spec.controller.saturation_N = 36.0 * spec.force_constant_N_per_A();  // twice the rated 18 A
+    spec.controller.position_gain_per_s = position_gain_from_kv(demo_kv_m_per_min_per_mm);
+    spec.controller.velocity_gain_N_s_per_m = demo_velocity_gain_N_s_per_m;
+    spec.controller.velocity_integral_gain_N_per_m = demo_velocity_gain_N_s_per_m / demo_integral_time_s;
+    spec.controller.current_lag_s = demo_current_lag_s;
+    spec.controller.saturation_N = demo_saturation_A * spec.force_constant_N_per_A();
     return spec;
 }
 
@@ -467,7 +493,7 @@ Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>
     std::vector<double> time(n), current(n);
     // k/f_s rather than k*T where the rate is a whole number of hertz: 0.009, not 0.009000000000000001.
     const double rate = std::round(1.0 / dt);
-    const bool whole_rate = std::abs(rate * dt - 1.0) < 1e-12;
+    const bool whole_rate = std::abs(rate * dt - 1.0) < whole_rate_tolerance;
     for (std::size_t k = 0; k < n; ++k) {
         time[k] = (whole_rate ? static_cast<double>(k) / rate : static_cast<double>(k) * dt) +
                   (spec.sensors.jitter_s > 0.0 ? spec.sensors.jitter_s * jitter(generator) : 0.0);
