@@ -1,6 +1,7 @@
 // Test design: a three-centre plan with slow passes (about 250 s of motion, 250,000 reference samples at 1 kHz).
 #include <benchmark/benchmark.h>
 
+#include "feedid/gcode.hpp"
 #include "feedid/io/csv.hpp"
 #include "feedid/testplan.hpp"
 

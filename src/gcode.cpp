@@ -12,15 +12,18 @@
 //   end         ISO, SINUMERIK: M30; LinuxCNC: M2
 // Positions are written with a decimal point always (a Fanuc control without decimal-point programming reads X10 as
 // 10 increments, not 10 mm).
+#include "feedid/gcode.hpp"
+
 #include <cctype>
 #include <cmath>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
-#include "feedid/testplan.hpp"
 #include "feedid/version.hpp"
 
 namespace feedid {
@@ -29,6 +32,15 @@ namespace {
 
 constexpr double mm = 1e-3;
 constexpr double mm_per_min = 1e-3 / 60.0;
+
+// Precision of the blocks' words. Positions to 0.1 um, four decimals in mm: the input increment of the finest ISO
+// increment system (IS-C; a coarser control rounds), and exact for the plan's centres and 0.01 mm strokes.
+// Feedrates to 0.001 mm/min, so that the log-spaced slow feeds keep their two significant digits down to
+// 0.1 mm/min. Dwells to 1 ms.
+constexpr int position_decimals = 4;
+constexpr int feed_decimals = 3;
+constexpr double feed_steps_per_mm_per_min = 1000.0;  // 10^feed_decimals
+constexpr int dwell_decimals = 3;
 
 // Fixed-point with up to `decimals` decimals, trailing zeros trimmed but one decimal kept ("1250.0", "21.5").
 std::string number(double value, int decimals) {
@@ -43,8 +55,9 @@ std::string number(double value, int decimals) {
 }
 
 std::string position_word(double metres) {
-    std::string text = fmt::format("{:.4f}", metres / mm);
-    if (text == "-0.0000") text = "0.0000";
+    static const std::string negative_zero = fmt::format("-{:.{}f}", 0.0, position_decimals);
+    std::string text = fmt::format("{:.{}f}", metres / mm, position_decimals);
+    if (text == negative_zero) text.erase(0, 1);
     return text;
 }
 
@@ -96,6 +109,22 @@ bool is_single_letter_axis(const std::string& axis) {
 
 }  // namespace
 
+std::string_view dialect_name(Dialect dialect) {
+    switch (dialect) {
+        case Dialect::iso: return "iso";
+        case Dialect::sinumerik: return "sinumerik";
+        case Dialect::linuxcnc: return "linuxcnc";
+    }
+    return "iso";
+}
+
+std::optional<Dialect> parse_dialect(std::string_view name) {
+    for (const auto dialect : {Dialect::iso, Dialect::sinumerik, Dialect::linuxcnc}) {
+        if (dialect_name(dialect) == name) return dialect;
+    }
+    return std::nullopt;
+}
+
 std::string emit_part_program(const TestPlan& plan, Dialect dialect) {
     const auto& o = plan.options;
     if (dialect != Dialect::sinumerik && !is_single_letter_axis(o.axis)) {
@@ -144,16 +173,17 @@ std::string emit_part_program(const TestPlan& plan, Dialect dialect) {
         last_pass = move.pass;
         if (move.kind == MoveKind::dwell) {
             switch (dialect) {
-                case Dialect::iso: out += fmt::format("G04 X{}\n", number(move.dwell, 3)); break;
-                case Dialect::sinumerik: out += fmt::format("G4 F{}\n", number(move.dwell, 3)); break;
-                case Dialect::linuxcnc: out += fmt::format("G4 P{}\n", number(move.dwell, 3)); break;
+                case Dialect::iso: out += fmt::format("G04 X{}\n", number(move.dwell, dwell_decimals)); break;
+                case Dialect::sinumerik: out += fmt::format("G4 F{}\n", number(move.dwell, dwell_decimals)); break;
+                case Dialect::linuxcnc: out += fmt::format("G4 P{}\n", number(move.dwell, dwell_decimals)); break;
             }
             continue;
         }
         std::string block = fmt::format("G1 {}{}", axis_word, position_word(move.target));
-        const double feed_mm_per_min = std::round(move.feed / mm_per_min * 1000.0) / 1000.0;
+        const double feed_mm_per_min =
+            std::round(move.feed / mm_per_min * feed_steps_per_mm_per_min) / feed_steps_per_mm_per_min;
         if (feed_mm_per_min != last_feed) {
-            block += " F" + number(feed_mm_per_min, 3);
+            block += " F" + number(feed_mm_per_min, feed_decimals);
             last_feed = feed_mm_per_min;
         }
         out += block + "\n";

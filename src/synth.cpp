@@ -14,6 +14,30 @@
 
 namespace feedid {
 
+namespace {
+
+// Bounds against typos, not physical limits: 1000 cycles of the default test run for about 13 hours (46 million
+// samples); the synthesis time grows with the integration substeps per sample (default 8).
+constexpr int max_cycles = 1000;
+constexpr int max_substeps = 1000;
+// NC servo traces sample every 0.1 to 10 ms; a sample time above 1 s is a unit mistake.
+constexpr double max_sample_time_s = 1.0;
+// Time stamps that jitter by less than half a sample stay in order.
+constexpr double max_jitter_per_sample_time = 0.5;
+// A sample rate that is a whole number of hertz up to the rounding of 1/T gets time stamps k/f_s.
+constexpr double whole_rate_tolerance = 1e-12;
+
+// The demo controller (feedid synth --help): K_v 2 (m/min)/mm, T_n 20 ms, current lag 0.3 ms, and K_p high enough
+// that sliding is stable down to about 100 mm/min against the Stribeck slope (F_B - F_C)/v_s = 40 kN*s/m; below
+// that the axis stick-slips, as real axes do. The force limit is twice the demo motor's rated 18 A.
+constexpr double demo_kv_m_per_min_per_mm = 2.0;
+constexpr double demo_velocity_gain_N_s_per_m = 40000.0;
+constexpr double demo_integral_time_s = 0.020;
+constexpr double demo_current_lag_s = 0.3e-3;
+constexpr double demo_saturation_A = 36.0;
+
+}  // namespace
+
 std::string TestReference::validate() const {
     if (feedrates_mm_per_min.empty() && !(slow_passes && !slow_feedrates_mm_per_min.empty())) {
         return "the test needs at least one feedrate";
@@ -25,7 +49,8 @@ std::string TestReference::validate() const {
         if (!(f > 0.0 && std::isfinite(f))) return "every slow-pass feedrate must be a positive number [mm/min]";
     }
     if (!(stroke_m > 0.0 && std::isfinite(stroke_m))) return "the stroke must be a positive length";
-    if (cycles < 1 || cycles > 1000) return "the cycles per feedrate must be between 1 and 1000";
+    if (cycles < 1 || cycles > max_cycles)
+        return fmt::format("the cycles per feedrate must be between 1 and {}", max_cycles);
     if (!(slow_pass_duration_s > 0.0) || !(slow_stroke_min_m > 0.0))
         return "slow-pass duration and stroke must be positive";
     if (!(acceleration_m_per_s2 > 0.0 && std::isfinite(acceleration_m_per_s2)))
@@ -36,12 +61,15 @@ std::string TestReference::validate() const {
 }
 
 std::string SensorModel::validate() const {
-    if (!(sample_time_s > 0.0 && sample_time_s <= 1.0)) return "the sample time must lie in (0, 1] s";
-    if (!(jitter_s >= 0.0 && jitter_s < 0.5 * sample_time_s)) return "the jitter must lie in [0, T/2)";
+    if (!(sample_time_s > 0.0 && sample_time_s <= max_sample_time_s))
+        return fmt::format("the sample time must lie in (0, {}] s", max_sample_time_s);
+    if (!(jitter_s >= 0.0 && jitter_s < max_jitter_per_sample_time * sample_time_s))
+        return "the jitter must lie in [0, T/2)";
     if (!(position_resolution_m >= 0.0) || !(current_resolution_A >= 0.0) || !(current_noise_A >= 0.0)) {
         return "resolutions and noise must be >= 0";
     }
-    if (substeps < 1 || substeps > 1000) return "the substeps per sample must be between 1 and 1000";
+    if (substeps < 1 || substeps > max_substeps)
+        return fmt::format("the substeps per sample must be between 1 and {}", max_substeps);
     return {};
 }
 
@@ -77,13 +105,11 @@ SynthSpec demo_spec() {
     branch.stribeck_velocity = 0.005;
     spec.axis.mass = 69.1;
     spec.axis.friction = Friction::symmetric(branch);
-    spec.controller.position_gain_per_s = position_gain_from_kv(2.0);
-    // K_p high enough that sliding is stable down to about 100 mm/min against the Stribeck slope
-    // (F_B - F_C)/v_s = 40 kN*s/m; below that the axis stick-slips, as real axes do.
-    spec.controller.velocity_gain_N_s_per_m = 40000.0;
-    spec.controller.velocity_integral_gain_N_per_m = 40000.0 / 0.020;
-    spec.controller.current_lag_s = 0.3e-3;
-    spec.controller.saturation_N = 36.0 * spec.force_constant_N_per_A();  // twice the rated 18 A
+    spec.controller.position_gain_per_s = position_gain_from_kv(demo_kv_m_per_min_per_mm);
+    spec.controller.velocity_gain_N_s_per_m = demo_velocity_gain_N_s_per_m;
+    spec.controller.velocity_integral_gain_N_per_m = demo_velocity_gain_N_s_per_m / demo_integral_time_s;
+    spec.controller.current_lag_s = demo_current_lag_s;
+    spec.controller.saturation_N = demo_saturation_A * spec.force_constant_N_per_A();
     return spec;
 }
 
@@ -149,99 +175,111 @@ private:
     std::set<std::string> known_;
 };
 
+// axis: the friction and mass keys axis_from_document reads, and no other.
+void read_axis(const nlohmann::json& axis, const std::string& source, SynthSpec& spec) {
+    spec.axis = axis_from_document(axis, source);
+    for (const auto& [key, value] : axis.items()) {
+        static const std::set<std::string> keys{"mass_kg", "inertia_kgm2", "offset_N", "offset_Nm", "rotary"};
+        const bool friction_key = key.starts_with("viscous_") || key.starts_with("coulomb_") ||
+                                  key.starts_with("breakaway_") || key.starts_with("stribeck_velocity_");
+        if (!keys.contains(key) && !friction_key)
+            throw InputError(fmt::format("{}: unknown key 'axis.{}'", source, key));
+    }
+}
+
+// controller: gains in SI or NC units (K_v in (m/min)/mm, T_n in ms), cycles and lags in ms; saturation_N null
+// removes the limit.
+void read_controller(const nlohmann::json& object, const std::string& source, ControllerModel& model) {
+    Section c(object, "controller", source);
+    if (const auto v = c.number("position_gain_per_s")) model.position_gain_per_s = *v;
+    if (const auto v = c.number("kv_m_per_min_per_mm")) model.position_gain_per_s = position_gain_from_kv(*v);
+    if (const auto v = c.number("velocity_gain_N_s_per_m")) model.velocity_gain_N_s_per_m = *v;
+    if (const auto v = c.number("velocity_integral_gain_N_per_m")) model.velocity_integral_gain_N_per_m = *v;
+    if (const auto v = c.number("tn_ms")) {
+        model.velocity_integral_gain_N_per_m = *v > 0.0 ? model.velocity_gain_N_s_per_m / (*v * 1e-3) : 0.0;
+    }
+    if (const auto v = c.number("velocity_feedforward")) model.velocity_feedforward = *v;
+    if (c.has("saturation_N"))
+        model.saturation_N = c.number("saturation_N");
+    else if (object.contains("saturation_N"))
+        model.saturation_N.reset();
+    c.accept("saturation_N");
+    if (const auto v = c.number("current_lag_ms")) model.current_lag_s = *v * 1e-3;
+    if (const auto v = c.number("position_cycle_ms")) model.position_cycle_s = *v * 1e-3;
+    if (const auto v = c.number("velocity_cycle_ms")) model.velocity_cycle_s = *v * 1e-3;
+    if (const auto v = c.number("velocity_difference_samples"))
+        model.velocity_difference_samples = static_cast<int>(std::lround(*v));
+    c.reject_unknown();
+}
+
+void read_drive(const nlohmann::json& object, const std::string& source, SynthSpec& spec) {
+    Section d(object, "drive", source);
+    if (const auto v = d.number("kt_Nm_per_A")) spec.kt_Nm_per_A = *v;
+    if (const auto v = d.number("lead_mm")) spec.lead_m = *v * 1e-3;
+    if (const auto v = d.number("gear_ratio")) spec.gear_ratio = *v;
+    d.reject_unknown();
+}
+
+void read_sensors(const nlohmann::json& object, const std::string& source, SensorModel& sensors) {
+    Section s(object, "sensors", source);
+    if (const auto v = s.number("sample_time_ms")) sensors.sample_time_s = *v * 1e-3;
+    if (const auto v = s.number("jitter_us")) sensors.jitter_s = *v * 1e-6;
+    if (const auto v = s.number("position_resolution_um")) sensors.position_resolution_m = *v * 1e-6;
+    if (const auto v = s.number("current_noise_A")) sensors.current_noise_A = *v;
+    if (const auto v = s.number("current_resolution_A")) sensors.current_resolution_A = *v;
+    if (const auto v = s.number("substeps")) sensors.substeps = static_cast<int>(std::lround(*v));
+    s.reject_unknown();
+}
+
+void read_test(const nlohmann::json& object, const std::string& source, TestReference& test) {
+    Section t(object, "test", source);
+    if (auto v = t.numbers("feedrates_mm_per_min")) test.feedrates_mm_per_min = std::move(*v);
+    if (const auto v = t.number("stroke_mm")) test.stroke_m = *v * 1e-3;
+    if (const auto v = t.number("cycles")) test.cycles = static_cast<int>(std::lround(*v));
+    if (const auto v = t.boolean("slow_passes")) test.slow_passes = *v;
+    if (auto v = t.numbers("slow_feedrates_mm_per_min")) test.slow_feedrates_mm_per_min = std::move(*v);
+    if (const auto v = t.number("slow_pass_duration_s")) test.slow_pass_duration_s = *v;
+    if (const auto v = t.number("slow_stroke_min_mm")) test.slow_stroke_min_m = *v * 1e-3;
+    if (const auto v = t.number("acceleration_m_per_s2")) test.acceleration_m_per_s2 = *v;
+    if (const auto v = t.number("dwell_s")) test.dwell_s = *v;
+    if (const auto v = t.number("start_mm")) test.start_m = *v * 1e-3;
+    t.reject_unknown();
+}
+
+// friction_zones: a list of {from_mm, to_mm, coulomb_factor}, each key required; replaces the demo's zones.
+std::vector<FrictionZone> read_friction_zones(const nlohmann::json& list, const std::string& source) {
+    if (!list.is_array()) throw InputError(fmt::format("{}: friction_zones must be a list of objects", source));
+    std::vector<FrictionZone> zones;
+    for (std::size_t k = 0; k < list.size(); ++k) {
+        Section z(list[k], fmt::format("friction_zones[{}]", k), source);
+        const auto from = z.number("from_mm");
+        const auto to = z.number("to_mm");
+        const auto factor = z.number("coulomb_factor");
+        z.reject_unknown();
+        if (!from || !to || !factor) {
+            throw InputError(fmt::format("{}: friction_zones[{}] needs from_mm, to_mm and coulomb_factor", source, k));
+        }
+        zones.push_back({*from * 1e-3, *to * 1e-3, *factor});
+    }
+    return zones;
+}
+
 }  // namespace
 
 SynthSpec spec_from_json(const nlohmann::json& document, const std::string& source) {
     SynthSpec spec = demo_spec();
     Section top(document, "", source);
-    if (top.has("axis")) {
-        spec.axis = axis_from_document(document["axis"], source);
-        for (const auto& [key, value] : document["axis"].items()) {
-            static const std::set<std::string> keys{"mass_kg", "inertia_kgm2", "offset_N", "offset_Nm", "rotary"};
-            const bool friction_key = key.starts_with("viscous_") || key.starts_with("coulomb_") ||
-                                      key.starts_with("breakaway_") || key.starts_with("stribeck_velocity_");
-            if (!keys.contains(key) && !friction_key)
-                throw InputError(fmt::format("{}: unknown key 'axis.{}'", source, key));
-        }
-    }
+    if (top.has("axis")) read_axis(document["axis"], source, spec);
     top.accept("axis");
-    if (top.has("controller")) {
-        Section c(document["controller"], "controller", source);
-        auto& model = spec.controller;
-        if (const auto v = c.number("position_gain_per_s")) model.position_gain_per_s = *v;
-        if (const auto v = c.number("kv_m_per_min_per_mm")) model.position_gain_per_s = position_gain_from_kv(*v);
-        if (const auto v = c.number("velocity_gain_N_s_per_m")) model.velocity_gain_N_s_per_m = *v;
-        if (const auto v = c.number("velocity_integral_gain_N_per_m")) model.velocity_integral_gain_N_per_m = *v;
-        if (const auto v = c.number("tn_ms")) {
-            model.velocity_integral_gain_N_per_m = *v > 0.0 ? model.velocity_gain_N_s_per_m / (*v * 1e-3) : 0.0;
-        }
-        if (const auto v = c.number("velocity_feedforward")) model.velocity_feedforward = *v;
-        if (c.has("saturation_N"))
-            model.saturation_N = c.number("saturation_N");
-        else if (document["controller"].contains("saturation_N"))
-            model.saturation_N.reset();
-        c.accept("saturation_N");
-        if (const auto v = c.number("current_lag_ms")) model.current_lag_s = *v * 1e-3;
-        if (const auto v = c.number("position_cycle_ms")) model.position_cycle_s = *v * 1e-3;
-        if (const auto v = c.number("velocity_cycle_ms")) model.velocity_cycle_s = *v * 1e-3;
-        if (const auto v = c.number("velocity_difference_samples"))
-            model.velocity_difference_samples = static_cast<int>(std::lround(*v));
-        c.reject_unknown();
-    }
+    if (top.has("controller")) read_controller(document["controller"], source, spec.controller);
     top.accept("controller");
-    if (top.has("drive")) {
-        Section d(document["drive"], "drive", source);
-        if (const auto v = d.number("kt_Nm_per_A")) spec.kt_Nm_per_A = *v;
-        if (const auto v = d.number("lead_mm")) spec.lead_m = *v * 1e-3;
-        if (const auto v = d.number("gear_ratio")) spec.gear_ratio = *v;
-        d.reject_unknown();
-    }
+    if (top.has("drive")) read_drive(document["drive"], source, spec);
     top.accept("drive");
-    if (top.has("sensors")) {
-        Section s(document["sensors"], "sensors", source);
-        auto& sensors = spec.sensors;
-        if (const auto v = s.number("sample_time_ms")) sensors.sample_time_s = *v * 1e-3;
-        if (const auto v = s.number("jitter_us")) sensors.jitter_s = *v * 1e-6;
-        if (const auto v = s.number("position_resolution_um")) sensors.position_resolution_m = *v * 1e-6;
-        if (const auto v = s.number("current_noise_A")) sensors.current_noise_A = *v;
-        if (const auto v = s.number("current_resolution_A")) sensors.current_resolution_A = *v;
-        if (const auto v = s.number("substeps")) sensors.substeps = static_cast<int>(std::lround(*v));
-        s.reject_unknown();
-    }
+    if (top.has("sensors")) read_sensors(document["sensors"], source, spec.sensors);
     top.accept("sensors");
-    if (top.has("test")) {
-        Section t(document["test"], "test", source);
-        auto& test = spec.test;
-        if (auto v = t.numbers("feedrates_mm_per_min")) test.feedrates_mm_per_min = std::move(*v);
-        if (const auto v = t.number("stroke_mm")) test.stroke_m = *v * 1e-3;
-        if (const auto v = t.number("cycles")) test.cycles = static_cast<int>(std::lround(*v));
-        if (const auto v = t.boolean("slow_passes")) test.slow_passes = *v;
-        if (auto v = t.numbers("slow_feedrates_mm_per_min")) test.slow_feedrates_mm_per_min = std::move(*v);
-        if (const auto v = t.number("slow_pass_duration_s")) test.slow_pass_duration_s = *v;
-        if (const auto v = t.number("slow_stroke_min_mm")) test.slow_stroke_min_m = *v * 1e-3;
-        if (const auto v = t.number("acceleration_m_per_s2")) test.acceleration_m_per_s2 = *v;
-        if (const auto v = t.number("dwell_s")) test.dwell_s = *v;
-        if (const auto v = t.number("start_mm")) test.start_m = *v * 1e-3;
-        t.reject_unknown();
-    }
+    if (top.has("test")) read_test(document["test"], source, spec.test);
     top.accept("test");
-    if (top.has("friction_zones")) {
-        const auto& list = document["friction_zones"];
-        if (!list.is_array()) throw InputError(fmt::format("{}: friction_zones must be a list of objects", source));
-        spec.friction_zones.clear();
-        for (std::size_t k = 0; k < list.size(); ++k) {
-            Section z(list[k], fmt::format("friction_zones[{}]", k), source);
-            const auto from = z.number("from_mm");
-            const auto to = z.number("to_mm");
-            const auto factor = z.number("coulomb_factor");
-            z.reject_unknown();
-            if (!from || !to || !factor) {
-                throw InputError(
-                    fmt::format("{}: friction_zones[{}] needs from_mm, to_mm and coulomb_factor", source, k));
-            }
-            spec.friction_zones.push_back({*from * 1e-3, *to * 1e-3, *factor});
-        }
-    }
+    if (top.has("friction_zones")) spec.friction_zones = read_friction_zones(document["friction_zones"], source);
     top.accept("friction_zones");
     if (const auto v = top.boolean("slow_passes")) spec.test.slow_passes = *v;
     if (const auto v = top.number("seed")) {
@@ -455,7 +493,7 @@ Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>
     std::vector<double> time(n), current(n);
     // k/f_s rather than k*T where the rate is a whole number of hertz: 0.009, not 0.009000000000000001.
     const double rate = std::round(1.0 / dt);
-    const bool whole_rate = std::abs(rate * dt - 1.0) < 1e-12;
+    const bool whole_rate = std::abs(rate * dt - 1.0) < whole_rate_tolerance;
     for (std::size_t k = 0; k < n; ++k) {
         time[k] = (whole_rate ? static_cast<double>(k) / rate : static_cast<double>(k) * dt) +
                   (spec.sensors.jitter_s > 0.0 ? spec.sensors.jitter_s * jitter(generator) : 0.0);

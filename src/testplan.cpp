@@ -1,14 +1,17 @@
 #include "feedid/testplan.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <system_error>
 
 #include <fmt/core.h>
 #include <Eigen/Dense>
 
 #include "feedid/error.hpp"
+#include "feedid/version.hpp"
 #include "testplan_profile.hpp"
 
 namespace feedid {
@@ -17,6 +20,24 @@ namespace {
 
 constexpr double mm = 1e-3;
 constexpr double mm_per_min = 1e-3 / 60.0;
+
+// The paper's feedrate ladder (METHOD.md step 5): 1250 mm/min up to about 9350 mm/min; 1250 + 6 * 1350 = 9350.
+constexpr double ladder_first_mm_per_min = 1250.0;
+constexpr double ladder_step_mm_per_min = 1350.0;
+constexpr int ladder_steps = 6;
+// Slow strokes are multiples of 0.01 mm, so that the part program (positions to 0.1 um) carries them exactly; a slow
+// stroke below one step cannot be run.
+constexpr double slow_stroke_step = 0.01 * mm;
+// Halvings of the bisection for the slow stroke: 2^-100 of a stroke is far below double precision.
+constexpr int stroke_bisections = 100;
+// Two positions [m] or feedrates [m/s] this close are the same: only the rounding of the arithmetic separates them.
+constexpr double same_position_tolerance = 1e-12;
+constexpr double same_feed_tolerance = 1e-12;
+// A move may pass the travel limits by 1 nm [m] (rounding of centre +- stroke/2; far below encoder resolution) and
+// the feedrate limit by a relative 1e-12 (a feedrate equal to the limit in mm/min but computed another way, as the
+// log-spaced feeds are, differs from it by rounding only).
+constexpr double travel_tolerance = 1e-9;
+constexpr double feed_limit_relative_tolerance = 1e-12;
 
 double to_mm(double metres) {
     return metres / mm;
@@ -38,12 +59,45 @@ double stroke_for_time(double longest, double feed, int cycles, double dwell, do
     if (move_duration(longest, feed, acceleration, jerk) <= per_stroke) return longest;
     double low = 0.0;
     double high = longest;
-    for (int iteration = 0; iteration < 100; ++iteration) {
+    for (int iteration = 0; iteration < stroke_bisections; ++iteration) {
         const double middle = 0.5 * (low + high);
         (move_duration(middle, feed, acceleration, jerk) <= per_stroke ? low : high) = middle;
     }
-    // Round down to 0.01 mm so that the part program carries the same stroke exactly.
-    return std::floor(low / (0.01 * mm)) * (0.01 * mm);
+    return std::floor(low / slow_stroke_step) * slow_stroke_step;
+}
+
+// A number as the command line writes it: decimal, finite, nothing before or after.
+double parse_number(std::string_view text, std::string_view option) {
+    double value = 0.0;
+    const auto* begin = text.data();
+    const auto* end = begin + text.size();
+    const auto [ptr, error] = std::from_chars(begin, end, value);
+    if (error != std::errc() || ptr != end || !std::isfinite(value))
+        throw InputError(fmt::format("{}: '{}' is not a number.", option, text));
+    return value;
+}
+
+std::vector<std::string_view> split(std::string_view text, char separator) {
+    std::vector<std::string_view> parts;
+    std::size_t start = 0;
+    while (true) {
+        const auto at = text.find(separator, start);
+        parts.push_back(text.substr(start, at == std::string_view::npos ? std::string_view::npos : at - start));
+        if (at == std::string_view::npos) break;
+        start = at + 1;
+    }
+    return parts;
+}
+
+// The entries of a list option joined as the user wrote them, for messages.
+std::string joined(const std::vector<std::string>& entries) {
+    std::string text;
+    for (std::size_t k = 0; k < entries.size(); ++k) text += (k == 0 ? "" : ",") + entries[k];
+    return text;
+}
+
+bool is_none(const std::vector<std::string>& entries) {
+    return entries.size() == 1 && entries.front() == "none";
 }
 
 std::string describe_center(int index, double position) {
@@ -52,197 +106,14 @@ std::string describe_center(int index, double position) {
 
 }  // namespace
 
-// ---- velocity profiles ----
-
-namespace detail {
-
-// Acceleration phase of a jerk-limited profile from rest to speed v: constant-jerk ramps of T_j = a/j around a
-// constant-acceleration part when v >= a^2/j, otherwise two ramps of sqrt(v/j) with a peak acceleration below a.
-// By symmetry the distance covered is v * T_acc / 2.
-struct AccelerationPhase {
-    double ramp{0.0};      // T_j [s]
-    double constant{0.0};  // constant-acceleration time [s]
-    double peak{0.0};      // peak acceleration [m/s^2]
-    [[nodiscard]] double time() const { return 2.0 * ramp + constant; }
-};
-
-AccelerationPhase acceleration_phase(double speed, double acceleration, std::optional<double> jerk) {
-    AccelerationPhase phase;
-    if (!jerk) {
-        phase.constant = speed / acceleration;
-        phase.peak = acceleration;
-        return phase;
-    }
-    const double j = *jerk;
-    if (speed >= acceleration * acceleration / j) {
-        phase.ramp = acceleration / j;
-        phase.constant = speed / acceleration - acceleration / j;
-        phase.peak = acceleration;
-    } else {
-        phase.ramp = std::sqrt(speed / j);
-        phase.peak = j * phase.ramp;
-    }
-    return phase;
-}
-
-Profile make_profile(double distance, double feed, double acceleration, std::optional<double> jerk) {
-    Profile profile;
-    if (distance <= 0.0 || feed <= 0.0) return profile;
-    const auto accelerating_distance = [&](double speed) {
-        return speed * acceleration_phase(speed, acceleration, jerk).time() / 2.0;
-    };
-    double peak_speed = feed;
-    if (2.0 * accelerating_distance(feed) > distance) {
-        // Too short to reach the feedrate: the largest peak speed whose acceleration and braking fit the distance.
-        double low = 0.0;
-        double high = feed;
-        for (int iteration = 0; iteration < 200; ++iteration) {
-            const double middle = 0.5 * (low + high);
-            (2.0 * accelerating_distance(middle) <= distance ? low : high) = middle;
-        }
-        peak_speed = low;
-    }
-    const auto phase = acceleration_phase(peak_speed, acceleration, jerk);
-    const double cruise = std::max(0.0, (distance - 2.0 * accelerating_distance(peak_speed)) / peak_speed);
-    profile.peak_speed = peak_speed;
-    profile.cruise_time = cruise;
-
-    // Pieces of constant jerk; the trapezoid sets its acceleration at each piece start (infinite jerk).
-    struct Spec {
-        double duration;
-        double jerk;
-        std::optional<double> set_acceleration;
-    };
-    std::vector<Spec> specs;
-    if (!jerk) {
-        specs = {{phase.constant, 0.0, phase.peak}, {cruise, 0.0, 0.0}, {phase.constant, 0.0, -phase.peak}};
-    } else {
-        const double j = *jerk;
-        specs = {{phase.ramp, j, 0.0}, {phase.constant, 0.0, {}}, {phase.ramp, -j, {}}, {cruise, 0.0, 0.0},
-                 {phase.ramp, -j, {}}, {phase.constant, 0.0, {}}, {phase.ramp, j, {}}};
-    }
-    double x = 0.0;
-    double v = 0.0;
-    double a = 0.0;
-    for (const auto& spec : specs) {
-        if (spec.set_acceleration) a = *spec.set_acceleration;
-        if (spec.duration <= 0.0) continue;
-        profile.pieces.push_back({spec.duration, x, v, a, spec.jerk});
-        const double t = spec.duration;
-        x += v * t + a * t * t / 2.0 + spec.jerk * t * t * t / 6.0;
-        v += a * t + spec.jerk * t * t / 2.0;
-        a += spec.jerk * t;
-        profile.duration += t;
-    }
-    profile.distance = distance;
-    return profile;
-}
-
-ProfileState Profile::at(double t) const {
-    if (pieces.empty() || t >= duration) return {distance, 0.0, 0.0};
-    if (t <= 0.0) return {0.0, 0.0, 0.0};
-    for (const auto& piece : pieces) {
-        if (t <= piece.duration) {
-            const double x = piece.x0 + piece.v0 * t + piece.a0 * t * t / 2.0 + piece.jerk * t * t * t / 6.0;
-            const double v = piece.v0 + piece.a0 * t + piece.jerk * t * t / 2.0;
-            const double a = piece.a0 + piece.jerk * t;
-            return {std::min(x, distance), std::max(v, 0.0), a};
-        }
-        t -= piece.duration;
-    }
-    return {distance, 0.0, 0.0};
-}
-
-Timeline make_timeline(const TestPlan& plan) {
-    Timeline timeline;
-    const auto& options = plan.options;
-    double position = options.start_position.value_or(plan.moves.empty() ? 0.0 : plan.moves.front().target);
-    double time = 0.0;
-    for (const auto& move : plan.moves) {
-        TimelineSegment segment;
-        segment.start_time = time;
-        segment.start_position = position;
-        segment.move = &move;
-        if (move.kind == MoveKind::dwell) {
-            segment.duration = move.dwell;
-        } else {
-            const double distance = move.target - position;
-            segment.direction = distance >= 0.0 ? 1.0 : -1.0;
-            segment.profile = make_profile(std::abs(distance), move.feed, options.acceleration, options.jerk);
-            segment.duration = segment.profile.duration;
-            position = move.target;
-        }
-        time += segment.duration;
-        timeline.segments.push_back(std::move(segment));
-    }
-    timeline.duration = time;
-    timeline.end_position = position;
-    return timeline;
-}
-
-std::vector<ProfileState> sample_timeline(const Timeline& timeline, double sample_time, double rest_before,
-                                          double rest_after) {
-    const double total = rest_before + timeline.duration + rest_after;
-    const auto count = static_cast<std::size_t>(std::floor(total / sample_time + 1e-9)) + 1;
-    std::vector<ProfileState> samples(count);
-    const double first_position =
-        timeline.segments.empty() ? timeline.end_position : timeline.segments.front().start_position;
-    std::size_t segment_index = 0;
-    for (std::size_t k = 0; k < count; ++k) {
-        const double t = static_cast<double>(k) * sample_time - rest_before;
-        if (t < 0.0 || timeline.segments.empty()) {
-            samples[k] = {first_position, 0.0, 0.0};
-            continue;
-        }
-        while (segment_index + 1 < timeline.segments.size() &&
-               t >= timeline.segments[segment_index].start_time + timeline.segments[segment_index].duration) {
-            ++segment_index;
-        }
-        const auto& segment = timeline.segments[segment_index];
-        const double local = t - segment.start_time;
-        if (local >= segment.duration) {  // after the last segment
-            samples[k] = {timeline.end_position, 0.0, 0.0};
-            continue;
-        }
-        if (segment.move->kind == MoveKind::dwell) {
-            samples[k] = {segment.start_position, 0.0, 0.0};
-        } else {
-            const auto state = segment.profile.at(local);
-            samples[k] = {segment.start_position + segment.direction * state.position,
-                          segment.direction * state.velocity, segment.direction * state.acceleration};
-        }
-    }
-    return samples;
-}
-
-}  // namespace detail
-
 double move_duration(double distance, double feed, double acceleration, std::optional<double> jerk) {
     return detail::make_profile(std::abs(distance), feed, acceleration, jerk).duration;
 }
 
-// ---- names ----
-
-std::string_view dialect_name(Dialect dialect) {
-    switch (dialect) {
-        case Dialect::iso: return "iso";
-        case Dialect::sinumerik: return "sinumerik";
-        case Dialect::linuxcnc: return "linuxcnc";
-    }
-    return "iso";
-}
-
-std::optional<Dialect> parse_dialect(std::string_view name) {
-    for (const auto dialect : {Dialect::iso, Dialect::sinumerik, Dialect::linuxcnc}) {
-        if (dialect_name(dialect) == name) return dialect;
-    }
-    return std::nullopt;
-}
-
 std::vector<double> paper_feed_ladder() {
-    // METHOD.md step 5: 1250 mm/min up to about 9350 mm/min; 1250 + 6 * 1350 = 9350.
     std::vector<double> feeds;
-    for (int step = 0; step <= 6; ++step) feeds.push_back((1250.0 + 1350.0 * step) * mm_per_min);
+    for (int step = 0; step <= ladder_steps; ++step)
+        feeds.push_back((ladder_first_mm_per_min + ladder_step_mm_per_min * step) * mm_per_min);
     return feeds;
 }
 
@@ -255,9 +126,45 @@ std::vector<double> log_spaced_feeds(double lowest, double highest, int count) {
         // Two significant digits in mm/min.
         const double scale = std::pow(10.0, std::floor(std::log10(value)) - 1.0);
         const double rounded = std::round(value / scale) * scale * mm_per_min;
-        if (feeds.empty() || std::abs(rounded - feeds.back()) > 1e-12) feeds.push_back(rounded);
+        if (feeds.empty() || std::abs(rounded - feeds.back()) > same_feed_tolerance) feeds.push_back(rounded);
     }
     return feeds;
+}
+
+std::pair<double, double> parse_travel(std::string_view text) {
+    const auto limits = split(text, ':');
+    if (limits.size() != 2) throw InputError(fmt::format("--travel: '{}' is not MIN:MAX [mm].", text));
+    return {parse_number(limits[0], "--travel") * mm, parse_number(limits[1], "--travel") * mm};
+}
+
+std::vector<double> parse_number_list(const std::vector<std::string>& entries, std::string_view option, double scale) {
+    std::vector<double> values;
+    for (const auto& entry : entries) {
+        if (entry.empty()) throw InputError(fmt::format("{}: empty entry in '{}'.", option, joined(entries)));
+        values.push_back(parse_number(entry, option) * scale);
+    }
+    return values;
+}
+
+std::vector<double> parse_feeds(const std::vector<std::string>& entries) {
+    if (is_none(entries)) return {};
+    return parse_number_list(entries, "--feeds", mm_per_min);
+}
+
+std::vector<double> parse_slow_feeds(const std::vector<std::string>& entries) {
+    if (is_none(entries)) return {};
+    if (entries.size() != 1 || entries.front().find(':') == std::string::npos)
+        return parse_number_list(entries, "--slow-feeds", mm_per_min);
+    const std::string_view text = entries.front();
+    const auto parts = split(text, ':');
+    if (parts.size() < 2 || parts.size() > 3)
+        throw InputError(fmt::format("--slow-feeds: '{}' is not LO:HI or LO:HI:N (mm/min).", text));
+    const double low = parse_number(parts[0], "--slow-feeds");
+    const double high = parse_number(parts[1], "--slow-feeds");
+    const int count = parts.size() == 3 ? static_cast<int>(parse_number(parts[2], "--slow-feeds")) : 7;
+    if (!(low > 0.0) || !(high >= low) || count < 1)
+        throw InputError(fmt::format("--slow-feeds: '{}' needs 0 < LO <= HI and N >= 1.", text));
+    return log_spaced_feeds(low * mm_per_min, high * mm_per_min, count);
 }
 
 AxisModel nominal_demo_drive() {
@@ -309,84 +216,106 @@ std::string TestPlanOptions::validate() const {
     return {};
 }
 
-TestPlan make_test_plan(const TestPlanOptions& options) {
-    if (auto problem = options.validate(); !problem.empty()) throw InputError("test plan: " + problem + ".");
-    TestPlan plan;
-    plan.options = options;
+namespace {
+
+// One feedrate of a centre's sequence: the slow (Stribeck) passes come first, then the ladder.
+struct PlannedFeed {
+    double value;  // [m/s]
+    bool slow;
+};
+
+std::vector<PlannedFeed> feed_sequence(const TestPlanOptions& options) {
+    std::vector<PlannedFeed> sequence;
+    for (const double feed : options.slow_feeds) sequence.push_back({feed, true});
+    for (const double feed : options.feeds) sequence.push_back({feed, false});
+    return sequence;
+}
+
+// The feedrate of the moves between passes: the option's, lowered (with a note) to the feedrate limit.
+double limited_positioning_feed(const TestPlanOptions& options, std::vector<std::string>& notes) {
     double positioning_feed = options.positioning_feed;
     if (options.max_feed && positioning_feed > *options.max_feed) {
         positioning_feed = *options.max_feed;
-        plan.notes.push_back(
+        notes.push_back(
             fmt::format("positioning moves run at the feedrate limit {:.0f} mm/min", to_mm_per_min(positioning_feed)));
     }
+    return positioning_feed;
+}
 
-    struct Feed {
-        double value;
-        bool slow;
-    };
-    std::vector<Feed> sequence;
-    for (const double feed : options.slow_feeds) sequence.push_back({feed, true});
-    for (const double feed : options.feeds) sequence.push_back({feed, false});
-
-    double position = std::numeric_limits<double>::quiet_NaN();
-    for (std::size_t c = 0; c < options.centers.size(); ++c) {
-        const int center = static_cast<int>(c);
-        const double center_position = options.centers[c];
-        for (const auto& feed : sequence) {
-            Pass pass;
-            pass.center = center;
-            pass.center_position = center_position;
-            pass.feed = feed.value;
-            pass.slow = feed.slow;
-            pass.stroke = options.stroke;
-            if (feed.slow) {
-                pass.stroke = stroke_for_time(options.stroke, feed.value, options.cycles, options.dwell,
-                                              options.max_pass_time, options.acceleration, options.jerk);
-                if (pass.stroke < 0.01 * mm) {
-                    throw InputError(fmt::format(
-                        "test plan: at {:.4g} mm/min a stroke that fits the maximum pass time {} s is shorter than "
-                        "0.01 mm; allow a longer pass (--max-pass-time) or fewer cycles.",
-                        to_mm_per_min(feed.value), options.max_pass_time));
-                }
-            }
-            const int pass_index = static_cast<int>(plan.passes.size());
-            const double low = center_position - pass.stroke / 2.0;
-            const double high = center_position + pass.stroke / 2.0;
-            const std::string what =
-                fmt::format("{}, {:.4g} mm/min", describe_center(center, center_position), to_mm_per_min(feed.value));
-            if (!(std::abs(position - low) < 1e-12)) {
-                plan.moves.push_back({MoveKind::feed, low, positioning_feed, 0.0, center, -1,
-                                      fmt::format("{}: move to the start of the pass", what)});
-                if (options.dwell > 0.0)
-                    plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, -1,
-                                          fmt::format("{}: dwell before the pass", what)});
-                position = low;
-            }
-            for (int cycle = 1; cycle <= options.cycles; ++cycle) {
-                plan.moves.push_back({MoveKind::feed, high, feed.value, 0.0, center, pass_index,
-                                      fmt::format("{}, cycle {}, stroke +", what, cycle)});
-                if (options.dwell > 0.0)
-                    plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, pass_index,
-                                          fmt::format("{}, cycle {}, dwell at +", what, cycle)});
-                plan.moves.push_back({MoveKind::feed, low, feed.value, 0.0, center, pass_index,
-                                      fmt::format("{}, cycle {}, stroke -", what, cycle)});
-                if (options.dwell > 0.0)
-                    plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, pass_index,
-                                          fmt::format("{}, cycle {}, dwell at -", what, cycle)});
-            }
-            const auto profile = detail::make_profile(pass.stroke, feed.value, options.acceleration, options.jerk);
-            pass.duration = 2.0 * options.cycles * (profile.duration + options.dwell);
-            pass.cruise_time = 2.0 * options.cycles * profile.cruise_time;
-            if (profile.cruise_time <= 0.0) {
-                plan.notes.push_back(fmt::format(
-                    "{}: the {:.3f} mm stroke is too short to reach the feedrate at {} m/s^2 (peak {:.4g} mm/min); "
-                    "this pass holds no constant-velocity data",
-                    what, to_mm(pass.stroke), options.acceleration, to_mm_per_min(profile.peak_speed)));
-            }
-            plan.passes.push_back(pass);
+// The pass at one centre and feedrate, before timing: a slow pass's stroke is shortened to fit the maximum pass time.
+Pass design_pass(const TestPlanOptions& options, int center, const PlannedFeed& feed) {
+    Pass pass;
+    pass.center = center;
+    pass.center_position = options.centers[static_cast<std::size_t>(center)];
+    pass.feed = feed.value;
+    pass.slow = feed.slow;
+    pass.stroke = options.stroke;
+    if (feed.slow) {
+        pass.stroke = stroke_for_time(options.stroke, feed.value, options.cycles, options.dwell, options.max_pass_time,
+                                      options.acceleration, options.jerk);
+        if (pass.stroke < slow_stroke_step) {
+            throw InputError(
+                fmt::format("test plan: at {:.4g} mm/min a stroke that fits the maximum pass time {} s is shorter than "
+                            "0.01 mm; allow a longer pass (--max-pass-time) or fewer cycles.",
+                            to_mm_per_min(feed.value), options.max_pass_time));
         }
     }
-    // Shortened slow strokes, one note per distinct feed.
+    return pass;
+}
+
+// "centre 2 at -300.000 mm, 1250 mm/min": how the moves and notes name a pass.
+std::string describe_pass(const Pass& pass) {
+    return fmt::format("{}, {:.4g} mm/min", describe_center(pass.center, pass.center_position),
+                       to_mm_per_min(pass.feed));
+}
+
+// The blocks of the next pass (index plan.passes.size()): a move to its start unless the axis stands there (at
+// `position`, updated), then `cycles` strokes + and -, each followed by the dwell.
+void append_pass_moves(TestPlan& plan, const Pass& pass, double positioning_feed, double& position) {
+    const auto& options = plan.options;
+    const int center = pass.center;
+    const int pass_index = static_cast<int>(plan.passes.size());
+    const double low = pass.center_position - pass.stroke / 2.0;
+    const double high = pass.center_position + pass.stroke / 2.0;
+    const std::string what = describe_pass(pass);
+    if (!(std::abs(position - low) < same_position_tolerance)) {
+        plan.moves.push_back({MoveKind::feed, low, positioning_feed, 0.0, center, -1,
+                              fmt::format("{}: move to the start of the pass", what)});
+        if (options.dwell > 0.0)
+            plan.moves.push_back(
+                {MoveKind::dwell, 0.0, 0.0, options.dwell, center, -1, fmt::format("{}: dwell before the pass", what)});
+        position = low;
+    }
+    for (int cycle = 1; cycle <= options.cycles; ++cycle) {
+        plan.moves.push_back({MoveKind::feed, high, pass.feed, 0.0, center, pass_index,
+                              fmt::format("{}, cycle {}, stroke +", what, cycle)});
+        if (options.dwell > 0.0)
+            plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, pass_index,
+                                  fmt::format("{}, cycle {}, dwell at +", what, cycle)});
+        plan.moves.push_back({MoveKind::feed, low, pass.feed, 0.0, center, pass_index,
+                              fmt::format("{}, cycle {}, stroke -", what, cycle)});
+        if (options.dwell > 0.0)
+            plan.moves.push_back({MoveKind::dwell, 0.0, 0.0, options.dwell, center, pass_index,
+                                  fmt::format("{}, cycle {}, dwell at -", what, cycle)});
+    }
+}
+
+// The pass's duration and time at constant feedrate, with a note when its strokes never reach the feedrate.
+void time_pass(const TestPlanOptions& options, Pass& pass, std::vector<std::string>& notes) {
+    const auto profile = detail::make_profile(pass.stroke, pass.feed, options.acceleration, options.jerk);
+    pass.duration = 2.0 * options.cycles * (profile.duration + options.dwell);
+    pass.cruise_time = 2.0 * options.cycles * profile.cruise_time;
+    if (profile.cruise_time <= 0.0) {
+        notes.push_back(fmt::format(
+            "{}: the {:.3f} mm stroke is too short to reach the feedrate at {} m/s^2 (peak {:.4g} mm/min); "
+            "this pass holds no constant-velocity data",
+            describe_pass(pass), to_mm(pass.stroke), options.acceleration, to_mm_per_min(profile.peak_speed)));
+    }
+}
+
+// One note per distinct slow feedrate whose stroke was shortened.
+void note_shortened_slow_strokes(TestPlan& plan) {
+    const auto& options = plan.options;
     for (const auto& feed : options.slow_feeds) {
         for (const auto& pass : plan.passes) {
             if (pass.slow && pass.feed == feed && pass.stroke < options.stroke) {
@@ -398,11 +327,14 @@ TestPlan make_test_plan(const TestPlanOptions& options) {
             }
         }
     }
+}
 
-    // Safety: every move inside the travel and within the feedrate limit; the first offender is named.
-    const double tolerance = 1e-9;
-    if (options.start_position && (*options.start_position < options.travel_min - tolerance ||
-                                   *options.start_position > options.travel_max + tolerance)) {
+// Safety: the start and every move inside the travel, every move within the feedrate limit. InputError naming the
+// first offender.
+void check_travel_and_feed_limits(const TestPlan& plan) {
+    const auto& options = plan.options;
+    if (options.start_position && (*options.start_position < options.travel_min - travel_tolerance ||
+                                   *options.start_position > options.travel_max + travel_tolerance)) {
         throw InputError(
             fmt::format("test plan: the start position {:.3f} mm lies outside the travel {:.3f}:{:.3f} mm.",
                         to_mm(*options.start_position), to_mm(options.travel_min), to_mm(options.travel_max)));
@@ -410,26 +342,46 @@ TestPlan make_test_plan(const TestPlanOptions& options) {
     for (std::size_t k = 0; k < plan.moves.size(); ++k) {
         const auto& move = plan.moves[k];
         if (move.kind != MoveKind::feed) continue;
-        if (move.target > options.travel_max + tolerance) {
+        if (move.target > options.travel_max + travel_tolerance) {
             throw InputError(
                 fmt::format("test plan: move {} ({}) goes to {:.3f} mm, {:.3f} mm beyond the travel maximum {:.3f} mm.",
                             k + 1, move.description, to_mm(move.target), to_mm(move.target - options.travel_max),
                             to_mm(options.travel_max)));
         }
-        if (move.target < options.travel_min - tolerance) {
+        if (move.target < options.travel_min - travel_tolerance) {
             throw InputError(
                 fmt::format("test plan: move {} ({}) goes to {:.3f} mm, {:.3f} mm beyond the travel minimum {:.3f} mm.",
                             k + 1, move.description, to_mm(move.target), to_mm(options.travel_min - move.target),
                             to_mm(options.travel_min)));
         }
-        if (options.max_feed && move.feed > *options.max_feed * (1.0 + 1e-12)) {
+        if (options.max_feed && move.feed > *options.max_feed * (1.0 + feed_limit_relative_tolerance)) {
             throw InputError(fmt::format(
                 "test plan: move {} ({}) runs at {:.4g} mm/min, {:.4g} mm/min above the feedrate limit {:.4g} mm/min.",
                 k + 1, move.description, to_mm_per_min(move.feed), to_mm_per_min(move.feed - *options.max_feed),
                 to_mm_per_min(*options.max_feed)));
         }
     }
+}
 
+}  // namespace
+
+TestPlan make_test_plan(const TestPlanOptions& options) {
+    if (auto problem = options.validate(); !problem.empty()) throw InputError("test plan: " + problem + ".");
+    TestPlan plan;
+    plan.options = options;
+    const double positioning_feed = limited_positioning_feed(options, plan.notes);
+    const auto sequence = feed_sequence(options);
+    double position = std::numeric_limits<double>::quiet_NaN();  // the axis's position is unknown at the start
+    for (std::size_t c = 0; c < options.centers.size(); ++c) {
+        for (const auto& feed : sequence) {
+            Pass pass = design_pass(options, static_cast<int>(c), feed);
+            append_pass_moves(plan, pass, positioning_feed, position);
+            time_pass(options, pass, plan.notes);
+            plan.passes.push_back(pass);
+        }
+    }
+    note_shortened_slow_strokes(plan);
+    check_travel_and_feed_limits(plan);
     plan.duration = detail::make_timeline(plan).duration;
     return plan;
 }
@@ -461,34 +413,68 @@ const ParameterPrediction* IdentifiabilityPrediction::find(const std::string& ke
     return nullptr;
 }
 
-IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const PredictionOptions& options) {
-    IdentifiabilityPrediction prediction;
+namespace {
+
+// The identification's default differentiation low-pass (IdentifyOptions::cutoff_hz in identify.hpp):
+// min(100 Hz, 0.1 f_s).
+constexpr double differentiation_cutoff_hz = 100.0;
+constexpr double differentiation_cutoff_per_sample_rate = 0.1;
+// Step 1 fits above 5 v_s by default (PredictionOptions::split_velocity): the Stribeck term is below exp(-5) < 1 %
+// of F_B - F_C there.
+constexpr double split_velocity_per_stribeck_velocity = 5.0;
+// Unknowns of the two steps: M, B, F_C; and B, F_C, F_B, v_s.
+constexpr std::size_t step1_unknowns = 3;
+constexpr std::size_t step2_unknowns = 4;
+// Smallest eigenvalue of the information matrix, relative to the largest, below which the data do not determine the
+// step's parameters: cond(Phi) above 1e6 in step 1 (SI units), cond(J) above 1e7 in step 2 (relative parameters).
+// Inverting in double precision loses about log10 of the ratio of the 16 digits; at these bounds 4 and 2 remain,
+// still enough for a standard error.
+constexpr double step1_rank_tolerance = 1e-12;
+constexpr double step2_rank_tolerance = 1e-14;
+// Slowest constant-velocity pass above 3 v_s: the Stribeck term is below exp(-3) = 5 % of F_B - F_C on every pass,
+// too little to separate F_B and v_s; the prediction says so.
+constexpr double stribeck_visible_below_speeds = 3.0;
+
+// The nominal drive's parameters the prediction is made for (forward branch; the model is symmetric).
+struct NominalDrive {
+    double mass;
+    double viscous;
+    double coulomb;
+    double breakaway;
+    double stribeck_velocity;
+};
+
+NominalDrive nominal_drive(const PredictionOptions& options) {
     const auto& drive = options.drive;
     const auto& branch = drive.friction.forward;
-    const double mass = drive.mass;
-    const double viscous = branch.viscous;
-    const double coulomb = branch.coulomb;
-    const double breakaway = branch.breakaway.value_or(branch.coulomb);
-    const double stribeck_velocity = branch.stribeck_velocity.value_or(0.0);
-    if (!(mass > 0.0) || !(stribeck_velocity > 0.0) || !(breakaway > coulomb))
+    const NominalDrive nominal{drive.mass, branch.viscous, branch.coulomb, branch.breakaway.value_or(branch.coulomb),
+                               branch.stribeck_velocity.value_or(0.0)};
+    if (!(nominal.mass > 0.0) || !(nominal.stribeck_velocity > 0.0) || !(nominal.breakaway > nominal.coulomb))
         throw InputError("identifiability prediction: the nominal drive needs M > 0, v_s > 0 and F_B > F_C.");
-    const double split = options.split_velocity.value_or(5.0 * stribeck_velocity);
-    const double dt = plan.options.sample_time;
-    const double infinity = std::numeric_limits<double>::infinity();
+    return nominal;
+}
 
-    // Step 1. Differentiating the quantised position (uniform error, variance q^2/12) through a low-pass of cut-off
-    // f_c (the identification's default min(100 Hz, 0.1 f_s)) leaves acceleration noise of variance
-    //   sigma_a^2 = sigma_x^2 * (2/f_s) * integral_0^f_c (2 pi f)^4 df = sigma_x^2 * 2 (2 pi)^4 f_c^5 / (5 f_s),
-    // which enters the equation as force noise M * sigma_a beside the current noise.
-    const double sample_rate = 1.0 / dt;
-    const double cutoff = std::min(100.0, 0.1 * sample_rate);
+// Standard deviation of the force equation's error per sample [N]. Differentiating the quantised position (uniform
+// error, variance q^2/12) through a low-pass of cut-off f_c (the identification's default min(100 Hz, 0.1 f_s))
+// leaves acceleration noise of variance
+//   sigma_a^2 = sigma_x^2 * (2/f_s) * integral_0^f_c (2 pi f)^4 df = sigma_x^2 * 2 (2 pi)^4 f_c^5 / (5 f_s),
+// which enters the equation as force noise M * sigma_a beside the current noise.
+double equation_noise(const PredictionOptions& options, double mass, double sample_time) {
+    const double sample_rate = 1.0 / sample_time;
+    const double cutoff = std::min(differentiation_cutoff_hz, differentiation_cutoff_per_sample_rate * sample_rate);
     const double position_variance = options.position_resolution * options.position_resolution / 12.0;
     const double acceleration_variance =
         position_variance * 2.0 * std::pow(2.0 * M_PI, 4) * std::pow(cutoff, 5) / (5.0 * sample_rate);
-    const double sigma = std::sqrt(options.force_noise * options.force_noise + mass * mass * acceleration_variance);
+    return std::sqrt(options.force_noise * options.force_noise + mass * mass * acceleration_variance);
+}
 
+// Step 1: the regressors [x'', x', sgn x'] of the ideal trajectory above the split speed; standard errors of M, B
+// and F_C as sigma*sqrt(diag((Phi^T Phi)^-1)), infinite when the data do not determine them. Sets the step-1 sample
+// count and condition number of the prediction.
+Eigen::Vector3d predict_step1(const TestPlan& plan, double split, double sigma, IdentifiabilityPrediction& prediction) {
+    const double infinity = std::numeric_limits<double>::infinity();
     const auto timeline = detail::make_timeline(plan);
-    const auto samples = detail::sample_timeline(timeline, dt, 0.0, 0.0);
+    const auto samples = detail::sample_timeline(timeline, plan.options.sample_time, 0.0, 0.0);
     Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
     for (const auto& s : samples) {
         if (std::abs(s.velocity) < split) continue;
@@ -497,13 +483,13 @@ IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const Pr
         ++prediction.step1_samples;
     }
     Eigen::Vector3d step1_error = Eigen::Vector3d::Constant(infinity);
-    if (prediction.step1_samples >= 3) {
+    if (prediction.step1_samples >= step1_unknowns) {
         const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(information);
         const double smallest = eigen.eigenvalues().minCoeff();
         const double largest = eigen.eigenvalues().maxCoeff();
         // cond(Phi) = sqrt(cond(Phi^T Phi)).
         prediction.step1_condition_number = smallest > 0.0 ? std::sqrt(largest / smallest) : infinity;
-        if (smallest > 1e-12 * largest) {
+        if (smallest > step1_rank_tolerance * largest) {
             const Eigen::Matrix3d covariance = sigma * sigma * information.inverse();
             step1_error = covariance.diagonal().cwiseSqrt();
         }
@@ -512,13 +498,22 @@ IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const Pr
             "no samples above the split speed {:.4g} mm/s: M, B and F_C cannot be identified (add ladder passes)",
             split / mm));
     }
+    return step1_error;
+}
 
-    // Step 2. Each constant-velocity pass gives, per direction, one point of the friction curve
-    //   F(v) = B v + F_C + (F_B - F_C) exp(-v / v_s),
-    // with error sigma_level^2 = sigma^2 / n + level_error^2 (n samples at constant velocity). Gauss-Newton
-    // covariance (J^T W J)^-1 with J = dF/d[B, F_C, F_B, v_s], computed in relative parameters (scaled by the
-    // nominal values) so that the conditioning reflects the data, not the units.
-    const Eigen::Vector4d nominal(viscous > 0.0 ? viscous : 1.0, coulomb, breakaway, stribeck_velocity);
+// Step 2. Each constant-velocity pass gives, per direction, one point of the friction curve
+//   F(v) = B v + F_C + (F_B - F_C) exp(-v / v_s),
+// with error sigma_level^2 = sigma^2 / n + level_error^2 (n samples at constant velocity). Gauss-Newton
+// covariance (J^T W J)^-1 with J = dF/d[B, F_C, F_B, v_s], computed in relative parameters (scaled by the
+// nominal values) so that the conditioning reflects the data, not the units. Returns the relative standard errors of
+// [B, F_C, F_B, v_s] (infinite when not determined); sets the level count and slowest cruise speed.
+Eigen::Vector4d predict_step2(const TestPlan& plan, const NominalDrive& drive, double sigma, double level_error,
+                              IdentifiabilityPrediction& prediction) {
+    const double infinity = std::numeric_limits<double>::infinity();
+    const double dt = plan.options.sample_time;
+    const double stribeck_velocity = drive.stribeck_velocity;
+    const Eigen::Vector4d nominal(drive.viscous > 0.0 ? drive.viscous : 1.0, drive.coulomb, drive.breakaway,
+                                  stribeck_velocity);
     Eigen::Matrix4d level_information = Eigen::Matrix4d::Zero();
     prediction.slowest_cruise_speed = infinity;
     for (const auto& pass : plan.passes) {
@@ -527,42 +522,44 @@ IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const Pr
         prediction.slowest_cruise_speed = std::min(prediction.slowest_cruise_speed, v);
         const double per_direction = pass.cruise_time / 2.0;
         const double n = std::max(1.0, per_direction / dt);
-        const double variance = sigma * sigma / n + options.level_error * options.level_error;
+        const double variance = sigma * sigma / n + level_error * level_error;
         const double decay = std::exp(-v / stribeck_velocity);
-        Eigen::Vector4d jacobian(v, 1.0 - decay, decay,
-                                 (breakaway - coulomb) * decay * v / (stribeck_velocity * stribeck_velocity));
+        Eigen::Vector4d jacobian(
+            v, 1.0 - decay, decay,
+            (drive.breakaway - drive.coulomb) * decay * v / (stribeck_velocity * stribeck_velocity));
         jacobian = jacobian.cwiseProduct(nominal);
         level_information += 2.0 * jacobian * jacobian.transpose() / variance;  // both directions
         prediction.step2_levels += 2;
     }
     Eigen::Vector4d step2_relative = Eigen::Vector4d::Constant(infinity);
-    if (prediction.step2_levels >= 4) {
+    if (prediction.step2_levels >= step2_unknowns) {
         const Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> eigen(level_information);
         const double smallest = eigen.eigenvalues().minCoeff();
         const double largest = eigen.eigenvalues().maxCoeff();
-        if (smallest > 1e-14 * largest) step2_relative = level_information.inverse().diagonal().cwiseSqrt();
+        if (smallest > step2_rank_tolerance * largest)
+            step2_relative = level_information.inverse().diagonal().cwiseSqrt();
     }
+    return step2_relative;
+}
 
-    const auto add = [&](std::string key, std::string symbol, std::string unit, double value, double error) {
-        ParameterPrediction parameter;
-        parameter.key = std::move(key);
-        parameter.symbol = std::move(symbol);
-        parameter.unit = std::move(unit);
-        parameter.nominal = value;
-        parameter.standard_error = error;
-        parameter.identifiable =
-            std::isfinite(error) && std::abs(error) <= options.identifiable_relative_error * std::abs(value);
-        prediction.parameters.push_back(std::move(parameter));
-    };
-    add("mass_kg", "M", "kg", mass, step1_error(0));
-    add("viscous_Ns_per_m", "B", "N*s/m", viscous, step1_error(1));
-    add("coulomb_N", "F_C", "N", coulomb, step1_error(2));
-    add("breakaway_N", "F_B", "N", breakaway, step2_relative(2) * breakaway);
-    add("stribeck_velocity_m_per_s", "v_s", "m/s", stribeck_velocity, step2_relative(3) * stribeck_velocity);
+void add_parameter(IdentifiabilityPrediction& prediction, std::string key, std::string symbol, std::string unit,
+                   double value, double error, double identifiable_relative_error) {
+    ParameterPrediction parameter;
+    parameter.key = std::move(key);
+    parameter.symbol = std::move(symbol);
+    parameter.unit = std::move(unit);
+    parameter.nominal = value;
+    parameter.standard_error = error;
+    parameter.identifiable = std::isfinite(error) && std::abs(error) <= identifiable_relative_error * std::abs(value);
+    prediction.parameters.push_back(std::move(parameter));
+}
 
+// What the plan misses: slow passes for the Stribeck curve, and each parameter it does not identify and why.
+void add_diagnostics(IdentifiabilityPrediction& prediction, double stribeck_velocity,
+                     double identifiable_relative_error) {
     if (!std::isfinite(prediction.slowest_cruise_speed)) {
         prediction.diagnostics.push_back("no pass reaches a constant velocity: the friction curve is not sampled");
-    } else if (prediction.slowest_cruise_speed > 3.0 * stribeck_velocity) {
+    } else if (prediction.slowest_cruise_speed > stribeck_visible_below_speeds * stribeck_velocity) {
         prediction.diagnostics.push_back(fmt::format(
             "the slowest constant-velocity pass runs at {:.3g} mm/s = {:.3g} v_s (nominal v_s {:.3g} mm/s): the "
             "Stribeck "
@@ -579,10 +576,73 @@ IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const Pr
                               "the nominal {:.4g} {} (limit {:.3g} %)",
                               parameter.symbol, parameter.standard_error, parameter.unit,
                               100.0 * parameter.standard_error / std::abs(parameter.nominal), parameter.nominal,
-                              parameter.unit, 100.0 * options.identifiable_relative_error)
+                              parameter.unit, 100.0 * identifiable_relative_error)
                 : fmt::format("{} is not identifiable from this plan: the data do not determine it", parameter.symbol));
     }
+}
+
+}  // namespace
+
+IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const PredictionOptions& options) {
+    IdentifiabilityPrediction prediction;
+    const NominalDrive drive = nominal_drive(options);
+    const double split =
+        options.split_velocity.value_or(split_velocity_per_stribeck_velocity * drive.stribeck_velocity);
+    const double sigma = equation_noise(options, drive.mass, plan.options.sample_time);
+    const Eigen::Vector3d step1_error = predict_step1(plan, split, sigma, prediction);
+    const Eigen::Vector4d step2_relative = predict_step2(plan, drive, sigma, options.level_error, prediction);
+
+    const double limit = options.identifiable_relative_error;
+    add_parameter(prediction, "mass_kg", "M", "kg", drive.mass, step1_error(0), limit);
+    add_parameter(prediction, "viscous_Ns_per_m", "B", "N*s/m", drive.viscous, step1_error(1), limit);
+    add_parameter(prediction, "coulomb_N", "F_C", "N", drive.coulomb, step1_error(2), limit);
+    add_parameter(prediction, "breakaway_N", "F_B", "N", drive.breakaway, step2_relative(2) * drive.breakaway, limit);
+    add_parameter(prediction, "stribeck_velocity_m_per_s", "v_s", "m/s", drive.stribeck_velocity,
+                  step2_relative(3) * drive.stribeck_velocity, limit);
+    add_diagnostics(prediction, drive.stribeck_velocity, limit);
     return prediction;
+}
+
+nlohmann::json plan_document(const TestPlan& plan, const IdentifiabilityPrediction& prediction) {
+    nlohmann::json passes = nlohmann::json::array();
+    for (const auto& pass : plan.passes) {
+        passes.push_back({{"center", pass.center + 1},
+                          {"center_m", pass.center_position},
+                          {"feed_m_per_s", pass.feed},
+                          {"feed_mm_per_min", pass.feed / mm_per_min},
+                          {"stroke_m", pass.stroke},
+                          {"slow", pass.slow},
+                          {"duration_s", pass.duration},
+                          {"cruise_time_s", pass.cruise_time}});
+    }
+    nlohmann::json parameters = nlohmann::json::object();
+    for (const auto& p : prediction.parameters) {
+        parameters[p.key] = {
+            {"nominal", p.nominal},
+            {"stderr", std::isfinite(p.standard_error) ? nlohmann::json(p.standard_error) : nlohmann::json()},
+            {"identifiable", p.identifiable}};
+    }
+    const auto& o = plan.options;
+    return {{"feedid_version", version},
+            {"axis", o.axis},
+            {"travel_m", {o.travel_min, o.travel_max}},
+            {"centers_m", o.centers},
+            {"duration_s", plan.duration},
+            {"blocks", plan.moves.size()},
+            {"sample_time_s", o.sample_time},
+            {"passes", passes},
+            {"notes", plan.notes},
+            {"prediction",
+             {{"step1_condition_number", std::isfinite(prediction.step1_condition_number)
+                                             ? nlohmann::json(prediction.step1_condition_number)
+                                             : nlohmann::json()},
+              {"step1_samples", prediction.step1_samples},
+              {"step2_levels", prediction.step2_levels},
+              {"slowest_cruise_speed_m_per_s", std::isfinite(prediction.slowest_cruise_speed)
+                                                   ? nlohmann::json(prediction.slowest_cruise_speed)
+                                                   : nlohmann::json()},
+              {"parameters", parameters},
+              {"diagnostics", prediction.diagnostics}}}};
 }
 
 }  // namespace feedid

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "feedid/error.hpp"
+#include "feedid/gcode.hpp"
 #include "feedid/testplan.hpp"
 #include "feedid/version.hpp"
 

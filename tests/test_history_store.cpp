@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "feedid/error.hpp"
+#include "feedid/history/sha256.hpp"
 #include "feedid/history/store.hpp"
 #include "history_testing.hpp"
 #include "testing.hpp"

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "feedid/gcode.hpp"
 #include "feedid/testplan.hpp"
 #include "testing.hpp"
 

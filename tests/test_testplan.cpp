@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <string>
+#include <vector>
 
 #include "feedid/error.hpp"
 #include "feedid/io/csv.hpp"
@@ -215,6 +217,65 @@ TEST(TestPlan, PredictionForThePapersLadderAloneRefusesStribeck) {
                d.find("slow passes") != std::string::npos;
     });
     EXPECT_TRUE(says_why);
+}
+
+// The command line's spellings: what each option accepts, in SI, and the message that names the option otherwise.
+std::string parse_message(const std::function<void()>& parse) {
+    try {
+        parse();
+    } catch (const feedid::InputError& e) {
+        return e.what();
+    }
+    return {};
+}
+
+TEST(TestPlanText, ParsesTravelListsAndFeedSpellings) {
+    const auto [low, high] = feedid::parse_travel("-400:400.5");
+    EXPECT_DOUBLE_EQ(low, -400 * mm);
+    EXPECT_DOUBLE_EQ(high, 400.5 * mm);
+    const auto centers = feedid::parse_number_list({"-300", "0", "3e2"}, "--centers", mm);
+    ASSERT_EQ(centers.size(), 3u);
+    EXPECT_DOUBLE_EQ(centers[2], 300 * mm);
+    EXPECT_TRUE(feedid::parse_feeds({"none"}).empty());
+    EXPECT_DOUBLE_EQ(feedid::parse_feeds({"1250", "9350"}).back(), 9350 * mm_per_min);
+    EXPECT_TRUE(feedid::parse_slow_feeds({"none"}).empty());
+    EXPECT_EQ(feedid::parse_slow_feeds({"10:1000"}), feedid::log_spaced_feeds(10 * mm_per_min, 1000 * mm_per_min, 7));
+    EXPECT_EQ(feedid::parse_slow_feeds({"10:1000:3"}).size(), 3u);
+    EXPECT_DOUBLE_EQ(feedid::parse_slow_feeds({"5", "20"}).front(), 5 * mm_per_min);
+}
+
+TEST(TestPlanText, RefusalsNameTheOptionAndTheText) {
+    using feedid::parse_slow_feeds;
+    EXPECT_EQ(parse_message([] { (void)feedid::parse_travel("-400"); }), "--travel: '-400' is not MIN:MAX [mm].");
+    EXPECT_EQ(parse_message([] { (void)feedid::parse_travel("-400:inf"); }), "--travel: 'inf' is not a number.");
+    EXPECT_EQ(parse_message([] {
+                  (void)feedid::parse_number_list({"0", " 1"}, "--centers", mm);
+              }),
+              "--centers: ' 1' is not a number.");
+    EXPECT_EQ(parse_message([] { (void)feedid::parse_number_list({""}, "--centers", mm); }),
+              "--centers: empty entry in ''.");
+    EXPECT_EQ(parse_message([] { (void)feedid::parse_feeds({"none", "5"}); }), "--feeds: 'none' is not a number.");
+    EXPECT_EQ(parse_message([] { (void)parse_slow_feeds({"10:"}); }), "--slow-feeds: '' is not a number.");
+    EXPECT_EQ(parse_message([] { (void)parse_slow_feeds({"1:2:3:4"}); }),
+              "--slow-feeds: '1:2:3:4' is not LO:HI or LO:HI:N (mm/min).");
+    EXPECT_EQ(parse_message([] { (void)parse_slow_feeds({"1000:10"}); }),
+              "--slow-feeds: '1000:10' needs 0 < LO <= HI and N >= 1.");
+}
+
+TEST(TestPlan, DocumentHoldsEveryPassAndNullForUndeterminedErrors) {
+    auto options = options_at({-0.3, 0.3});
+    options.slow_feeds.clear();
+    const auto plan = feedid::make_test_plan(options);
+    const auto prediction = feedid::predict_identifiability(plan);
+    const auto document = feedid::plan_document(plan, prediction);
+    EXPECT_EQ(document.at("centers_m").size(), 2u);
+    ASSERT_EQ(document.at("passes").size(), plan.passes.size());
+    EXPECT_EQ(document.at("passes").at(0).at("center"), 1);
+    EXPECT_NEAR(document.at("passes").at(0).at("feed_mm_per_min").get<double>(), 1250.0, 1e-9);
+    EXPECT_EQ(document.at("blocks"), plan.moves.size());
+    const auto& parameters = document.at("prediction").at("parameters");
+    EXPECT_TRUE(parameters.at("mass_kg").at("stderr").is_number());
+    EXPECT_EQ(parameters.at("breakaway_N").at("identifiable"), false);
 }
 
 }  // namespace

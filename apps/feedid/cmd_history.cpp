@@ -7,6 +7,7 @@
 
 #include "cli.hpp"
 #include "feedid/error.hpp"
+#include "feedid/history/record.hpp"
 #include "feedid/history/store.hpp"
 #include "feedid/history/trend.hpp"
 #include "feedid/progress.hpp"
@@ -143,25 +144,12 @@ int run_history(HistoryArguments& arguments) {
         for (std::size_t i = 0; i < arguments.add.size(); ++i) {
             const auto& path = arguments.add[i];
             const nlohmann::json result = read_json(path);
-            std::filesystem::path trace = arguments.trace;
-            if (trace.empty()) {
-                if (!result.is_object() || !result.contains("trace") || !result["trace"].is_object() ||
-                    !result["trace"].contains("path") || !result["trace"]["path"].is_string())
-                    (void)history::run_from_result(result, path);  // the clearer message for a wrong document
-                if (result.contains("trace") && result["trace"].contains("path") && result["trace"]["path"].is_string())
-                    trace = result["trace"]["path"].get<std::string>();
-                // A relative trace path is relative to where identify ran; fall back to the result's folder.
-                if (!trace.empty() && trace.is_relative() && !std::filesystem::exists(trace))
-                    trace = std::filesystem::path(path).parent_path() / trace;
-                if (trace.empty())
-                    throw InputError(
-                        fmt::format("{}: the result names no trace file; give it with --trace FILE", path));
-            }
             history::RecordContext context;
             context.machine = arguments.filter.machine;
             context.axis = arguments.filter.axis;
             context.location = arguments.filter.location;
-            context.trace = trace;
+            context.trace = arguments.trace.empty() ? history::trace_of_result(result, path)
+                                                    : std::filesystem::path(arguments.trace);
             context.recorded_at = arguments.recorded_at;
             if (result.contains("options") && result["options"].is_object()) context.options = result["options"];
             prepared.push_back(history::prepare_run(result, path, context));

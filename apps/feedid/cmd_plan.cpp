@@ -1,19 +1,20 @@
 // feedid plan: design the axis test, write it as a part program and as a reference trajectory, and predict what the
 // data will identify.
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
-#include <iostream>
 #include <memory>
+#include <string>
+#include <tuple>
+#include <vector>
 
 #include <fmt/core.h>
 
 #include "cli.hpp"
 #include "feedid/error.hpp"
+#include "feedid/gcode.hpp"
 #include "feedid/io/csv.hpp"
 #include "feedid/testplan.hpp"
-#include "feedid/version.hpp"
 
 namespace feedid::cli {
 
@@ -22,94 +23,14 @@ namespace {
 constexpr double mm = 1e-3;
 constexpr double mm_per_min = 1e-3 / 60.0;
 
-double parse_number(const std::string& text, const std::string& option) {
-    double value = 0.0;
-    const auto* begin = text.data();
-    const auto* end = begin + text.size();
-    const auto [ptr, error] = std::from_chars(begin, end, value);
-    if (error != std::errc() || ptr != end || !std::isfinite(value))
-        throw InputError(fmt::format("{}: '{}' is not a number.", option, text));
-    return value;
-}
-
-std::vector<std::string> split(const std::string& text, char separator) {
-    std::vector<std::string> parts;
-    std::size_t start = 0;
-    while (true) {
-        const auto at = text.find(separator, start);
-        parts.push_back(text.substr(start, at == std::string::npos ? std::string::npos : at - start));
-        if (at == std::string::npos) break;
-        start = at + 1;
-    }
-    return parts;
-}
-
-std::vector<double> parse_list(const std::string& text, const std::string& option, double scale) {
-    std::vector<double> values;
-    for (const auto& part : split(text, ',')) {
-        if (part.empty()) throw InputError(fmt::format("{}: empty entry in '{}'.", option, text));
-        values.push_back(parse_number(part, option) * scale);
-    }
-    return values;
-}
-
-// "none", "LO:HI" or "LO:HI:N" (log-spaced, mm/min), or a comma-separated list (mm/min).
-std::vector<double> parse_slow_feeds(const std::string& text) {
-    if (text == "none") return {};
-    if (text.find(':') != std::string::npos) {
-        const auto parts = split(text, ':');
-        if (parts.size() < 2 || parts.size() > 3)
-            throw InputError(fmt::format("--slow-feeds: '{}' is not LO:HI or LO:HI:N (mm/min).", text));
-        const double low = parse_number(parts[0], "--slow-feeds");
-        const double high = parse_number(parts[1], "--slow-feeds");
-        const int count = parts.size() == 3 ? static_cast<int>(parse_number(parts[2], "--slow-feeds")) : 7;
-        if (!(low > 0.0) || !(high >= low) || count < 1)
-            throw InputError(fmt::format("--slow-feeds: '{}' needs 0 < LO <= HI and N >= 1.", text));
-        return log_spaced_feeds(low * mm_per_min, high * mm_per_min, count);
-    }
-    return parse_list(text, "--slow-feeds", mm_per_min);
-}
-
-nlohmann::json plan_document(const TestPlan& plan, const IdentifiabilityPrediction& prediction) {
-    nlohmann::json passes = nlohmann::json::array();
-    for (const auto& pass : plan.passes) {
-        passes.push_back({{"center", pass.center + 1},
-                          {"center_m", pass.center_position},
-                          {"feed_m_per_s", pass.feed},
-                          {"feed_mm_per_min", pass.feed / mm_per_min},
-                          {"stroke_m", pass.stroke},
-                          {"slow", pass.slow},
-                          {"duration_s", pass.duration},
-                          {"cruise_time_s", pass.cruise_time}});
-    }
-    nlohmann::json parameters = nlohmann::json::object();
-    for (const auto& p : prediction.parameters) {
-        parameters[p.key] = {
-            {"nominal", p.nominal},
-            {"stderr", std::isfinite(p.standard_error) ? nlohmann::json(p.standard_error) : nlohmann::json()},
-            {"identifiable", p.identifiable}};
-    }
-    const auto& o = plan.options;
-    return {{"feedid_version", version},
-            {"axis", o.axis},
-            {"travel_m", {o.travel_min, o.travel_max}},
-            {"centers_m", o.centers},
-            {"duration_s", plan.duration},
-            {"blocks", plan.moves.size()},
-            {"sample_time_s", o.sample_time},
-            {"passes", passes},
-            {"notes", plan.notes},
-            {"prediction",
-             {{"step1_condition_number", std::isfinite(prediction.step1_condition_number)
-                                             ? nlohmann::json(prediction.step1_condition_number)
-                                             : nlohmann::json()},
-              {"step1_samples", prediction.step1_samples},
-              {"step2_levels", prediction.step2_levels},
-              {"slowest_cruise_speed_m_per_s", std::isfinite(prediction.slowest_cruise_speed)
-                                                   ? nlohmann::json(prediction.slowest_cruise_speed)
-                                                   : nlohmann::json()},
-              {"parameters", parameters},
-              {"diagnostics", prediction.diagnostics}}}};
+// A comma-separated list option, one value per occurrence (write --centers=-300,0,300): CLI11 splits it.
+CLI::Option* add_list_option(CLI::App& app, const std::string& name, std::vector<std::string>& entries,
+                             const std::string& description) {
+    return app.add_option(name, entries, description)
+        ->delimiter(',')
+        ->expected(1)
+        ->allow_extra_args(false)
+        ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
 }
 
 void print_summary(std::FILE* out, const TestPlan& plan, const IdentifiabilityPrediction& prediction,
@@ -176,10 +97,10 @@ Action add_plan_command(CLI::App& app) {
     struct Arguments {
         std::string axis{"X"};
         std::string travel;
-        std::string centers;
+        std::vector<std::string> centers;
         double stroke_mm{30.0};
-        std::string feeds;
-        std::string slow_feeds{"10:1000:7"};
+        std::vector<std::string> feeds;
+        std::vector<std::string> slow_feeds{"10:1000:7"};
         double max_pass_time_s{8.0};
         int cycles{2};
         double acceleration{1.0};
@@ -208,12 +129,12 @@ Action add_plan_command(CLI::App& app) {
     sub->add_option("--axis", a.axis, "Axis name as the NC knows it (X, Y, Z, A, ...; X1 on SINUMERIK)")
         ->default_val("X");
     sub->add_option("--travel", a.travel, "Travel limits MIN:MAX [mm] (write --travel=-400:400)")->required();
-    sub->add_option("--centers", a.centers, "Centres of the strokes C1,C2,... [mm] (write --centers=-300,0,300)")
+    add_list_option(*sub, "--centers", a.centers, "Centres of the strokes C1,C2,... [mm] (write --centers=-300,0,300)")
         ->required();
     sub->add_option("--stroke", a.stroke_mm, "Stroke of the ladder passes [mm]")->default_val(30.0);
-    sub->add_option("--feeds", a.feeds,
+    add_list_option(*sub, "--feeds", a.feeds,
                     "Ladder feedrates F1,F2,... [mm/min]; default the paper's 1250,2600,3950,5300,6650,8000,9350");
-    sub->add_option("--slow-feeds", a.slow_feeds,
+    add_list_option(*sub, "--slow-feeds", a.slow_feeds,
                     "Slow Stribeck passes: LO:HI[:N] log-spaced, F1,F2,... [mm/min], or none")
         ->default_val("10:1000:7");
     sub->add_option("--max-pass-time", a.max_pass_time_s, "Longest slow pass; its stroke is shortened to fit [s]")
@@ -248,14 +169,10 @@ Action add_plan_command(CLI::App& app) {
         const auto& a = *arguments;
         TestPlanOptions options;
         options.axis = a.axis;
-        const auto travel = split(a.travel, ':');
-        if (travel.size() != 2) throw InputError(fmt::format("--travel: '{}' is not MIN:MAX [mm].", a.travel));
-        options.travel_min = parse_number(travel[0], "--travel") * mm;
-        options.travel_max = parse_number(travel[1], "--travel") * mm;
-        options.centers = parse_list(a.centers, "--centers", mm);
+        std::tie(options.travel_min, options.travel_max) = parse_travel(a.travel);
+        options.centers = parse_number_list(a.centers, "--centers", mm);
         options.stroke = a.stroke_mm * mm;
-        if (!a.feeds.empty())
-            options.feeds = a.feeds == "none" ? std::vector<double>{} : parse_list(a.feeds, "--feeds", mm_per_min);
+        if (!a.feeds.empty()) options.feeds = parse_feeds(a.feeds);
         options.slow_feeds = parse_slow_feeds(a.slow_feeds);
         options.max_pass_time = a.max_pass_time_s;
         options.cycles = a.cycles;

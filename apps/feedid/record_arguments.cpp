@@ -1,14 +1,26 @@
 #include "record_arguments.hpp"
 
 #include <cstdio>
-#include <filesystem>
 
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
+#include "feedid/history/record.hpp"
 #include "feedid/history/store.hpp"
 
 namespace feedid::cli {
+
+namespace {
+// The names and the time stamp of --record as a record context (no trace yet).
+history::RecordContext record_context(const RecordArguments& arguments, const std::string& axis) {
+    history::RecordContext context;
+    context.machine = arguments.machine;
+    context.axis = axis;
+    context.location = arguments.location;
+    context.recorded_at = arguments.recorded_at;
+    return context;
+}
+}  // namespace
 
 void RecordArguments::add_to(CLI::App& app) {
     auto* group = app.add_option_group("History");
@@ -28,32 +40,15 @@ void RecordArguments::check(const std::string& axis) const {
             throw InputError("--machine, --location and --recorded-at go with --record DB");
         return;
     }
-    if (machine.empty()) throw InputError("--record needs the machine's name (--machine NAME)");
-    if (axis.empty()) throw InputError("--record needs the axis (--axis X)");
-    if (!recorded_at.empty() && !history::is_iso8601_utc(recorded_at))
-        throw InputError(
-            fmt::format("--recorded-at '{}': not an ISO 8601 UTC time (e.g. 2026-11-23T09:30:00Z)", recorded_at));
-    if (std::filesystem::exists(database)) {
-        history::SqliteOpenOptions read_only;
-        read_only.read_only = true;
-        try {
-            (void)history::open_sqlite_store(database, read_only);
-        } catch (const InputError& e) {
-            // An existing but empty file is fine: the store creates its tables.
-            if (std::filesystem::is_regular_file(database) && std::filesystem::file_size(database) == 0) return;
-            throw;
-        }
-    }
+    if (const auto problem = record_context(*this, axis).validate("--record"); !problem.empty())
+        throw InputError(problem);
+    history::check_recordable(database);
 }
 
 void RecordArguments::record(const nlohmann::json& result, const std::string& trace, const std::string& axis,
                              const nlohmann::json& options) const {
-    history::RecordContext context;
-    context.machine = machine;
-    context.axis = axis;
-    context.location = location;
+    history::RecordContext context = record_context(*this, axis);
     context.trace = trace;
-    context.recorded_at = recorded_at;
     context.options = options;
     const auto run = history::prepare_run(result, trace, context);
     const auto outcome = history::open_sqlite_store(database)->add_run(run);

@@ -2,27 +2,23 @@
 // Test-procedure design (METHOD.md, step 5): constant-velocity back-and-forth strokes at several centres along the
 // axis at rising feedrates (the paper's ladder, 1250 to 9350 mm/min), plus slow passes for the Stribeck curve
 // (log-spaced, strokes shortened so that each pass stays brief). A plan is a list of moves the NC executes; from it
-// come the part program (ISO, SINUMERIK 840D, LinuxCNC), the reference trajectory an ideal NC would command, the
-// predicted duration and a prediction of which parameters the data will identify and how well.
+// come the part program (ISO, SINUMERIK 840D, LinuxCNC; gcode.hpp), the reference trajectory an ideal NC would
+// command, the predicted duration and a prediction of which parameters the data will identify and how well.
 //
 // All quantities in SI (m, m/s, m/s^2, s); the emitters convert to mm and mm/min.
 
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "feedid/friction.hpp"
 #include "feedid/trace.hpp"
 
 namespace feedid {
-
-enum class Dialect { iso, sinumerik, linuxcnc };
-
-/// "iso", "sinumerik", "linuxcnc".
-std::string_view dialect_name(Dialect dialect);
-/// The inverse of dialect_name; nullopt for an unknown name.
-std::optional<Dialect> parse_dialect(std::string_view name);
 
 /// The paper's feedrate ladder: 1250 to 9350 mm/min in six equal steps of 1350 mm/min [m/s].
 std::vector<double> paper_feed_ladder();
@@ -30,6 +26,20 @@ std::vector<double> paper_feed_ladder();
 /// `count` feedrates log-spaced from `lowest` to `highest` [m/s], each rounded to two significant digits in mm/min
 /// (10, 22, 46, 100, ... mm/min) so that the part program reads well; duplicates after rounding are dropped.
 std::vector<double> log_spaced_feeds(double lowest, double highest, int count);
+
+// ---- the plan's options as the command line writes them (mm, mm/min) ----
+// Each parser reads the text of one option (a comma-separated option as its entries, split by the command line) and
+// throws InputError naming the option for a malformed value; TestPlanOptions::validate checks the ranges.
+
+/// --travel "MIN:MAX" [mm] -> {travel_min, travel_max} [m].
+std::pair<double, double> parse_travel(std::string_view text);
+/// The entries of a comma-separated option (--centers C1,C2,...) as numbers, each times `scale` (1e-3: mm -> m).
+std::vector<double> parse_number_list(const std::vector<std::string>& entries, std::string_view option, double scale);
+/// --feeds: F1,F2,... [mm/min], or "none" -> ladder feedrates [m/s].
+std::vector<double> parse_feeds(const std::vector<std::string>& entries);
+/// --slow-feeds: "LO:HI" or "LO:HI:N" [mm/min] (N log-spaced feedrates, default 7; see log_spaced_feeds),
+/// F1,F2,... [mm/min], or "none" -> slow feedrates [m/s].
+std::vector<double> parse_slow_feeds(const std::vector<std::string>& entries);
 
 struct TestPlanOptions {
     std::string axis{"X"};        ///< axis letter as the NC knows it (X, Y, Z, A, ..., X1 on SINUMERIK)
@@ -100,11 +110,6 @@ double move_duration(double distance, double feed, double acceleration, std::opt
 /// exact stop), sampled at the plan's sample time. Channels `t` [s] (time) and `x_ref` [m] (reference_position).
 Trace reference_trajectory(const TestPlan& plan);
 
-/// The part program in a dialect: absolute positions (G90), mm and mm/min (G94), exact stop, G4 dwells, and a header
-/// comment with the plan's parameters and the feedid version. SINUMERIK gets servo-trace start/stop lines the user
-/// can enable.
-std::string emit_part_program(const TestPlan& plan, Dialect dialect);
-
 // ---- identifiability prediction ----
 
 /// The demo drive used as the nominal model: M 69.1 kg, B 54.2 N*s/m, F_C 742.8 N, F_B 946.2 N (the paper's
@@ -148,5 +153,10 @@ struct IdentifiabilityPrediction {
 /// level per constant-velocity pass and direction, weighted by its error, fitted with the nominal friction curve's
 /// Jacobian (Gauss-Newton covariance).
 IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const PredictionOptions& options = {});
+
+/// The plan and its prediction as the `feedid plan --json` document: axis, travel, centres, duration, blocks, sample
+/// time, every pass (centre, feedrate in m/s and mm/min, stroke, durations), the notes, and the prediction with
+/// each parameter's nominal value, standard error (null when not determined) and identifiability.
+nlohmann::json plan_document(const TestPlan& plan, const IdentifiabilityPrediction& prediction);
 
 }  // namespace feedid

@@ -1,11 +1,12 @@
 // From an identify result document to a history record.
+#include "feedid/history/record.hpp"
 
 #include <regex>
 
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
-#include "feedid/history/store.hpp"
+#include "feedid/history/sha256.hpp"
 #include "feedid/version.hpp"
 
 namespace feedid::history {
@@ -15,13 +16,17 @@ bool is_iso8601_utc(const std::string& text) {
     return std::regex_match(text, pattern);
 }
 
+std::string RecordContext::validate(std::string_view requester) const {
+    if (machine.empty()) return fmt::format("{} needs the machine's name (--machine NAME)", requester);
+    if (axis.empty()) return fmt::format("{} needs the axis (--axis X)", requester);
+    if (!recorded_at.empty() && !is_iso8601_utc(recorded_at))
+        return fmt::format("--recorded-at '{}': not an ISO 8601 UTC time (e.g. 2026-11-23T09:30:00Z)", recorded_at);
+    return {};
+}
+
 RunRecord prepare_run(const nlohmann::json& result, const std::string& source, const RecordContext& context) {
-    if (context.machine.empty()) throw InputError("recording a run needs the machine's name (--machine NAME)");
-    if (context.axis.empty()) throw InputError("recording a run needs the axis (--axis X)");
+    if (const auto problem = context.validate(); !problem.empty()) throw InputError(problem);
     if (context.trace.empty()) throw InputError(fmt::format("{}: recording a run needs its trace file", source));
-    if (!context.recorded_at.empty() && !is_iso8601_utc(context.recorded_at))
-        throw InputError(fmt::format("--recorded-at '{}': not an ISO 8601 UTC time (e.g. 2026-11-23T09:30:00Z)",
-                                     context.recorded_at));
     RunRecord run = run_from_result(result, source);
     if (!std::filesystem::is_regular_file(context.trace))
         throw InputError(
@@ -35,6 +40,33 @@ RunRecord prepare_run(const nlohmann::json& result, const std::string& source, c
     run.options = context.options.is_object() ? context.options : nlohmann::json::object();
     if (run.feedid_version.empty()) run.feedid_version = feedid::version;
     return run;
+}
+
+std::filesystem::path trace_of_result(const nlohmann::json& result, const std::string& source) {
+    const bool names_trace = result.is_object() && result.contains("trace") && result["trace"].is_object() &&
+                             result["trace"].contains("path") && result["trace"]["path"].is_string();
+    if (!names_trace) (void)run_from_result(result, source);  // the clearer message for a wrong document
+    std::filesystem::path trace;
+    if (names_trace) trace = result["trace"]["path"].get<std::string>();
+    // A relative trace path is relative to where identify ran; fall back to the result's folder.
+    if (!trace.empty() && trace.is_relative() && !std::filesystem::exists(trace))
+        trace = std::filesystem::path(source).parent_path() / trace;
+    if (trace.empty())
+        throw InputError(fmt::format("{}: the result names no trace file; give it with --trace FILE", source));
+    return trace;
+}
+
+void check_recordable(const std::filesystem::path& database) {
+    if (!std::filesystem::exists(database)) return;
+    SqliteOpenOptions read_only;
+    read_only.read_only = true;
+    try {
+        (void)open_sqlite_store(database, read_only);
+    } catch (const InputError&) {
+        // An existing but empty file is fine: the store creates its tables.
+        if (std::filesystem::is_regular_file(database) && std::filesystem::file_size(database) == 0) return;
+        throw;
+    }
 }
 
 }  // namespace feedid::history

@@ -1,6 +1,8 @@
 // SHA-256 content hashes of trace files (OpenSSL's libcrypto, Debian's libssl-dev): the history store recognises a
 // trace recorded twice by its bytes, whatever its name or location.
 
+#include "feedid/history/sha256.hpp"
+
 #include <openssl/evp.h>
 
 #include <array>
@@ -10,7 +12,6 @@
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
-#include "feedid/history/store.hpp"
 
 namespace feedid::history {
 namespace {

@@ -111,11 +111,6 @@ std::unique_ptr<HistoryStore> open_sqlite_store(const std::filesystem::path& pat
 /// True when the file starts with the SQLite 3 header ("SQLite format 3\0").
 bool looks_like_sqlite(const std::filesystem::path& path);
 
-/// Lower-case hex SHA-256 of a file's bytes (streamed). InputError naming the file when it cannot be read.
-std::string sha256_file(const std::filesystem::path& path);
-/// Lower-case hex SHA-256 of a byte string.
-std::string sha256_hex(std::string_view bytes);
-
 /// ISO 8601 UTC with milliseconds ("2026-11-23T09:30:21.250Z") of a file's modification time.
 std::string file_modification_time_utc(const std::filesystem::path& path);
 /// The current time, ISO 8601 UTC with milliseconds.
@@ -123,25 +118,9 @@ std::string now_utc();
 
 /// Builds a run record from an identify result document (DESIGN.md, "result document"), copying every parameter key
 /// it holds. InputError naming `source` when the document is not an identify result (no "parameters" object, no
-/// "model"). Machine, axis, location, recorded_at, trace hash and options are left for the caller to fill in.
+/// "model"). Machine, axis, location, recorded_at, trace hash and options are left for the caller to fill in
+/// (prepare_run in record.hpp does it).
 RunRecord run_from_result(const nlohmann::json& result, const std::string& source);
-
-/// Where a run comes from, for record_run.
-struct RecordContext {
-    std::string machine;  ///< required
-    std::string axis;     ///< required
-    std::string location;
-    std::filesystem::path trace;                        ///< the trace file (hashed); required
-    std::string recorded_at;                            ///< ISO 8601 UTC; default: the trace file's modification time
-    nlohmann::json options = nlohmann::json::object();  ///< the identification options used
-};
-
-/// A run record from an identify result document and its context: hashes the trace, checks the names and the time
-/// stamp. InputError naming what is missing or malformed.
-RunRecord prepare_run(const nlohmann::json& result, const std::string& source, const RecordContext& context);
-
-/// True for "2026-11-23", "2026-11-23T09:30", "2026-11-23T09:30:21", "2026-11-23T09:30:21.250Z" and the like.
-bool is_iso8601_utc(const std::string& text);
 
 /// The run as JSON (the `feedid history --json` element).
 nlohmann::json to_json(const RunRecord& run);

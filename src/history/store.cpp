@@ -1,4 +1,4 @@
-// The SQLite implementation of the history store.
+// The history store (store.hpp): its SQLite implementation, the run records it keeps, and their time stamps.
 //
 // Durability: the file runs in WAL journal mode; a run is written inside one BEGIN IMMEDIATE ... COMMIT, so a process
 // killed anywhere leaves either the whole run or none of it (SQLite's atomic commit: the commit frame in the WAL is
