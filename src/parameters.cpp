@@ -1,5 +1,7 @@
 #include "feedid/parameters.hpp"
 
+#include <array>
+
 namespace feedid {
 
 namespace {
@@ -44,6 +46,20 @@ std::string ParameterNaming::symbol(Term term, Direction direction) {
         case Term::offset: return "F_0";
     }
     return {};
+}
+
+std::optional<ParameterKey> parse_parameter_key(std::string_view key) {
+    constexpr std::array terms{Term::mass,      Term::viscous,           Term::coulomb,
+                               Term::breakaway, Term::stribeck_velocity, Term::offset};
+    constexpr std::array directions{Direction::both, Direction::forward, Direction::reverse};
+    for (const bool rotary : {false, true}) {
+        for (const auto term : terms) {
+            for (const auto direction : directions) {
+                if (ParameterNaming{rotary}.key(term, direction) == key) return ParameterKey{term, direction, rotary};
+            }
+        }
+    }
+    return std::nullopt;
 }
 
 }  // namespace feedid

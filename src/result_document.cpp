@@ -194,33 +194,12 @@ void from_json(const Json& j, NonlinearFitReport& n) {
 
 namespace {
 
-/// What a parameter key names: its term, direction, and whether it is a rotary axis's key.
-struct KeyMeaning {
-    Term term;
-    Direction direction;
-    bool rotary;
-};
-
-std::optional<KeyMeaning> meaning_of(const std::string& key) {
-    constexpr std::array terms{Term::mass,      Term::viscous,           Term::coulomb,
-                               Term::breakaway, Term::stribeck_velocity, Term::offset};
-    constexpr std::array directions{Direction::both, Direction::forward, Direction::reverse};
-    for (const bool rotary : {false, true}) {
-        for (const auto term : terms) {
-            for (const auto direction : directions) {
-                if (ParameterNaming{rotary}.key(term, direction) == key) return KeyMeaning{term, direction, rotary};
-            }
-        }
-    }
-    return std::nullopt;
-}
-
 /// The parameters of the document, in feedid's order, with the model they imply.
 void read_parameters(const Json& j, IdentifyResult& r) {
     const Json& parameters = j.at("parameters");
     bool asymmetric = j.value("model", std::string()) == "asymmetric", offset = false, rotary_keys = false;
     for (const auto& [key, entry] : parameters.items()) {
-        const auto meaning = meaning_of(key);
+        const auto meaning = parse_parameter_key(key);
         if (!meaning) throw InputError(fmt::format("parameter \"{}\" is not one of feedid's model", key));
         asymmetric = asymmetric || (meaning->direction != Direction::both && meaning->term != Term::mass);
         offset = offset || meaning->term == Term::offset;

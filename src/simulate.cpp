@@ -1,6 +1,5 @@
 #include "feedid/simulate.hpp"
 
-
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -351,8 +350,8 @@ AxisModel axis_from_result(const nlohmann::json& document, const std::string& so
         throw InputError(fmt::format("{}: parameters.{}.value is missing or null", source, naming.key(Term::mass)));
     }
     const bool asymmetric = result.model == FrictionModelKind::asymmetric;
-    for (const auto direction : asymmetric ? std::vector{Direction::forward, Direction::reverse}
-                                           : std::vector{Direction::both}) {
+    for (const auto direction :
+         asymmetric ? std::vector{Direction::forward, Direction::reverse} : std::vector{Direction::both}) {
         const Parameter* coulomb = result.find(Term::coulomb, direction);
         if (coulomb == nullptr || !coulomb->estimate.value) {
             throw InputError(fmt::format("{}: the Coulomb friction (parameters.{}) is missing or null", source,

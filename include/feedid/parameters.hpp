@@ -3,7 +3,9 @@
 // ("mass_kg", "coulomb_forward_N"; rotary "inertia_kgm2", "coulomb_forward_Nm"), symbols ("M", "F_C+") and units.
 // The one place where a parameter key is spelled.
 
+#include <optional>
 #include <string>
+#include <string_view>
 
 namespace feedid {
 
@@ -36,5 +38,14 @@ struct ParameterNaming {
     [[nodiscard]] std::string curve_velocity_key() const { return rotary ? "velocity_rad_per_s" : "velocity_m_per_s"; }
     [[nodiscard]] std::string curve_force_key() const { return rotary ? "torque_Nm" : "force_N"; }
 };
+
+/// What a result-document key names: its term, direction and whether it is a rotary axis's key.
+struct ParameterKey {
+    Term term;
+    Direction direction;
+    bool rotary;
+};
+/// The inverse of ParameterNaming::key; nullopt for a key that is not one of feedid's parameters.
+[[nodiscard]] std::optional<ParameterKey> parse_parameter_key(std::string_view key);
 
 }  // namespace feedid

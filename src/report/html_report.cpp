@@ -13,6 +13,8 @@
 
 #include "feedid/error.hpp"
 #include "feedid/report.hpp"
+
+#include "feedid/parameters.hpp"
 #include "feedid/version.hpp"
 
 namespace feedid::report {
@@ -226,46 +228,26 @@ std::vector<Plot> simulation_plots(const nlohmann::json& simulation, const std::
 }
 
 ParameterLabel parameter_label(const std::string& key) {
-    // Unit suffixes of the result document's keys, longest first where one ends another.
-    static const std::array<std::pair<const char*, const char*>, 8> units{{{"_Nms_per_rad", "N·m·s/rad"},
-                                                                           {"_Ns_per_m", "N·s/m"},
-                                                                           {"_rad_per_s", "rad/s"},
-                                                                           {"_m_per_s", "m/s"},
-                                                                           {"_kgm2", "kg·m²"},
-                                                                           {"_kg", "kg"},
-                                                                           {"_Nm", "N·m"},
-                                                                           {"_N", "N"}}};
-    static const std::map<std::string, std::pair<const char*, const char*>> names{
-        {"mass", {"Mass", "M"}},
-        {"inertia", {"Inertia", "J"}},
-        {"viscous", {"Viscous friction", "B"}},
-        {"coulomb", {"Coulomb friction", "F_C"}},
-        {"breakaway", {"Breakaway friction", "F_B"}},
-        {"stribeck_velocity", {"Stribeck velocity", "v_s"}},
-        {"offset", {"Offset", "F_0"}},
+    const auto parsed = parse_parameter_key(key);
+    if (!parsed) return {key, "1"};
+    const ParameterNaming naming{parsed->rotary};
+    // the unit as written in the document ("N*m*s/rad", "kg*m^2"), typeset
+    std::string unit;
+    for (const char c : naming.unit(parsed->term)) unit += c == '*' ? std::string("·") : std::string(1, c);
+    if (const auto square = unit.find("^2"); square != std::string::npos) unit.replace(square, 2, "²");
+    static const std::map<Term, std::pair<const char*, const char*>> names{
+        {Term::mass, {"Mass", "M"}},
+        {Term::viscous, {"Viscous friction", "B"}},
+        {Term::coulomb, {"Coulomb friction", "F_C"}},
+        {Term::breakaway, {"Breakaway friction", "F_B"}},
+        {Term::stribeck_velocity, {"Stribeck velocity", "v_s"}},
+        {Term::offset, {"Offset", "F_0"}},
     };
-    std::string stem = key;
-    std::string unit = "1";
-    for (const auto& [suffix, display] : units) {
-        const std::string_view s(suffix);
-        if (stem.size() > s.size() && stem.compare(stem.size() - s.size(), s.size(), s) == 0) {
-            stem.resize(stem.size() - s.size());
-            unit = display;
-            break;
-        }
-    }
-    std::string direction;
-    for (const char* d : {"forward", "reverse"}) {
-        const std::string suffix = std::string("_") + d;
-        if (stem.size() > suffix.size() && stem.compare(stem.size() - suffix.size(), suffix.size(), suffix) == 0) {
-            stem.resize(stem.size() - suffix.size());
-            direction = d;
-        }
-    }
-    const auto found = names.find(stem);
-    if (found == names.end()) return {key, unit};
-    std::string name = fmt::format("{} {}", found->second.first, found->second.second);
-    if (!direction.empty()) name += fmt::format("{} ({})", direction == "forward" ? "+" : "−", direction);
+    const auto& [word, symbol] = names.at(parsed->term);
+    std::string name =
+        parsed->rotary && parsed->term == Term::mass ? std::string("Inertia J") : fmt::format("{} {}", word, symbol);
+    if (parsed->direction == Direction::forward) name += "+ (forward)";
+    if (parsed->direction == Direction::reverse) name += "− (reverse)";
     return {name, unit};
 }
 
