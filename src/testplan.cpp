@@ -11,6 +11,7 @@
 #include <Eigen/Dense>
 
 #include "feedid/error.hpp"
+#include "feedid/parameters.hpp"
 #include "feedid/version.hpp"
 #include "testplan_profile.hpp"
 
@@ -542,12 +543,14 @@ Eigen::Vector4d predict_step2(const TestPlan& plan, const NominalDrive& drive, d
     return step2_relative;
 }
 
-void add_parameter(IdentifiabilityPrediction& prediction, std::string key, std::string symbol, std::string unit,
-                   double value, double error, double identifiable_relative_error) {
+/// A predicted parameter, keyed as identify's result (a plan is for a linear axis, symmetric model).
+void add_parameter(IdentifiabilityPrediction& prediction, Term term, double value, double error,
+                   double identifiable_relative_error) {
+    const ParameterNaming naming{false};
     ParameterPrediction parameter;
-    parameter.key = std::move(key);
-    parameter.symbol = std::move(symbol);
-    parameter.unit = std::move(unit);
+    parameter.key = naming.key(term);
+    parameter.symbol = ParameterNaming::symbol(term, Direction::both);
+    parameter.unit = naming.unit(term);
     parameter.nominal = value;
     parameter.standard_error = error;
     parameter.identifiable = std::isfinite(error) && std::abs(error) <= identifiable_relative_error * std::abs(value);
@@ -593,11 +596,11 @@ IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const Pr
     const Eigen::Vector4d step2_relative = predict_step2(plan, drive, sigma, options.level_error, prediction);
 
     const double limit = options.identifiable_relative_error;
-    add_parameter(prediction, "mass_kg", "M", "kg", drive.mass, step1_error(0), limit);
-    add_parameter(prediction, "viscous_Ns_per_m", "B", "N*s/m", drive.viscous, step1_error(1), limit);
-    add_parameter(prediction, "coulomb_N", "F_C", "N", drive.coulomb, step1_error(2), limit);
-    add_parameter(prediction, "breakaway_N", "F_B", "N", drive.breakaway, step2_relative(2) * drive.breakaway, limit);
-    add_parameter(prediction, "stribeck_velocity_m_per_s", "v_s", "m/s", drive.stribeck_velocity,
+    add_parameter(prediction, Term::mass, drive.mass, step1_error(0), limit);
+    add_parameter(prediction, Term::viscous, drive.viscous, step1_error(1), limit);
+    add_parameter(prediction, Term::coulomb, drive.coulomb, step1_error(2), limit);
+    add_parameter(prediction, Term::breakaway, drive.breakaway, step2_relative(2) * drive.breakaway, limit);
+    add_parameter(prediction, Term::stribeck_velocity, drive.stribeck_velocity,
                   step2_relative(3) * drive.stribeck_velocity, limit);
     add_diagnostics(prediction, drive.stribeck_velocity, limit);
     return prediction;
