@@ -267,6 +267,7 @@ IdentifyResult run_stages(const Trace& trace, std::span<const double> force, con
     const Regressors regressors = build_regressors(derivatives, options.model, options.offset);
     SelectionOptions selection_options = options.selection;
     selection_options.stribeck = options.stribeck;
+    selection_options.minimum_step1_samples_per_parameter = options.step1.minimum_samples_per_parameter;
     const Selection selection = select_samples(derivatives, regressors, selection_options);
     result.preprocessing = derivatives.used;
     result.selection = selection.report;
@@ -277,7 +278,9 @@ IdentifyResult run_stages(const Trace& trace, std::span<const double> force, con
     apply_step1(step1, result);
 
     if (options.stribeck) {
-        apply_step2(fit_friction_curve(derivatives, selection, step1, options.friction), result);
+        FrictionFitOptions friction_options = options.friction;
+        friction_options.minimum_slow_samples = options.selection.minimum_slow_samples;
+        apply_step2(fit_friction_curve(derivatives, selection, step1, friction_options), result);
     } else {
         result.stribeck = StribeckReport{};
         result.diagnostics.push_back("Stribeck step skipped (--no-stribeck): F_B and v_s not estimated");

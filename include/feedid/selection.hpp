@@ -41,7 +41,7 @@ struct SelectionOptions {
     /// Fewer quasi-static samples than this below the split cannot determine F_B and v_s; a speed band with fewer
     /// samples is no witness of a Stribeck rise either.
     std::size_t minimum_slow_samples{20};
-    /// Step 1 needs at least this many samples per parameter (as Step1Options).
+    /// Step 1 needs at least this many samples per parameter (identify() sets it from Step1Options).
     std::size_t minimum_step1_samples_per_parameter{10};
 };
 

@@ -23,7 +23,8 @@ namespace feedid {
 /// Step 2's thresholds. The model (symmetric or per direction, with or without offset) and the RLS options of the
 /// log-linear fit are step 1's.
 struct FrictionFitOptions {
-    /// A direction needs at least this many quasi-static slow samples for F_B and v_s (as SelectionOptions).
+    /// A direction needs at least this many quasi-static slow samples for F_B and v_s (identify() sets it from
+    /// SelectionOptions).
     std::size_t minimum_slow_samples{20};
     /// The log-linear fit ignores Stribeck residuals below this many step-1 residual standard deviations.
     double log_linear_noise_multiple{2.0};
