@@ -86,16 +86,19 @@ Json step1_fit_json(const Step1Report& s) {
 
 Json rls_json(const RlsReport& r) {
     Json history = Json::object();
-    history["time_s"] = r.history_time;
-    for (std::size_t c = 0; c < r.keys.size(); ++c) history[r.keys[c]] = r.history[c];
-    return Json{{"variant", r.options.variant == RlsVariant::exponential ? "exponential" : "directional"},
-                {"forgetting_factor", r.options.forgetting_factor},
-                {"initial_covariance", r.options.initial_covariance},
-                {"final", keyed(r.keys, r.final_estimate)},
-                {"averaged", keyed(r.keys, r.averaged)},
-                {"settled", r.settled},
-                {"transient_end_s", r.transient_end_s},
-                {"history", history}};
+    if (!r.history_time.empty()) {
+        history["time_s"] = r.history_time;
+        for (std::size_t c = 0; c < r.keys.size(); ++c) history[r.keys[c]] = r.history[c];
+    }
+    Json out{{"variant", r.options.variant == RlsVariant::exponential ? "exponential" : "directional"},
+             {"forgetting_factor", r.options.forgetting_factor},
+             {"initial_covariance", r.options.initial_covariance},
+             {"final", keyed(r.keys, r.final_estimate)},
+             {"averaged", keyed(r.keys, r.averaged)},
+             {"settled", r.settled},
+             {"transient_end_s", r.transient_end_s}};
+    if (!history.empty()) out["history"] = history;  // absent in the history store's copies
+    return out;
 }
 
 Json stribeck_json(const StribeckReport& s) {
@@ -244,14 +247,17 @@ RlsReport read_rls(const Json& j) {
     r.options.initial_covariance = number(j, "initial_covariance");
     r.settled = j.at("settled").get<bool>();
     r.transient_end_s = number(j, "transient_end_s");
-    const Json& history = j.at("history");
-    r.history_time = history.at("time_s").get<std::vector<double>>();
+    // the history store keeps results without the RLS history (it is bulky): then it reads back empty
+    const Json history = j.value("history", Json::object());
+    r.history_time = history.value("time_s", std::vector<double>{});
     for (const auto& [key, value] : j.at("final").items()) {
         r.keys.push_back(key);
         r.final_estimate.push_back(value.get<std::optional<double>>().value_or(NAN));
         r.averaged.push_back(number(j.at("averaged"), key.c_str()));
         std::vector<double> series;
-        for (const auto& v : history.at(key)) series.push_back(v.get<std::optional<double>>().value_or(NAN));
+        if (history.contains(key)) {
+            for (const auto& v : history.at(key)) series.push_back(v.get<std::optional<double>>().value_or(NAN));
+        }
         r.history.push_back(std::move(series));
     }
     return r;

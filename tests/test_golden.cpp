@@ -136,6 +136,19 @@ TEST(Golden, AResultReadBackIsWrittenAsTheSameDocument) {
     }
 }
 
+TEST(Golden, AStoredResultWithoutTheRlsHistoryReadsBack) {
+    // the history store keeps results without rls.history
+    Json document = read_json(golden("emps_identify.json"));
+    document["rls"].erase("history");
+    const auto result = document.get<feedid::IdentifyResult>();
+    ASSERT_TRUE(result.rls.has_value());
+    EXPECT_TRUE(result.rls->history_time.empty());
+    const Json again = result;
+    std::vector<std::string> differences;
+    compare(document, again, "", 0.0, differences);
+    EXPECT_TRUE(differences.empty()) << (differences.empty() ? "" : differences.front());
+}
+
 TEST(Golden, AResultDocumentWithAForeignKeyIsRefused) {
     Json document = read_json(golden("emps_identify.json"));
     document["parameters"]["mass_lb"] = {{"value", 1.0}, {"stderr", 0.1}};
