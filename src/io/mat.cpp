@@ -82,6 +82,12 @@ bool same_shape(const matvar_t& a, const matvar_t& b) {
     return true;
 }
 
+// A 32-bit word of the file: stored little-endian, or big-endian when `swap` is set.
+std::uint32_t word_at(const unsigned char* p, bool swap) {
+    const std::uint32_t little = p[0] | (p[1] << 8) | (p[2] << 16) | (std::uint32_t{p[3]} << 24);
+    return swap ? __builtin_bswap32(little) : little;
+}
+
 // libmatio sizes allocations from a v5 variable's header before checking them against the file: a dimensions
 // element claiming 1.9 GB in a file of 798 bytes (found by fuzzing; the inputs are kept in tests/fuzz/regressions/mat/)
 // has Mat_VarReadNextInfo allocate 3.9 GB for the rank, and a cell array or struct has it allocate a pointer for
@@ -210,10 +216,7 @@ private:
         in_.read(static_cast<char*>(out), static_cast<std::streamsize>(count));
         return static_cast<std::size_t>(in_.gcount()) == count;
     }
-    [[nodiscard]] std::uint32_t word(const unsigned char* p) const {
-        const std::uint32_t little = p[0] | (p[1] << 8) | (p[2] << 16) | (std::uint32_t{p[3]} << 24);
-        return swap_ ? __builtin_bswap32(little) : little;
-    }
+    [[nodiscard]] std::uint32_t word(const unsigned char* p) const { return word_at(p, swap_); }
     [[noreturn]] void damaged(std::string_view problem) const {
         throw InputError(fmt::format(
             "{}: the file is damaged or truncated after variable '{}' ({} {})", source_, previous_,
@@ -341,11 +344,7 @@ void check_version4_headers(const std::filesystem::path& path, const std::string
         if (!in.read(reinterpret_cast<char*>(raw.data()), raw.size())) return;
         std::array<std::uint32_t, 5> fields{};  // type, rows, columns, imaginary part, name length
         bool swap = false;
-        auto word = [&](std::size_t k) {
-            const unsigned char* p = raw.data() + 4 * k;
-            const std::uint32_t little = p[0] | (p[1] << 8) | (p[2] << 16) | (std::uint32_t{p[3]} << 24);
-            return swap ? __builtin_bswap32(little) : little;
-        };
+        auto word = [&](std::size_t k) { return word_at(raw.data() + 4 * k, swap); };
         if (word(0) > 4052) swap = true;  // the type is at most 4052 (MOPT digits) in the file's own byte order
         for (std::size_t k = 0; k < fields.size(); ++k) fields[k] = word(k);
         const std::uint32_t type = fields[0];
