@@ -256,6 +256,23 @@ Session read_declarations(const pugi::xml_document& document, std::string_view x
     return session;
 }
 
+// A record's value of a signal, as the signal's next event; the same instant written twice: the later value counts.
+void record_value(Signal& signal, double time, double value) {
+    if (!signal.times.empty() && signal.times.back() == time) {
+        signal.values.back() = value;
+    } else {
+        signal.times.push_back(time);
+        signal.values.push_back(value);
+    }
+}
+
+void note_unknown_attributes(Session& session, std::size_t unknown_attributes) {
+    if (unknown_attributes > 0) {
+        session.findings.push_back(
+            fmt::format("{} record values belong to no declared <dataSignal> and were ignored", unknown_attributes));
+    }
+}
+
 // The records as pugixml's DOM holds them; every problem is an InputError naming its line.
 void read_dom_records(Session& session, const pugi::xml_node& frame, std::string_view xml, const std::string& source) {
     const SignalLookup lookup(session.signals);
@@ -285,24 +302,15 @@ void read_dom_records(Session& session, const pugi::xml_node& frame, std::string
                 ++unknown_attributes;
                 continue;
             }
-            auto& signal = session.signals[static_cast<std::size_t>(index)];
             const double value = parse_attribute_number(xml, source, rec, attribute);
-            if (!signal.times.empty() && signal.times.back() == time) {
-                signal.values.back() = value;  // the same instant written twice: the later value counts
-            } else {
-                signal.times.push_back(time);
-                signal.values.push_back(value);
-            }
+            record_value(session.signals[static_cast<std::size_t>(index)], time, value);
         }
     }
     if (std::isnan(session.first_time)) {
         throw InputError(
             fmt::format("{}: line {}: <dataFrame> holds no <rec> records", source, line_of_node(xml, frame)));
     }
-    if (unknown_attributes > 0) {
-        session.findings.push_back(
-            fmt::format("{} record values belong to no declared <dataSignal> and were ignored", unknown_attributes));
-    }
+    note_unknown_attributes(session, unknown_attributes);
 }
 
 // ---- The fast path for the records --------------------------------------------------------------------------------
@@ -398,20 +406,11 @@ bool read_plain_records(Session& session, std::string_view records) {
             }
             double value = 0.0;
             if (!scan::parse_number(attribute.value, value) || !std::isfinite(value)) return false;
-            auto& signal = session.signals[static_cast<std::size_t>(index)];
-            if (!signal.times.empty() && signal.times.back() == time) {
-                signal.values.back() = value;  // the same instant written twice: the later value counts
-            } else {
-                signal.times.push_back(time);
-                signal.values.push_back(value);
-            }
+            record_value(session.signals[static_cast<std::size_t>(index)], time, value);
         }
     }
     if (std::isnan(session.first_time)) return false;
-    if (unknown_attributes > 0) {
-        session.findings.push_back(
-            fmt::format("{} record values belong to no declared <dataSignal> and were ignored", unknown_attributes));
-    }
+    note_unknown_attributes(session, unknown_attributes);
     return true;
 }
 
