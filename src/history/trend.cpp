@@ -40,6 +40,187 @@ const char* role_name(RunRole role) {
     return "checked";
 }
 
+// The runs of the baseline, [start, end) in recording order.
+struct BaselineWindow {
+    std::size_t start{0};
+    std::size_t end{0};
+
+    [[nodiscard]] RunRole role_of(std::size_t i) const {
+        if (i < start) return RunRole::before_baseline;
+        if (i < end) return RunRole::baseline;
+        return RunRole::checked;
+    }
+};
+
+// Where the baseline starts: the first run, or the pinned one.
+std::size_t baseline_start(const std::vector<RunRecord>& runs, const TrendOptions& options, SeriesTrend& series) {
+    if (!options.pinned_run) return 0;
+    const auto pinned =
+        std::find_if(runs.begin(), runs.end(), [&](const RunRecord& run) { return run.id == *options.pinned_run; });
+    if (pinned == runs.end()) {
+        series.notes.push_back(
+            fmt::format("pinned run #{} is not among this axis's runs; the baseline starts at "
+                        "the first run",
+                        *options.pinned_run));
+        series.pinned_run.reset();
+        return 0;
+    }
+    return static_cast<std::size_t>(pinned - runs.begin());
+}
+
+BaselineWindow baseline_window(const std::vector<RunRecord>& runs, const TrendOptions& options, SeriesTrend& series) {
+    BaselineWindow window;
+    window.start = baseline_start(runs, options, series);
+    window.end = std::min(runs.size(), window.start + static_cast<std::size_t>(options.baseline_runs));
+    for (std::size_t i = window.start; i < window.end; ++i) series.baseline_run_ids.push_back(runs[i].id);
+    series.baseline_complete = window.end - window.start == static_cast<std::size_t>(options.baseline_runs);
+    if (!series.baseline_complete)
+        series.notes.push_back(fmt::format("the baseline is still forming ({} of {} runs); nothing is checked yet",
+                                           window.end - window.start, options.baseline_runs));
+    return window;
+}
+
+// Options differing between runs make values incomparable; say so rather than guess.
+void note_differing_options(const std::vector<RunRecord>& runs, std::size_t start, SeriesTrend& series) {
+    std::set<std::string> option_sets;
+    for (std::size_t i = start; i < runs.size(); ++i) option_sets.insert(runs[i].options.dump());
+    if (option_sets.size() > 1)
+        series.notes.push_back("the runs were identified with different options; their values may not be comparable");
+}
+
+std::set<std::string> parameter_keys(const std::vector<RunRecord>& runs) {
+    std::set<std::string> keys;
+    for (const auto& run : runs)
+        for (const auto& [key, estimate] : run.parameters)
+            if (estimate.value) keys.insert(key);
+    return keys;
+}
+
+// What a change of one parameter is measured against (see trend.hpp).
+struct Baseline {
+    double mean{0.0};           // mu_0
+    double stderr_rms{0.0};     // rms of the reported standard errors
+    double scatter_bound{0.0};  // c * s_b
+    double sigma_mean{0.0};     // sigma_mu
+};
+
+// The baseline of the parameter `trend.key`, kept in `trend` too; a note there when no change can be judged.
+Baseline baseline_of(const std::vector<RunRecord>& runs, const BaselineWindow& window, ParameterTrend& trend) {
+    std::vector<double> values;
+    std::vector<double> errors;
+    for (std::size_t i = window.start; i < window.end; ++i) {
+        const auto found = runs[i].parameters.find(trend.key);
+        if (found == runs[i].parameters.end() || !found->second.value) continue;
+        values.push_back(*found->second.value);
+        if (found->second.standard_error) errors.push_back(*found->second.standard_error);
+    }
+    const std::size_t n = values.size();
+    Baseline baseline;
+    double scatter = 0.0;
+    if (n > 0) {
+        for (const double v : values) baseline.mean += v;
+        baseline.mean /= static_cast<double>(n);
+        trend.baseline_mean = baseline.mean;
+    }
+    if (n > 1) {
+        for (const double v : values) scatter += (v - baseline.mean) * (v - baseline.mean);
+        scatter = std::sqrt(scatter / static_cast<double>(n - 1));
+        trend.baseline_scatter = scatter;
+        trend.scatter_factor = scatter_upper_factor(static_cast<int>(n) - 1);
+    }
+    if (!errors.empty()) {
+        for (const double e : errors) baseline.stderr_rms += e * e;
+        baseline.stderr_rms = std::sqrt(baseline.stderr_rms / static_cast<double>(errors.size()));
+        trend.baseline_stderr_rms = baseline.stderr_rms;
+    }
+    baseline.scatter_bound = trend.scatter_factor * scatter;
+    const double sigma = std::max(baseline.stderr_rms, baseline.scatter_bound);
+    baseline.sigma_mean = n > 0 ? sigma / std::sqrt(static_cast<double>(n)) : 0.0;
+    if (n == 0)
+        trend.note = "no baseline run has this parameter";
+    else if (sigma <= 0.0)
+        trend.note = "neither a standard error nor a run-to-run scatter is known; no change can be judged";
+    return baseline;
+}
+
+// A run's value with its change from the baseline in combined standard errors (when a change can be judged).
+TrendPoint point_of(const RunRecord& run, const StoredEstimate& estimate, RunRole role, const ParameterTrend& trend,
+                    const Baseline& baseline) {
+    TrendPoint point;
+    point.run_id = run.id;
+    point.recorded_at = run.recorded_at;
+    point.role = role;
+    point.value = estimate.value;
+    point.standard_error = estimate.standard_error;
+    if (trend.note.empty()) {
+        const double reported = estimate.standard_error.value_or(baseline.stderr_rms);
+        const double sigma_run = std::max(reported, baseline.scatter_bound);
+        const double sigma = std::sqrt(sigma_run * sigma_run + baseline.sigma_mean * baseline.sigma_mean);
+        point.change = *point.value - baseline.mean;
+        point.sigma = sigma;
+        if (sigma > 0.0) point.z = *point.change / sigma;
+    }
+    return point;
+}
+
+// The two-sided CUSUM of one parameter along its checked runs.
+struct Cusum {
+    double up{0.0};
+    double down{0.0};
+    bool in_alarm{false};
+};
+
+// Advances the CUSUM by the point's z; true when the alarm fires here (the first crossing of h). Once fired, a
+// parameter stays in alarm until a new baseline is pinned: drift from wear does not heal by itself, and a nightly
+// check must keep saying so.
+bool advance(Cusum& cusum, TrendPoint& point, const TrendOptions& options) {
+    cusum.up = std::max(0.0, cusum.up + *point.z - options.cusum_k);
+    cusum.down = std::max(0.0, cusum.down - *point.z - options.cusum_k);
+    point.cusum_up = cusum.up;
+    point.cusum_down = cusum.down;
+    const bool alarm = cusum.up > options.cusum_h || cusum.down > options.cusum_h;
+    const bool fires = alarm && !cusum.in_alarm;
+    cusum.in_alarm = cusum.in_alarm || alarm;
+    point.alarm = cusum.in_alarm;
+    return fires;
+}
+
+Alarm alarm_at(const SeriesTrend& series, const std::string& key, const TrendPoint& point, const Cusum& cusum,
+               double mean, const TrendOptions& options) {
+    Alarm fired;
+    fired.machine = series.machine;
+    fired.axis = series.axis;
+    fired.parameter = key;
+    fired.run_id = point.run_id;
+    fired.recorded_at = point.recorded_at;
+    fired.direction = cusum.up > options.cusum_h ? "up" : "down";
+    fired.cusum = std::max(cusum.up, cusum.down);
+    fired.change = *point.change;
+    fired.change_pct = mean != 0.0 ? 100.0 * *point.change / std::abs(mean) : 0.0;
+    fired.z = *point.z;
+    return fired;
+}
+
+// One parameter over the runs: its baseline, a point per run that has it, and the alarms (into `series`) of the
+// runs checked after a complete baseline.
+ParameterTrend parameter_trend(const std::string& key, const std::vector<RunRecord>& runs, const BaselineWindow& window,
+                               const TrendOptions& options, SeriesTrend& series) {
+    ParameterTrend trend;
+    trend.key = key;
+    const Baseline baseline = baseline_of(runs, window, trend);
+    Cusum cusum;
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+        const auto found = runs[i].parameters.find(key);
+        if (found == runs[i].parameters.end() || !found->second.value) continue;
+        TrendPoint point = point_of(runs[i], found->second, window.role_of(i), trend, baseline);
+        if (point.role == RunRole::checked && series.baseline_complete && point.z && advance(cusum, point, options)) {
+            series.alarms.push_back(alarm_at(series, key, point, cusum, baseline.mean, options));
+        }
+        trend.points.push_back(point);
+    }
+    return trend;
+}
+
 }  // namespace
 
 std::string TrendOptions::validate() const {
@@ -65,133 +246,10 @@ SeriesTrend analyse_series(const std::string& machine, const std::string& axis, 
     series.machine = machine;
     series.axis = axis;
     series.pinned_run = options.pinned_run;
-
-    // Where the baseline starts: the first run, or the pinned one.
-    std::size_t start = 0;
-    if (options.pinned_run) {
-        const auto pinned =
-            std::find_if(runs.begin(), runs.end(), [&](const RunRecord& run) { return run.id == *options.pinned_run; });
-        if (pinned == runs.end()) {
-            series.notes.push_back(
-                fmt::format("pinned run #{} is not among this axis's runs; the baseline starts at "
-                            "the first run",
-                            *options.pinned_run));
-            series.pinned_run.reset();
-        } else {
-            start = static_cast<std::size_t>(pinned - runs.begin());
-        }
-    }
-    const std::size_t baseline_end = std::min(runs.size(), start + static_cast<std::size_t>(options.baseline_runs));
-    for (std::size_t i = start; i < baseline_end; ++i) series.baseline_run_ids.push_back(runs[i].id);
-    series.baseline_complete = baseline_end - start == static_cast<std::size_t>(options.baseline_runs);
-    if (!series.baseline_complete)
-        series.notes.push_back(fmt::format("the baseline is still forming ({} of {} runs); nothing is checked yet",
-                                           baseline_end - start, options.baseline_runs));
-
-    const auto role_of = [&](std::size_t i) {
-        if (i < start) return RunRole::before_baseline;
-        if (i < baseline_end) return RunRole::baseline;
-        return RunRole::checked;
-    };
-
-    // Options differing between runs make values incomparable; say so rather than guess.
-    std::set<std::string> option_sets;
-    for (std::size_t i = start; i < runs.size(); ++i) option_sets.insert(runs[i].options.dump());
-    if (option_sets.size() > 1)
-        series.notes.push_back("the runs were identified with different options; their values may not be comparable");
-
-    std::set<std::string> keys;
-    for (const auto& run : runs)
-        for (const auto& [key, estimate] : run.parameters)
-            if (estimate.value) keys.insert(key);
-
-    for (const auto& key : keys) {
-        ParameterTrend trend;
-        trend.key = key;
-        std::vector<double> values;
-        std::vector<double> errors;
-        for (std::size_t i = start; i < baseline_end; ++i) {
-            const auto found = runs[i].parameters.find(key);
-            if (found == runs[i].parameters.end() || !found->second.value) continue;
-            values.push_back(*found->second.value);
-            if (found->second.standard_error) errors.push_back(*found->second.standard_error);
-        }
-        const std::size_t n = values.size();
-        double mean = 0.0;
-        double scatter = 0.0;
-        double stderr_rms = 0.0;
-        if (n > 0) {
-            for (const double v : values) mean += v;
-            mean /= static_cast<double>(n);
-            trend.baseline_mean = mean;
-        }
-        if (n > 1) {
-            for (const double v : values) scatter += (v - mean) * (v - mean);
-            scatter = std::sqrt(scatter / static_cast<double>(n - 1));
-            trend.baseline_scatter = scatter;
-            trend.scatter_factor = scatter_upper_factor(static_cast<int>(n) - 1);
-        }
-        if (!errors.empty()) {
-            for (const double e : errors) stderr_rms += e * e;
-            stderr_rms = std::sqrt(stderr_rms / static_cast<double>(errors.size()));
-            trend.baseline_stderr_rms = stderr_rms;
-        }
-        const double scatter_bound = trend.scatter_factor * scatter;
-        const double sigma_mean = n > 0 ? std::max(stderr_rms, scatter_bound) / std::sqrt(static_cast<double>(n)) : 0.0;
-        if (n == 0)
-            trend.note = "no baseline run has this parameter";
-        else if (std::max(stderr_rms, scatter_bound) <= 0.0)
-            trend.note = "neither a standard error nor a run-to-run scatter is known; no change can be judged";
-
-        double up = 0.0;
-        double down = 0.0;
-        bool in_alarm = false;
-        for (std::size_t i = 0; i < runs.size(); ++i) {
-            const auto found = runs[i].parameters.find(key);
-            if (found == runs[i].parameters.end() || !found->second.value) continue;
-            TrendPoint point;
-            point.run_id = runs[i].id;
-            point.recorded_at = runs[i].recorded_at;
-            point.role = role_of(i);
-            point.value = found->second.value;
-            point.standard_error = found->second.standard_error;
-            if (trend.note.empty()) {
-                const double reported = found->second.standard_error.value_or(stderr_rms);
-                const double sigma_run = std::max(reported, scatter_bound);
-                const double sigma = std::sqrt(sigma_run * sigma_run + sigma_mean * sigma_mean);
-                point.change = *point.value - mean;
-                point.sigma = sigma;
-                if (sigma > 0.0) point.z = *point.change / sigma;
-            }
-            if (point.role == RunRole::checked && series.baseline_complete && point.z) {
-                up = std::max(0.0, up + *point.z - options.cusum_k);
-                down = std::max(0.0, down - *point.z - options.cusum_k);
-                point.cusum_up = up;
-                point.cusum_down = down;
-                const bool alarm = up > options.cusum_h || down > options.cusum_h;
-                point.alarm = alarm;
-                if (alarm && !in_alarm) {
-                    Alarm fired;
-                    fired.machine = machine;
-                    fired.axis = axis;
-                    fired.parameter = key;
-                    fired.run_id = point.run_id;
-                    fired.recorded_at = point.recorded_at;
-                    fired.direction = up > options.cusum_h ? "up" : "down";
-                    fired.cusum = std::max(up, down);
-                    fired.change = *point.change;
-                    fired.change_pct = mean != 0.0 ? 100.0 * *point.change / std::abs(mean) : 0.0;
-                    fired.z = *point.z;
-                    series.alarms.push_back(fired);
-                }
-                // Once fired, a parameter stays in alarm until a new baseline is pinned: drift from wear does not
-                // heal by itself, and a nightly check must keep saying so.
-                in_alarm = in_alarm || alarm;
-                point.alarm = in_alarm;
-            }
-            trend.points.push_back(point);
-        }
-        series.parameters.push_back(std::move(trend));
+    const BaselineWindow window = baseline_window(runs, options, series);
+    note_differing_options(runs, window.start, series);
+    for (const auto& key : parameter_keys(runs)) {
+        series.parameters.push_back(parameter_trend(key, runs, window, options, series));
     }
     std::stable_sort(series.alarms.begin(), series.alarms.end(),
                      [&](const Alarm& a, const Alarm& b) { return a.run_id < b.run_id; });

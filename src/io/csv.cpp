@@ -201,59 +201,69 @@ std::pair<std::string, std::string> split_name_unit(std::string_view cell) {
 
 namespace {
 
-// The parser proper. `release(upto)` is called now and then with a pointer below which the text is no longer read,
-// so a memory-mapped file can hand those pages back (read_csv); parse_csv passes a no-op.
-Trace parse_csv_text(std::string_view text, const std::string& source,
-                     const std::function<void(const char*)>& release) {
-    // Skip a UTF-8 byte-order mark.
+// The text without a UTF-8 byte-order mark; refused when it is empty or binary.
+std::string_view checked_text(std::string_view text, const std::string& source) {
     if (text.size() >= 3 && text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
     if (text.find_first_not_of(" \t\r\n") == std::string_view::npos) {
         throw InputError(fmt::format("{}: empty file", source));
     }
     reject_binary(text, source);
+    return text;
+}
 
-    std::size_t position = 0;
-    std::size_t line_number = 0;
-    auto next_line = [&](std::string_view& line) {
+// The text read line by line (a line keeps a trailing '\r'), with the number of the line last read.
+struct TextLines {
+    std::string_view text;
+    std::size_t position{0};
+    std::size_t number{0};
+
+    bool next(std::string_view& line) {
         if (position >= text.size()) return false;
         const auto end = text.find('\n', position);
         const auto stop = end == std::string_view::npos ? text.size() : end;
         line = text.substr(position, stop - position);
         position = stop + 1;
-        ++line_number;
+        ++number;
         return true;
-    };
+    }
+};
 
-    std::string_view line;
-    bool have_header = false;
+// What comes before the header row: comments (some carrying constants), blank lines, Excel's "sep=;" line.
+struct Preamble {
+    std::string_view header_row;
+    char stated_separator{'\0'};
     std::map<std::string, double> constants;
-    char stated_separator = '\0';
-    while (next_line(line)) {
+};
+
+Preamble read_preamble(TextLines& lines, const std::string& source) {
+    Preamble preamble;
+    std::string_view line;
+    while (lines.next(line)) {
         // Excel's "sep=;" line states the separator
-        if (const auto stated = trim(line); stated.size() == 5 && stated.starts_with("sep=") && line_number == 1) {
-            stated_separator = stated[4];
+        if (const auto stated = trim(line); stated.size() == 5 && stated.starts_with("sep=") && lines.number == 1) {
+            preamble.stated_separator = stated[4];
             continue;
         }
         if (!is_comment_or_blank(line)) {
-            have_header = true;
-            break;
+            preamble.header_row = line;
+            return preamble;
         }
-        read_constant(line, constants);
+        read_constant(line, preamble.constants);
     }
-    if (!have_header) throw InputError(fmt::format("{}: no header row (only comments or blank lines)", source));
+    throw InputError(fmt::format("{}: no header row (only comments or blank lines)", source));
+}
 
-    const char separator = stated_separator != '\0' ? stated_separator : detect_separator(line);
-    auto header = split_header(line, separator);
+std::vector<std::string> header_cells(std::string_view header_row, char separator) {
+    auto cells = split_header(header_row, separator);
     // A separator at the end of every line (some exports write one) makes an empty last column: not a channel.
-    const bool trailing_separator = header.size() > 1 && header.back().empty();
-    if (trailing_separator) header.pop_back();
-    const std::size_t columns = header.size();
-    const std::size_t header_line = line_number;
+    if (cells.size() > 1 && cells.back().empty()) cells.pop_back();
+    return cells;
+}
 
-    Trace trace;
-    trace.source_path = source;
-    trace.format = "csv";
-    trace.constants = std::move(constants);
+// A channel per header cell, its unit taken from the cell (split_name_unit).
+void add_header_channels(Trace& trace, const std::vector<std::string>& header, const std::string& source,
+                         std::size_t header_line) {
+    const std::size_t columns = header.size();
     trace.channels.reserve(columns);
     std::unordered_set<std::string> names;  // a set, not a search of the columns so far: a wide header is not quadratic
     names.reserve(columns);
@@ -276,39 +286,115 @@ Trace parse_csv_text(std::string_view text, const std::string& source,
         }
         trace.channels.push_back(Channel{name, Role::other, "", unit, {}});
     }
+}
 
-    {
-        // A row of n cells takes at least n bytes (n - 1 separators and a line end), which bounds the rows the rest
-        // of the text can hold however its lines are counted: reserving for blank lines under a wide header would
-        // otherwise claim columns x lines values, gigabytes for a file of kilobytes.
-        const std::size_t rest = text.size() - std::min(position, text.size());
-        const std::size_t estimate = std::min(estimate_rows(text, position), rest / columns + 1);
-        for (auto& channel : trace.channels) channel.values.reserve(estimate);
+// A row of n cells takes at least n bytes (n - 1 separators and a line end), which bounds the rows the rest of the
+// text can hold however its lines are counted: reserving for blank lines under a wide header would otherwise claim
+// columns x lines values, gigabytes for a file of kilobytes.
+void reserve_rows(std::vector<Channel>& channels, std::string_view text, std::size_t position) {
+    const std::size_t rest = text.size() - std::min(position, text.size());
+    const std::size_t estimate = std::min(estimate_rows(text, position), rest / channels.size() + 1);
+    for (auto& channel : channels) channel.values.reserve(estimate);
+}
+
+// What the data rows are read into and checked against.
+struct DataRows {
+    const std::string& source;
+    char separator;
+    std::size_t columns;
+    std::vector<Channel>& channels;
+};
+
+InputError not_a_number(const DataRows& rows, std::size_t line_number, std::size_t c, const char* cell_start,
+                        const char* end) {
+    const char* cell_end = std::find(cell_start, end, rows.separator);
+    const auto cell = trim(std::string_view(cell_start, static_cast<std::size_t>(cell_end - cell_start)));
+    if (c >= rows.columns) {
+        return InputError(fmt::format("{}:{}: row has more cells than the header's {} columns", rows.source,
+                                      line_number, rows.columns));
     }
+    return InputError(fmt::format("{}:{}: column {} ('{}') holds '{}', which is not a number", rows.source, line_number,
+                                  c + 1, rows.channels[c].name, printable(cell)));
+}
 
+// The slow path for a cell that does not start with a number: a quoted number or a spelled-out missing value. Returns
+// where the cell ends, or nullptr when it is neither.
+const char* read_unusual_cell(const char* cell_start, const char* end, char separator,
+                              const fast_float::parse_options& options, double& value) {
+    const char* cell_end =
+        *cell_start == '"' ? std::find(cell_start + 1, end, '"') + 1 : std::find(cell_start, end, separator);
+    cell_end = std::min(cell_end, end);
+    const auto cell = trim(std::string_view(cell_start, static_cast<std::size_t>(cell_end - cell_start)));
+    if (cell == "NA" || cell == "N/A" || cell == "n/a" || cell == "-" || cell == "\"\"") {
+        value = missing;
+    } else if (!parse_quoted(cell, options, value)) {
+        return nullptr;
+    }
+    return cell_end;
+}
+
+// One data row, a value appended to every column (an empty cell is missing: NaN).
+void read_row(std::string_view line, std::size_t line_number, const fast_float::parse_options& options,
+              const DataRows& rows) {
+    const char separator = rows.separator;
+    const std::size_t columns = rows.columns;
+    const char* p = line.data();
+    const char* const end = line.data() + line.size();
+    std::size_t c = 0;
+    while (true) {
+        while (p < end && (*p == ' ' || *p == '\t') && *p != separator) ++p;
+        double value = missing;
+        const char* cell_start = p;
+        if (p < end && *p == '+') ++p;
+        if (p < end && *p != separator && *p != '\r') {
+            const auto parsed = fast_float::from_chars_advanced(p, end, value, options);
+            if (parsed.ec != std::errc() || parsed.ptr == p) {
+                p = read_unusual_cell(cell_start, end, separator, options, value);
+                if (p == nullptr) throw not_a_number(rows, line_number, c, cell_start, end);
+            } else {
+                p = parsed.ptr;
+            }
+        }
+        while (p < end && (*p == ' ' || *p == '\t' || *p == '\r') && *p != separator) ++p;
+        if (c >= columns) {
+            // one empty cell after a trailing separator is no extra column
+            const bool empty_cell =
+                std::isnan(value) &&
+                trim(std::string_view(cell_start, static_cast<std::size_t>(p - cell_start))).empty();
+            if (!(c == columns && empty_cell && p >= end)) {
+                throw InputError(fmt::format("{}:{}: row has more cells than the header's {} columns", rows.source,
+                                             line_number, columns));
+            }
+            break;
+        }
+        append(rows.channels[c].values, value);
+        ++c;
+        if (p >= end) break;
+        if (*p != separator) throw not_a_number(rows, line_number, c - 1, cell_start, end);
+        ++p;  // past the separator
+    }
+    if (c != columns) {
+        throw InputError(
+            fmt::format("{}:{}: row has {} cells, the header has {} columns", rows.source, line_number, c, columns));
+    }
+}
+
+// The data rows to the end of the text; returns how many there were. `release` as for parse_csv_text.
+std::size_t read_data_rows(TextLines& lines, const DataRows& rows, const std::function<void(const char*)>& release) {
     // Decimal comma: only with ';' or tab separators, decided on the first data line holding a ',' in a number.
     char decimal_point = '.';
-    bool decided = separator == ',';
+    bool decided = rows.separator == ',';
     const fast_float::parse_options dot_options{fast_float::chars_format::general, '.'};
     const fast_float::parse_options comma_options{fast_float::chars_format::general, ','};
 
     constexpr std::size_t release_every = std::size_t{8} << 20;
     std::size_t next_release = release_every;
     std::size_t data_rows = 0;
-    auto not_a_number = [&](std::size_t c, const char* cell_start, const char* end) {
-        const char* cell_end = std::find(cell_start, end, separator);
-        const auto cell = trim(std::string_view(cell_start, static_cast<std::size_t>(cell_end - cell_start)));
-        if (c >= columns) {
-            return InputError(
-                fmt::format("{}:{}: row has more cells than the header's {} columns", source, line_number, columns));
-        }
-        return InputError(fmt::format("{}:{}: column {} ('{}') holds '{}', which is not a number", source, line_number,
-                                      c + 1, trace.channels[c].name, printable(cell)));
-    };
-    while (next_line(line)) {
-        if (position >= next_release) {
+    std::string_view line;
+    while (lines.next(line)) {
+        if (lines.position >= next_release) {
             release(line.data());
-            next_release = position + release_every;
+            next_release = lines.position + release_every;
         }
         if (line.empty() || line.front() == '#' || is_comment_or_blank(line)) continue;
         if (!decided) {
@@ -319,63 +405,42 @@ Trace parse_csv_text(std::string_view text, const std::string& source,
                 decided = true;
             }
         }
-        const auto& options = decimal_point == ',' ? comma_options : dot_options;
-        const char* p = line.data();
-        const char* const end = line.data() + line.size();
-        std::size_t c = 0;
-        while (true) {
-            while (p < end && (*p == ' ' || *p == '\t') && *p != separator) ++p;
-            double value = missing;
-            const char* cell_start = p;
-            if (p < end && *p == '+') ++p;
-            if (p < end && *p != separator && *p != '\r') {
-                const auto parsed = fast_float::from_chars_advanced(p, end, value, options);
-                if (parsed.ec != std::errc() || parsed.ptr == p) {
-                    // the slow path: a quoted number, a spelled-out missing value, or an error
-                    const char* cell_end = *cell_start == '"' ? std::find(cell_start + 1, end, '"') + 1
-                                                              : std::find(cell_start, end, separator);
-                    cell_end = std::min(cell_end, end);
-                    const auto cell =
-                        trim(std::string_view(cell_start, static_cast<std::size_t>(cell_end - cell_start)));
-                    if (cell == "NA" || cell == "N/A" || cell == "n/a" || cell == "-" || cell == "\"\"") {
-                        value = missing;
-                    } else if (!parse_quoted(cell, options, value)) {
-                        throw not_a_number(c, cell_start, end);
-                    }
-                    p = cell_end;
-                } else {
-                    p = parsed.ptr;
-                }
-            }
-            while (p < end && (*p == ' ' || *p == '\t' || *p == '\r') && *p != separator) ++p;
-            if (c >= columns) {
-                // one empty cell after a trailing separator is no extra column
-                const bool empty_cell =
-                    std::isnan(value) &&
-                    trim(std::string_view(cell_start, static_cast<std::size_t>(p - cell_start))).empty();
-                if (!(c == columns && empty_cell && p >= end)) {
-                    throw InputError(fmt::format("{}:{}: row has more cells than the header's {} columns", source,
-                                                 line_number, columns));
-                }
-                break;
-            }
-            append(trace.channels[c].values, value);
-            ++c;
-            if (p >= end) break;
-            if (*p != separator) throw not_a_number(c - 1, cell_start, end);
-            ++p;  // past the separator
-        }
-        if (c != columns) {
-            throw InputError(
-                fmt::format("{}:{}: row has {} cells, the header has {} columns", source, line_number, c, columns));
-        }
+        read_row(line, lines.number, decimal_point == ',' ? comma_options : dot_options, rows);
         ++data_rows;
     }
-    if (data_rows == 0) throw InputError(fmt::format("{}: the file has a header but no data rows", source));
-    for (auto& channel : trace.channels) {
+    return data_rows;
+}
+
+// Gives back what an estimate of the rows reserved too much.
+void shrink_columns(std::vector<Channel>& channels) {
+    for (auto& channel : channels) {
         if (channel.values.capacity() > channel.values.size() + channel.values.size() / 4)
             channel.values.shrink_to_fit();
     }
+}
+
+// The parser proper. `release(upto)` is called now and then with a pointer below which the text is no longer read,
+// so a memory-mapped file can hand those pages back (read_csv); parse_csv passes a no-op.
+Trace parse_csv_text(std::string_view text, const std::string& source,
+                     const std::function<void(const char*)>& release) {
+    text = checked_text(text, source);
+    TextLines lines{text};
+    Preamble preamble = read_preamble(lines, source);
+    const std::size_t header_line = lines.number;
+    const char separator =
+        preamble.stated_separator != '\0' ? preamble.stated_separator : detect_separator(preamble.header_row);
+
+    Trace trace;
+    trace.source_path = source;
+    trace.format = "csv";
+    trace.constants = std::move(preamble.constants);
+    add_header_channels(trace, header_cells(preamble.header_row, separator), source, header_line);
+    reserve_rows(trace.channels, text, lines.position);
+    const DataRows rows{source, separator, trace.channels.size(), trace.channels};
+    if (read_data_rows(lines, rows, release) == 0) {
+        throw InputError(fmt::format("{}: the file has a header but no data rows", source));
+    }
+    shrink_columns(trace.channels);
     return trace;
 }
 

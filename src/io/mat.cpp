@@ -82,6 +82,12 @@ bool same_shape(const matvar_t& a, const matvar_t& b) {
     return true;
 }
 
+// A 32-bit word of the file: stored little-endian, or big-endian when `swap` is set.
+std::uint32_t word_at(const unsigned char* p, bool swap) {
+    const std::uint32_t little = p[0] | (p[1] << 8) | (p[2] << 16) | (std::uint32_t{p[3]} << 24);
+    return swap ? __builtin_bswap32(little) : little;
+}
+
 // libmatio sizes allocations from a v5 variable's header before checking them against the file: a dimensions
 // element claiming 1.9 GB in a file of 798 bytes (found by fuzzing; the inputs are kept in tests/fuzz/regressions/mat/)
 // has Mat_VarReadNextInfo allocate 3.9 GB for the rank, and a cell array or struct has it allocate a pointer for
@@ -210,10 +216,7 @@ private:
         in_.read(static_cast<char*>(out), static_cast<std::streamsize>(count));
         return static_cast<std::size_t>(in_.gcount()) == count;
     }
-    [[nodiscard]] std::uint32_t word(const unsigned char* p) const {
-        const std::uint32_t little = p[0] | (p[1] << 8) | (p[2] << 16) | (std::uint32_t{p[3]} << 24);
-        return swap_ ? __builtin_bswap32(little) : little;
-    }
+    [[nodiscard]] std::uint32_t word(const unsigned char* p) const { return word_at(p, swap_); }
     [[noreturn]] void damaged(std::string_view problem) const {
         throw InputError(fmt::format(
             "{}: the file is damaged or truncated after variable '{}' ({} {})", source_, previous_,
@@ -341,11 +344,7 @@ void check_version4_headers(const std::filesystem::path& path, const std::string
         if (!in.read(reinterpret_cast<char*>(raw.data()), raw.size())) return;
         std::array<std::uint32_t, 5> fields{};  // type, rows, columns, imaginary part, name length
         bool swap = false;
-        auto word = [&](std::size_t k) {
-            const unsigned char* p = raw.data() + 4 * k;
-            const std::uint32_t little = p[0] | (p[1] << 8) | (p[2] << 16) | (std::uint32_t{p[3]} << 24);
-            return swap ? __builtin_bswap32(little) : little;
-        };
+        auto word = [&](std::size_t k) { return word_at(raw.data() + 4 * k, swap); };
         if (word(0) > 4052) swap = true;  // the type is at most 4052 (MOPT digits) in the file's own byte order
         for (std::size_t k = 0; k < fields.size(); ++k) fields[k] = word(k);
         const std::uint32_t type = fields[0];
@@ -392,112 +391,126 @@ bool to_doubles(const matvar_t& variable, std::size_t count, std::vector<double>
         default: return false;
     }
 }
-}  // namespace
 
-Trace read_mat(const std::filesystem::path& path) {
-    const std::string source = path.string();
+using MatFile = std::unique_ptr<mat_t, MatCloser>;
+using MatVariable = std::unique_ptr<matvar_t, VarFreer>;
+
+// A file open in libmatio, with what the size checks of its variables go by.
+struct OpenMatFile {
+    std::string source;
+    std::uintmax_t bytes{0};
+    MatFile file;
+    bool hdf5{false};  // v7.3
+};
+
+// Opens the file in libmatio once its variable headers are known not to make libmatio allocate more than the file
+// holds (check_version4_headers, Version5HeaderCheck).
+OpenMatFile open_checked(const std::filesystem::path& path) {
+    OpenMatFile mat;
+    mat.source = path.string();
     install_matio_log();
     last_matio_message().clear();
     std::error_code size_error;
-    const std::uintmax_t file_bytes = std::filesystem::file_size(path, size_error);
-    if (size_error) throw InputError(fmt::format("{}: cannot read the file ({})", source, size_error.message()));
-    check_version4_headers(path, source, file_bytes);
-    std::unique_ptr<mat_t, MatCloser> file(Mat_Open(source.c_str(), MAT_ACC_RDONLY));
-    if (!file) throw InputError(fmt::format("{}: not a MATLAB .mat file libmatio can read", source));
-    const bool hdf5 = Mat_GetVersion(file.get()) == MAT_FT_MAT73;
-    if (Mat_GetVersion(file.get()) == MAT_FT_MAT5) Version5HeaderCheck(path, source, file_bytes).run();
+    mat.bytes = std::filesystem::file_size(path, size_error);
+    if (size_error) throw InputError(fmt::format("{}: cannot read the file ({})", mat.source, size_error.message()));
+    check_version4_headers(path, mat.source, mat.bytes);
+    mat.file.reset(Mat_Open(mat.source.c_str(), MAT_ACC_RDONLY));
+    if (!mat.file) throw InputError(fmt::format("{}: not a MATLAB .mat file libmatio can read", mat.source));
+    mat.hdf5 = Mat_GetVersion(mat.file.get()) == MAT_FT_MAT73;
+    if (Mat_GetVersion(mat.file.get()) == MAT_FT_MAT5) Version5HeaderCheck(path, mat.source, mat.bytes).run();
+    return mat;
+}
 
-    Trace trace;
-    trace.source_path = source;
-    trace.format = "mat";
-    // Variables that cannot be a channel or a constant are left out and each is named in a finding: a cell, struct
-    // or char array, a complex value, or a matrix (which column would be which signal is not for import to guess).
-    std::vector<std::string> left_out;
-    std::set<std::string> seen;
-    std::string previous = "(none)";
-    while (true) {
-        last_matio_message().clear();
-        std::unique_ptr<matvar_t, VarFreer> info(Mat_VarReadNextInfo(file.get()));
-        if (!info) {
-            // the end of the variables, or a file cut short: libmatio tells them apart only by its log
-            if (!last_matio_message().empty()) {
-                throw InputError(fmt::format("{}: the file is damaged or truncated after variable '{}' ({})", source,
-                                             previous, last_matio_message()));
-            }
-            break;
-        }
-        if (info->name == nullptr) continue;
-        const std::string name = info->name;
-        previous = name;
-        // libmatio reads a variable by name, so of two with one name the second could not be read as itself.
-        if (!seen.insert(name).second) {
-            throw InputError(fmt::format("{}: variable '{}' appears twice (the file is damaged)", source, name));
-        }
-        const bool numeric = info->class_type >= MAT_C_DOUBLE && info->class_type <= MAT_C_UINT64;
-        if (!numeric || info->isComplex) {
-            const std::string_view what = info->isComplex ? "complex array" : class_name(info->class_type);
-            left_out.push_back(fmt::format("variable '{}' is a {} {}, not a real numeric vector or scalar: left out",
-                                           name, dimensions(*info), what));
-            continue;
-        }
-        const auto counted = element_count(*info);
-        // libmatio allocates what a variable's header claims before it reads a byte of the data, so a damaged header
-        // claiming billions of elements would have it allocate gigabytes. No variable holds more elements than its
-        // file has room for: an element takes at least one byte (MATLAB stores small integers as int8), and zlib (v5
-        // compressed variables, the deflate filter of v7.3's HDF5) expands at most 1032-fold.
-        const std::uintmax_t expansion = hdf5 || info->compression == MAT_COMPRESSION_ZLIB ? 1032 : 1;
-        if (!counted || *counted / expansion > file_bytes) {
-            throw InputError(
-                fmt::format("{}: variable '{}' claims to be {}, more than the {}-byte file can hold (the "
-                            "file is damaged)",
-                            source, name, dimensions(*info), file_bytes));
-        }
-        const std::size_t elements = *counted;
-        std::size_t longest_dimension = 0;
-        for (int k = 0; k < info->rank; ++k) longest_dimension = std::max(longest_dimension, info->dims[k]);
-        if (elements == 0) {
-            left_out.push_back(fmt::format("variable '{}' is empty ({}): left out", name, dimensions(*info)));
-            continue;
-        }
-        if (elements != longest_dimension) {
-            left_out.push_back(
-                fmt::format("variable '{}' is a {} matrix, not a vector: left out (save each signal "
-                            "as a vector of its own)",
-                            name, dimensions(*info)));
-            continue;
-        }
-        last_matio_message().clear();
-        std::unique_ptr<matvar_t, VarFreer> variable(Mat_VarRead(file.get(), name.c_str()));
-        if (!variable || variable->data == nullptr) {
-            throw InputError(fmt::format("{}: variable '{}' cannot be read{}", source, name,
-                                         last_matio_message().empty() ? std::string(" (a truncated file?)")
-                                                                      : " (" + last_matio_message() + ")"));
-        }
-        // What was read must be what the header announced, and hold data for every element.
-        if (!same_shape(*info, *variable) || variable->isComplex ||
-            variable->nbytes / std::max<std::size_t>(Mat_SizeOf(variable->data_type), 1) < elements) {
-            throw InputError(
-                fmt::format("{}: variable '{}' reads back other than its header says (the file is "
-                            "damaged)",
-                            source, name));
-        }
-        std::vector<double> values;
-        if (!to_doubles(*variable, elements, values)) {
-            left_out.push_back(fmt::format("variable '{}' holds a number type feedid does not read: left out", name));
-            continue;
-        }
-        if (values.size() == 1) {
-            trace.constants[name] = values.front();
-        } else {
-            trace.channels.push_back(Channel{name, Role::other, "", "", std::move(values)});
-        }
+// The next variable's header, or nullptr after the last.
+MatVariable next_variable_info(const OpenMatFile& mat, const std::string& previous) {
+    last_matio_message().clear();
+    MatVariable info(Mat_VarReadNextInfo(mat.file.get()));
+    // the end of the variables, or a file cut short: libmatio tells them apart only by its log
+    if (!info && !last_matio_message().empty()) {
+        throw InputError(fmt::format("{}: the file is damaged or truncated after variable '{}' ({})", mat.source,
+                                     previous, last_matio_message()));
     }
-    if (trace.channels.empty()) {
-        std::string held;
-        for (const auto& finding : left_out) held += "; " + finding;
-        throw InputError(fmt::format("{}: the .mat file holds no numeric vector to use as a channel{}", source, held));
+    return info;
+}
+
+std::optional<std::string> not_real_numeric(const matvar_t& info, const std::string& name) {
+    const bool numeric = info.class_type >= MAT_C_DOUBLE && info.class_type <= MAT_C_UINT64;
+    if (numeric && !info.isComplex) return std::nullopt;
+    const std::string_view what = info.isComplex ? "complex array" : class_name(info.class_type);
+    return fmt::format("variable '{}' is a {} {}, not a real numeric vector or scalar: left out", name,
+                       dimensions(info), what);
+}
+
+// The elements a variable's header claims. libmatio allocates what a variable's header claims before it reads a byte
+// of the data, so a damaged header claiming billions of elements would have it allocate gigabytes. No variable holds
+// more elements than its file has room for: an element takes at least one byte (MATLAB stores small integers as
+// int8), and zlib (v5 compressed variables, the deflate filter of v7.3's HDF5) expands at most 1032-fold.
+std::size_t claimed_elements(const OpenMatFile& mat, const matvar_t& info, const std::string& name) {
+    const auto counted = element_count(info);
+    const std::uintmax_t expansion = mat.hdf5 || info.compression == MAT_COMPRESSION_ZLIB ? 1032 : 1;
+    if (!counted || *counted / expansion > mat.bytes) {
+        throw InputError(
+            fmt::format("{}: variable '{}' claims to be {}, more than the {}-byte file can hold (the "
+                        "file is damaged)",
+                        mat.source, name, dimensions(info), mat.bytes));
     }
-    // Channels of a different length than the longest cannot share its time base: keep them apart as findings.
+    return *counted;
+}
+
+std::optional<std::string> not_a_vector(const matvar_t& info, const std::string& name, std::size_t elements) {
+    std::size_t longest_dimension = 0;
+    for (int k = 0; k < info.rank; ++k) longest_dimension = std::max(longest_dimension, info.dims[k]);
+    if (elements == 0) return fmt::format("variable '{}' is empty ({}): left out", name, dimensions(info));
+    if (elements != longest_dimension) {
+        return fmt::format(
+            "variable '{}' is a {} matrix, not a vector: left out (save each signal "
+            "as a vector of its own)",
+            name, dimensions(info));
+    }
+    return std::nullopt;
+}
+
+// The variable's data. What was read must be what the header announced, and hold data for every element.
+MatVariable read_data(const OpenMatFile& mat, const matvar_t& info, const std::string& name, std::size_t elements) {
+    last_matio_message().clear();
+    MatVariable variable(Mat_VarRead(mat.file.get(), name.c_str()));
+    if (!variable || variable->data == nullptr) {
+        throw InputError(fmt::format(
+            "{}: variable '{}' cannot be read{}", mat.source, name,
+            last_matio_message().empty() ? std::string(" (a truncated file?)") : " (" + last_matio_message() + ")"));
+    }
+    if (!same_shape(info, *variable) || variable->isComplex ||
+        variable->nbytes / std::max<std::size_t>(Mat_SizeOf(variable->data_type), 1) < elements) {
+        throw InputError(
+            fmt::format("{}: variable '{}' reads back other than its header says (the file is "
+                        "damaged)",
+                        mat.source, name));
+    }
+    return variable;
+}
+
+// A real numeric vector becomes a channel and a scalar a constant; anything else is left out, and the reason
+// returned.
+std::optional<std::string> take_variable(const OpenMatFile& mat, const matvar_t& info, const std::string& name,
+                                         Trace& trace) {
+    if (auto why = not_real_numeric(info, name)) return why;
+    const std::size_t elements = claimed_elements(mat, info, name);
+    if (auto why = not_a_vector(info, name, elements)) return why;
+    const MatVariable variable = read_data(mat, info, name, elements);
+    std::vector<double> values;
+    if (!to_doubles(*variable, elements, values)) {
+        return fmt::format("variable '{}' holds a number type feedid does not read: left out", name);
+    }
+    if (values.size() == 1) {
+        trace.constants[name] = values.front();
+    } else {
+        trace.channels.push_back(Channel{name, Role::other, "", "", std::move(values)});
+    }
+    return std::nullopt;
+}
+
+// Channels of a different length than the longest cannot share its time base: keep them apart as findings.
+void keep_longest_channels(Trace& trace) {
     std::size_t longest = 0;
     for (const auto& channel : trace.channels) longest = std::max(longest, channel.values.size());
     std::erase_if(trace.channels, [&](const Channel& channel) {
@@ -506,6 +519,37 @@ Trace read_mat(const std::filesystem::path& path) {
                                              channel.values.size(), longest));
         return true;
     });
+}
+
+}  // namespace
+
+Trace read_mat(const std::filesystem::path& path) {
+    const OpenMatFile mat = open_checked(path);
+    Trace trace;
+    trace.source_path = mat.source;
+    trace.format = "mat";
+    // Variables that cannot be a channel or a constant are left out and each is named in a finding: a cell, struct
+    // or char array, a complex value, or a matrix (which column would be which signal is not for import to guess).
+    std::vector<std::string> left_out;
+    std::set<std::string> seen;
+    std::string previous = "(none)";
+    while (const MatVariable info = next_variable_info(mat, previous)) {
+        if (info->name == nullptr) continue;
+        const std::string name = info->name;
+        previous = name;
+        // libmatio reads a variable by name, so of two with one name the second could not be read as itself.
+        if (!seen.insert(name).second) {
+            throw InputError(fmt::format("{}: variable '{}' appears twice (the file is damaged)", mat.source, name));
+        }
+        if (auto why = take_variable(mat, *info, name, trace)) left_out.push_back(std::move(*why));
+    }
+    if (trace.channels.empty()) {
+        std::string held;
+        for (const auto& finding : left_out) held += "; " + finding;
+        throw InputError(
+            fmt::format("{}: the .mat file holds no numeric vector to use as a channel{}", mat.source, held));
+    }
+    keep_longest_channels(trace);
     trace.findings.insert(trace.findings.end(), left_out.begin(), left_out.end());
     return trace;
 }

@@ -153,10 +153,8 @@ double parse_attribute_number(std::string_view xml, const std::string& source, c
     return value;
 }
 
-// Everything but the records: the root, the setup sections' unit types and descriptions, the dataSignals. `frame`
-// receives the (first) <dataFrame>.
-Session read_declarations(const pugi::xml_document& document, std::string_view xml, const std::string& source,
-                          pugi::xml_node& frame) {
+// The first <dataFrame> of <traceSession><traceData>; a missing level is refused, naming its line.
+pugi::xml_node first_data_frame(const pugi::xml_document& document, std::string_view xml, const std::string& source) {
     const auto session_node = document.child("traceSession");
     if (!session_node) {
         const auto root = document.document_element();
@@ -169,20 +167,19 @@ Session read_declarations(const pugi::xml_document& document, std::string_view x
         throw InputError(fmt::format("{}: line {}: <traceSession> holds no <traceData> element", source,
                                      line_of_node(xml, session_node)));
     }
-    frame = data.child("dataFrame");
+    const auto frame = data.child("dataFrame");
     if (!frame)
         throw InputError(fmt::format("{}: line {}: <traceData> holds no <dataFrame>", source, line_of_node(xml, data)));
+    return frame;
+}
 
-    Session session;
-    session.input_bytes = xml.size();
-    if (frame.next_sibling("dataFrame")) {
-        session.findings.push_back("the trace holds several data frames; only the first is read");
-    }
+using SetupBySignalKey =
+    std::map<std::string, std::pair<std::string, std::string>, std::less<>>;  // (unitsType, description)
 
-    // Descriptions and unit types from the setup sections, by signal key: the dataSignal's own unitsType is not
-    // always a unit (the reference file writes "611DTime1" for the torque setpoint that the display setup calls
-    // "torque").
-    std::map<std::string, std::pair<std::string, std::string>, std::less<>> setup;  // key -> (unitsType, description)
+// Descriptions and unit types from the setup sections, by signal key: the dataSignal's own unitsType is not always a
+// unit (the reference file writes "611DTime1" for the torque setpoint that the display setup calls "torque").
+SetupBySignalKey read_setup(const pugi::xml_node& session_node) {
+    SetupBySignalKey setup;
     for (const auto& section : session_node.children()) {
         const std::string_view name = section.name();
         pugi::xml_node list;
@@ -197,38 +194,58 @@ Session read_declarations(const pugi::xml_document& document, std::string_view x
             if (entry.second.empty()) entry.second = signal.attribute("description").value();
         }
     }
+    return setup;
+}
 
+// One <dataSignal>: its id, NC variable and axis, unit type and description (from the setup where its own are
+// missing), and its interval.
+Signal read_data_signal(const pugi::xml_node& node, const SetupBySignalKey& setup, std::string_view xml,
+                        const std::string& source) {
+    Signal signal;
+    auto line = [&] { return line_of_node(xml, node); };  // only on the error path: it counts lines
+    signal.id = node.attribute("id").value();
+    signal.key = node.attribute("key").value();
+    if (signal.id.empty()) {
+        throw InputError(fmt::format("{}: line {}: <dataSignal> without an id", source, line()));
+    }
+    split_signal_name(node.attribute("name").value(), signal.variable, signal.axis);
+    if (signal.variable.empty()) signal.variable = signal.key.empty() ? signal.id : signal.key;
+    signal.units_type = node.attribute("unitsType").value();
+    signal.description = node.attribute("description").value();
+    if (const auto it = setup.find(signal.key); it != setup.end()) {
+        if (!unit_of(signal.units_type) && unit_of(it->second.first)) signal.units_type = it->second.first;
+        if (signal.description.empty()) signal.description = it->second.second;
+    }
+    const auto interval = node.attribute("interval");
+    if (!interval) {
+        throw InputError(fmt::format("{}: line {}: <dataSignal id=\"{}\"> has no interval", source, line(), signal.id));
+    }
+    signal.interval_s = parse_attribute_number(xml, source, node, interval);
+    if (!(signal.interval_s > 0.0)) {
+        throw InputError(fmt::format("{}: line {}: <dataSignal id=\"{}\">: interval {} is not positive", source, line(),
+                                     signal.id, interval.value()));
+    }
+    if (const auto count = node.attribute("datapointCount")) signal.datapoint_count = count.as_llong(-1);
+    return signal;
+}
+
+// Everything but the records: the root, the setup sections' unit types and descriptions, the dataSignals. `frame`
+// receives the (first) <dataFrame>.
+Session read_declarations(const pugi::xml_document& document, std::string_view xml, const std::string& source,
+                          pugi::xml_node& frame) {
+    frame = first_data_frame(document, xml, source);
+    Session session;
+    session.input_bytes = xml.size();
+    if (frame.next_sibling("dataFrame")) {
+        session.findings.push_back("the trace holds several data frames; only the first is read");
+    }
+    const auto setup = read_setup(document.child("traceSession"));
     std::unordered_set<std::string> ids;
     for (const auto& node : frame.children("dataSignal")) {
-        Signal signal;
-        auto line = [&] { return line_of_node(xml, node); };  // only on the error path: it counts lines
-        signal.id = node.attribute("id").value();
-        signal.key = node.attribute("key").value();
-        if (signal.id.empty()) {
-            throw InputError(fmt::format("{}: line {}: <dataSignal> without an id", source, line()));
-        }
-        split_signal_name(node.attribute("name").value(), signal.variable, signal.axis);
-        if (signal.variable.empty()) signal.variable = signal.key.empty() ? signal.id : signal.key;
-        signal.units_type = node.attribute("unitsType").value();
-        signal.description = node.attribute("description").value();
-        if (const auto it = setup.find(signal.key); it != setup.end()) {
-            if (!unit_of(signal.units_type) && unit_of(it->second.first)) signal.units_type = it->second.first;
-            if (signal.description.empty()) signal.description = it->second.second;
-        }
-        const auto interval = node.attribute("interval");
-        if (!interval) {
-            throw InputError(
-                fmt::format("{}: line {}: <dataSignal id=\"{}\"> has no interval", source, line(), signal.id));
-        }
-        signal.interval_s = parse_attribute_number(xml, source, node, interval);
-        if (!(signal.interval_s > 0.0)) {
-            throw InputError(fmt::format("{}: line {}: <dataSignal id=\"{}\">: interval {} is not positive", source,
-                                         line(), signal.id, interval.value()));
-        }
-        if (const auto count = node.attribute("datapointCount")) signal.datapoint_count = count.as_llong(-1);
+        Signal signal = read_data_signal(node, setup, xml, source);
         if (!ids.insert(signal.id).second) {
-            throw InputError(
-                fmt::format("{}: line {}: <dataSignal id=\"{}\"> is declared twice", source, line(), signal.id));
+            throw InputError(fmt::format("{}: line {}: <dataSignal id=\"{}\"> is declared twice", source,
+                                         line_of_node(xml, node), signal.id));
         }
         session.signals.push_back(std::move(signal));
     }
@@ -236,8 +253,24 @@ Session read_declarations(const pugi::xml_document& document, std::string_view x
         throw InputError(
             fmt::format("{}: line {}: <dataFrame> declares no <dataSignal>", source, line_of_node(xml, frame)));
     }
-
     return session;
+}
+
+// A record's value of a signal, as the signal's next event; the same instant written twice: the later value counts.
+void record_value(Signal& signal, double time, double value) {
+    if (!signal.times.empty() && signal.times.back() == time) {
+        signal.values.back() = value;
+    } else {
+        signal.times.push_back(time);
+        signal.values.push_back(value);
+    }
+}
+
+void note_unknown_attributes(Session& session, std::size_t unknown_attributes) {
+    if (unknown_attributes > 0) {
+        session.findings.push_back(
+            fmt::format("{} record values belong to no declared <dataSignal> and were ignored", unknown_attributes));
+    }
 }
 
 // The records as pugixml's DOM holds them; every problem is an InputError naming its line.
@@ -269,24 +302,15 @@ void read_dom_records(Session& session, const pugi::xml_node& frame, std::string
                 ++unknown_attributes;
                 continue;
             }
-            auto& signal = session.signals[static_cast<std::size_t>(index)];
             const double value = parse_attribute_number(xml, source, rec, attribute);
-            if (!signal.times.empty() && signal.times.back() == time) {
-                signal.values.back() = value;  // the same instant written twice: the later value counts
-            } else {
-                signal.times.push_back(time);
-                signal.values.push_back(value);
-            }
+            record_value(session.signals[static_cast<std::size_t>(index)], time, value);
         }
     }
     if (std::isnan(session.first_time)) {
         throw InputError(
             fmt::format("{}: line {}: <dataFrame> holds no <rec> records", source, line_of_node(xml, frame)));
     }
-    if (unknown_attributes > 0) {
-        session.findings.push_back(
-            fmt::format("{} record values belong to no declared <dataSignal> and were ignored", unknown_attributes));
-    }
+    note_unknown_attributes(session, unknown_attributes);
 }
 
 // ---- The fast path for the records --------------------------------------------------------------------------------
@@ -382,20 +406,11 @@ bool read_plain_records(Session& session, std::string_view records) {
             }
             double value = 0.0;
             if (!scan::parse_number(attribute.value, value) || !std::isfinite(value)) return false;
-            auto& signal = session.signals[static_cast<std::size_t>(index)];
-            if (!signal.times.empty() && signal.times.back() == time) {
-                signal.values.back() = value;  // the same instant written twice: the later value counts
-            } else {
-                signal.times.push_back(time);
-                signal.values.push_back(value);
-            }
+            record_value(session.signals[static_cast<std::size_t>(index)], time, value);
         }
     }
     if (std::isnan(session.first_time)) return false;
-    if (unknown_attributes > 0) {
-        session.findings.push_back(
-            fmt::format("{} record values belong to no declared <dataSignal> and were ignored", unknown_attributes));
-    }
+    note_unknown_attributes(session, unknown_attributes);
     return true;
 }
 
@@ -500,6 +515,130 @@ double cell_budget(const Session& session) {
     return std::max(16.0e6, 2.0 * static_cast<double>(session.input_bytes));
 }
 
+// The signals of an axis (and those that name none) that have samples; each one left out is said.
+std::vector<std::size_t> signals_with_samples(const std::vector<Signal>& signals, const std::string& axis,
+                                              const std::string& source, std::vector<std::string>& findings) {
+    std::vector<std::size_t> kept;
+    for (std::size_t k = 0; k < signals.size(); ++k) {
+        if (signals[k].axis != axis && !signals[k].axis.empty()) continue;
+        if (signals[k].times.empty()) {
+            findings.push_back(fmt::format("signal '{}' has no samples in the records; left out", signals[k].variable));
+        } else {
+            kept.push_back(k);
+        }
+    }
+    if (kept.empty()) {
+        throw InputError(fmt::format("{}: no signal of axis {} has any sample in the records", source,
+                                     axis.empty() ? std::string("(none)") : axis));
+    }
+    return kept;
+}
+
+// The number of samples on the fine time base (the finest interval over the records' span), taken from the budget;
+// a count far beyond what the file holds records for means a broken time or interval attribute.
+std::size_t fine_sample_count(const Session& session, double step, std::size_t channels, const std::string& source,
+                              double& budget) {
+    const double span = session.last_time - session.first_time;
+    const double count_real = std::floor(span / step + 1e-6) + 1.0;
+    const double cells = count_real * static_cast<double>(channels + 1);
+    if (!(count_real >= 1.0) || !(cells <= budget)) {
+        throw InputError(
+            fmt::format("{}: records from {} s to {} s at an interval of {} s would make {:.0f} samples, "
+                        "far more than the file holds records for",
+                        source, session.first_time, session.last_time, step, count_real));
+    }
+    budget -= cells;
+    return static_cast<std::size_t>(count_real);
+}
+
+// Forward-fill on the signal's own grid (origin: its first sample, spacing: its interval), then read the grid at each
+// fine time: the latest grid value at or before it; NaN before the first sample.
+std::vector<double> held_on_time_base(const Signal& signal, const std::vector<double>& time) {
+    const double origin = signal.times.front();
+    const double interval = signal.interval_s;
+    std::vector<double> values(time.size(), not_a_number);
+    std::size_t event = 0;
+    double held = not_a_number;
+    for (std::size_t j = 0; j < time.size(); ++j) {
+        const double position = (time[j] - origin) / interval;
+        if (position < -1e-6) continue;
+        const double cell = std::floor(position + 1e-6);
+        while (event < signal.times.size() && std::round((signal.times[event] - origin) / interval) <= cell) {
+            held = signal.values[event];
+            ++event;
+        }
+        values[j] = held;
+    }
+    return values;
+}
+
+// A channel per kept signal, named after its NC variable (and its key when two share a variable).
+std::vector<Channel> axis_channels(const std::vector<Signal>& signals, const std::vector<std::size_t>& kept,
+                                   const std::vector<double>& time) {
+    std::vector<Channel> channels;
+    std::map<std::string, int> name_use;
+    for (const auto index : kept) ++name_use[signals[index].variable];
+    for (const auto index : kept) {
+        const auto& signal = signals[index];
+        Channel channel;
+        channel.name = name_use[signal.variable] > 1 ? signal.variable + "_" + signal.key : signal.variable;
+        channel.source_unit = unit_of(signal.units_type).value_or(signal.units_type);
+        channel.values = held_on_time_base(signal, time);
+        channels.push_back(std::move(channel));
+    }
+    return channels;
+}
+
+// Roles, each guess said.
+void assign_roles(const std::vector<Signal>& signals, const std::vector<std::size_t>& kept,
+                  std::vector<Channel>& channels, std::vector<std::string>& findings) {
+    const auto guesses = guess_roles(signals, kept);
+    for (const auto& guess : guesses) {
+        const auto position =
+            static_cast<std::size_t>(std::find(kept.begin(), kept.end(), guess.signal) - kept.begin());
+        auto& channel = channels[position];
+        channel.role = guess.role;
+        const auto& description = signals[guess.signal].description;
+        findings.push_back(
+            fmt::format("channel '{}'{} taken as {} (guessed from the NC variable name; set it "
+                        "with --channel {}=NAME)",
+                        channel.name, description.empty() ? "" : " (" + description + ")", role_name(guess.role),
+                        role_name(guess.role)));
+    }
+    if (!guesses.empty()) {
+        findings.push_back(
+            "SINUMERIK units taken for a linear metric axis: posn in mm, velo in mm/min (state "
+            "others with --unit ROLE=UNIT, e.g. --unit position=deg for a rotary axis)");
+    }
+}
+
+// Where every role channel has a value (sparse signals on coarser grids may start later).
+std::size_t first_complete_sample(const std::vector<Channel>& channels, std::size_t n, const std::string& source) {
+    std::size_t first = 0;
+    for (const auto& channel : channels) {
+        if (channel.role == Role::other) continue;
+        std::size_t k = 0;
+        while (k < n && std::isnan(channel.values[k])) ++k;
+        first = std::max(first, k);
+    }
+    if (first >= n) throw InputError(fmt::format("{}: no sample where all role channels have values", source));
+    return first;
+}
+
+// Said once: a signal on the fine interval whose declared count of data points differs from the samples made.
+void note_datapoint_mismatch(const std::vector<Signal>& signals, const std::vector<std::size_t>& kept, std::size_t n,
+                             double step, std::vector<std::string>& findings) {
+    for (const auto index : kept) {
+        const auto& signal = signals[index];
+        if (signal.datapoint_count > 0 && static_cast<std::size_t>(signal.datapoint_count) != n &&
+            signal.interval_s == step) {
+            findings.push_back(fmt::format("signal '{}' declares {} data points; the records span {}", signal.variable,
+                                           signal.datapoint_count, n));
+            return;
+        }
+    }
+}
+
 Trace build_axis(const Session& session, const std::string& axis, const std::string& source, double& budget) {
     const auto& signals = session.signals;
     budget -= static_cast<double>(signals.size());
@@ -509,120 +648,24 @@ Trace build_axis(const Session& session, const std::string& axis, const std::str
                         "({} signals)",
                         source, signals.size()));
     }
-    std::vector<std::size_t> members;
-    for (std::size_t k = 0; k < signals.size(); ++k) {
-        if (signals[k].axis == axis || signals[k].axis.empty()) members.push_back(k);
-    }
     Trace trace;
     trace.format = "sinumerik-trace";
     trace.findings = session.findings;
-
-    std::vector<std::size_t> kept;
-    for (const auto index : members) {
-        if (signals[index].times.empty()) {
-            trace.findings.push_back(
-                fmt::format("signal '{}' has no samples in the records; left out", signals[index].variable));
-        } else {
-            kept.push_back(index);
-        }
-    }
-    if (kept.empty()) {
-        throw InputError(fmt::format("{}: no signal of axis {} has any sample in the records", source,
-                                     axis.empty() ? std::string("(none)") : axis));
-    }
+    const auto kept = signals_with_samples(signals, axis, source, trace.findings);
     double step = std::numeric_limits<double>::infinity();
     for (const auto index : kept) step = std::min(step, signals[index].interval_s);
-
-    // The fine time base, and a cap on what a few bytes of a hostile file can make us allocate: a real trace writes
-    // a record for nearly every fine sample, so cells (samples x channels) far beyond the file size mean a broken
-    // time or interval attribute.
-    const double span = session.last_time - session.first_time;
-    const double count_real = std::floor(span / step + 1e-6) + 1.0;
-    const double cells = count_real * static_cast<double>(kept.size() + 1);
-    if (!(count_real >= 1.0) || !(cells <= budget)) {
-        throw InputError(
-            fmt::format("{}: records from {} s to {} s at an interval of {} s would make {:.0f} samples, "
-                        "far more than the file holds records for",
-                        source, session.first_time, session.last_time, step, count_real));
-    }
-    budget -= cells;
-    const auto n = static_cast<std::size_t>(count_real);
+    const std::size_t n = fine_sample_count(session, step, kept.size(), source, budget);
 
     std::vector<double> time(n);
     for (std::size_t j = 0; j < n; ++j) time[j] = session.first_time + static_cast<double>(j) * step;
-
-    std::vector<Channel> channels;
-    std::map<std::string, int> name_use;
-    for (const auto index : kept) ++name_use[signals[index].variable];
-    for (const auto index : kept) {
-        const auto& signal = signals[index];
-        Channel channel;
-        channel.name = name_use[signal.variable] > 1 ? signal.variable + "_" + signal.key : signal.variable;
-        channel.source_unit = unit_of(signal.units_type).value_or(signal.units_type);
-        // Forward-fill on the signal's own grid (origin: its first sample, spacing: its interval), then read the
-        // grid at each fine time: the latest grid value at or before it; NaN before the first sample.
-        const double origin = signal.times.front();
-        const double interval = signal.interval_s;
-        channel.values.assign(n, not_a_number);
-        std::size_t event = 0;
-        double held = not_a_number;
-        for (std::size_t j = 0; j < n; ++j) {
-            const double position = (time[j] - origin) / interval;
-            if (position < -1e-6) continue;
-            const double cell = std::floor(position + 1e-6);
-            while (event < signal.times.size() && std::round((signal.times[event] - origin) / interval) <= cell) {
-                held = signal.values[event];
-                ++event;
-            }
-            channel.values[j] = held;
-        }
-        channels.push_back(std::move(channel));
-    }
-
-    // Roles, each guess said.
-    const auto guesses = guess_roles(signals, kept);
-    for (const auto& guess : guesses) {
-        const auto position =
-            static_cast<std::size_t>(std::find(kept.begin(), kept.end(), guess.signal) - kept.begin());
-        auto& channel = channels[position];
-        channel.role = guess.role;
-        const auto& description = signals[guess.signal].description;
-        trace.findings.push_back(
-            fmt::format("channel '{}'{} taken as {} (guessed from the NC variable name; set it "
-                        "with --channel {}=NAME)",
-                        channel.name, description.empty() ? "" : " (" + description + ")", role_name(guess.role),
-                        role_name(guess.role)));
-    }
-    if (!guesses.empty()) {
-        trace.findings.push_back(
-            "SINUMERIK units taken for a linear metric axis: posn in mm, velo in mm/min (state "
-            "others with --unit ROLE=UNIT, e.g. --unit position=deg for a rotary axis)");
-    }
-
-    // The trace starts where every role channel has a value (sparse signals on coarser grids may start later).
-    std::size_t first = 0;
-    for (const auto& channel : channels) {
-        if (channel.role == Role::other) continue;
-        std::size_t k = 0;
-        while (k < n && std::isnan(channel.values[k])) ++k;
-        first = std::max(first, k);
-    }
-    if (first >= n) throw InputError(fmt::format("{}: no sample where all role channels have values", source));
+    auto channels = axis_channels(signals, kept, time);
+    assign_roles(signals, kept, channels, trace.findings);
+    const std::size_t first = first_complete_sample(channels, n, source);
     if (first > 0) {
         trace.findings.push_back(
-            fmt::format("the first {} samples were dropped: not every role channel had a value "
-                        "yet",
-                        first));
+            fmt::format("the first {} samples were dropped: not every role channel had a value yet", first));
     }
-    for (const auto index : kept) {
-        const auto& signal = signals[index];
-        if (signal.datapoint_count > 0 && static_cast<std::size_t>(signal.datapoint_count) != n &&
-            signal.interval_s == step) {
-            trace.findings.push_back(fmt::format("signal '{}' declares {} data points; the records span {}",
-                                                 signal.variable, signal.datapoint_count, n));
-            break;
-        }
-    }
+    note_datapoint_mismatch(signals, kept, n, step, trace.findings);
 
     auto cut = [first](std::vector<double>& values) {
         values.erase(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(first));

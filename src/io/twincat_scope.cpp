@@ -165,17 +165,24 @@ std::string unit_symbol(std::string_view cell) {
     return std::string(scan::trim(cell));
 }
 
-}  // namespace
+// The export read line by line, with the number of the line last read (for messages).
+struct Lines {
+    std::string_view text;
+    std::size_t position{0};
+    std::size_t number{0};
 
-Trace parse_twincat_scope(std::string_view text, const std::string& source) {
-    if (text.size() >= 3 && text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
-    if (text.find('\0') != std::string_view::npos) {
-        throw InputError(fmt::format("{}: not a text file (it contains NUL bytes)", source));
+    [[nodiscard]] bool more() const { return position < text.size(); }
+    std::string_view next() {
+        ++number;
+        return scan::next_line(text, position);
     }
-    std::size_t position = 0;
-    std::size_t line_number = 0;
-    const std::string_view first = scan::next_line(text, position);
-    ++line_number;
+};
+
+using Header = std::map<std::string_view, HeaderRow>;
+
+// The first line starts with the key "Name" and the separator every row of the export uses.
+char read_separator(Lines& lines, const std::string& source) {
+    const std::string_view first = lines.next();
     if (first.size() < 5 || !first.starts_with("Name")) {
         throw InputError(
             fmt::format("{}: line 1: not a TwinCAT Scope export (it starts with 'Name' and a separator)", source));
@@ -184,263 +191,385 @@ Trace parse_twincat_scope(std::string_view text, const std::string& source) {
     if (separator != '\t' && separator != ' ' && separator != ':' && separator != ';' && separator != ',') {
         throw InputError(fmt::format("{}: line 1: unknown separator '{}' after 'Name'", source, first[4]));
     }
+    return separator;
+}
 
-    // The channel header block: from the second line that starts with the key "Name" to the next blank line.
-    std::map<std::string_view, HeaderRow> header;
+// The channel header block: from the second line that starts with the key "Name" to the next blank line.
+Header read_header_block(Lines& lines, char separator, const std::string& source) {
+    Header header;
     std::size_t header_line = 0;
-    while (position < text.size()) {
-        const std::string_view line = scan::next_line(text, position);
-        ++line_number;
+    while (lines.more()) {
+        const std::string_view line = lines.next();
         if (header_line == 0) {
             if (key_of(line, separator) == "Name") {
-                header_line = line_number;
-                header["Name"] = {line, line_number};
+                header_line = lines.number;
+                header["Name"] = {line, lines.number};
             }
             continue;
         }
         if (is_blank(line)) break;
         const auto key = key_of(line, separator);
-        if (!header.contains(key)) header[key] = {line, line_number};
+        if (!header.contains(key)) header[key] = {line, lines.number};
     }
     if (header_line == 0) {
         throw InputError(
             fmt::format("{}: no channel header (a line starting with 'Name' after the file information)", source));
     }
+    return header;
+}
 
-    // The column layout from the Data-Type row (its cells never hold a separator), else from the Name row.
-    const auto layout_row = header.contains("Data-Type") ? header["Data-Type"] : header["Name"];
-    const std::string_view layout_key = header.contains("Data-Type") ? "Data-Type" : "Name";
+struct Layout {
+    std::string_view key;       // the row the columns are taken from
+    std::vector<Group> groups;  // only groups with channels
+    std::size_t columns{0};
+    std::size_t channel_count{0};
+};
+
+// The column layout from the Data-Type row (its cells never hold a separator), else from the Name row.
+Layout column_layout(const Header& header, char separator, const std::string& source) {
+    Layout layout;
+    layout.key = header.contains("Data-Type") ? "Data-Type" : "Name";
+    const HeaderRow& row = header.at(layout.key);
     std::vector<std::string_view> cells;
-    split_cells(layout_row.text, separator, cells);
+    split_cells(row.text, separator, cells);
     if (cells.size() > 1 && is_blank(cells.back())) cells.pop_back();
-    std::vector<Group> groups;
     for (std::size_t c = 0; c < cells.size(); ++c) {
-        if (scan::trim(cells[c]) == layout_key) {
-            groups.push_back({c, {}});
-        } else if (groups.empty()) {
-            throw InputError(fmt::format("{}: line {}: the {} row does not start with its key", source, layout_row.line,
-                                         layout_key));
+        if (scan::trim(cells[c]) == layout.key) {
+            layout.groups.push_back({c, {}});
+        } else if (layout.groups.empty()) {
+            throw InputError(
+                fmt::format("{}: line {}: the {} row does not start with its key", source, row.line, layout.key));
         } else {
-            groups.back().channel_columns.push_back(c);
+            layout.groups.back().channel_columns.push_back(c);
         }
     }
-    const std::size_t columns = cells.size();
-    std::erase_if(groups, [](const Group& group) { return group.channel_columns.empty(); });
-    if (groups.empty())
-        throw InputError(fmt::format("{}: line {}: no channels in the header", source, layout_row.line));
-    std::size_t channel_count = 0;
-    for (const auto& group : groups) channel_count += group.channel_columns.size();
+    layout.columns = cells.size();
+    std::erase_if(layout.groups, [](const Group& group) { return group.channel_columns.empty(); });
+    if (layout.groups.empty())
+        throw InputError(fmt::format("{}: line {}: no channels in the header", source, row.line));
+    for (const auto& group : layout.groups) layout.channel_count += group.channel_columns.size();
+    return layout;
+}
 
+// An empty name becomes "channel", "time" (the time base's name) "time (channel)", and a repeated one gets " #2", ...
+void make_names_unique(std::vector<std::string>& names) {
+    std::map<std::string, int> seen;
+    for (auto& name : names) {
+        if (name.empty()) name = "channel";
+        if (name == "time") name = "time (channel)";
+        if (const int count = seen[name]++; count > 0) name += fmt::format(" #{}", count + 1);
+    }
+}
+
+std::vector<std::string> channel_names(const Header& header, const Layout& layout, char separator,
+                                       const std::string& source, std::vector<std::string>& findings) {
+    const HeaderRow& name_row = header.at("Name");
     std::vector<std::string> names;
-    std::vector<std::string> findings;
-    if (auto row = row_cells(header["Name"].text, "Name", separator, groups, columns)) {
+    if (auto row = row_cells(name_row.text, "Name", separator, layout.groups, layout.columns)) {
         names = std::move(*row);
     } else if (separator == ' ') {
-        for (std::size_t k = 0; k < channel_count; ++k) names.push_back(fmt::format("channel {}", k + 1));
+        for (std::size_t k = 0; k < layout.channel_count; ++k) names.push_back(fmt::format("channel {}", k + 1));
         findings.push_back(
             "the channel names of this space-separated export cannot be told apart (a name holds a "
             "space); channels are named 'channel 1', 'channel 2', ... in column order");
     } else {
         throw InputError(fmt::format("{}: line {}: the Name row does not match the columns of the {} row", source,
-                                     header_line, layout_key));
+                                     name_row.line, layout.key));
     }
-    {
-        std::map<std::string, int> seen;
-        for (auto& name : names) {
-            if (name.empty()) name = "channel";
-            if (name == "time") name = "time (channel)";
-            if (const int count = seen[name]++; count > 0) name += fmt::format(" #{}", count + 1);
-        }
+    make_names_unique(names);
+    return names;
+}
+
+std::vector<std::string> channel_units(const Header& header, const Layout& layout, char separator,
+                                       std::vector<std::string>& findings) {
+    std::vector<std::string> units(layout.channel_count);
+    const auto unit_row = header.find("Unit");
+    if (unit_row == header.end()) return units;
+    if (auto row = row_cells(unit_row->second.text, "Unit", separator, layout.groups, layout.columns)) {
+        for (std::size_t k = 0; k < layout.channel_count; ++k) units[k] = unit_symbol((*row)[k]);
+    } else {
+        findings.push_back(fmt::format("line {}: the Unit row does not match the columns; channels taken without units",
+                                       unit_row->second.line));
     }
-    std::vector<std::string> units(channel_count);
-    if (header.contains("Unit")) {
-        if (auto row = row_cells(header["Unit"].text, "Unit", separator, groups, columns)) {
-            for (std::size_t k = 0; k < channel_count; ++k) units[k] = unit_symbol((*row)[k]);
-        } else {
-            findings.push_back(
-                fmt::format("line {}: the Unit row does not match the columns; channels taken without "
-                            "units",
-                            header["Unit"].line));
-        }
-    }
-    // Scalings the Scope already applied (informational; see the header).
-    {
-        std::vector<std::string> scaled;
-        for (const std::string_view key : {"ScaleFactor", "Offset", "Unit ScaleFactor", "Unit Offset"}) {
-            if (!header.contains(key)) continue;
-            const auto row = row_cells(header[key].text, key, separator, groups, columns);
-            if (!row) continue;
-            const double neutral = key.ends_with("Offset") ? 0.0 : 1.0;
-            for (std::size_t k = 0; k < channel_count; ++k) {
-                double value = neutral;
-                const char decimal = separator == ',' ? '.' : ((*row)[k].find(',') != std::string::npos ? ',' : '.');
-                if (scan::parse_number((*row)[k], value, decimal) && value != neutral) {
-                    scaled.push_back(fmt::format("'{}' {} {}", names[k], key, (*row)[k]));
-                }
+    return units;
+}
+
+// Scalings the Scope already applied (informational; see the header).
+void note_applied_scalings(const Header& header, const Layout& layout, char separator,
+                           const std::vector<std::string>& names, std::vector<std::string>& findings) {
+    std::vector<std::string> scaled;
+    for (const std::string_view key : {"ScaleFactor", "Offset", "Unit ScaleFactor", "Unit Offset"}) {
+        const auto found = header.find(key);
+        if (found == header.end()) continue;
+        const auto row = row_cells(found->second.text, key, separator, layout.groups, layout.columns);
+        if (!row) continue;
+        const double neutral = key.ends_with("Offset") ? 0.0 : 1.0;
+        for (std::size_t k = 0; k < layout.channel_count; ++k) {
+            double value = neutral;
+            const char decimal = separator == ',' ? '.' : ((*row)[k].find(',') != std::string::npos ? ',' : '.');
+            if (scan::parse_number((*row)[k], value, decimal) && value != neutral) {
+                scaled.push_back(fmt::format("'{}' {} {}", names[k], key, (*row)[k]));
             }
         }
-        if (!scaled.empty()) {
-            std::string list;
-            for (const auto& item : scaled) list += (list.empty() ? "" : ", ") + item;
-            findings.push_back("values taken as exported (the Scope applies these scalings before writing): " + list);
+    }
+    if (!scaled.empty()) {
+        std::string list;
+        for (const auto& item : scaled) list += (list.empty() ? "" : ", ") + item;
+        findings.push_back("values taken as exported (the Scope applies these scalings before writing): " + list);
+    }
+}
+
+// What the data rows hold: each group's time stamps [ms] and each channel's values (NaN for a blank cell).
+struct Samples {
+    std::vector<std::vector<double>> times;   // per group
+    std::vector<std::vector<double>> values;  // per channel, in column order
+    std::vector<std::size_t> first_channel;   // per group: the index of its first channel
+};
+
+// Reads the data rows one at a time, checking each against the layout; every problem names its line.
+class SampleReader {
+public:
+    SampleReader(const Layout& layout, const std::vector<std::string>& names, char separator, const std::string& source)
+        : layout_(layout),
+          names_(names),
+          separator_(separator),
+          source_(source),
+          decimal_known_(separator == ','),
+          ended_(layout.groups.size(), 0) {
+        const auto& groups = layout.groups;
+        samples_.times.resize(groups.size());
+        samples_.values.resize(layout.channel_count);
+        samples_.first_channel.resize(groups.size());
+        for (std::size_t g = 0, k = 0; g < groups.size(); k += groups[g].channel_columns.size(), ++g) {
+            samples_.first_channel[g] = k;
         }
     }
 
-    // Data rows.
-    std::vector<std::vector<double>> times(groups.size());
-    std::vector<std::vector<double>> values(channel_count);
-    std::vector<std::size_t> first_channel(groups.size());
-    for (std::size_t g = 0, k = 0; g < groups.size(); k += groups[g].channel_columns.size(), ++g) first_channel[g] = k;
-    char decimal = '.';
-    bool decimal_known = separator == ',';
-    std::vector<char> ended(groups.size(), 0);
-    while (position < text.size()) {
-        const std::string_view line = scan::next_line(text, position);
-        ++line_number;
+    void read_row(std::string_view line, std::size_t line_number) {
+        split_cells(line, separator_, cells_);
+        const std::size_t columns = layout_.columns;
+        if (cells_.size() > columns && !(cells_.size() == columns + 1 && is_blank(cells_.back()))) {
+            throw InputError(fmt::format("{}: line {}: {} cells, the header has {} columns", source_, line_number,
+                                         cells_.size(), columns));
+        }
+        if (!decimal_known_) learn_decimal_mark();
+        for (std::size_t g = 0; g < layout_.groups.size(); ++g) read_group(g, line_number);
+    }
+
+    // Every group must have samples.
+    Samples finish() {
+        for (std::size_t g = 0; g < layout_.groups.size(); ++g) {
+            if (samples_.times[g].empty()) {
+                throw InputError(fmt::format("{}: channel '{}' has no samples", source_, group_name(g)));
+            }
+        }
+        return std::move(samples_);
+    }
+
+private:
+    // Decimal comma: a comma inside a number cell (the separator is not a comma here).
+    void learn_decimal_mark() {
+        for (const auto cell : cells_) {
+            if (cell.find(',') != std::string_view::npos) {
+                decimal_ = ',';
+                decimal_known_ = true;
+                return;
+            }
+            if (cell.find('.') != std::string_view::npos) {
+                decimal_known_ = true;
+                return;
+            }
+        }
+    }
+
+    [[nodiscard]] std::string_view cell_at(std::size_t column) const {
+        return column < cells_.size() ? cells_[column] : std::string_view{};
+    }
+    [[nodiscard]] const std::string& group_name(std::size_t g) const { return names_[samples_.first_channel[g]]; }
+
+    // One group's cells of a row: its time stamp and its channels' values. A group whose time cell is blank has
+    // ended (its channels must be blank too, and stay so).
+    void read_group(std::size_t g, std::size_t line_number) {
+        const auto& group = layout_.groups[g];
+        auto& times = samples_.times[g];
+        const auto time_cell = cell_at(group.time_column);
+        if (is_blank(time_cell)) {
+            for (const auto column : group.channel_columns) {
+                if (!is_blank(cell_at(column))) {
+                    throw InputError(fmt::format("{}: line {}: channel '{}' has a value but no time stamp", source_,
+                                                 line_number, group_name(g)));
+                }
+            }
+            ended_[g] = !times.empty();
+            return;
+        }
+        double time = 0.0;
+        if (!scan::parse_number(time_cell, time, decimal_) || !std::isfinite(time)) {
+            throw InputError(fmt::format("{}: line {}: time stamp '{}' of channel '{}' is not a number", source_,
+                                         line_number, scan::trim(time_cell), group_name(g)));
+        }
+        if (!times.empty() && !(time > times.back())) {
+            throw InputError(fmt::format("{}: line {}: time stamps of channel '{}' do not increase ({} ms after {} ms)",
+                                         source_, line_number, group_name(g), time, times.back()));
+        }
+        if (ended_[g]) {
+            throw InputError(fmt::format("{}: line {}: channel '{}' resumes after blank cells", source_, line_number,
+                                         group_name(g)));
+        }
+        times.push_back(time);
+        for (std::size_t c = 0; c < group.channel_columns.size(); ++c) {
+            const std::size_t k = samples_.first_channel[g] + c;
+            const auto cell = cell_at(group.channel_columns[c]);
+            double value = not_a_number;
+            if (!is_blank(cell) && !scan::parse_number(cell, value, decimal_)) {
+                throw InputError(fmt::format("{}: line {}: value '{}' of channel '{}' is not a number", source_,
+                                             line_number, scan::trim(cell), names_[k]));
+            }
+            samples_.values[k].push_back(value);
+        }
+    }
+
+    const Layout& layout_;
+    const std::vector<std::string>& names_;
+    char separator_;
+    const std::string& source_;
+    char decimal_{'.'};
+    bool decimal_known_;
+    std::vector<char> ended_;  // per group: its time cells have turned blank
+    std::vector<std::string_view> cells_;
+    Samples samples_;
+};
+
+// The data rows, up to the end of the text or an "EOF" line.
+Samples read_samples(Lines& lines, const Layout& layout, const std::vector<std::string>& names, char separator,
+                     const std::string& source) {
+    SampleReader reader(layout, names, separator, source);
+    while (lines.more()) {
+        const std::string_view line = lines.next();
         if (is_blank(line)) continue;
         if (scan::trim(line) == "EOF") break;
-        split_cells(line, separator, cells);
-        if (cells.size() > columns && !(cells.size() == columns + 1 && is_blank(cells.back()))) {
-            throw InputError(fmt::format("{}: line {}: {} cells, the header has {} columns", source, line_number,
-                                         cells.size(), columns));
-        }
-        if (!decimal_known) {
-            // Decimal comma: a comma inside a number cell (the separator is not a comma here).
-            for (const auto cell : cells) {
-                if (cell.find(',') != std::string_view::npos) {
-                    decimal = ',';
-                    decimal_known = true;
-                    break;
-                }
-                if (cell.find('.') != std::string_view::npos) {
-                    decimal_known = true;
-                    break;
-                }
-            }
-        }
-        auto cell_at = [&](std::size_t column) { return column < cells.size() ? cells[column] : std::string_view{}; };
-        for (std::size_t g = 0; g < groups.size(); ++g) {
-            const auto& group = groups[g];
-            const auto time_cell = cell_at(group.time_column);
-            if (is_blank(time_cell)) {
-                for (const auto column : group.channel_columns) {
-                    if (!is_blank(cell_at(column))) {
-                        throw InputError(fmt::format("{}: line {}: channel '{}' has a value but no time stamp", source,
-                                                     line_number, names[first_channel[g]]));
-                    }
-                }
-                ended[g] = !times[g].empty();
-                continue;
-            }
-            double time = 0.0;
-            if (!scan::parse_number(time_cell, time, decimal) || !std::isfinite(time)) {
-                throw InputError(fmt::format("{}: line {}: time stamp '{}' of channel '{}' is not a number", source,
-                                             line_number, scan::trim(time_cell), names[first_channel[g]]));
-            }
-            if (!times[g].empty() && !(time > times[g].back())) {
-                throw InputError(
-                    fmt::format("{}: line {}: time stamps of channel '{}' do not increase ({} ms after "
-                                "{} ms)",
-                                source, line_number, names[first_channel[g]], time, times[g].back()));
-            }
-            if (ended[g]) {
-                throw InputError(fmt::format("{}: line {}: channel '{}' resumes after blank cells", source, line_number,
-                                             names[first_channel[g]]));
-            }
-            times[g].push_back(time);
-            for (std::size_t c = 0; c < group.channel_columns.size(); ++c) {
-                const auto cell = cell_at(group.channel_columns[c]);
-                double value = not_a_number;
-                if (!is_blank(cell) && !scan::parse_number(cell, value, decimal)) {
-                    throw InputError(fmt::format("{}: line {}: value '{}' of channel '{}' is not a number", source,
-                                                 line_number, scan::trim(cell), names[first_channel[g] + c]));
-                }
-                values[first_channel[g] + c].push_back(value);
-            }
-        }
+        reader.read_row(line, lines.number);
     }
-    for (std::size_t g = 0; g < groups.size(); ++g) {
-        if (times[g].empty()) {
-            throw InputError(fmt::format("{}: channel '{}' has no samples", source, names[first_channel[g]]));
-        }
-    }
+    return reader.finish();
+}
 
-    // The common time base: the finest group's stamps within the span every channel covers.
-    auto median_step = [](const std::vector<double>& t) {
-        if (t.size() < 2) return std::numeric_limits<double>::infinity();
-        std::vector<double> steps(t.size() - 1);
-        for (std::size_t k = 0; k + 1 < t.size(); ++k) steps[k] = t[k + 1] - t[k];
-        std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
-        return steps[steps.size() / 2];
-    };
-    std::size_t finest = 0;
-    std::vector<double> steps(groups.size());
-    double begin = -std::numeric_limits<double>::infinity();
-    double end = std::numeric_limits<double>::infinity();
-    for (std::size_t g = 0; g < groups.size(); ++g) {
-        steps[g] = median_step(times[g]);
-        if (steps[g] < steps[finest]) finest = g;
-        begin = std::max(begin, times[g].front());
-        end = std::min(end, times[g].back());
+double median_step(const std::vector<double>& t) {
+    if (t.size() < 2) return std::numeric_limits<double>::infinity();
+    std::vector<double> steps(t.size() - 1);
+    for (std::size_t k = 0; k + 1 < t.size(); ++k) steps[k] = t[k + 1] - t[k];
+    std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
+    return steps[steps.size() / 2];
+}
+
+struct CommonTimeBase {
+    std::size_t finest{0};      // the group with the finest sample time
+    std::vector<double> steps;  // each group's median sample time [ms]
+    double begin{-std::numeric_limits<double>::infinity()};
+    double end{std::numeric_limits<double>::infinity()};
+    double tolerance{0.0};       // [ms]
+    std::vector<double> stamps;  // [ms]
+};
+
+// The common time base: the finest group's stamps within the span every channel covers.
+CommonTimeBase common_time_base(const std::vector<std::vector<double>>& times, const std::string& source) {
+    CommonTimeBase base;
+    base.steps.resize(times.size());
+    for (std::size_t g = 0; g < times.size(); ++g) {
+        base.steps[g] = median_step(times[g]);
+        if (base.steps[g] < base.steps[base.finest]) base.finest = g;
+        base.begin = std::max(base.begin, times[g].front());
+        base.end = std::min(base.end, times[g].back());
     }
-    if (!(end >= begin)) {
+    if (!(base.end >= base.begin)) {
         throw InputError(
-            fmt::format("{}: the channels do not overlap in time (one ends at {} ms before another "
-                        "starts at {} ms)",
-                        source, end, begin));
+            fmt::format("{}: the channels do not overlap in time (one ends at {} ms before another starts at {} ms)",
+                        source, base.end, base.begin));
     }
-    const double tolerance = std::isfinite(steps[finest]) ? 1e-6 * steps[finest] : 1e-9;
-    std::vector<double> base;
-    for (const double t : times[finest]) {
-        if (t >= begin - tolerance && t <= end + tolerance) base.push_back(t);
+    const double finest_step = base.steps[base.finest];
+    base.tolerance = std::isfinite(finest_step) ? 1e-6 * finest_step : 1e-9;
+    for (const double t : times[base.finest]) {
+        if (t >= base.begin - base.tolerance && t <= base.end + base.tolerance) base.stamps.push_back(t);
     }
+    return base;
+}
+
+// Said when the groups are sampled at different times or the common span leaves samples out.
+std::optional<std::string> mixed_rate_finding(const std::vector<std::vector<double>>& times,
+                                              const CommonTimeBase& base) {
+    const auto& steps = base.steps;
+    bool mixed = false;
+    for (std::size_t g = 0; g < steps.size(); ++g) {
+        mixed = mixed || std::abs(steps[g] - steps[base.finest]) > base.tolerance;
+    }
+    const std::size_t longest = std::max_element(times.begin(), times.end(), [](const auto& a, const auto& b) {
+                                    return a.size() < b.size();
+                                })->size();
+    if (!mixed && base.stamps.size() >= longest) return std::nullopt;
+    std::vector<double> distinct;
+    for (const double step : steps) {
+        if (std::isfinite(step) && std::none_of(distinct.begin(), distinct.end(),
+                                                [&](double d) { return std::abs(d - step) <= base.tolerance; })) {
+            distinct.push_back(step);
+        }
+    }
+    std::sort(distinct.begin(), distinct.end());
+    std::string list;
+    for (const double step : distinct) list += fmt::format("{}{:g}", list.empty() ? "" : ", ", step);
+    return fmt::format(
+        "channels sampled at {} ms: all are put on the finest time stamps ({:g} ms) from {:g} ms to {:g} ms, where "
+        "every channel has samples; a slower channel holds its latest sample",
+        list, steps[base.finest], base.begin, base.end);
+}
+
+// A channel's values on the common time base: the finest group's own values over the common span; a slower group's
+// latest sample at each stamp.
+std::vector<double> values_on_base(const std::vector<double>& t, const std::vector<double>& values, bool finest,
+                                   const CommonTimeBase& base) {
+    const auto& stamps = base.stamps;
+    if (finest) {
+        const auto offset =
+            static_cast<std::size_t>(std::lower_bound(t.begin(), t.end(), base.begin - base.tolerance) - t.begin());
+        return {values.begin() + static_cast<std::ptrdiff_t>(offset),
+                values.begin() + static_cast<std::ptrdiff_t>(offset + stamps.size())};
+    }
+    std::vector<double> held(stamps.size());
+    std::size_t sample = 0;
+    for (std::size_t j = 0; j < stamps.size(); ++j) {
+        while (sample + 1 < t.size() && t[sample + 1] <= stamps[j] + base.tolerance) ++sample;
+        held[j] = values[sample];
+    }
+    return held;
+}
+
+}  // namespace
+
+Trace parse_twincat_scope(std::string_view text, const std::string& source) {
+    if (text.size() >= 3 && text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
+    if (text.find('\0') != std::string_view::npos) {
+        throw InputError(fmt::format("{}: not a text file (it contains NUL bytes)", source));
+    }
+    Lines lines{text};
+    const char separator = read_separator(lines, source);
+    const Header header = read_header_block(lines, separator, source);
+    const Layout layout = column_layout(header, separator, source);
+    std::vector<std::string> findings;
+    const auto names = channel_names(header, layout, separator, source, findings);
+    const auto units = channel_units(header, layout, separator, findings);
+    note_applied_scalings(header, layout, separator, names, findings);
+    const Samples samples = read_samples(lines, layout, names, separator, source);
+    const CommonTimeBase base = common_time_base(samples.times, source);
 
     Trace trace;
     trace.format = "twincat-scope";
     trace.findings = std::move(findings);
-    bool mixed = false;
-    for (std::size_t g = 0; g < groups.size(); ++g) mixed = mixed || std::abs(steps[g] - steps[finest]) > tolerance;
-    const std::size_t longest = std::max_element(times.begin(), times.end(), [](const auto& a, const auto& b) {
-                                    return a.size() < b.size();
-                                })->size();
-    if (mixed || base.size() < longest) {
-        std::vector<double> distinct;
-        for (const double step : steps) {
-            if (std::isfinite(step) && std::none_of(distinct.begin(), distinct.end(),
-                                                    [&](double d) { return std::abs(d - step) <= tolerance; })) {
-                distinct.push_back(step);
-            }
-        }
-        std::sort(distinct.begin(), distinct.end());
-        std::string list;
-        for (const double step : distinct) list += fmt::format("{}{:g}", list.empty() ? "" : ", ", step);
-        trace.findings.push_back(
-            fmt::format("channels sampled at {} ms: all are put on the finest time stamps "
-                        "({:g} ms) from {:g} ms to {:g} ms, where every channel has samples; a "
-                        "slower channel holds its latest sample",
-                        list, steps[finest], begin, end));
-    }
-
-    trace.channels.push_back(Channel{"time", Role::time, "", "ms", base});
-    for (std::size_t g = 0; g < groups.size(); ++g) {
-        const auto& t = times[g];
-        for (std::size_t c = 0; c < groups[g].channel_columns.size(); ++c) {
-            const std::size_t k = first_channel[g] + c;
-            Channel channel{names[k], Role::other, "", units[k], {}};
-            if (g == finest) {
-                const auto offset =
-                    static_cast<std::size_t>(std::lower_bound(t.begin(), t.end(), begin - tolerance) - t.begin());
-                channel.values.assign(values[k].begin() + static_cast<std::ptrdiff_t>(offset),
-                                      values[k].begin() + static_cast<std::ptrdiff_t>(offset + base.size()));
-            } else {
-                channel.values.resize(base.size());
-                std::size_t sample = 0;
-                for (std::size_t j = 0; j < base.size(); ++j) {
-                    while (sample + 1 < t.size() && t[sample + 1] <= base[j] + tolerance) ++sample;
-                    channel.values[j] = values[k][sample];
-                }
-            }
-            trace.channels.push_back(std::move(channel));
+    if (auto finding = mixed_rate_finding(samples.times, base)) trace.findings.push_back(std::move(*finding));
+    trace.channels.push_back(Channel{"time", Role::time, "", "ms", base.stamps});
+    for (std::size_t g = 0; g < layout.groups.size(); ++g) {
+        for (std::size_t c = 0; c < layout.groups[g].channel_columns.size(); ++c) {
+            const std::size_t k = samples.first_channel[g] + c;
+            trace.channels.push_back(
+                Channel{names[k], Role::other, "", units[k],
+                        values_on_base(samples.times[g], samples.values[k], g == base.finest, base)});
         }
     }
     return trace;

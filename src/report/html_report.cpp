@@ -296,115 +296,139 @@ std::vector<Plot> result_plots(const nlohmann::json& result, const std::string& 
     return plots;
 }
 
+namespace {
+
+// One axis's runs as its history plots place them.
+struct AxisRuns {
+    std::vector<const history::RunRecord*> runs;  // in recording order
+    std::map<std::int64_t, double> ordinal;       // run id -> x: its position in that order (from 1)
+    std::string where;                            // "machine 'M' axis 'A'", for titles
+    std::string prefix;                           // of the plots' element ids
+    std::optional<double> baseline_end;           // x between the last baseline run and the next
+};
+
+AxisRuns axis_runs(const std::vector<history::RunRecord>& runs, const history::SeriesTrend& trend) {
+    AxisRuns axis;
+    for (const auto& run : runs)
+        if (run.machine == trend.machine && run.axis == trend.axis) axis.runs.push_back(&run);
+    std::stable_sort(axis.runs.begin(), axis.runs.end(), [](const auto* a, const auto* b) {
+        return a->recorded_at != b->recorded_at ? a->recorded_at < b->recorded_at : a->id < b->id;
+    });
+    for (std::size_t i = 0; i < axis.runs.size(); ++i) axis.ordinal[axis.runs[i]->id] = static_cast<double>(i + 1);
+    axis.where = fmt::format("machine '{}' axis '{}'", trend.machine, trend.axis);
+    axis.prefix = slug(trend.machine + "-" + trend.axis);
+    if (!trend.baseline_run_ids.empty() && axis.ordinal.count(trend.baseline_run_ids.back()))
+        axis.baseline_end = axis.ordinal.at(trend.baseline_run_ids.back()) + 0.5;
+    return axis;
+}
+
+// A parameter's value per run with its band of ± 2 standard errors, the baseline mean, and the one-run alarm limits.
+Plot trend_plot(const history::ParameterTrend& parameter, const AxisRuns& axis, const history::TrendOptions& options) {
+    const auto label = parameter_label(parameter.key);
+    Plot values;
+    values.id = fmt::format("trend-{}-{}", axis.prefix, slug(parameter.key));
+    values.title = fmt::format("{} — {}", label.name, axis.where);
+    values.x_label = "run (recording order)";
+    values.y_label = with_unit(label);
+    Series series;
+    series.name = "value ± 2 standard errors";
+    series.style = Series::Style::line_and_points;
+    Series upper;
+    upper.name = fmt::format("one-run alarm limit: baseline ± (h + k) σ = ± {:g} σ", options.cusum_h + options.cusum_k);
+    upper.style = Series::Style::step;
+    upper.colour = red;
+    upper.dashed = true;
+    Series lower = upper;
+    lower.name.clear();
+    for (const auto& point : parameter.points) {
+        if (!point.value || !axis.ordinal.count(point.run_id)) continue;
+        const double x = axis.ordinal.at(point.run_id);
+        series.x.push_back(x);
+        series.y.push_back(*point.value);
+        series.band.push_back(point.standard_error ? 2.0 * *point.standard_error : 0.0);
+        series.tooltips.push_back(fmt::format("run #{} recorded {}: {}", point.run_id, point.recorded_at,
+                                              format_estimate(point.value, point.standard_error, label.unit)));
+        if (point.role != history::RunRole::before_baseline && point.sigma && parameter.baseline_mean) {
+            const double limit = (options.cusum_h + options.cusum_k) * *point.sigma;
+            upper.x.push_back(x);
+            upper.y.push_back(*parameter.baseline_mean + limit);
+            lower.x.push_back(x);
+            lower.y.push_back(*parameter.baseline_mean - limit);
+        }
+        if (point.alarm)
+            values.highlights.push_back(
+                {x, *point.value, fmt::format("drift alarm at run #{} ({})", point.run_id, point.recorded_at)});
+    }
+    values.series.push_back(std::move(series));
+    if (!upper.x.empty()) {
+        values.series.push_back(std::move(upper));
+        values.series.push_back(std::move(lower));
+    }
+    if (parameter.baseline_mean) values.horizontal.push_back({"baseline mean", *parameter.baseline_mean, green, false});
+    if (axis.baseline_end) values.vertical.push_back({"baseline ends", *axis.baseline_end, grey});
+    return values;
+}
+
+// The two-sided CUSUM over the checked runs with the decision interval; none when no checked run has a change.
+std::optional<Plot> cusum_plot(const history::ParameterTrend& parameter, const AxisRuns& axis,
+                               const history::TrendOptions& options) {
+    const auto label = parameter_label(parameter.key);
+    Plot cusum;
+    cusum.id = fmt::format("cusum-{}-{}", axis.prefix, slug(parameter.key));
+    cusum.title = fmt::format("CUSUM of {} — {}", label.name, axis.where);
+    cusum.x_label = "run (recording order)";
+    cusum.y_label = "CUSUM [combined standard errors]";
+    Series up;
+    up.name = "S+ (rise)";
+    up.style = Series::Style::line_and_points;
+    up.colour = red;
+    Series down;
+    down.name = "S− (fall)";
+    down.style = Series::Style::line_and_points;
+    down.colour = blue;
+    for (const auto& point : parameter.points) {
+        if (point.role != history::RunRole::checked || !point.z || !axis.ordinal.count(point.run_id)) continue;
+        const double x = axis.ordinal.at(point.run_id);
+        up.x.push_back(x);
+        up.y.push_back(point.cusum_up);
+        down.x.push_back(x);
+        down.y.push_back(point.cusum_down);
+        if (point.alarm)
+            cusum.highlights.push_back(
+                {x, std::max(point.cusum_up, point.cusum_down), fmt::format("drift alarm at run #{}", point.run_id)});
+    }
+    if (up.x.empty()) return std::nullopt;
+    cusum.series.push_back(std::move(up));
+    cusum.series.push_back(std::move(down));
+    cusum.horizontal.push_back(
+        {fmt::format("decision interval h = {:g}", options.cusum_h), options.cusum_h, red, true});
+    return cusum;
+}
+
+// The friction curve of the latest run whose stored result holds one.
+std::optional<Plot> latest_friction_plot(const AxisRuns& axis) {
+    for (auto run = axis.runs.rbegin(); run != axis.runs.rend(); ++run) {
+        auto curve = friction_curve_plot((*run)->result, fmt::format("friction-{}", axis.prefix),
+                                         fmt::format("Friction against speed — {}, latest run #{} ({})", axis.where,
+                                                     (*run)->id, (*run)->recorded_at));
+        if (curve) return curve;
+    }
+    return std::nullopt;
+}
+
+}  // namespace
+
 std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
                                 const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options) {
     std::vector<Plot> plots;
     for (const auto& trend : trends) {
-        // Runs of this axis in recording order; the plots' x axis is the position in that order.
-        std::vector<const history::RunRecord*> series_runs;
-        for (const auto& run : runs)
-            if (run.machine == trend.machine && run.axis == trend.axis) series_runs.push_back(&run);
-        std::stable_sort(series_runs.begin(), series_runs.end(), [](const auto* a, const auto* b) {
-            return a->recorded_at != b->recorded_at ? a->recorded_at < b->recorded_at : a->id < b->id;
-        });
-        std::map<std::int64_t, double> ordinal;
-        for (std::size_t i = 0; i < series_runs.size(); ++i) ordinal[series_runs[i]->id] = static_cast<double>(i + 1);
-        const std::string where = fmt::format("machine '{}' axis '{}'", trend.machine, trend.axis);
-        const std::string prefix = slug(trend.machine + "-" + trend.axis);
-        std::optional<double> baseline_end;
-        if (!trend.baseline_run_ids.empty() && ordinal.count(trend.baseline_run_ids.back()))
-            baseline_end = ordinal[trend.baseline_run_ids.back()] + 0.5;
-
+        const AxisRuns axis = axis_runs(runs, trend);
         for (const auto& parameter : trend.parameters) {
-            const auto label = parameter_label(parameter.key);
-            Plot values;
-            values.id = fmt::format("trend-{}-{}", prefix, slug(parameter.key));
-            values.title = fmt::format("{} — {}", label.name, where);
-            values.x_label = "run (recording order)";
-            values.y_label = with_unit(label);
-            Series series;
-            series.name = "value ± 2 standard errors";
-            series.style = Series::Style::line_and_points;
-            Series upper;
-            upper.name =
-                fmt::format("one-run alarm limit: baseline ± (h + k) σ = ± {:g} σ", options.cusum_h + options.cusum_k);
-            upper.style = Series::Style::step;
-            upper.colour = red;
-            upper.dashed = true;
-            Series lower = upper;
-            lower.name.clear();
-            for (const auto& point : parameter.points) {
-                if (!point.value || !ordinal.count(point.run_id)) continue;
-                const double x = ordinal[point.run_id];
-                series.x.push_back(x);
-                series.y.push_back(*point.value);
-                series.band.push_back(point.standard_error ? 2.0 * *point.standard_error : 0.0);
-                series.tooltips.push_back(fmt::format("run #{} recorded {}: {}", point.run_id, point.recorded_at,
-                                                      format_estimate(point.value, point.standard_error, label.unit)));
-                if (point.role != history::RunRole::before_baseline && point.sigma && parameter.baseline_mean) {
-                    const double limit = (options.cusum_h + options.cusum_k) * *point.sigma;
-                    upper.x.push_back(x);
-                    upper.y.push_back(*parameter.baseline_mean + limit);
-                    lower.x.push_back(x);
-                    lower.y.push_back(*parameter.baseline_mean - limit);
-                }
-                if (point.alarm)
-                    values.highlights.push_back(
-                        {x, *point.value, fmt::format("drift alarm at run #{} ({})", point.run_id, point.recorded_at)});
-            }
-            values.series.push_back(std::move(series));
-            if (!upper.x.empty()) {
-                values.series.push_back(std::move(upper));
-                values.series.push_back(std::move(lower));
-            }
-            if (parameter.baseline_mean)
-                values.horizontal.push_back({"baseline mean", *parameter.baseline_mean, green, false});
-            if (baseline_end) values.vertical.push_back({"baseline ends", *baseline_end, grey});
-            plots.push_back(std::move(values));
-
+            plots.push_back(trend_plot(parameter, axis, options));
             if (!parameter.note.empty() || !trend.baseline_complete) continue;
-            Plot cusum;
-            cusum.id = fmt::format("cusum-{}-{}", prefix, slug(parameter.key));
-            cusum.title = fmt::format("CUSUM of {} — {}", label.name, where);
-            cusum.x_label = "run (recording order)";
-            cusum.y_label = "CUSUM [combined standard errors]";
-            Series up;
-            up.name = "S+ (rise)";
-            up.style = Series::Style::line_and_points;
-            up.colour = red;
-            Series down;
-            down.name = "S− (fall)";
-            down.style = Series::Style::line_and_points;
-            down.colour = blue;
-            for (const auto& point : parameter.points) {
-                if (point.role != history::RunRole::checked || !point.z || !ordinal.count(point.run_id)) continue;
-                const double x = ordinal[point.run_id];
-                up.x.push_back(x);
-                up.y.push_back(point.cusum_up);
-                down.x.push_back(x);
-                down.y.push_back(point.cusum_down);
-                if (point.alarm)
-                    cusum.highlights.push_back({x, std::max(point.cusum_up, point.cusum_down),
-                                                fmt::format("drift alarm at run #{}", point.run_id)});
-            }
-            if (up.x.empty()) continue;
-            cusum.series.push_back(std::move(up));
-            cusum.series.push_back(std::move(down));
-            cusum.horizontal.push_back(
-                {fmt::format("decision interval h = {:g}", options.cusum_h), options.cusum_h, red, true});
-            plots.push_back(std::move(cusum));
+            if (auto cusum = cusum_plot(parameter, axis, options)) plots.push_back(std::move(*cusum));
         }
-
-        // The latest run whose stored result holds a friction curve.
-        for (auto run = series_runs.rbegin(); run != series_runs.rend(); ++run) {
-            auto curve = friction_curve_plot((*run)->result, fmt::format("friction-{}", prefix),
-                                             fmt::format("Friction against speed — {}, latest run #{} ({})", where,
-                                                         (*run)->id, (*run)->recorded_at));
-            if (curve) {
-                plots.push_back(std::move(*curve));
-                break;
-            }
-        }
+        if (auto curve = latest_friction_plot(axis)) plots.push_back(std::move(*curve));
     }
     return plots;
 }

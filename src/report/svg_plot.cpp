@@ -107,51 +107,80 @@ std::string escape_xml(std::string_view text) {
     return out;
 }
 
-std::string render_svg(const Plot& plot) {
-    // Data ranges (x in log10 units on a log axis).
-    Range x_range;
-    Range y_range;
-    bool any_data = false;
+namespace {
+
+// What the plot holds, within which ranges (x in log10 units on a log axis).
+struct DataExtent {
+    Range x;
+    Range y;
+    bool any_data{false};
+};
+
+DataExtent data_extent(const Plot& plot) {
+    DataExtent extent;
     for (const auto& series : plot.series) {
         for (std::size_t i = 0; i < series.x.size() && i < series.y.size(); ++i) {
             const double x = series.x[i];
             const double y = series.y[i];
             if (!std::isfinite(x) || !std::isfinite(y) || (plot.log_x && x <= 0.0)) continue;
-            any_data = true;
-            x_range.include(plot.log_x ? std::log10(x) : x);
-            y_range.include(y);
+            extent.any_data = true;
+            extent.x.include(plot.log_x ? std::log10(x) : x);
+            extent.y.include(y);
             if (i < series.band.size() && std::isfinite(series.band[i])) {
-                y_range.include(y + series.band[i]);
-                y_range.include(y - series.band[i]);
+                extent.y.include(y + series.band[i]);
+                extent.y.include(y - series.band[i]);
             }
         }
     }
-    for (const auto& line : plot.horizontal) y_range.include(line.y);
+    for (const auto& line : plot.horizontal) extent.y.include(line.y);
     for (const auto& line : plot.vertical)
-        if (!plot.log_x || line.x > 0.0) x_range.include(plot.log_x ? std::log10(line.x) : line.x);
-    x_range = drawable(x_range);
-    y_range = drawable(y_range);
+        if (!plot.log_x || line.x > 0.0) extent.x.include(plot.log_x ? std::log10(line.x) : line.x);
+    return extent;
+}
 
-    // Ticks; the axes end on ticks (linear) or whole decades (log).
-    std::vector<double> x_ticks;
+// The axes end on ticks (linear) or whole decades (log).
+struct Axes {
+    Range x;  // in log10 units on a log axis
+    Range y;
+    std::vector<double> x_ticks;  // in log10 units on a log axis
     std::vector<double> y_ticks;
-    const double y_step = nice_step((y_range.high - y_range.low) / 5.0);
-    y_range = {std::floor(y_range.low / y_step) * y_step, std::ceil(y_range.high / y_step) * y_step};
-    for (double t = y_range.low; t <= y_range.high + 0.5 * y_step; t += y_step) y_ticks.push_back(t);
-    double x_step = 1.0;
-    if (plot.log_x) {
-        x_range = {std::floor(x_range.low), std::ceil(x_range.high)};
-        if (x_range.high <= x_range.low) x_range.high = x_range.low + 1.0;
-        for (double t = x_range.low; t <= x_range.high + 0.5; t += 1.0) x_ticks.push_back(t);
-    } else {
-        x_step = nice_step((x_range.high - x_range.low) / 6.0);
-        x_range = {std::floor(x_range.low / x_step) * x_step, std::ceil(x_range.high / x_step) * x_step};
-        for (double t = x_range.low; t <= x_range.high + 0.5 * x_step; t += x_step) x_ticks.push_back(t);
-    }
+    double x_step{1.0};
+    double y_step{1.0};
+};
 
-    // Legend entries flow left to right below the x label, wrapping at the plot's width (text width estimated at
-    // 6.8 px per character of 12 px sans-serif).
-    std::vector<std::pair<std::string, std::string>> legend_entries;  // label, swatch
+Axes axes_on_ticks(const Plot& plot, Range x_range, Range y_range) {
+    Axes axes;
+    axes.y_step = nice_step((y_range.high - y_range.low) / 5.0);
+    const double y_step = axes.y_step;
+    axes.y = {std::floor(y_range.low / y_step) * y_step, std::ceil(y_range.high / y_step) * y_step};
+    for (double t = axes.y.low; t <= axes.y.high + 0.5 * y_step; t += y_step) axes.y_ticks.push_back(t);
+    if (plot.log_x) {
+        axes.x = {std::floor(x_range.low), std::ceil(x_range.high)};
+        if (axes.x.high <= axes.x.low) axes.x.high = axes.x.low + 1.0;
+        for (double t = axes.x.low; t <= axes.x.high + 0.5; t += 1.0) axes.x_ticks.push_back(t);
+    } else {
+        axes.x_step = nice_step((x_range.high - x_range.low) / 6.0);
+        const double x_step = axes.x_step;
+        axes.x = {std::floor(x_range.low / x_step) * x_step, std::ceil(x_range.high / x_step) * x_step};
+        for (double t = axes.x.low; t <= axes.x.high + 0.5 * x_step; t += x_step) axes.x_ticks.push_back(t);
+    }
+    return axes;
+}
+
+// The pixel column of an x tick (given in log10 units on a log axis).
+double tick_px(const Plot& plot, const Canvas& canvas, double t) {
+    return canvas.px(plot.log_x ? std::pow(10.0, t) : t);
+}
+
+struct LegendEntry {
+    std::string label;
+    std::string swatch;  // SVG elements around (0, 0), 20 px wide
+    double x{0.0};
+    int row{0};
+};
+
+std::vector<LegendEntry> legend_entries(const Plot& plot) {
+    std::vector<LegendEntry> entries;
     for (const auto& series : plot.series) {
         if (series.name.empty()) continue;
         std::string swatch;
@@ -163,49 +192,52 @@ std::string render_svg(const Plot& plot) {
                                   series.colour, dash(series.dashed));
         if (series.style == Series::Style::points || series.style == Series::Style::line_and_points)
             swatch += fmt::format(R"(<circle cx="10" cy="0" r="3" fill="{}"/>)", series.colour);
-        legend_entries.emplace_back(series.name, swatch);
+        entries.push_back({series.name, swatch});
     }
     for (const auto& line : plot.horizontal) {
         if (line.label.empty()) continue;
-        legend_entries.emplace_back(
-            line.label, fmt::format(R"(<line x1="0" y1="0" x2="20" y2="0" stroke="{}" stroke-width="1.2"{}/>)",
-                                    line.colour, dash(line.dashed)));
+        entries.push_back({line.label, fmt::format(R"(<line x1="0" y1="0" x2="20" y2="0" stroke="{}" )"
+                                                   R"(stroke-width="1.2"{}/>)",
+                                                   line.colour, dash(line.dashed))});
     }
     if (!plot.highlights.empty())
-        legend_entries.emplace_back("drift alarm",
-                                    R"(<circle cx="10" cy="0" r="5" fill="none" stroke="#d62728" stroke-width="2"/>)");
-    std::vector<std::pair<double, int>> legend_places;  // x, row
-    {
-        double x = 24.0;
-        int row = 0;
-        for (const auto& [label, swatch] : legend_entries) {
-            const double width = 26.0 + 6.8 * static_cast<double>(label.size()) + 18.0;
-            if (x > 24.0 && x + width > plot.width - 12.0) {
-                x = 24.0;
-                ++row;
-            }
-            legend_places.emplace_back(x, row);
-            x += width;
-        }
-    }
-    const int legend_rows = legend_places.empty() ? 0 : legend_places.back().second + 1;
-    const Canvas canvas(plot, x_range, y_range);
-    const double height = plot.height + 18.0 * std::max(0, legend_rows - 1);
+        entries.push_back(
+            {"drift alarm", R"(<circle cx="10" cy="0" r="5" fill="none" stroke="#d62728" stroke-width="2"/>)"});
+    return entries;
+}
 
-    const std::string id = plot.id;
-    std::string svg;
+// Legend entries flow left to right below the x label, wrapping at the plot's width (text width estimated at 6.8 px
+// per character of 12 px sans-serif). Returns the number of rows.
+int place_legend(std::vector<LegendEntry>& entries, double plot_width) {
+    double x = 24.0;
+    int row = 0;
+    for (auto& entry : entries) {
+        const double width = 26.0 + 6.8 * static_cast<double>(entry.label.size()) + 18.0;
+        if (x > 24.0 && x + width > plot_width - 12.0) {
+            x = 24.0;
+            ++row;
+        }
+        entry.x = x;
+        entry.row = row;
+        x += width;
+    }
+    return entries.empty() ? 0 : entries.back().row + 1;
+}
+
+// The <svg> element's start, its title, the clip path of the plot area, the background and the title text.
+void write_head(std::string& svg, const Plot& plot, const Canvas& canvas, double height) {
+    const std::string id = escape_xml(plot.id);
     svg += fmt::format(R"(<svg xmlns="http://www.w3.org/2000/svg" id="{}" class="plot" width="{}" height="{}" )"
                        R"(viewBox="0 0 {} {}" role="img" aria-labelledby="{}-title" font-family="sans-serif" )"
                        R"(font-size="12">)"
                        "\n",
-                       escape_xml(id), number(plot.width), number(height), number(plot.width), number(height),
-                       escape_xml(id));
+                       id, number(plot.width), number(height), number(plot.width), number(height), id);
     svg += fmt::format(R"(<title id="{}-title">{}</title>)"
                        "\n",
-                       escape_xml(id), escape_xml(plot.title));
+                       id, escape_xml(plot.title));
     svg += fmt::format(R"(<defs><clipPath id="{}-clip"><rect x="{}" y="{}" width="{}" height="{}"/></clipPath></defs>)"
                        "\n",
-                       escape_xml(id), number(canvas.left_), number(canvas.top_), number(canvas.right_ - canvas.left_),
+                       id, number(canvas.left_), number(canvas.top_), number(canvas.right_ - canvas.left_),
                        number(canvas.bottom_ - canvas.top_));
     svg += fmt::format(R"(<rect x="0" y="0" width="{}" height="{}" fill="#ffffff"/>)"
                        "\n",
@@ -214,29 +246,37 @@ std::string render_svg(const Plot& plot) {
                        R"(font-weight="bold">{}</text>)"
                        "\n",
                        number(plot.width / 2.0), escape_xml(plot.title));
+}
 
-    // Grid and ticks.
+void write_grid_and_ticks(std::string& svg, const Plot& plot, const Canvas& canvas, const Axes& axes) {
     svg += R"(<g class="grid" stroke="#e3e3e3" stroke-width="1">)";
-    for (const double t : y_ticks)
+    for (const double t : axes.y_ticks)
         svg += fmt::format(R"(<line x1="{}" y1="{}" x2="{}" y2="{}"/>)", number(canvas.left_), number(canvas.py(t)),
                            number(canvas.right_), number(canvas.py(t)));
-    for (const double t : x_ticks) {
-        const double x = canvas.px(plot.log_x ? std::pow(10.0, t) : t);
+    for (const double t : axes.x_ticks) {
+        const double x = tick_px(plot, canvas, t);
         svg += fmt::format(R"(<line x1="{}" y1="{}" x2="{}" y2="{}"/>)", number(x), number(canvas.top_), number(x),
                            number(canvas.bottom_));
     }
     svg += "</g>\n";
     svg += R"(<g class="ticks" fill="#333333">)";
-    for (const double t : y_ticks)
+    for (const double t : axes.y_ticks)
         svg += fmt::format(R"(<text x="{}" y="{}" text-anchor="end" dominant-baseline="middle">{}</text>)",
-                           number(canvas.left_ - 6.0), number(canvas.py(t)), tick_label(t, y_step));
-    for (const double t : x_ticks) {
-        const double x = canvas.px(plot.log_x ? std::pow(10.0, t) : t);
-        const std::string label = plot.log_x ? fmt::format("{:g}", std::pow(10.0, t)) : tick_label(t, x_step);
+                           number(canvas.left_ - 6.0), number(canvas.py(t)), tick_label(t, axes.y_step));
+    for (const double t : axes.x_ticks) {
+        const double x = tick_px(plot, canvas, t);
+        const std::string label = plot.log_x ? fmt::format("{:g}", std::pow(10.0, t)) : tick_label(t, axes.x_step);
         svg += fmt::format(R"(<text x="{}" y="{}" text-anchor="middle">{}</text>)", number(x),
                            number(canvas.bottom_ + 16.0), label);
     }
     svg += "</g>\n";
+}
+
+double y_middle(const Canvas& canvas) {
+    return (canvas.top_ + canvas.bottom_) / 2.0;
+}
+
+void write_frame_and_labels(std::string& svg, const Plot& plot, const Canvas& canvas) {
     svg += fmt::format(R"(<rect class="frame" x="{}" y="{}" width="{}" height="{}" fill="none" stroke="#333333"/>)"
                        "\n",
                        number(canvas.left_), number(canvas.top_), number(canvas.right_ - canvas.left_),
@@ -245,89 +285,97 @@ std::string render_svg(const Plot& plot) {
                        "\n",
                        number((canvas.left_ + canvas.right_) / 2.0), number(canvas.bottom_ + 36.0),
                        escape_xml(plot.x_label));
-    const double y_middle = (canvas.top_ + canvas.bottom_) / 2.0;
+    const double middle = y_middle(canvas);
     svg += fmt::format(R"(<text class="axis-label y-label" x="{}" y="{}" text-anchor="middle" )"
                        R"~(transform="rotate(-90 {} {})">{}</text>)~"
                        "\n",
-                       number(18.0), number(y_middle), number(18.0), number(y_middle), escape_xml(plot.y_label));
+                       number(18.0), number(middle), number(18.0), number(middle), escape_xml(plot.y_label));
+}
 
-    // Data, clipped to the plot area.
-    svg += fmt::format(R"~(<g class="data" clip-path="url(#{}-clip)">)~"
-                       "\n",
-                       escape_xml(id));
-    for (const auto& series : plot.series) {
-        const std::size_t n = std::min(series.x.size(), series.y.size());
-        if (!series.band.empty()) {
-            // One polygon per run of consecutive valid points.
-            std::vector<std::size_t> run;
-            const auto flush = [&] {
-                if (run.size() >= 2) {
-                    std::string points;
-                    for (const auto i : run)
-                        points += fmt::format("{},{} ", number(canvas.px(series.x[i])),
-                                              number(canvas.py(series.y[i] + series.band[i])));
-                    for (auto i = run.rbegin(); i != run.rend(); ++i)
-                        points += fmt::format("{},{} ", number(canvas.px(series.x[*i])),
-                                              number(canvas.py(series.y[*i] - series.band[*i])));
-                    svg +=
-                        fmt::format(R"(<polygon class="band" points="{}" fill="{}" fill-opacity="0.18" stroke="none"/>)"
-                                    "\n",
-                                    points, series.colour);
-                }
-                run.clear();
-            };
-            for (std::size_t i = 0; i < n; ++i) {
-                if (i < series.band.size() && std::isfinite(series.band[i]) && canvas.valid(series.x[i], series.y[i]))
-                    run.push_back(i);
-                else
-                    flush();
-            }
-            flush();
-        }
-        const bool draw_line = series.style != Series::Style::points;
-        if (draw_line) {
+// The shaded band y ± band: one polygon per run of consecutive valid points.
+void write_band(std::string& svg, const Series& series, const Canvas& canvas) {
+    const std::size_t n = std::min(series.x.size(), series.y.size());
+    std::vector<std::size_t> run;
+    const auto flush = [&] {
+        if (run.size() >= 2) {
             std::string points;
-            const auto flush = [&] {
-                if (!points.empty())
-                    svg += fmt::format(R"(<polyline class="series-line" points="{}" fill="none" stroke="{}" )"
-                                       R"(stroke-width="1.6"{}/>)"
-                                       "\n",
-                                       points, series.colour, dash(series.dashed));
-                points.clear();
-            };
-            for (std::size_t i = 0; i < n; ++i) {
-                if (!canvas.valid(series.x[i], series.y[i])) {
-                    flush();
-                    continue;
-                }
-                if (series.style == Series::Style::step) {
-                    // Each value holds from half-way to its neighbours (per-run limits on a run axis).
-                    const double half_left = i > 0 ? (series.x[i] - series.x[i - 1]) / 2.0 : 0.5;
-                    const double half_right = i + 1 < n ? (series.x[i + 1] - series.x[i]) / 2.0 : 0.5;
-                    points += fmt::format("{},{} {},{} ", number(canvas.px(series.x[i] - half_left)),
-                                          number(canvas.py(series.y[i])), number(canvas.px(series.x[i] + half_right)),
-                                          number(canvas.py(series.y[i])));
-                } else {
-                    points += fmt::format("{},{} ", number(canvas.px(series.x[i])), number(canvas.py(series.y[i])));
-                }
-            }
-            flush();
+            for (const auto i : run)
+                points += fmt::format("{},{} ", number(canvas.px(series.x[i])),
+                                      number(canvas.py(series.y[i] + series.band[i])));
+            for (auto i = run.rbegin(); i != run.rend(); ++i)
+                points += fmt::format("{},{} ", number(canvas.px(series.x[*i])),
+                                      number(canvas.py(series.y[*i] - series.band[*i])));
+            svg += fmt::format(R"(<polygon class="band" points="{}" fill="{}" fill-opacity="0.18" stroke="none"/>)"
+                               "\n",
+                               points, series.colour);
         }
-        if (series.style == Series::Style::points || series.style == Series::Style::line_and_points) {
-            svg += fmt::format(R"(<g class="series-points" fill="{}">)", series.colour);
-            for (std::size_t i = 0; i < n; ++i) {
-                if (!canvas.valid(series.x[i], series.y[i])) continue;
-                if (i < series.tooltips.size())
-                    svg += fmt::format(R"(<circle cx="{}" cy="{}" r="3"><title>{}</title></circle>)",
-                                       number(canvas.px(series.x[i])), number(canvas.py(series.y[i])),
-                                       escape_xml(series.tooltips[i]));
-                else
-                    svg += fmt::format(R"(<circle cx="{}" cy="{}" r="3"/>)", number(canvas.px(series.x[i])),
-                                       number(canvas.py(series.y[i])));
-            }
-            svg += "</g>\n";
+        run.clear();
+    };
+    for (std::size_t i = 0; i < n; ++i) {
+        if (i < series.band.size() && std::isfinite(series.band[i]) && canvas.valid(series.x[i], series.y[i]))
+            run.push_back(i);
+        else
+            flush();
+    }
+    flush();
+}
+
+// One polyline per run of valid points; a step series holds each value from half-way to its neighbours.
+void write_line(std::string& svg, const Series& series, const Canvas& canvas) {
+    const std::size_t n = std::min(series.x.size(), series.y.size());
+    std::string points;
+    const auto flush = [&] {
+        if (!points.empty())
+            svg += fmt::format(R"(<polyline class="series-line" points="{}" fill="none" stroke="{}" )"
+                               R"(stroke-width="1.6"{}/>)"
+                               "\n",
+                               points, series.colour, dash(series.dashed));
+        points.clear();
+    };
+    for (std::size_t i = 0; i < n; ++i) {
+        if (!canvas.valid(series.x[i], series.y[i])) {
+            flush();
+            continue;
+        }
+        if (series.style == Series::Style::step) {
+            // Each value holds from half-way to its neighbours (per-run limits on a run axis).
+            const double half_left = i > 0 ? (series.x[i] - series.x[i - 1]) / 2.0 : 0.5;
+            const double half_right = i + 1 < n ? (series.x[i + 1] - series.x[i]) / 2.0 : 0.5;
+            points +=
+                fmt::format("{},{} {},{} ", number(canvas.px(series.x[i] - half_left)), number(canvas.py(series.y[i])),
+                            number(canvas.px(series.x[i] + half_right)), number(canvas.py(series.y[i])));
+        } else {
+            points += fmt::format("{},{} ", number(canvas.px(series.x[i])), number(canvas.py(series.y[i])));
         }
     }
+    flush();
+}
+
+void write_points(std::string& svg, const Series& series, const Canvas& canvas) {
+    const std::size_t n = std::min(series.x.size(), series.y.size());
+    svg += fmt::format(R"(<g class="series-points" fill="{}">)", series.colour);
+    for (std::size_t i = 0; i < n; ++i) {
+        if (!canvas.valid(series.x[i], series.y[i])) continue;
+        if (i < series.tooltips.size())
+            svg += fmt::format(R"(<circle cx="{}" cy="{}" r="3"><title>{}</title></circle>)",
+                               number(canvas.px(series.x[i])), number(canvas.py(series.y[i])),
+                               escape_xml(series.tooltips[i]));
+        else
+            svg += fmt::format(R"(<circle cx="{}" cy="{}" r="3"/>)", number(canvas.px(series.x[i])),
+                               number(canvas.py(series.y[i])));
+    }
+    svg += "</g>\n";
+}
+
+void write_series(std::string& svg, const Series& series, const Canvas& canvas) {
+    if (!series.band.empty()) write_band(svg, series, canvas);
+    if (series.style != Series::Style::points) write_line(svg, series, canvas);
+    if (series.style == Series::Style::points || series.style == Series::Style::line_and_points)
+        write_points(svg, series, canvas);
+}
+
+// Horizontal reference lines, vertical markers with their labels, and the highlighted points.
+void write_marks(std::string& svg, const Plot& plot, const Canvas& canvas) {
     for (const auto& line : plot.horizontal) {
         svg +=
             fmt::format(R"(<line class="reference" x1="{}" y1="{}" x2="{}" y2="{}" stroke="{}" stroke-width="1.2"{}/>)"
@@ -352,21 +400,50 @@ std::string render_svg(const Plot& plot) {
                            "\n",
                            number(canvas.px(point.x)), number(canvas.py(point.y)), escape_xml(point.label));
     }
+}
+
+// The data, clipped to the plot area.
+void write_data(std::string& svg, const Plot& plot, const Canvas& canvas) {
+    svg += fmt::format(R"~(<g class="data" clip-path="url(#{}-clip)">)~"
+                       "\n",
+                       escape_xml(plot.id));
+    for (const auto& series : plot.series) write_series(svg, series, canvas);
+    write_marks(svg, plot, canvas);
     svg += "</g>\n";
-    if (!any_data)
+}
+
+// The legend, below the x label.
+void write_legend(std::string& svg, const std::vector<LegendEntry>& entries, const Canvas& canvas) {
+    svg += R"(<g class="legend">)";
+    for (const auto& entry : entries) {
+        const double y = canvas.bottom_ + 58.0 + 18.0 * entry.row;
+        svg += fmt::format(R"~(<g transform="translate({} {})">{}<text x="26" y="4">{}</text></g>)~", number(entry.x),
+                           number(y), entry.swatch, escape_xml(entry.label));
+    }
+    svg += "</g>\n";
+}
+
+}  // namespace
+
+std::string render_svg(const Plot& plot) {
+    const DataExtent extent = data_extent(plot);
+    const Axes axes = axes_on_ticks(plot, drawable(extent.x), drawable(extent.y));
+    auto legend = legend_entries(plot);
+    const int legend_rows = place_legend(legend, plot.width);
+    const Canvas canvas(plot, axes.x, axes.y);
+    const double height = plot.height + 18.0 * std::max(0, legend_rows - 1);
+
+    std::string svg;
+    write_head(svg, plot, canvas, height);
+    write_grid_and_ticks(svg, plot, canvas, axes);
+    write_frame_and_labels(svg, plot, canvas);
+    write_data(svg, plot, canvas);
+    if (!extent.any_data)
         svg += fmt::format(R"(<text x="{}" y="{}" text-anchor="middle" fill="#888888">no data</text>)"
                            "\n",
-                           number((canvas.left_ + canvas.right_) / 2.0), number(y_middle));
-
-    // Legend, below the x label.
-    svg += R"(<g class="legend">)";
-    for (std::size_t i = 0; i < legend_entries.size(); ++i) {
-        const double y = canvas.bottom_ + 58.0 + 18.0 * legend_places[i].second;
-        svg += fmt::format(R"~(<g transform="translate({} {})">{}<text x="26" y="4">{}</text></g>)~",
-                           number(legend_places[i].first), number(y), legend_entries[i].second,
-                           escape_xml(legend_entries[i].first));
-    }
-    svg += "</g>\n</svg>\n";
+                           number((canvas.left_ + canvas.right_) / 2.0), number(y_middle(canvas)));
+    write_legend(svg, legend, canvas);
+    svg += "</svg>\n";
     return svg;
 }
 
