@@ -109,14 +109,19 @@ void merge_slow_ramps(const Derivatives& d, const Regressors& r, const Selection
                                          units.speed(s.report.split_velocity), units.unit()));
 }
 
+/// The largest |x'| of the analysed samples.
+double max_speed(const Derivatives& d) {
+    double fastest = 0.0;
+    for (const double v : d.velocity) fastest = std::max(fastest, std::abs(v));
+    return fastest;
+}
+
 /// The moving threshold and the moving samples, with the notes on what was dropped before them.
-void select_moving(const Derivatives& d, const SelectionOptions& options, Selection& s) {
+void select_moving(const Derivatives& d, const SelectionOptions& options, double fastest, Selection& s) {
     const Units units{ParameterNaming{d.rotary}};
-    double max_speed = 0.0;
-    for (const double v : d.velocity) max_speed = std::max(max_speed, std::abs(v));
     const double threshold = options.moving_threshold.value_or(
         std::max({options.rest_noise_multiple * d.velocity_noise, d.position_quantum * d.used.cutoff_hz,
-                  options.rest_fraction_of_max_speed * max_speed}));
+                  options.rest_fraction_of_max_speed * fastest}));
     s.report.moving_threshold = threshold;
     for (std::size_t k = 0; k < d.size(); ++k) {
         if (std::abs(d.velocity[k]) > threshold) s.moving.push_back(k);
@@ -135,14 +140,12 @@ void select_moving(const Derivatives& d, const SelectionOptions& options, Select
 }
 
 /// The default split: a fraction of the typical constant-velocity speed (or of the largest speed without any).
-double default_split(const Derivatives& d, const SelectionOptions& options, const Selection& s) {
+double default_split(const Derivatives& d, const SelectionOptions& options, double fastest, const Selection& s) {
     std::vector<double> steady_speeds;
-    double max_speed = 0.0;
     for (const auto k : s.moving) {
         if (s.steady(k)) steady_speeds.push_back(std::abs(d.velocity[k]));
     }
-    for (const double v : d.velocity) max_speed = std::max(max_speed, std::abs(v));
-    const double typical = percentile(steady_speeds.empty() ? std::vector<double>{max_speed} : steady_speeds,
+    const double typical = percentile(steady_speeds.empty() ? std::vector<double>{fastest} : steady_speeds,
                                       options.typical_speed_percentile);
     return options.stribeck ? options.split_fraction * typical : 0.0;
 }
@@ -154,10 +157,12 @@ Selection select_samples(const Derivatives& d, const Regressors& r, const Select
     Selection s;
     s.report.total = d.total;
     s.report.window = d.window;
-    select_moving(d, options, s);
+    const double fastest = max_speed(d);
+    select_moving(d, options, fastest, s);
     s.quasi_static = quasi_static_flags(d, options);
     const double threshold = s.report.moving_threshold;
-    double split = std::max(options.split_velocity.value_or(default_split(d, options, s)), threshold);
+    double split =
+        std::max(options.split_velocity ? *options.split_velocity : default_split(d, options, fastest, s), threshold);
     s.initial_split = split;
     if (!options.split_velocity && options.stribeck && split > threshold) {
         split = raise_split_above_stribeck(d, r, options, s.moving, split, s.report);

@@ -125,6 +125,72 @@ void print_table(const std::vector<history::RunRecord>& runs, const std::vector<
     }
 }
 
+/// The --add results, read and checked before the database is opened for writing, so that a failed command leaves
+/// the file as it was.
+std::vector<history::RunRecord> prepare_runs(const HistoryArguments& arguments) {
+    std::vector<history::RunRecord> prepared;
+    if (arguments.add.empty()) return prepared;
+    if (arguments.filter.machine.empty() || arguments.filter.axis.empty())
+        throw InputError("--add needs --machine NAME and --axis X to file the run under");
+    Progress progress("reading results", arguments.add.size());
+    for (std::size_t i = 0; i < arguments.add.size(); ++i) {
+        const auto& path = arguments.add[i];
+        const nlohmann::json result = read_json(path);
+        history::RecordContext context;
+        context.machine = arguments.filter.machine;
+        context.axis = arguments.filter.axis;
+        context.location = arguments.filter.location;
+        context.trace =
+            arguments.trace.empty() ? history::trace_of_result(result, path) : std::filesystem::path(arguments.trace);
+        context.recorded_at = arguments.recorded_at;
+        if (result.contains("options") && result["options"].is_object()) context.options = result["options"];
+        prepared.push_back(history::prepare_run(result, path, context));
+        progress.update(i + 1);
+    }
+    return prepared;
+}
+
+void record_runs(history::HistoryStore& store, const std::vector<history::RunRecord>& prepared,
+                 const HistoryArguments& arguments) {
+    Progress progress("recording runs", prepared.size());
+    for (std::size_t i = 0; i < prepared.size(); ++i) {
+        const auto outcome = store.add_run(prepared[i]);
+        if (outcome.inserted)
+            fmt::print(stderr, "feedid: recorded {} as run #{}\n", arguments.add[i], outcome.id);
+        else
+            fmt::print(stderr, "feedid: {} is already recorded as run #{} (same trace, same options); not added\n",
+                       arguments.add[i], outcome.id);
+        progress.update(i + 1);
+    }
+}
+
+void pin_baseline(history::HistoryStore& store, const HistoryArguments& arguments) {
+    const auto all = store.runs({});
+    const auto found = std::find_if(all.begin(), all.end(), [&](const auto& run) { return run.id == *arguments.pin; });
+    if (found == all.end())
+        throw InputError(fmt::format("{}: there is no run #{}", arguments.database, *arguments.pin));
+    store.pin_baseline(found->machine, found->axis, found->id);
+    fmt::print(stderr, "feedid: the baseline of machine '{}' axis '{}' now starts at run #{}\n", found->machine,
+               found->axis, found->id);
+}
+
+nlohmann::json history_document(const history::HistoryStore& store, const std::vector<history::RunRecord>& runs,
+                                const std::vector<history::SeriesTrend>& trends, std::size_t alarms,
+                                const HistoryArguments& arguments) {
+    nlohmann::json document;
+    document["database"] = arguments.database;
+    document["schema_version"] = store.schema_version();
+    document["runs"] = nlohmann::json::array();
+    for (const auto& run : runs) document["runs"].push_back(history::to_json(run));
+    document["trends"] = nlohmann::json::array();
+    for (const auto& series : trends) document["trends"].push_back(history::to_json(series));
+    document["trend_options"] = {{"baseline_runs", arguments.trend.baseline_runs},
+                                 {"cusum_k", arguments.trend.cusum_k},
+                                 {"cusum_h", arguments.trend.cusum_h}};
+    document["alarm"] = alarms > 0;
+    return document;
+}
+
 int run_history(HistoryArguments& arguments) {
     if (const auto problem = arguments.trend.validate(); !problem.empty()) throw InputError(problem);
     if (arguments.baseline_from) arguments.trend.pinned_run = arguments.baseline_from;
@@ -133,74 +199,20 @@ int run_history(HistoryArguments& arguments) {
         throw InputError("--trace goes with exactly one --add RESULT.json");
     if (!arguments.recorded_at.empty() && arguments.add.size() != 1)
         throw InputError("--recorded-at goes with exactly one --add RESULT.json");
-
-    // Everything that can fail on the inputs is checked before the database is opened for writing, so that a failed
-    // command leaves the file as it was.
-    std::vector<history::RunRecord> prepared;
-    if (!arguments.add.empty()) {
-        if (arguments.filter.machine.empty() || arguments.filter.axis.empty())
-            throw InputError("--add needs --machine NAME and --axis X to file the run under");
-        Progress progress("reading results", arguments.add.size());
-        for (std::size_t i = 0; i < arguments.add.size(); ++i) {
-            const auto& path = arguments.add[i];
-            const nlohmann::json result = read_json(path);
-            history::RecordContext context;
-            context.machine = arguments.filter.machine;
-            context.axis = arguments.filter.axis;
-            context.location = arguments.filter.location;
-            context.trace = arguments.trace.empty() ? history::trace_of_result(result, path)
-                                                    : std::filesystem::path(arguments.trace);
-            context.recorded_at = arguments.recorded_at;
-            if (result.contains("options") && result["options"].is_object()) context.options = result["options"];
-            prepared.push_back(history::prepare_run(result, path, context));
-            progress.update(i + 1);
-        }
-    }
+    const std::vector<history::RunRecord> prepared = prepare_runs(arguments);
 
     history::SqliteOpenOptions open_options;
     open_options.read_only = !writes;
     auto store = history::open_sqlite_store(arguments.database, open_options);
-    {
-        Progress progress("recording runs", prepared.size());
-        for (std::size_t i = 0; i < prepared.size(); ++i) {
-            const auto outcome = store->add_run(prepared[i]);
-            if (outcome.inserted)
-                fmt::print(stderr, "feedid: recorded {} as run #{}\n", arguments.add[i], outcome.id);
-            else
-                fmt::print(stderr, "feedid: {} is already recorded as run #{} (same trace, same options); not added\n",
-                           arguments.add[i], outcome.id);
-            progress.update(i + 1);
-        }
-    }
-    if (arguments.pin) {
-        const auto all = store->runs({});
-        const auto found =
-            std::find_if(all.begin(), all.end(), [&](const auto& run) { return run.id == *arguments.pin; });
-        if (found == all.end())
-            throw InputError(fmt::format("{}: there is no run #{}", arguments.database, *arguments.pin));
-        store->pin_baseline(found->machine, found->axis, found->id);
-        fmt::print(stderr, "feedid: the baseline of machine '{}' axis '{}' now starts at run #{}\n", found->machine,
-                   found->axis, found->id);
-    }
+    record_runs(*store, prepared, arguments);
+    if (arguments.pin) pin_baseline(*store, arguments);
 
     const auto runs = store->runs(arguments.filter);
     const auto trends = history::analyse_trends(runs, store->pins(), arguments.trend);
     std::size_t alarms = 0;
     for (const auto& series : trends) alarms += series.alarms.size();
-
     if (!arguments.json_path.empty()) {
-        nlohmann::json document;
-        document["database"] = arguments.database;
-        document["schema_version"] = store->schema_version();
-        document["runs"] = nlohmann::json::array();
-        for (const auto& run : runs) document["runs"].push_back(history::to_json(run));
-        document["trends"] = nlohmann::json::array();
-        for (const auto& series : trends) document["trends"].push_back(history::to_json(series));
-        document["trend_options"] = {{"baseline_runs", arguments.trend.baseline_runs},
-                                     {"cusum_k", arguments.trend.cusum_k},
-                                     {"cusum_h", arguments.trend.cusum_h}};
-        document["alarm"] = alarms > 0;
-        write_json(document, arguments.json_path);
+        write_json(history_document(*store, runs, trends, alarms, arguments), arguments.json_path);
     }
     if (!arguments.csv_path.empty()) write_text(runs_csv(runs), arguments.csv_path);
 

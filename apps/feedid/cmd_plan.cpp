@@ -78,6 +78,128 @@ void write_text_file(const std::string& path, const std::string& text) {
 
 }  // namespace
 
+/// The options of `feedid plan`, as given; the library turns them into a plan and a prediction.
+struct PlanArguments {
+    std::string axis{"X"};
+    std::string travel;
+    std::vector<std::string> centers;
+    double stroke_mm{30.0};
+    std::vector<std::string> feeds;
+    std::vector<std::string> slow_feeds{"10:1000:7"};
+    double max_pass_time_s{8.0};
+    int cycles{2};
+    double acceleration{1.0};
+    std::optional<double> jerk;
+    double dwell_s{0.2};
+    double sample_time_s{0.001};
+    std::optional<double> max_feed_mm_per_min;
+    double positioning_feed_mm_per_min{5000.0};
+    std::optional<double> start_mm;
+    std::string dialect{"iso"};
+    std::string output;
+    std::string reference;
+    std::string json;
+    // nominal drive
+    double mass{69.1};
+    double viscous{54.2};
+    double coulomb{742.8};
+    double breakaway{946.2};
+    double stribeck_mm_per_s{5.0};
+    double force_noise{10.0};
+    double level_error{5.0};
+    double resolution_um{1.0};
+
+    void add_to(CLI::App& sub) {
+        sub.add_option("--axis", axis, "Axis name as the NC knows it (X, Y, Z, A, ...; X1 on SINUMERIK)")
+            ->default_val("X");
+        sub.add_option("--travel", travel, "Travel limits MIN:MAX [mm] (write --travel=-400:400)")->required();
+        add_list_option(sub, "--centers", centers, "Centres of the strokes C1,C2,... [mm] (write --centers=-300,0,300)")
+            ->required();
+        sub.add_option("--stroke", stroke_mm, "Stroke of the ladder passes [mm]")->default_val(30.0);
+        add_list_option(sub, "--feeds", feeds,
+                        "Ladder feedrates F1,F2,... [mm/min]; default the paper's 1250,2600,3950,5300,6650,8000,9350");
+        add_list_option(sub, "--slow-feeds", slow_feeds,
+                        "Slow Stribeck passes: LO:HI[:N] log-spaced, F1,F2,... [mm/min], or none")
+            ->default_val("10:1000:7");
+        sub.add_option("--max-pass-time", max_pass_time_s, "Longest slow pass; its stroke is shortened to fit [s]")
+            ->default_val(8.0);
+        sub.add_option("--cycles", cycles, "Back-and-forth cycles per feedrate")->default_val(2);
+        sub.add_option("--acceleration", acceleration, "Axis acceleration (machine data) [m/s^2]")->default_val(1.0);
+        sub.add_option("--jerk", jerk, "Jerk limit [m/s^3] (SINUMERIK SOFT); default none (BRISK)");
+        sub.add_option("--dwell", dwell_s, "Dwell at every reversal [s]")->default_val(0.2);
+        sub.add_option("--sample-time", sample_time_s, "Trace sample time [s] (the reference file's step)")
+            ->default_val(0.001);
+        sub.add_option("--max-feed", max_feed_mm_per_min, "Feedrate limit of the axis [mm/min]; refuse moves above it");
+        sub.add_option("--positioning-feed", positioning_feed_mm_per_min, "Feedrate between passes [mm/min]")
+            ->default_val(5000.0);
+        sub.add_option("--start", start_mm, "Where the axis stands at the program start [mm]; default the first pass");
+        sub.add_option("--dialect", dialect, "Part-program dialect")
+            ->check(CLI::IsMember({"iso", "sinumerik", "linuxcnc"}))
+            ->default_val("iso");
+        sub.add_option("-o,--out", output, "Write the part program here ('-' for stdout)");
+        sub.add_option("--reference", reference, "Write the reference trajectory (CSV: t [s], x_ref [m]) here");
+        sub.add_option("--json", json, "Write the plan and its prediction as JSON ('-' for stdout)");
+        sub.add_option("--mass", mass, "Nominal mass for the prediction [kg]")->default_val(69.1);
+        sub.add_option("--viscous", viscous, "Nominal viscous friction [N*s/m]")->default_val(54.2);
+        sub.add_option("--coulomb", coulomb, "Nominal Coulomb friction [N]")->default_val(742.8);
+        sub.add_option("--breakaway", breakaway, "Nominal breakaway friction [N]")->default_val(946.2);
+        sub.add_option("--stribeck-velocity", stribeck_mm_per_s, "Nominal Stribeck velocity [mm/s]")->default_val(5.0);
+        sub.add_option("--force-noise", force_noise, "Expected force noise per sample [N]")->default_val(10.0);
+        sub.add_option("--level-error", level_error, "Expected error of one pass's friction level [N]")
+            ->default_val(5.0);
+        sub.add_option("--position-resolution", resolution_um, "Position measurement resolution [um]")
+            ->default_val(1.0);
+    }
+
+    [[nodiscard]] TestPlanOptions plan_options() const {
+        TestPlanOptions options;
+        options.axis = axis;
+        std::tie(options.travel_min, options.travel_max) = parse_travel(travel);
+        options.centers = parse_number_list(centers, "--centers", mm);
+        options.stroke = stroke_mm * mm;
+        if (!feeds.empty()) options.feeds = parse_feeds(feeds);
+        options.slow_feeds = parse_slow_feeds(slow_feeds);
+        options.max_pass_time = max_pass_time_s;
+        options.cycles = cycles;
+        options.acceleration = acceleration;
+        options.jerk = jerk;
+        options.dwell = dwell_s;
+        options.sample_time = sample_time_s;
+        if (max_feed_mm_per_min) options.max_feed = *max_feed_mm_per_min * mm_per_min;
+        options.positioning_feed = positioning_feed_mm_per_min * mm_per_min;
+        if (start_mm) options.start_position = *start_mm * mm;
+        return options;
+    }
+
+    [[nodiscard]] PredictionOptions prediction_options() const {
+        PredictionOptions nominal;
+        FrictionBranch branch;
+        branch.viscous = viscous;
+        branch.coulomb = coulomb;
+        branch.breakaway = breakaway;
+        branch.stribeck_velocity = stribeck_mm_per_s * mm;
+        nominal.drive.mass = mass;
+        nominal.drive.friction = Friction::symmetric(branch);
+        nominal.force_noise = force_noise;
+        nominal.level_error = level_error;
+        nominal.position_resolution = resolution_um * 1e-6;
+        return nominal;
+    }
+
+    [[nodiscard]] int run() const {
+        const TestPlan plan = make_test_plan(plan_options());
+        const PredictionOptions nominal = prediction_options();
+        const auto prediction = predict_identifiability(plan, nominal);
+        const auto part_program_dialect = parse_dialect(dialect).value_or(Dialect::iso);
+        if (!output.empty()) write_text_file(output, emit_part_program(plan, part_program_dialect));
+        if (!reference.empty()) write_text_file(reference, write_csv(reference_trajectory(plan)));
+        if (!json.empty()) write_json(plan_document(plan, prediction), json);
+        const bool stdout_taken = output == "-" || reference == "-" || json == "-";
+        print_summary(stdout_taken ? stderr : stdout, plan, prediction, nominal);
+        return 0;
+    }
+};
+
 Action add_plan_command(CLI::App& app) {
     auto* sub = app.add_subcommand("plan", "Design the axis test and write it as a part program and a reference");
     sub->footer(
@@ -94,119 +216,9 @@ Action add_plan_command(CLI::App& app) {
         "The paper's ladder alone (no slow passes; F_B and v_s come out not identifiable):\n"
         "  feedid plan --travel=-400:400 --centers=-300 --slow-feeds none --dialect sinumerik -o TEST.MPF");
 
-    struct Arguments {
-        std::string axis{"X"};
-        std::string travel;
-        std::vector<std::string> centers;
-        double stroke_mm{30.0};
-        std::vector<std::string> feeds;
-        std::vector<std::string> slow_feeds{"10:1000:7"};
-        double max_pass_time_s{8.0};
-        int cycles{2};
-        double acceleration{1.0};
-        std::optional<double> jerk;
-        double dwell_s{0.2};
-        double sample_time_s{0.001};
-        std::optional<double> max_feed_mm_per_min;
-        double positioning_feed_mm_per_min{5000.0};
-        std::optional<double> start_mm;
-        std::string dialect{"iso"};
-        std::string output;
-        std::string reference;
-        std::string json;
-        // nominal drive
-        double mass{69.1};
-        double viscous{54.2};
-        double coulomb{742.8};
-        double breakaway{946.2};
-        double stribeck_mm_per_s{5.0};
-        double force_noise{10.0};
-        double level_error{5.0};
-        double resolution_um{1.0};
-    };
-    auto arguments = std::make_shared<Arguments>();
-    auto& a = *arguments;
-    sub->add_option("--axis", a.axis, "Axis name as the NC knows it (X, Y, Z, A, ...; X1 on SINUMERIK)")
-        ->default_val("X");
-    sub->add_option("--travel", a.travel, "Travel limits MIN:MAX [mm] (write --travel=-400:400)")->required();
-    add_list_option(*sub, "--centers", a.centers, "Centres of the strokes C1,C2,... [mm] (write --centers=-300,0,300)")
-        ->required();
-    sub->add_option("--stroke", a.stroke_mm, "Stroke of the ladder passes [mm]")->default_val(30.0);
-    add_list_option(*sub, "--feeds", a.feeds,
-                    "Ladder feedrates F1,F2,... [mm/min]; default the paper's 1250,2600,3950,5300,6650,8000,9350");
-    add_list_option(*sub, "--slow-feeds", a.slow_feeds,
-                    "Slow Stribeck passes: LO:HI[:N] log-spaced, F1,F2,... [mm/min], or none")
-        ->default_val("10:1000:7");
-    sub->add_option("--max-pass-time", a.max_pass_time_s, "Longest slow pass; its stroke is shortened to fit [s]")
-        ->default_val(8.0);
-    sub->add_option("--cycles", a.cycles, "Back-and-forth cycles per feedrate")->default_val(2);
-    sub->add_option("--acceleration", a.acceleration, "Axis acceleration (machine data) [m/s^2]")->default_val(1.0);
-    sub->add_option("--jerk", a.jerk, "Jerk limit [m/s^3] (SINUMERIK SOFT); default none (BRISK)");
-    sub->add_option("--dwell", a.dwell_s, "Dwell at every reversal [s]")->default_val(0.2);
-    sub->add_option("--sample-time", a.sample_time_s, "Trace sample time [s] (the reference file's step)")
-        ->default_val(0.001);
-    sub->add_option("--max-feed", a.max_feed_mm_per_min, "Feedrate limit of the axis [mm/min]; refuse moves above it");
-    sub->add_option("--positioning-feed", a.positioning_feed_mm_per_min, "Feedrate between passes [mm/min]")
-        ->default_val(5000.0);
-    sub->add_option("--start", a.start_mm, "Where the axis stands at the program start [mm]; default the first pass");
-    sub->add_option("--dialect", a.dialect, "Part-program dialect")
-        ->check(CLI::IsMember({"iso", "sinumerik", "linuxcnc"}))
-        ->default_val("iso");
-    sub->add_option("-o,--out", a.output, "Write the part program here ('-' for stdout)");
-    sub->add_option("--reference", a.reference, "Write the reference trajectory (CSV: t [s], x_ref [m]) here");
-    sub->add_option("--json", a.json, "Write the plan and its prediction as JSON ('-' for stdout)");
-    sub->add_option("--mass", a.mass, "Nominal mass for the prediction [kg]")->default_val(69.1);
-    sub->add_option("--viscous", a.viscous, "Nominal viscous friction [N*s/m]")->default_val(54.2);
-    sub->add_option("--coulomb", a.coulomb, "Nominal Coulomb friction [N]")->default_val(742.8);
-    sub->add_option("--breakaway", a.breakaway, "Nominal breakaway friction [N]")->default_val(946.2);
-    sub->add_option("--stribeck-velocity", a.stribeck_mm_per_s, "Nominal Stribeck velocity [mm/s]")->default_val(5.0);
-    sub->add_option("--force-noise", a.force_noise, "Expected force noise per sample [N]")->default_val(10.0);
-    sub->add_option("--level-error", a.level_error, "Expected error of one pass's friction level [N]")
-        ->default_val(5.0);
-    sub->add_option("--position-resolution", a.resolution_um, "Position measurement resolution [um]")->default_val(1.0);
-
-    return [arguments]() -> int {
-        const auto& a = *arguments;
-        TestPlanOptions options;
-        options.axis = a.axis;
-        std::tie(options.travel_min, options.travel_max) = parse_travel(a.travel);
-        options.centers = parse_number_list(a.centers, "--centers", mm);
-        options.stroke = a.stroke_mm * mm;
-        if (!a.feeds.empty()) options.feeds = parse_feeds(a.feeds);
-        options.slow_feeds = parse_slow_feeds(a.slow_feeds);
-        options.max_pass_time = a.max_pass_time_s;
-        options.cycles = a.cycles;
-        options.acceleration = a.acceleration;
-        options.jerk = a.jerk;
-        options.dwell = a.dwell_s;
-        options.sample_time = a.sample_time_s;
-        if (a.max_feed_mm_per_min) options.max_feed = *a.max_feed_mm_per_min * mm_per_min;
-        options.positioning_feed = a.positioning_feed_mm_per_min * mm_per_min;
-        if (a.start_mm) options.start_position = *a.start_mm * mm;
-        const auto dialect = parse_dialect(a.dialect).value_or(Dialect::iso);
-
-        const TestPlan plan = make_test_plan(options);
-
-        PredictionOptions nominal;
-        FrictionBranch branch;
-        branch.viscous = a.viscous;
-        branch.coulomb = a.coulomb;
-        branch.breakaway = a.breakaway;
-        branch.stribeck_velocity = a.stribeck_mm_per_s * mm;
-        nominal.drive.mass = a.mass;
-        nominal.drive.friction = Friction::symmetric(branch);
-        nominal.force_noise = a.force_noise;
-        nominal.level_error = a.level_error;
-        nominal.position_resolution = a.resolution_um * 1e-6;
-        const auto prediction = predict_identifiability(plan, nominal);
-
-        if (!a.output.empty()) write_text_file(a.output, emit_part_program(plan, dialect));
-        if (!a.reference.empty()) write_text_file(a.reference, write_csv(reference_trajectory(plan)));
-        if (!a.json.empty()) write_json(plan_document(plan, prediction), a.json);
-        const bool stdout_taken = a.output == "-" || a.reference == "-" || a.json == "-";
-        print_summary(stdout_taken ? stderr : stdout, plan, prediction, nominal);
-        return 0;
-    };
+    auto arguments = std::make_shared<PlanArguments>();
+    arguments->add_to(*sub);
+    return [arguments] { return arguments->run(); };
 }
 
 }  // namespace feedid::cli
