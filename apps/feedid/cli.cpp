@@ -87,6 +87,7 @@ DriveConstants DriveArguments::constants() const {
             constants.force_constant_name = force_constant;
     }
     if (const auto problem = constants.validate(); !problem.empty()) throw InputError(problem);
+    for (const auto& warning : constants.warnings()) fmt::print(stderr, "feedid: warning: {}\n", warning);
     return constants;
 }
 
