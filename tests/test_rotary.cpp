@@ -319,3 +319,25 @@ TEST(RotaryAxis, ASinumerikTraceStatedRotaryDropsTheLinearAssumption) {
     EXPECT_EQ(document.at("rotary"), true);
     EXPECT_EQ(rotary.out.find("linear metric axis"), std::string::npos) << rotary.out;
 }
+
+TEST(RotaryAxis, FrictionMapPositionsInRadAndDegrees) {
+    const auto& f = files();
+    // the centre as given: 15 mm of table travel is 270 deg of the table (--centers takes deg on a rotary axis)
+    const auto linear = run_json("identify " + quoted(f.linear) + linear_roles + " --by-location --centers=15");
+    const auto rotary = run_json("identify " + quoted(f.rotary) + rotary_roles + " --by-location --centers=270");
+    ASSERT_FALSE(linear["locations"].empty());
+    ASSERT_EQ(rotary["locations"].size(), linear["locations"].size());
+    EXPECT_EQ(rotary.at("rotary"), true);
+    const double center_m = linear["locations"][0]["center_m"].get<double>();
+    EXPECT_NEAR(center_m, 0.015, 1e-15);
+    EXPECT_NEAR(rotary["locations"][0]["center_rad"].get<double>(), center_m * s, 1e-9 * std::abs(center_m * s));
+    const double coulomb = linear["locations"][0]["parameters"]["coulomb_N"]["value"].get<double>();
+    EXPECT_NEAR(rotary["locations"][0]["parameters"]["coulomb_Nm"]["value"].get<double>(), coulomb / s,
+                1e-6 * coulomb / s);
+    expect_no_linear_units("identify --by-location --json", rotary);
+    const auto printed = run_cli("identify " + quoted(f.rotary) + rotary_roles + " --by-location --centers=270");
+    ASSERT_EQ(printed.exit_code, 0) << printed.err;
+    EXPECT_NE(printed.out.find("centre [deg]"), std::string::npos) << printed.out;
+    EXPECT_NE(printed.out.find(fmt::format("{:.3f}", center_m * degrees_per_m)), std::string::npos) << printed.out;
+    expect_no_linear_units("identify --by-location", printed.out + printed.err);
+}
