@@ -25,7 +25,8 @@ struct ImportOptions {
     std::string axis;
     /// Sampling period [s] for sources that carry none (halsampler output); ignored where the file states one.
     std::optional<double> sample_time_s;
-    /// Force a format instead of detecting it ("csv", "mat", "sinumerik-trace", "twincat-scope", "halscope").
+    /// Force a format instead of detecting it ("csv", "mat", "sinumerik-trace", "twincat-scope", "halscope",
+    /// "mr-configurator", "ni-daq").
     std::string format;
 };
 
@@ -42,7 +43,7 @@ void prepare_trace(Trace& trace, const ImportOptions& options);
 Trace read_trace(const std::filesystem::path& path, const ImportOptions& options = {});
 
 /// Names the format of a file from its first bytes and extension: "csv", "mat", "sinumerik-trace", "twincat-scope",
-/// "halscope", or "" when unknown.
+/// "halscope", "mr-configurator", "ni-daq", or "" when unknown.
 std::string detect_format(const std::filesystem::path& path);
 
 /// Reads a whole file into memory; InputError naming the file when it cannot be read.
