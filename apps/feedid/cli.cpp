@@ -31,6 +31,10 @@ void TraceArguments::add_to(CLI::App& app) {
         ->check(
             CLI::IsMember({"csv", "mat", "sinumerik-trace", "twincat-scope", "halscope", "mr-configurator", "ni-daq"}));
     app.add_option("--rated", rated, "What 100 % means for channels given in percent, in SI units (e.g. 18 for 18 A)");
+    app.add_option("--sample-time", sample_time_s,
+                   "Time between samples [s] for files without a time column (a CSV log, halsampler output)")
+        ->check(CLI::PositiveNumber);
+    app.add_option("--skip-rows", skip_rows, "CSV: lines to skip at the top of the file before the header row");
 }
 
 ImportOptions TraceArguments::import_options() const {
@@ -45,6 +49,8 @@ ImportOptions TraceArguments::import_options() const {
     }
     options.axis = axis;
     options.format = format;
+    options.sample_time_s = sample_time_s;
+    options.skip_rows = skip_rows;
     if (lead_mm) options.unit_context.lead_m = *lead_mm * 1e-3;
     if (rated) {
         options.unit_context.rated_value_si = *rated;

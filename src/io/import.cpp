@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <cmath>
 #include <fstream>
 #include <vector>
 
@@ -211,6 +212,29 @@ void convert_units(Trace& trace, const ImportOptions& options) {
     }
 }
 
+// A trace without a time channel gets one from the stated sample time (a finding says so); without one it is an
+// error that says what to give.
+void add_time_from_sample_time(Trace& trace, const ImportOptions& options) {
+    if (trace.has(Role::time) || trace.channels.empty()) return;
+    if (!options.sample_time_s) {
+        throw InputError(
+            fmt::format("{}: no time column (none is named like 't' or 'time'); give the sample time "
+                        "with --sample-time SECONDS, or name the column with --channel time=NAME",
+                        where(trace)));
+    }
+    const double dt = *options.sample_time_s;
+    if (!(dt > 0.0) || !std::isfinite(dt)) {
+        throw InputError(fmt::format("--sample-time {}: must be a positive number of seconds", dt));
+    }
+    std::string name = "time";
+    while (trace.find(name) != nullptr) name += "#2";
+    std::vector<double> time(trace.channels.front().values.size());
+    for (std::size_t k = 0; k < time.size(); ++k) time[k] = static_cast<double>(k) * dt;
+    auto& channel = trace.set(name, Role::time, "s", std::move(time));
+    channel.source_unit = "s";
+    trace.findings.push_back(fmt::format("no time column: channel '{}' made from --sample-time {} s", name, dt));
+}
+
 }  // namespace
 
 std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::string_view option) {
@@ -231,6 +255,7 @@ std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::s
 void prepare_trace(Trace& trace, const ImportOptions& options) {
     const auto guessed = assign_roles(trace, options);
     drop_unusable_guesses(trace, options, guessed);
+    add_time_from_sample_time(trace, options);
     convert_units(trace, options);
     trace.validate();
 }
@@ -292,11 +317,20 @@ Trace read_trace(const std::filesystem::path& path, const ImportOptions& options
     std::error_code error;
     if (!std::filesystem::exists(path, error)) throw InputError(fmt::format("{}: no such file", path.string()));
     const std::string format = options.format.empty() ? detect_format(path) : options.format;
+    if (options.skip_rows > 0 && format != "csv") {
+        throw InputError(
+            fmt::format("{}: --skip-rows applies to plain CSV files; this file reads as {} (add "
+                        "--format csv to read it as plain CSV)",
+                        path.string(), format));
+    }
     Trace trace;
     if (format == "mat") {
         trace = read_mat(path);
     } else if (format == "csv") {
-        trace = read_csv(path);
+        CsvOptions csv;
+        csv.skip_rows = options.skip_rows;
+        for (const auto& [role, name] : options.channels) csv.numeric_columns.push_back(name);
+        trace = read_csv(path, csv);
     } else {
         const std::string bytes = read_file_bytes(path);
         if (bytes.empty()) throw InputError(fmt::format("{}: empty file", path.string()));
