@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <map>
 #include <new>
 #include <numbers>
 #include <random>
@@ -684,4 +685,94 @@ TEST(CsvCli, MillLogWrittenByPandasReads) {
     }
     EXPECT_EQ(channels.at(0).at("min").get<double>(), low);
     EXPECT_EQ(channels.at(0).at("max").get<double>(), high);
+}
+
+// ---- Role guessing from drive and CNC log names, and the --axis prefix filter (issue 12) ---------------------------
+
+namespace {
+const char* const mill_log = "umich-cnc-mill/experiment_01.csv";
+
+std::map<std::string, std::string> roles_of(const nlohmann::json& document) {
+    std::map<std::string, std::string> roles;
+    for (const auto& c : document.at("channels")) roles[c.at("name")] = c.at("role");
+    return roles;
+}
+}  // namespace
+
+TEST(CsvCli, AxisPrefixChoosesTheMillAxisAndItsRolesAreGuessed) {
+    FEEDID_REQUIRE_SHARED(mill_log);
+    const auto file = feedid::testing::shared_data() / mill_log;
+    const auto result = run_cli("info '" + file.string() + "' --axis x1 --sample-time 0.1 --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto document = nlohmann::json::parse(result.out);
+    const auto roles = roles_of(document);
+    EXPECT_EQ(roles.at("X1_ActualPosition"), "position");
+    EXPECT_EQ(roles.at("X1_CommandPosition"), "reference_position");
+    EXPECT_EQ(roles.at("X1_ActualVelocity"), "velocity");
+    EXPECT_EQ(roles.at("X1_CommandVelocity"), "velocity_command");
+    EXPECT_EQ(roles.at("X1_CurrentFeedback"), "current");
+    EXPECT_EQ(roles.at("X1_OutputCurrent"), "other");
+    EXPECT_EQ(roles.at("M1_CURRENT_FEEDRATE"), "other");  // no axis: kept, never guessed
+    for (const auto& [name, role] : roles) {
+        EXPECT_FALSE(name.starts_with("Y1_") || name.starts_with("Z1_") || name.starts_with("S1_")) << name;
+    }
+    EXPECT_TRUE(contains(document.at("findings").dump(), "other axes (Y1, Z1, S1) left out"))
+        << document.at("findings").dump();
+}
+
+TEST(CsvCli, SeveralAxesWithoutAChoiceAreNamedNotGuessed) {
+    FEEDID_REQUIRE_SHARED(mill_log);
+    const auto file = feedid::testing::shared_data() / mill_log;
+    const auto refused = run_cli("info '" + file.string() + "' --sample-time 0.1");
+    EXPECT_EQ(refused.exit_code, 2);
+    EXPECT_EQ(count_lines(refused.err), 1) << refused.err;
+    EXPECT_TRUE(contains(refused.err, "several axes (X1, Y1, Z1, S1)")) << refused.err;
+    EXPECT_TRUE(contains(refused.err, "--axis")) << refused.err;
+    const auto unknown = run_cli("info '" + file.string() + "' --sample-time 0.1 --axis B2");
+    EXPECT_EQ(unknown.exit_code, 2);
+    EXPECT_TRUE(contains(unknown.err, "--axis B2")) << unknown.err;
+    EXPECT_TRUE(contains(unknown.err, "X1, Y1, Z1, S1")) << unknown.err;
+    // explicit roles work without --axis; nothing is guessed from the axes' names then
+    const auto explicit_roles =
+        run_cli("info '" + file.string() + "' --sample-time 0.1 --channel position=Y1_ActualPosition --json -");
+    ASSERT_EQ(explicit_roles.exit_code, 0) << explicit_roles.err;
+    const auto roles = roles_of(nlohmann::json::parse(explicit_roles.out));
+    EXPECT_EQ(roles.at("Y1_ActualPosition"), "position");
+    EXPECT_EQ(roles.at("X1_ActualPosition"), "other");
+    EXPECT_EQ(roles.at("Y1_CurrentFeedback"), "other");
+}
+
+TEST(CsvCli, DriveExportNamesAreGuessedAndAUnitNeedingARatingIsSaid) {
+    const auto path = feedid::testing::temp_dir() / "drive.csv";
+    write_text(path, "time [ms],Servo motor speed [mm/s],Torque [%]\n0,0,10\n1,5,-20\n2,10,30\n");
+    const auto without = run_cli("info '" + path.string() + "' --json -");
+    ASSERT_EQ(without.exit_code, 0) << without.err;
+    const auto document = nlohmann::json::parse(without.out);
+    auto roles = roles_of(document);
+    EXPECT_EQ(roles.at("Servo motor speed"), "velocity");
+    EXPECT_EQ(roles.at("Torque"), "other");  // % without --rated: no role, and a finding says what it needs
+    EXPECT_TRUE(contains(document.at("findings").dump(), "--rated")) << document.at("findings").dump();
+    const auto rated = run_cli("info '" + path.string() + "' --rated 4 --json -");
+    ASSERT_EQ(rated.exit_code, 0) << rated.err;
+    const auto with_rating = nlohmann::json::parse(rated.out);
+    roles = roles_of(with_rating);
+    EXPECT_EQ(roles.at("Torque"), "current");
+    // 30 % and -20 % of 4 A
+    EXPECT_NEAR(with_rating.at("channels").at(2).at("max").get<double>(), 1.2, 1e-15);
+    EXPECT_NEAR(with_rating.at("channels").at(2).at("min").get<double>(), -0.8, 1e-15);
+}
+
+TEST(CsvCli, MrConfiguratorExportGetsItsRolesFromTheSlotNames) {
+    const auto file = feedid::testing::shared_data() / "mitsubishi-mr/a3MR.csv";
+    FEEDID_REQUIRE_SHARED("mitsubishi-mr/a3MR.csv");
+    const auto result = run_cli("info '" + file.string() + "' --lead 20 --rated 1 --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto document = nlohmann::json::parse(result.out);
+    const auto roles = roles_of(document);
+    EXPECT_EQ(roles.at("Time"), "time");
+    EXPECT_EQ(roles.at("Servo motor speed"), "velocity");
+    EXPECT_EQ(roles.at("Torque"), "current");
+    // the rig authors' own conversion: v = rpm * 20 mm / 1000 / 60; the slowest sample is -1981 r/min
+    const auto& speed = document.at("channels").at(1);
+    EXPECT_NEAR(speed.at("min").get<double>(), -1981.0 * 0.020 / 60.0, 1e-12);
 }

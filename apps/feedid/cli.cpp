@@ -25,8 +25,8 @@ void TraceArguments::add_to(CLI::App& app) {
         ->take_all()
         ->allow_extra_args(false);
     app.add_option("--axis", axis,
-                   "The axis: which one to read from a multi-axis trace (NC axis index or name) and its label in the "
-                   "history");
+                   "The axis: which one to read from a multi-axis trace (NC axis index or name; the X1 of X1_... "
+                   "channel names in a CSV log) and its label in the history");
     app.add_option("--format", format, "Read as this format instead of detecting it")
         ->check(
             CLI::IsMember({"csv", "mat", "sinumerik-trace", "twincat-scope", "halscope", "mr-configurator", "ni-daq"}));
