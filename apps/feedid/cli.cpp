@@ -12,7 +12,9 @@
 namespace feedid::cli {
 
 void TraceArguments::add_to(CLI::App& app) {
-    app.add_option("FILE", file, "The trace: CSV, MATLAB .mat, SINUMERIK trace XML, TwinCAT Scope CSV or halscope text")
+    app.add_option("FILE", file,
+                   "The trace: CSV, MATLAB .mat, SINUMERIK trace XML, TwinCAT Scope CSV, halscope text, MR "
+                   "Configurator2 graph CSV or NI DAQ CSV")
         ->required();
     app.add_option("--channel", channel_assignments,
                    "Use a channel for a role: ROLE=NAME (roles: time, position, reference_position, velocity, "
@@ -23,13 +25,18 @@ void TraceArguments::add_to(CLI::App& app) {
         ->take_all()
         ->allow_extra_args(false);
     app.add_option("--axis", axis,
-                   "The axis: which one to read from a multi-axis trace (NC axis index or name) and its label in the "
-                   "history");
+                   "The axis: which one to read from a multi-axis trace (NC axis index or name; the X1 of X1_... "
+                   "channel names in a CSV log) and its label in the history");
     app.add_option("--format", format, "Read as this format instead of detecting it")
-        ->check(CLI::IsMember({"csv", "mat", "sinumerik-trace", "twincat-scope", "halscope"}));
+        ->check(
+            CLI::IsMember({"csv", "mat", "sinumerik-trace", "twincat-scope", "halscope", "mr-configurator", "ni-daq"}));
     app.add_option("--rated", rated,
                    "What 100 % means for channels given in percent, with its unit: 18A (rated current), 2.4Nm (rated "
                    "torque); a bare number is in A");
+    app.add_option("--sample-time", sample_time_s,
+                   "Time between samples [s] for files without a time column (a CSV log, halsampler output)")
+        ->check(CLI::PositiveNumber);
+    app.add_option("--skip-rows", skip_rows, "CSV: lines to skip at the top of the file before the header row");
 }
 
 ImportOptions TraceArguments::import_options() const {
@@ -44,6 +51,8 @@ ImportOptions TraceArguments::import_options() const {
     }
     options.axis = axis;
     options.format = format;
+    options.sample_time_s = sample_time_s;
+    options.skip_rows = skip_rows;
     if (lead_mm) options.unit_context.lead_m = *lead_mm * 1e-3;
     options.unit_context.gear_ratio = gear_ratio;
     if (!rated.empty()) {

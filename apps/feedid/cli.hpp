@@ -18,7 +18,7 @@ namespace feedid::cli {
 /// What a subcommand runs after parsing; returns the exit code (0 ok, 1 analysis failed, 2 bad input).
 using Action = std::function<int()>;
 
-/// `FILE [--channel ROLE=NAME]... [--unit ROLE=UNIT]... [--axis N] [--format F]`
+/// `FILE [--channel ROLE=NAME]... [--unit ROLE=UNIT]... [--axis N] [--format F] [--sample-time S] [--skip-rows N]`
 struct TraceArguments {
     std::string file;
     std::vector<std::string> channel_assignments;
@@ -28,6 +28,8 @@ struct TraceArguments {
     std::optional<double> lead_mm;     // shared with DriveArguments when both are present
     std::optional<double> gear_ratio;  // likewise: rpm on a linear axis is a motor speed, geared to the screw
     std::string rated;                 // what 100 % means for % units: "18A", "2.4Nm" (a bare number: A)
+    std::optional<double> sample_time_s;
+    std::size_t skip_rows{0};
 
     void add_to(CLI::App& app);
     [[nodiscard]] ImportOptions import_options() const;

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <cmath>
 #include <fstream>
+#include <vector>
 
 #include <fmt/core.h>
 
@@ -11,6 +13,8 @@
 #include "feedid/io/csv.hpp"
 #include "feedid/io/halscope.hpp"
 #include "feedid/io/mat.hpp"
+#include "feedid/io/mr_configurator.hpp"
+#include "feedid/io/ni_daq.hpp"
 #include "feedid/io/sinumerik_trace.hpp"
 #include "feedid/io/twincat_scope.hpp"
 
@@ -32,6 +36,9 @@ struct RoleNames {
     Role role;
     std::array<std::string_view, 16> names;
 };
+// Drive and CNC logs add their own: `X1_ActualPosition`, `X1_CommandVelocity`, `X1_CurrentFeedback` (guessed without
+// the axis prefix), MR Configurator2's `Servo motor speed` and `Torque` (the drive signal: the current role takes
+// torque and % units).
 constexpr std::array<RoleNames, 7> common_names{{
     {Role::time, {"t", "time", "times", "zeit", "timestamp", "tsec", "ts"}},
     {Role::position,
@@ -39,14 +46,59 @@ constexpr std::array<RoleNames, 7> common_names{{
       "phi", "angle"}},
     {Role::reference_position,
      {"xref", "xset", "xcmd", "qg", "qr", "qref", "posref", "posset", "poscmd", "cmdpos", "setpos", "possetpoint",
-      "reference", "ref", "xr"}},
-    {Role::velocity, {"v", "vel", "velocity", "dq", "qd", "vact", "velact", "actvel", "speed"}},
+      "reference", "ref", "xr", "commandposition"}},
+    {Role::velocity,
+     {"v", "vel", "velocity", "dq", "qd", "vact", "velact", "actvel", "speed", "actualvelocity", "servomotorspeed",
+      "motorspeed"}},
     {Role::velocity_command,
      {"vset", "vcmd", "vref", "velset", "velcmd", "velref", "cmdvel", "velocitycommand", "velocitysetpoint", "nset",
-      "speedsetpoint"}},
-    {Role::current, {"i", "iq", "current", "cur", "iact", "iqact", "actcurr", "actcurrent", "id", "idrive"}},
+      "speedsetpoint", "commandvelocity"}},
+    {Role::current,
+     {"i", "iq", "current", "cur", "iact", "iqact", "actcurr", "actcurrent", "id", "idrive", "currentfeedback",
+      "torque"}},
     {Role::force, {"f", "force", "fd", "fdrive", "driveforce"}},
 }};
+
+bool is_common_name(std::string_view key) {
+    return std::any_of(common_names.begin(), common_names.end(), [key](const RoleNames& entry) {
+        return std::find(entry.names.begin(), entry.names.end(), key) != entry.names.end();
+    });
+}
+
+// The CNC axis prefix of a channel name, as drive and NC logs write it: letters then digits, then '_'
+// ("X1_ActualPosition" -> "X1"); "" when there is none.
+std::string_view axis_prefix(std::string_view name) {
+    std::size_t k = 0;
+    while (k < name.size() && std::isalpha(static_cast<unsigned char>(name[k]))) ++k;
+    const std::size_t letters = k;
+    while (k < name.size() && std::isdigit(static_cast<unsigned char>(name[k]))) ++k;
+    if (letters == 0 || k == letters || k >= name.size() || name[k] != '_') return {};
+    return name.substr(0, k);
+}
+
+std::string upper(std::string_view text) {
+    std::string out(text);
+    for (char& c : out) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    return out;
+}
+
+// The axes a trace's channel names carry: prefixes of at least one name whose rest is a common role name.
+std::vector<std::string> axes_in_names(const Trace& trace) {
+    std::vector<std::string> axes;
+    for (const auto& channel : trace.channels) {
+        const auto prefix = axis_prefix(channel.name);
+        if (prefix.empty() || !is_common_name(lower_alnum(std::string_view(channel.name).substr(prefix.size() + 1))))
+            continue;
+        if (std::find(axes.begin(), axes.end(), upper(prefix)) == axes.end()) axes.push_back(upper(prefix));
+    }
+    return axes;
+}
+
+std::string joined(const std::vector<std::string>& items) {
+    std::string out;
+    for (const auto& item : items) out += (out.empty() ? "" : ", ") + item;
+    return out;
+}
 
 std::string where(const Trace& trace) {
     return trace.source_path.empty() ? std::string("trace") : trace.source_path;
@@ -84,7 +136,7 @@ std::string_view default_si_unit(Role role, bool rotary) {
     return "";
 }
 
-void assign_roles(Trace& trace, const ImportOptions& options) {
+void assign_explicit_roles(Trace& trace, const ImportOptions& options) {
     // Explicit assignments first; they take a role away from any channel that had it.
     for (const auto& [role, name] : options.channels) {
         auto* channel = trace.find(name);
@@ -99,14 +151,68 @@ void assign_roles(Trace& trace, const ImportOptions& options) {
         }
         channel->role = role;
     }
-    // Then guesses for the roles still open, from common names; each guess is said.
+}
+
+// Which axis prefix names are guessed from ("" = names without one only), after leaving out the channels of the other
+// axes when --axis chose one. Several axes and no choice is an error, unless the roles were given with --channel.
+std::string select_axis(Trace& trace, const ImportOptions& options) {
+    if (trace.format == "sinumerik-trace") return {};  // its reader has already read the chosen axis alone
+    const auto axes = axes_in_names(trace);
+    if (axes.empty()) return {};
+    if (options.axis.empty()) {
+        if (axes.size() == 1) return axes.front();
+        if (options.channels.empty()) {
+            throw InputError(
+                fmt::format("{}: channels of several axes ({}): choose one with --axis NAME, or give the "
+                            "roles with --channel ROLE=NAME",
+                            where(trace), joined(axes)));
+        }
+        trace.findings.push_back(
+            fmt::format("channels of several axes ({}): no role guessed from their names (choose "
+                        "one with --axis NAME)",
+                        joined(axes)));
+        return "-";
+    }
+    const std::string chosen = upper(options.axis);
+    if (std::find(axes.begin(), axes.end(), chosen) == axes.end()) {
+        if (axes.size() == 1) return axes.front();  // --axis is then the axis's label in the history only
+        throw InputError(fmt::format("{}: --axis {}: no channels named {}_...; the file holds the axes {}",
+                                     where(trace), options.axis, options.axis, joined(axes)));
+    }
+    std::vector<std::string> left_out;
+    std::erase_if(trace.channels, [&](const Channel& channel) {
+        const std::string prefix = upper(axis_prefix(channel.name));
+        const bool other_axis = !prefix.empty() && prefix != chosen &&
+                                std::find(axes.begin(), axes.end(), prefix) != axes.end() &&
+                                channel.role == Role::other;
+        if (other_axis && std::find(left_out.begin(), left_out.end(), prefix) == left_out.end())
+            left_out.push_back(prefix);
+        return other_axis;
+    });
+    if (!left_out.empty()) {
+        trace.findings.push_back(
+            fmt::format("--axis {}: the channels of the other axes ({}) left out", options.axis, joined(left_out)));
+    }
+    return chosen;
+}
+
+// Guesses for the roles still open, from common names (without the chosen axis prefix); each guess is said. Returns
+// the names of the channels given a role by guess.
+std::vector<std::string> guess_roles(Trace& trace, const std::string& axis) {
+    std::vector<std::string> guessed;
     for (const auto& [role, names] : common_names) {
         if (trace.has(role)) continue;
         for (auto& channel : trace.channels) {
             if (channel.role != Role::other) continue;
-            const std::string key = lower_alnum(channel.name);
+            std::string_view name = channel.name;
+            if (const auto prefix = axis_prefix(name); !prefix.empty() && !axis.empty()) {
+                if (axis == "-" || upper(prefix) != axis) continue;
+                name.remove_prefix(prefix.size() + 1);
+            }
+            const std::string key = lower_alnum(name);
             if (std::find(names.begin(), names.end(), key) != names.end() && !key.empty()) {
                 channel.role = role;
+                guessed.push_back(channel.name);
                 trace.findings.push_back(
                     fmt::format("channel '{}' taken as {} (guessed from its name; set it with "
                                 "--channel {}=NAME)",
@@ -114,6 +220,38 @@ void assign_roles(Trace& trace, const ImportOptions& options) {
                 break;
             }
         }
+    }
+    return guessed;
+}
+
+// A guessed role channel whose unit does not fit the role (a load cell logged in V guessed as force by its name), or
+// needs a rating that was not given (% without --rated), is left without a role, with a finding that says why; given
+// with --channel, either stays an error. A guess with an unknown unit stays an error naming it.
+void drop_unusable_guesses(Trace& trace, const ImportOptions& options, const std::vector<std::string>& guessed) {
+    const UnitContext with_rating{.rated_value_si = 1.0, .rated_quantity = Quantity::current};
+    for (auto& channel : trace.channels) {
+        if (channel.role == Role::other || channel.source_unit.empty() || options.units.contains(channel.role) ||
+            std::find(guessed.begin(), guessed.end(), channel.name) == guessed.end()) {
+            continue;
+        }
+        std::string reason;
+        if (const auto conversion = parse_unit(channel.source_unit, options.unit_context)) {
+            if (compatible(channel.role, conversion->quantity)) continue;
+            reason = fmt::format("channel '{}': unit '{}' is not one for {}", channel.name, channel.source_unit,
+                                 role_name(channel.role));
+        } else if (!options.unit_context.rated_value_si && parse_unit(channel.source_unit, with_rating)) {
+            try {
+                (void)parse_unit_or_throw(channel.source_unit, channel.name, options.unit_context);
+            } catch (const InputError& e) {
+                reason = e.what();
+            }
+        } else {
+            continue;
+        }
+        const auto guess = fmt::format("channel '{}' taken as {} (guessed", channel.name, role_name(channel.role));
+        std::erase_if(trace.findings, [&guess](const std::string& finding) { return finding.starts_with(guess); });
+        trace.findings.push_back(fmt::format("{}: not taken as {}", reason, role_name(channel.role)));
+        channel.role = Role::other;
     }
 }
 
@@ -186,7 +324,11 @@ std::optional<UnitConversion> channel_conversion(Trace& trace, const Channel& ch
             try {
                 (void)parse_unit_or_throw(channel.source_unit, channel.name, context);
             } catch (const InputError& e) {
-                trace.findings.push_back(fmt::format("{}; values left as they are", e.what()));
+                // once: a guess dropped for this unit has said it already (drop_unusable_guesses)
+                const std::string reason = e.what();
+                if (std::none_of(trace.findings.begin(), trace.findings.end(),
+                                 [&reason](const std::string& finding) { return finding.starts_with(reason); }))
+                    trace.findings.push_back(fmt::format("{}; values left as they are", reason));
             }
         }
         return conversion;
@@ -245,6 +387,29 @@ void convert_units(Trace& trace, const ImportOptions& options) {
     }
 }
 
+// A trace without a time channel gets one from the stated sample time (a finding says so); without one it is an
+// error that says what to give.
+void add_time_from_sample_time(Trace& trace, const ImportOptions& options) {
+    if (trace.has(Role::time) || trace.channels.empty()) return;
+    if (!options.sample_time_s) {
+        throw InputError(
+            fmt::format("{}: no time column (none is named like 't' or 'time'); give the sample time "
+                        "with --sample-time SECONDS, or name the column with --channel time=NAME",
+                        where(trace)));
+    }
+    const double dt = *options.sample_time_s;
+    if (!(dt > 0.0) || !std::isfinite(dt)) {
+        throw InputError(fmt::format("--sample-time {}: must be a positive number of seconds", dt));
+    }
+    std::string name = "time";
+    while (trace.find(name) != nullptr) name += "#2";
+    std::vector<double> time(trace.channels.front().values.size());
+    for (std::size_t k = 0; k < time.size(); ++k) time[k] = static_cast<double>(k) * dt;
+    auto& channel = trace.set(name, Role::time, "s", std::move(time));
+    channel.source_unit = "s";
+    trace.findings.push_back(fmt::format("no time column: channel '{}' made from --sample-time {} s", name, dt));
+}
+
 }  // namespace
 
 std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::string_view option) {
@@ -263,7 +428,10 @@ std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::s
 }
 
 void prepare_trace(Trace& trace, const ImportOptions& options) {
-    assign_roles(trace, options);
+    assign_explicit_roles(trace, options);
+    const auto guessed = guess_roles(trace, select_axis(trace, options));
+    drop_unusable_guesses(trace, options, guessed);
+    add_time_from_sample_time(trace, options);
     convert_units(trace, options);
     trace.validate();
 }
@@ -288,6 +456,8 @@ namespace {
 std::string format_from_content(std::string_view head, const std::filesystem::path& path) {
     if (head.substr(0, 6) == "MATLAB" || head.substr(0, 4) == "\x89HDF") return "mat";
     if (head.find("<traceSession") != std::string_view::npos) return "sinumerik-trace";
+    if (looks_like_mr_configurator(head)) return "mr-configurator";
+    if (looks_like_ni_daq(head)) return "ni-daq";
     // TwinCAT Scope: "Name<separator>scope name", then "File<separator>..." and "Starttime of export".
     if (head.size() > 5 && head.starts_with("Name") &&
         std::string_view("\t ;:,").find(head[4]) != std::string_view::npos &&
@@ -323,11 +493,20 @@ Trace read_trace(const std::filesystem::path& path, const ImportOptions& options
     std::error_code error;
     if (!std::filesystem::exists(path, error)) throw InputError(fmt::format("{}: no such file", path.string()));
     const std::string format = options.format.empty() ? detect_format(path) : options.format;
+    if (options.skip_rows > 0 && format != "csv") {
+        throw InputError(
+            fmt::format("{}: --skip-rows applies to plain CSV files; this file reads as {} (add "
+                        "--format csv to read it as plain CSV)",
+                        path.string(), format));
+    }
     Trace trace;
     if (format == "mat") {
         trace = read_mat(path);
     } else if (format == "csv") {
-        trace = read_csv(path);
+        CsvOptions csv;
+        csv.skip_rows = options.skip_rows;
+        for (const auto& [role, name] : options.channels) csv.numeric_columns.push_back(name);
+        trace = read_csv(path, csv);
     } else {
         const std::string bytes = read_file_bytes(path);
         if (bytes.empty()) throw InputError(fmt::format("{}: empty file", path.string()));
@@ -337,9 +516,15 @@ Trace read_trace(const std::filesystem::path& path, const ImportOptions& options
             trace = parse_twincat_scope(bytes, path.string());
         else if (format == "halscope")
             trace = parse_halscope(bytes, path.string(), options.sample_time_s);
+        else if (format == "mr-configurator")
+            trace = parse_mr_configurator(bytes, path.string());
+        else if (format == "ni-daq")
+            trace = parse_ni_daq(bytes, path.string());
         else
-            throw InputError(fmt::format(
-                "--format {}: unknown format (csv, mat, sinumerik-trace, twincat-scope, halscope)", format));
+            throw InputError(
+                fmt::format("--format {}: unknown format (csv, mat, sinumerik-trace, twincat-scope, halscope, "
+                            "mr-configurator, ni-daq)",
+                            format));
     }
     trace.source_path = path.string();
     if (trace.format.empty()) trace.format = format;
