@@ -312,7 +312,8 @@ UnitCell classify_unit_cell(std::string_view cell) {
     double number = 0.0;
     if (fast_float::from_chars(cell.data(), cell.data() + cell.size(), number).ptr == cell.data() + cell.size())
         return UnitCell::number;
-    const UnitContext any_context{1.0, 1.0, Quantity::current};
+    const UnitContext any_context{
+        .lead_m = 1.0, .gear_ratio = std::nullopt, .rated_value_si = 1.0, .rated_quantity = Quantity::current};
     const auto conversion = parse_unit(cell, any_context);
     if (!conversion) return UnitCell::other;
     return conversion->quantity == Quantity::dimensionless ? UnitCell::empty : UnitCell::unit;

@@ -228,7 +228,8 @@ std::vector<std::string> guess_roles(Trace& trace, const std::string& axis) {
 // needs a rating that was not given (% without --rated), is left without a role, with a finding that says why; given
 // with --channel, either stays an error. A guess with an unknown unit stays an error naming it.
 void drop_unusable_guesses(Trace& trace, const ImportOptions& options, const std::vector<std::string>& guessed) {
-    const UnitContext with_rating{.rated_value_si = 1.0, .rated_quantity = Quantity::current};
+    const UnitContext with_rating{
+        .lead_m = std::nullopt, .gear_ratio = std::nullopt, .rated_value_si = 1.0, .rated_quantity = Quantity::current};
     for (auto& channel : trace.channels) {
         if (channel.role == Role::other || channel.source_unit.empty() || options.units.contains(channel.role) ||
             std::find(guessed.begin(), guessed.end(), channel.name) == guessed.end()) {
