@@ -13,6 +13,7 @@
 #include "feedid/io/mat.hpp"
 #include "feedid/io/sinumerik_trace.hpp"
 #include "feedid/io/twincat_scope.hpp"
+#include "feedid/native_interval.hpp"
 
 namespace feedid {
 
@@ -45,7 +46,7 @@ constexpr std::array<RoleNames, 7> common_names{{
      {"vset", "vcmd", "vref", "velset", "velcmd", "velref", "cmdvel", "velocitycommand", "velocitysetpoint", "nset",
       "speedsetpoint"}},
     {Role::current, {"i", "iq", "current", "cur", "iact", "iqact", "actcurr", "actcurrent", "id", "idrive"}},
-    {Role::force, {"f", "force", "fd", "fdrive", "driveforce"}},
+    {Role::force, {"f", "force", "fd", "fdrive", "driveforce", "torque", "tau"}},
 }};
 
 std::string where(const Trace& trace) {
@@ -194,6 +195,7 @@ void prepare_trace(Trace& trace, const ImportOptions& options) {
     assign_roles(trace, options);
     convert_units(trace, options);
     trace.validate();
+    resolve_native_intervals(trace);
 }
 
 std::string read_file_bytes(const std::filesystem::path& path) {
