@@ -7,6 +7,7 @@
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
+#include "feedid/native_interval.hpp"
 #include "feedid/result_document.hpp"
 #include "feedid/signal.hpp"
 
@@ -450,13 +451,15 @@ ValidationMetrics validate_simulation(const Trace& trace, std::span<const double
     if (n == 0) return metrics;
     const double dt = trace.time_base().sample_time_s;
     // Measured velocity and acceleration: the logged velocity, or the position low-passed forwards and backwards
-    // (4th-order Butterworth at min(100 Hz, fs/10), the EMPS practice) and differenced centrally.
+    // (4th-order Butterworth at min(100 Hz, fs/10), the EMPS practice, fs the position signal's native rate) and
+    // differenced centrally.
     std::vector<double> velocity;
     if (const auto* logged = trace.find(Role::velocity)) {
         velocity = logged->values;
     } else {
         const double fs = 1.0 / dt;
-        const auto filter = butterworth_lowpass(4, std::min(100.0, 0.1 * fs), fs);
+        const double native_rate = 1.0 / native_interval_of(trace, Role::position);
+        const auto filter = butterworth_lowpass(4, std::min(100.0, 0.1 * native_rate), fs);
         velocity = central_difference(filtfilt(filter, position), dt);
     }
     const std::vector<double> acceleration = central_difference(velocity, dt);
