@@ -24,6 +24,26 @@ std::string DriveConstants::validate() const {
     return {};
 }
 
+std::vector<std::string> DriveConstants::warnings() const {
+    std::vector<std::string> out;
+    const auto outside = [](double value, DriveConstantRange range) { return value < range.low || value > range.high; };
+    if (lead_m && std::isfinite(*lead_m) && outside(*lead_m, plausible_lead_m)) {
+        out.push_back(fmt::format("--lead {:g} mm is outside 0.5 to 100 mm, the leads of ball screws (give the lead in "
+                                  "mm per revolution: a 10 mm lead given in metres reads 0.01 mm)",
+                                  *lead_m * 1e3));
+    }
+    if (torque_constant_Nm_per_A && std::isfinite(*torque_constant_Nm_per_A) &&
+        outside(*torque_constant_Nm_per_A, plausible_torque_constant_Nm_per_A)) {
+        out.push_back(fmt::format("--kt {:g} N*m/A is outside 0.01 to 500 N*m/A, the torque constants of servo motors",
+                                  *torque_constant_Nm_per_A));
+    }
+    if (std::isfinite(gear_ratio) && outside(gear_ratio, plausible_gear_ratio)) {
+        out.push_back(fmt::format("--gear-ratio {:g} is outside 0.01 to 1000 (motor revolutions per screw revolution)",
+                                  gear_ratio));
+    }
+    return out;
+}
+
 std::optional<double> DriveConstants::force_per_signal(const Trace& trace) const {
     if (!force_constant_name.empty()) {
         const auto found = trace.constants.find(force_constant_name);
@@ -47,36 +67,48 @@ std::optional<double> DriveConstants::force_per_signal(const Trace& trace) const
     return std::nullopt;
 }
 
+namespace {
+
+std::string where(const Trace& trace) {
+    return trace.source_path.empty() ? std::string("trace") : trace.source_path;
+}
+
+// A motor torque on a linear axis: the screw turns it into force, F = T * 2*pi * g / lead (eq. 2 without K_t).
+std::vector<double> torque_as_force(const Trace& trace, const Channel& channel, const DriveConstants& constants) {
+    if (!constants.lead_m) {
+        throw InputError(fmt::format("{}: the {} channel '{}' is a torque (N*m) on a linear axis: give the ball-screw "
+                                     "lead (--lead, and --gear-ratio) to turn it into force",
+                                     where(trace), role_name(channel.role), channel.name));
+    }
+    const double factor = 2.0 * std::numbers::pi * constants.gear_ratio / *constants.lead_m;
+    std::vector<double> converted(channel.values.size());
+    for (std::size_t k = 0; k < converted.size(); ++k) converted[k] = factor * channel.values[k];
+    return converted;
+}
+
+}  // namespace
+
 std::vector<double> drive_force(const Trace& trace, const DriveConstants& constants) {
     if (const auto problem = constants.validate(); !problem.empty()) throw InputError(problem);
     if (const auto* force = trace.find(Role::force)) {
-        if (trace.rotary || force->unit != "N*m") return force->values;
-        // a motor torque on a linear axis: the screw turns it into force, F = T * 2*pi * g / lead
-        if (!constants.lead_m) {
-            throw InputError(
-                fmt::format("{}: the force channel '{}' is a torque (N*m) on a linear axis: give the "
-                            "ball-screw lead (--lead, and --gear-ratio) to turn it into force",
-                            trace.source_path.empty() ? "trace" : trace.source_path, force->name));
-        }
-        const double factor = 2.0 * std::numbers::pi * constants.gear_ratio / *constants.lead_m;
-        std::vector<double> converted(force->values.size());
-        for (std::size_t k = 0; k < converted.size(); ++k) converted[k] = factor * force->values[k];
-        return converted;
+        if (!trace.rotary && force->unit == "N*m") return torque_as_force(trace, *force, constants);
+        return force->values;
     }
     const auto* current = trace.find(Role::current);
     if (current == nullptr) {
         throw InputError(
             fmt::format("{}: no drive signal: map a current channel (--channel current=NAME) or a force "
                         "channel (--channel force=NAME)",
-                        trace.source_path.empty() ? "trace" : trace.source_path));
+                        where(trace)));
     }
     const auto factor = constants.force_per_signal(trace);
     if (!factor) {
+        if (current->unit == "N*m" && !trace.rotary) return torque_as_force(trace, *current, constants);
         if (current->unit == "N" || current->unit == "N*m") return current->values;
         throw InputError(
             fmt::format("{}: the drive signal '{}' is in {} and no constant turns it into force: give "
                         "--kt and --lead, or --force-constant",
-                        trace.source_path.empty() ? "trace" : trace.source_path, current->name,
+                        where(trace), current->name,
                         current->unit.empty() ? std::string("unknown units") : current->unit));
     }
     std::vector<double> force(current->values.size());

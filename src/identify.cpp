@@ -322,7 +322,10 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
             return provisional;
         }
     }
-    return run_stages(trace, drive_force(trace, options.drive), options);  // throws without a force constant
+    IdentifyResult result = run_stages(trace, drive_force(trace, options.drive), options);  // throws without one
+    // Drive constants outside what feed drives have: the figures are right for the constants given, which may not be.
+    for (auto& warning : options.drive.warnings()) result.diagnostics.push_back(std::move(warning));
+    return result;
 }
 
 }  // namespace feedid

@@ -3,13 +3,34 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <cmath>
 #include <numbers>
+#include <system_error>
 
+#include <fast_float/fast_float.h>
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
 
 namespace feedid {
+
+std::string_view axis_kind_name(AxisKind kind) {
+    return kind == AxisKind::rotary ? "rotary" : "linear";
+}
+
+std::optional<AxisKind> axis_kind_of(Quantity quantity) {
+    switch (quantity) {
+        case Quantity::length:
+        case Quantity::velocity:
+        case Quantity::acceleration:
+        case Quantity::force: return AxisKind::linear;
+        case Quantity::angle:
+        case Quantity::angular_velocity:
+        case Quantity::angular_acceleration:
+        case Quantity::torque: return AxisKind::rotary;
+        default: return std::nullopt;
+    }
+}
 
 std::string_view si_symbol(Quantity quantity) {
     switch (quantity) {
@@ -166,8 +187,10 @@ std::string normalise(std::string_view unit) {
     // common alternative spellings
     if (lowered == "mm/sec") return "mm/s";
     if (lowered == "m/sec") return "m/s";
-    if (lowered == "1/min" || lowered == "min^-1" || lowered == "min-1" || lowered == "u/min" || lowered == "r/min")
+    if (lowered == "1/min" || lowered == "min^-1" || lowered == "min-1" || lowered == "u/min" || lowered == "r/min" ||
+        lowered == "rev/min" || lowered == "revs/min" || lowered == "rpm")
         return "rpm";
+    if (lowered == "rev/s" || lowered == "r/s" || lowered == "rps") return "rps";
     if (lowered == "deg/sec") return "deg/s";
     if (lowered == "grad") return "deg";  // German "Grad" (degree) as some controls write it
     return lowered;
@@ -175,15 +198,22 @@ std::string normalise(std::string_view unit) {
 
 }  // namespace
 
+bool is_revolution_speed(std::string_view unit) {
+    const std::string key = normalise(unit);
+    return key == "rpm" || key == "rps";
+}
+
 std::optional<UnitConversion> parse_unit(std::string_view unit, const UnitContext& context) {
     const std::string key = normalise(unit);
     if (key.empty() || key == "-" || key == "1") return UnitConversion{Quantity::dimensionless, 1.0, 0.0, ""};
     if (key == "rpm" || key == "rps") {
-        // Motor revolutions become table travel only through the lead; without it the conversion would be a guess
-        // (motor or load side? gear?), so it is refused.
-        if (!context.lead_m) return std::nullopt;
         const double revolutions_per_second = key == "rpm" ? 1.0 / 60.0 : 1.0;
-        return UnitConversion{Quantity::velocity, revolutions_per_second * *context.lead_m, 0.0, "m/s"};
+        if (!context.lead_m) {
+            return UnitConversion{Quantity::angular_velocity, revolutions_per_second * 2.0 * pi, 0.0, "rad/s"};
+        }
+        // Motor revolutions -> screw revolutions (the gear ratio) -> table travel (the lead).
+        const double gear_ratio = context.gear_ratio.value_or(1.0);
+        return UnitConversion{Quantity::velocity, revolutions_per_second / gear_ratio * *context.lead_m, 0.0, "m/s"};
     }
     if (key == "%") {
         if (!context.rated_value_si || !context.rated_quantity) return std::nullopt;
@@ -201,19 +231,38 @@ std::optional<UnitConversion> parse_unit(std::string_view unit, const UnitContex
 UnitConversion parse_unit_or_throw(std::string_view unit, std::string_view channel, const UnitContext& context) {
     if (auto conversion = parse_unit(unit, context)) return *conversion;
     const std::string key = normalise(unit);
-    if (key == "rpm" || key == "rps") {
-        throw InputError(
-            fmt::format("channel '{}': unit '{}' needs the ball-screw lead to become a table velocity "
-                        "(--lead MM per revolution)",
-                        channel, unit));
-    }
     if (key == "%") {
         throw InputError(
             fmt::format("channel '{}': unit '%' needs the rated value it is a percentage of "
-                        "(--rated VALUE in SI units)",
+                        "(--rated VALUE with its unit, e.g. --rated 18A or --rated 2.4Nm)",
                         channel));
     }
     throw InputError(fmt::format("channel '{}': unknown unit '{}'", channel, unit));
+}
+
+Rating parse_rating(std::string_view text) {
+    const auto fail = [&](std::string_view why) {
+        return InputError(fmt::format("--rated {}: {} (give the value 100 % stands for with its unit, e.g. "
+                                      "--rated 18A for a current, --rated 2.4Nm for a torque)",
+                                      text, why));
+    };
+    std::string_view rest = text;
+    while (!rest.empty() && rest.front() == ' ') rest.remove_prefix(1);
+    double value = 0.0;
+    const auto [end, error] = fast_float::from_chars(rest.data(), rest.data() + rest.size(), value);
+    if (error != std::errc() || end == rest.data()) throw fail("expected a number");
+    if (!(std::isfinite(value) && value > 0.0)) throw fail("the rated value must be a positive number");
+    const std::string_view unit = rest.substr(static_cast<std::size_t>(end - rest.data()));
+    if (normalise(unit).empty()) return Rating{value, Quantity::current};  // a bare number: amperes, as before
+    const auto conversion = parse_unit(unit);
+    if (!conversion) throw fail(fmt::format("unknown unit '{}'", unit));
+    switch (conversion->quantity) {
+        case Quantity::current:
+        case Quantity::torque:
+        case Quantity::force:
+        case Quantity::voltage: return Rating{conversion->scale * value, conversion->quantity};
+        default: throw fail(fmt::format("'{}' is not a unit of a current, torque, force or voltage", unit));
+    }
 }
 
 }  // namespace feedid

@@ -91,13 +91,92 @@ TEST(Units, RpmBecomesTableVelocityThroughTheLead) {
     expect_si("rpm", 1200.0, Quantity::velocity, "m/s", 0.1, context);  // 20 rev/s * 5 mm
 }
 
-TEST(Units, RpmWithoutALeadIsRefused) {
-    EXPECT_FALSE(parse_unit("rpm").has_value());
-    EXPECT_FALSE(parse_unit("1/min").has_value());
-    const std::string message = message_of("rpm", "n_act");
-    EXPECT_NE(message.find("n_act"), std::string::npos) << message;
-    EXPECT_NE(message.find("rpm"), std::string::npos) << message;
-    EXPECT_NE(message.find("lead"), std::string::npos) << message;
+TEST(Units, RevolutionSpeedsWithoutALeadAreAngularVelocities) {
+    // 1 rev = 2*pi rad: 60 rpm = 1 rev/s = 2*pi rad/s; SINUMERIK logs rotary speeds in rpm, Mitsubishi in r/min
+    for (const char* spelling : {"rpm", "r/min", "rev/min", "1/min", "min^-1", "U/min", "RPM"}) {
+        expect_si(spelling, 60.0, Quantity::angular_velocity, "rad/s", 2.0 * pi);
+    }
+    expect_si("rpm", 1500.0, Quantity::angular_velocity, "rad/s", 157.07963267948966);  // 25 rev/s
+    expect_si("rev/s", 2.0, Quantity::angular_velocity, "rad/s", 4.0 * pi);
+    expect_si("rps", 0.5, Quantity::angular_velocity, "rad/s", pi);
+    // deg/s for an rpm channel would be 6x wrong: 1 rpm = 6 deg/s
+    const auto rpm = parse_unit("rpm");
+    const auto deg_per_s = parse_unit("deg/s");
+    ASSERT_TRUE(rpm && deg_per_s);
+    EXPECT_NEAR(rpm->scale / deg_per_s->scale, 6.0, 1e-14);
+    EXPECT_TRUE(is_revolution_speed("r/min"));
+    EXPECT_TRUE(is_revolution_speed("rev/min"));
+    EXPECT_FALSE(is_revolution_speed("deg/s"));
+    EXPECT_FALSE(is_revolution_speed("rev"));
+}
+
+TEST(Units, RpmWithALeadAndAGearRatioIsATableVelocity) {
+    UnitContext context;
+    context.lead_m = 0.020;  // 20 mm per screw revolution
+    context.gear_ratio = 4.0;  // 4 motor revolutions per screw revolution
+    // 3000 motor rpm = 50 motor rev/s = 12.5 screw rev/s; * 20 mm = 0.25 m/s
+    expect_si("rpm", 3000.0, Quantity::velocity, "m/s", 0.25, context);
+    expect_si("rev/min", -1200.0, Quantity::velocity, "m/s", -0.1, context);
+    expect_si("rev/s", 10.0, Quantity::velocity, "m/s", 0.05, context);
+}
+
+TEST(Units, RotaryPositions) {
+    expect_si("rev", 1.5, Quantity::angle, "rad", 3.0 * pi);
+    expect_si("deg", 720.0, Quantity::angle, "rad", 4.0 * pi);
+    expect_si("rad", -0.5, Quantity::angle, "rad", -0.5);
+}
+
+TEST(Units, AxisKindOfEachQuantity) {
+    EXPECT_EQ(axis_kind_of(Quantity::length), AxisKind::linear);
+    EXPECT_EQ(axis_kind_of(Quantity::velocity), AxisKind::linear);
+    EXPECT_EQ(axis_kind_of(Quantity::force), AxisKind::linear);
+    EXPECT_EQ(axis_kind_of(Quantity::angle), AxisKind::rotary);
+    EXPECT_EQ(axis_kind_of(Quantity::angular_velocity), AxisKind::rotary);
+    EXPECT_EQ(axis_kind_of(Quantity::torque), AxisKind::rotary);
+    EXPECT_FALSE(axis_kind_of(Quantity::current).has_value());
+    EXPECT_FALSE(axis_kind_of(Quantity::voltage).has_value());
+    EXPECT_FALSE(axis_kind_of(Quantity::time).has_value());
+    EXPECT_EQ(axis_kind_name(AxisKind::rotary), "rotary");
+    EXPECT_EQ(axis_kind_name(AxisKind::linear), "linear");
+}
+
+TEST(Units, RatedValueWithItsUnit) {
+    const auto expect_rating = [](std::string_view text, Quantity quantity, double value_si) {
+        SCOPED_TRACE(std::string("--rated ") + std::string(text));
+        const Rating rating = parse_rating(text);
+        EXPECT_EQ(rating.quantity, quantity);
+        EXPECT_NEAR(rating.value_si, value_si, 1e-15 * value_si);
+    };
+    expect_rating("18", Quantity::current, 18.0);  // a bare number keeps meaning amperes
+    expect_rating("18A", Quantity::current, 18.0);
+    expect_rating("18 A", Quantity::current, 18.0);
+    expect_rating("2.4Nm", Quantity::torque, 2.4);
+    expect_rating("2.4 N*m", Quantity::torque, 2.4);
+    expect_rating("2400mNm", Quantity::torque, 2.4);
+    expect_rating("500N", Quantity::force, 500.0);
+    expect_rating("1.2kN", Quantity::force, 1200.0);
+    expect_rating("10V", Quantity::voltage, 10.0);
+    // what a rating gives a % channel: 50 % of 2.4 N*m is 1.2 N*m
+    const Rating torque = parse_rating("2.4Nm");
+    UnitContext context;
+    context.rated_value_si = torque.value_si;
+    context.rated_quantity = torque.quantity;
+    expect_si("%", 50.0, Quantity::torque, "N*m", 1.2, context);
+}
+
+TEST(Units, RatedValueRefusals) {
+    for (const char* text : {"", "Nm", "abc", "-5A", "0", "2.4furlong", "3mm", "10rpm", "nan"}) {
+        SCOPED_TRACE(text);
+        try {
+            (void)parse_rating(text);
+            ADD_FAILURE() << "no InputError for --rated " << text;
+        } catch (const InputError& e) {
+            const std::string message = e.what();
+            EXPECT_NE(message.find("--rated"), std::string::npos) << message;
+            EXPECT_NE(message.find(text), std::string::npos) << message;
+            EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+        }
+    }
 }
 
 TEST(Units, Current) {
@@ -133,6 +212,7 @@ TEST(Units, PercentWithoutARatingIsRefused) {
     EXPECT_NE(message.find("load"), std::string::npos) << message;
     EXPECT_NE(message.find("%"), std::string::npos) << message;
     EXPECT_NE(message.find("rated"), std::string::npos) << message;
+    EXPECT_NE(message.find("--rated 2.4Nm"), std::string::npos) << message;
 }
 
 TEST(Units, EmptyUnitIsDimensionless) {

@@ -27,7 +27,9 @@ void TraceArguments::add_to(CLI::App& app) {
                    "history");
     app.add_option("--format", format, "Read as this format instead of detecting it")
         ->check(CLI::IsMember({"csv", "mat", "sinumerik-trace", "twincat-scope", "halscope"}));
-    app.add_option("--rated", rated, "What 100 % means for channels given in percent, in SI units (e.g. 18 for 18 A)");
+    app.add_option("--rated", rated,
+                   "What 100 % means for channels given in percent, with its unit: 18A (rated current), 2.4Nm (rated "
+                   "torque); a bare number is in A");
 }
 
 ImportOptions TraceArguments::import_options() const {
@@ -43,9 +45,11 @@ ImportOptions TraceArguments::import_options() const {
     options.axis = axis;
     options.format = format;
     if (lead_mm) options.unit_context.lead_m = *lead_mm * 1e-3;
-    if (rated) {
-        options.unit_context.rated_value_si = *rated;
-        options.unit_context.rated_quantity = Quantity::current;
+    options.unit_context.gear_ratio = gear_ratio;
+    if (!rated.empty()) {
+        const Rating rating = parse_rating(rated);
+        options.unit_context.rated_value_si = rating.value_si;
+        options.unit_context.rated_quantity = rating.quantity;
     }
     return options;
 }
@@ -83,6 +87,7 @@ DriveConstants DriveArguments::constants() const {
             constants.force_constant_name = force_constant;
     }
     if (const auto problem = constants.validate(); !problem.empty()) throw InputError(problem);
+    for (const auto& warning : constants.warnings()) fmt::print(stderr, "feedid: warning: {}\n", warning);
     return constants;
 }
 
@@ -116,6 +121,7 @@ nlohmann::json read_json(const std::string& path) {
 Trace read_trace_for_drive(const TraceArguments& trace, const DriveArguments& drive) {
     TraceArguments arguments = trace;
     if (!arguments.lead_mm) arguments.lead_mm = drive.lead_mm;
+    if (!arguments.gear_ratio) arguments.gear_ratio = drive.gear_ratio;
     return arguments.read();
 }
 

@@ -25,8 +25,9 @@ struct TraceArguments {
     std::vector<std::string> unit_assignments;
     std::string axis;
     std::string format;
-    std::optional<double> lead_mm;  // shared with DriveArguments when both are present
-    std::optional<double> rated;    // rated value for % units
+    std::optional<double> lead_mm;     // shared with DriveArguments when both are present
+    std::optional<double> gear_ratio;  // likewise: rpm on a linear axis is a motor speed, geared to the screw
+    std::string rated;                 // what 100 % means for % units: "18A", "2.4Nm" (a bare number: A)
 
     void add_to(CLI::App& app);
     [[nodiscard]] ImportOptions import_options() const;
@@ -35,7 +36,7 @@ struct TraceArguments {
 };
 
 struct DriveArguments;
-/// Reads the trace with the drive's --lead also converting rpm channels (one --lead serves both).
+/// Reads the trace with the drive's --lead and --gear-ratio also converting rpm channels (one --lead serves both).
 [[nodiscard]] Trace read_trace_for_drive(const TraceArguments& trace, const DriveArguments& drive);
 
 /// `[--kt K --lead L [--gear-ratio G]] [--force-constant K|NAME]`

@@ -37,7 +37,8 @@ struct GainsCommand {
         const DriveConstants drive = drive_arguments.constants();
         const std::vector<double> force = drive_force(trace, drive);
         const GainOptions options = gain_arguments.options(trace, drive);
-        const GainResult result = identify_gains(trace, force, options);
+        GainResult result = identify_gains(trace, force, options);
+        for (auto& warning : drive.warnings()) result.diagnostics.push_back(std::move(warning));
         if (!json_path.empty()) {
             write_json(gains_document(result, options, trace), json_path);
             if (json_path == "-") return 0;

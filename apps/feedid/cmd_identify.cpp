@@ -112,7 +112,7 @@ struct IdentifyCommand {
                 {"units", trace_arguments.unit_assignments},
                 {"axis", trace_arguments.axis},
                 {"format", trace_arguments.format},
-                {"rated", optional(trace_arguments.rated)}};
+                {"rated", trace_arguments.rated.empty() ? nlohmann::json(nullptr) : nlohmann::json(trace_arguments.rated)}};
     }
 
     int run() const {

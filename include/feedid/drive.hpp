@@ -3,6 +3,8 @@
 //   linear axis:  F_d = K_t * i * g / R,  R = lead / 2*pi   (g: gear ratio motor:screw, motor turns per screw turn)
 //   rotary axis:  T_d = K_t * i * g
 //   or directly:  F_d = force_constant * signal   (a drive that logs a command voltage or a torque)
+// A drive signal logged as a motor torque T (N*m, or % of a rated torque) is a force on a linear axis through the screw,
+// F_d = T * g * 2*pi / lead (no K_t needed), and the drive torque as it is on a rotary axis.
 
 #include <optional>
 #include <span>
@@ -22,13 +24,26 @@ struct DriveConstants {
 
     /// What is wrong with these options ("" when nothing).
     [[nodiscard]] std::string validate() const;
+    /// Values valid but outside what feed drives have, each named (a lead of 0.01 mm is a 10 mm lead given in metres):
+    /// a lead outside 0.5..100 mm, a K_t outside 0.01..500 N*m/A, a gear ratio outside 0.01..1000.
+    [[nodiscard]] std::vector<std::string> warnings() const;
     /// N (or N*m) per unit of the current channel, resolving force_constant_name against the trace's constants.
     /// nullopt when no constant is given (then the current is taken as force only if the trace has a force channel).
     [[nodiscard]] std::optional<double> force_per_signal(const Trace& trace) const;
 };
 
+/// The plausible ranges the warnings check [SI: m, N*m/A, motor turns per screw turn].
+struct DriveConstantRange {
+    double low;
+    double high;
+};
+inline constexpr DriveConstantRange plausible_lead_m{0.5e-3, 100e-3};
+inline constexpr DriveConstantRange plausible_torque_constant_Nm_per_A{0.01, 500.0};
+inline constexpr DriveConstantRange plausible_gear_ratio{0.01, 1000.0};
+
 /// The drive force (torque) column: the trace's force channel when it has one, otherwise the current channel times
-/// force_per_signal. Throws InputError saying what is missing.
+/// force_per_signal; a channel in N*m on a linear axis is turned into force through the lead and gear ratio. Throws
+/// InputError saying what is missing.
 std::vector<double> drive_force(const Trace& trace, const DriveConstants& constants);
 
 }  // namespace feedid

@@ -118,17 +118,106 @@ void assign_roles(Trace& trace, const ImportOptions& options) {
     }
 }
 
-void convert_units(Trace& trace, const ImportOptions& options) {
-    // Decide rotary/linear from the position unit first (it decides what an SI default means for the rest).
+// The axis kind, decided once for the whole trace, and what decided it (for messages).
+struct AxisDecision {
+    AxisKind kind{AxisKind::linear};
+    std::string reason;
+};
+
+// From the position channel's unit; without one, the reference position's; without either (a velocity-only trace or
+// positions without a unit), the velocity channel's: a revolution speed is angular unless a lead makes it a table
+// velocity. With none of these the axis is linear, as feedid always took it.
+AxisDecision decide_axis_kind(const Trace& trace, const UnitContext& context) {
+    for (const Role role : {Role::position, Role::reference_position, Role::velocity, Role::velocity_command}) {
+        const auto* channel = trace.find(role);
+        if (channel == nullptr) continue;
+        const std::string& unit = channel->unit.empty() ? channel->source_unit : channel->unit;
+        if (unit.empty()) continue;
+        const auto conversion = parse_unit(unit, context);
+        if (!conversion) continue;
+        if (const auto kind = axis_kind_of(conversion->quantity)) {
+            std::string reason = fmt::format("{} channel '{}' in {}", role_name(role), channel->name, unit);
+            if (is_revolution_speed(unit)) reason += context.lead_m ? " with --lead" : " without --lead";
+            return {*kind, std::move(reason)};
+        }
+    }
+    return {AxisKind::linear, "no channel states a length or an angle"};
+}
+
+// A role channel whose unit belongs to the other axis kind is refused, naming channel, unit and axis kind. The one
+// crossing allowed: a motor torque on a linear axis when the lead is known (the drive turns it into force).
+void check_axis_kind(const Trace& trace, const Channel& channel, Quantity quantity, const AxisDecision& axis,
+                     const UnitContext& context) {
+    const auto kind = axis_kind_of(quantity);
+    if (channel.role == Role::other || !kind || *kind == axis.kind) return;
+    if (quantity == Quantity::torque && axis.kind == AxisKind::linear && context.lead_m) return;
+    std::string hint;
+    if (axis.kind == AxisKind::rotary) {
+        hint = "a rotary axis takes deg, rad or rev, rpm, deg/s or rad/s, and N*m (state it with --unit " +
+               std::string(role_name(channel.role)) + "=UNIT)";
+    } else if (quantity == Quantity::torque) {
+        hint = "give the ball-screw lead (--lead MM, and --gear-ratio) to turn the motor torque into force";
+    } else if (is_revolution_speed(channel.source_unit)) {
+        hint = "give the ball-screw lead (--lead MM per revolution, and --gear-ratio) to make it a table velocity";
+    } else {
+        hint = "if the axis is rotary, state the position in an angle (--unit position=deg)";
+    }
+    throw InputError(fmt::format("{}: channel '{}' ({}) has unit '{}', a {} unit, but the axis is {} ({}): {}",
+                                 where(trace), channel.name, role_name(channel.role), channel.source_unit,
+                                 axis_kind_name(*kind), axis_kind_name(axis.kind), axis.reason, hint));
+}
+
+// The unit overrides (--unit ROLE=UNIT) replace what the source said.
+void apply_unit_overrides(Trace& trace, const ImportOptions& options) {
     for (auto& channel : trace.channels) {
         const auto override_unit = options.units.find(channel.role);
         if (channel.role != Role::other && override_unit != options.units.end())
             channel.source_unit = override_unit->second;
     }
-    if (const auto* position = trace.find(Role::position); position != nullptr && !position->source_unit.empty()) {
-        if (auto conversion = parse_unit(position->source_unit, options.unit_context)) {
-            trace.rotary = conversion->quantity == Quantity::angle;
+}
+
+// The conversion of one channel with a source unit; nullopt (and a finding) for a channel no analysis uses whose unit
+// is not understood.
+std::optional<UnitConversion> channel_conversion(Trace& trace, const Channel& channel, const AxisDecision& axis,
+                                                 const UnitContext& context) {
+    if (channel.role == Role::other) {
+        auto conversion = parse_unit(channel.source_unit, context);
+        if (!conversion) {
+            // Not an error for a channel no analysis uses: say why it stays in its source unit.
+            try {
+                (void)parse_unit_or_throw(channel.source_unit, channel.name, context);
+            } catch (const InputError& e) {
+                trace.findings.push_back(fmt::format("{}; values left as they are", e.what()));
+            }
         }
+        return conversion;
+    }
+    UnitConversion conversion;
+    try {
+        conversion = parse_unit_or_throw(channel.source_unit, channel.name, context);
+    } catch (const InputError& e) {
+        throw InputError(fmt::format("{}: {}", where(trace), e.what()));
+    }
+    if (!compatible(channel.role, conversion.quantity)) {
+        throw InputError(fmt::format("{}: channel '{}' is used as {} but its unit '{}' is not one for that role",
+                                     where(trace), channel.name, role_name(channel.role), channel.source_unit));
+    }
+    check_axis_kind(trace, channel, conversion.quantity, axis, context);
+    return conversion;
+}
+
+void convert_units(Trace& trace, const ImportOptions& options) {
+    apply_unit_overrides(trace, options);
+    const AxisDecision axis = decide_axis_kind(trace, options.unit_context);
+    trace.rotary = axis.kind == AxisKind::rotary;
+    UnitContext context = options.unit_context;
+    if (trace.rotary && context.lead_m) {
+        // A lead turns motor revolutions into table travel; a rotary axis has no table travel.
+        trace.findings.push_back(fmt::format("--lead {:g} mm is not used for units: the axis is rotary ({}), so "
+                                             "revolution speeds stay angular (rad/s)",
+                                             *context.lead_m * 1e3, axis.reason));
+        context.lead_m.reset();
+        context.gear_ratio.reset();
     }
     for (auto& channel : trace.channels) {
         if (!channel.unit.empty()) continue;  // already SI (a reader that converted itself)
@@ -142,31 +231,8 @@ void convert_units(Trace& trace, const ImportOptions& options) {
             }
             continue;
         }
-        std::optional<UnitConversion> conversion;
-        if (channel.role != Role::other) {
-            try {
-                conversion = parse_unit_or_throw(channel.source_unit, channel.name, options.unit_context);
-            } catch (const InputError& e) {
-                throw InputError(fmt::format("{}: {}", where(trace), e.what()));
-            }
-            if (!compatible(channel.role, conversion->quantity)) {
-                throw InputError(
-                    fmt::format("{}: channel '{}' is used as {} but its unit '{}' is not one for that "
-                                "role",
-                                where(trace), channel.name, role_name(channel.role), channel.source_unit));
-            }
-        } else {
-            conversion = parse_unit(channel.source_unit, options.unit_context);
-            if (!conversion) {
-                // Not an error for a channel no analysis uses: say why it stays in its source unit.
-                try {
-                    (void)parse_unit_or_throw(channel.source_unit, channel.name, options.unit_context);
-                } catch (const InputError& e) {
-                    trace.findings.push_back(fmt::format("{}; values left as they are", e.what()));
-                }
-                continue;
-            }
-        }
+        const auto conversion = channel_conversion(trace, channel, axis, context);
+        if (!conversion) continue;
         if (conversion->scale != 1.0 || conversion->offset != 0.0) {
             for (double& value : channel.values) value = conversion->scale * value + conversion->offset;
         }
