@@ -172,6 +172,21 @@ TEST(NativeInterval, SinumerikTraceStatesEachSignalsInterval) {
     }
 }
 
+TEST(NativeInterval, TwinCatScopeStatesEachChannelGroupsSampleTime) {
+    // An export with an oversampled channel (func_OS, 0.2 ms) beside 1 ms channels: the time base is the 0.2 ms one.
+    FEEDID_REQUIRE_SHARED("twincat-scope/tc3_scope_3_4_3145_3-ContainEOF_true.csv");
+    const auto trace =
+        feedid::read_trace(feedid::testing::shared_data() / "twincat-scope/tc3_scope_3_4_3145_3-ContainEOF_true.csv");
+    EXPECT_NEAR(trace.time_base().sample_time_s, 0.2e-3, 1e-9);
+    const auto* oversampled = trace.find(std::string_view("func_OS"));
+    const auto* bit = trace.find(std::string_view("var_BIT"));
+    ASSERT_NE(oversampled, nullptr);
+    ASSERT_NE(bit, nullptr);
+    EXPECT_NEAR(oversampled->native_interval_s.value_or(0.0), 0.2e-3, 1e-9);
+    EXPECT_NEAR(bit->native_interval_s.value_or(0.0), 1e-3, 1e-9);
+    EXPECT_EQ(bit->interval_source, feedid::IntervalSource::format);
+}
+
 TEST(NativeInterval, EmpsIsSampledOnItsTimeBase) {
     FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
     const auto trace = feedid::read_trace(feedid::testing::shared_data() / "emps/DATA_EMPS.mat");

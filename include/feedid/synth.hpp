@@ -94,7 +94,7 @@ struct SynthSpec {
 SynthSpec demo_spec();
 
 /// The rotary demo drive (a direct-drive rotary table): J 2.0 kg*m^2, B 5.0 N*m*s/rad, F_C 20 N*m, F_B 26 N*m,
-/// v_s 0.05 rad/s; K_v 2 (1000 deg/min)/deg, K_p 600 N*m*s/rad, T_n 20 ms; K_t 2 N*m/A; 1 kHz.
+/// v_s 0.05 rad/s; K_v 2 (1000 deg/min)/deg, K_p 400 N*m*s/rad, T_n 20 ms; K_t 2 N*m/A; 1 kHz.
 SynthSpec rotary_demo_spec();
 
 /// Records `spec` as a SINUMERIK servo trace does: 2 ms time base, the position loop (and so position, reference and
