@@ -28,9 +28,10 @@ std::vector<std::string> DriveConstants::warnings() const {
     std::vector<std::string> out;
     const auto outside = [](double value, DriveConstantRange range) { return value < range.low || value > range.high; };
     if (lead_m && std::isfinite(*lead_m) && outside(*lead_m, plausible_lead_m)) {
-        out.push_back(fmt::format("--lead {:g} mm is outside 0.5 to 100 mm, the leads of ball screws (give the lead in "
-                                  "mm per revolution: a 10 mm lead given in metres reads 0.01 mm)",
-                                  *lead_m * 1e3));
+        out.push_back(
+            fmt::format("--lead {:g} mm is outside 0.5 to 100 mm, the leads of ball screws (give the lead in "
+                        "mm per revolution: a 10 mm lead given in metres reads 0.01 mm)",
+                        *lead_m * 1e3));
     }
     if (torque_constant_Nm_per_A && std::isfinite(*torque_constant_Nm_per_A) &&
         outside(*torque_constant_Nm_per_A, plausible_torque_constant_Nm_per_A)) {
@@ -76,9 +77,10 @@ std::string where(const Trace& trace) {
 // A motor torque on a linear axis: the screw turns it into force, F = T * 2*pi * g / lead (eq. 2 without K_t).
 std::vector<double> torque_as_force(const Trace& trace, const Channel& channel, const DriveConstants& constants) {
     if (!constants.lead_m) {
-        throw InputError(fmt::format("{}: the {} channel '{}' is a torque (N*m) on a linear axis: give the ball-screw "
-                                     "lead (--lead, and --gear-ratio) to turn it into force",
-                                     where(trace), role_name(channel.role), channel.name));
+        throw InputError(
+            fmt::format("{}: the {} channel '{}' is a torque (N*m) on a linear axis: give the ball-screw "
+                        "lead (--lead, and --gear-ratio) to turn it into force",
+                        where(trace), role_name(channel.role), channel.name));
     }
     const double factor = 2.0 * std::numbers::pi * constants.gear_ratio / *constants.lead_m;
     std::vector<double> converted(channel.values.size());
@@ -105,11 +107,10 @@ std::vector<double> drive_force(const Trace& trace, const DriveConstants& consta
     if (!factor) {
         if (current->unit == "N*m" && !trace.rotary) return torque_as_force(trace, *current, constants);
         if (current->unit == "N" || current->unit == "N*m") return current->values;
-        throw InputError(
-            fmt::format("{}: the drive signal '{}' is in {} and no constant turns it into force: give "
-                        "--kt and --lead, or --force-constant",
-                        where(trace), current->name,
-                        current->unit.empty() ? std::string("unknown units") : current->unit));
+        throw InputError(fmt::format(
+            "{}: the drive signal '{}' is in {} and no constant turns it into force: give "
+            "--kt and --lead, or --force-constant",
+            where(trace), current->name, current->unit.empty() ? std::string("unknown units") : current->unit));
     }
     std::vector<double> force(current->values.size());
     for (std::size_t k = 0; k < force.size(); ++k) force[k] = *factor * current->values[k];

@@ -6,6 +6,7 @@
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
+#include "feedid/parameters.hpp"
 #include "feedid/result_document.hpp"
 #include "feedid/version.hpp"
 
@@ -74,6 +75,12 @@ std::vector<std::size_t> turning_points(std::span<const double> x, double hyster
     }
     if (direction != 0 && turns.back() != extreme) turns.push_back(extreme);
     return turns;
+}
+
+/// A position along the axis as messages show it: "12.500 mm", rotary "90.000 deg".
+std::string position_text(double position, const FrictionMap& map) {
+    const ParameterNaming naming{map.rotary};
+    return fmt::format("{:.3f} {}", position * naming.display_position_scale(), naming.display_position_unit());
 }
 
 nlohmann::json finite_or_null(double value) {
@@ -160,7 +167,8 @@ std::vector<Span> segment_spans(std::span<const double> x, const std::vector<dou
     for (std::size_t c = 0; c < centers.size(); ++c) {
         const auto first = std::find(nearest.begin(), nearest.end(), static_cast<int>(c));
         if (first == nearest.end()) {
-            map.findings.push_back(fmt::format("centre {:.3f} mm: the trace never comes near it", centers[c] * 1e3));
+            map.findings.push_back(
+                fmt::format("centre {}: the trace never comes near it", position_text(centers[c], map)));
             continue;
         }
         const auto last = std::find(nearest.rbegin(), nearest.rend(), static_cast<int>(c));
@@ -170,11 +178,11 @@ std::vector<Span> segment_spans(std::span<const double> x, const std::vector<dou
     std::sort(spans.begin(), spans.end(), [](const Span& a, const Span& b) { return a.first < b.first; });
     for (std::size_t s = 0; s + 1 < spans.size(); ++s) {
         if (spans[s].last > spans[s + 1].first) {
-            throw InputError(fmt::format(
-                "{}: the test returns to centre {:.3f} mm after visiting centre {:.3f} mm; the friction map needs one "
-                "visit per centre (cut the trace with --from/--to, or give other --centers).",
-                where, centers[static_cast<std::size_t>(spans[s].center)] * 1e3,
-                centers[static_cast<std::size_t>(spans[s + 1].center)] * 1e3));
+            throw InputError(
+                fmt::format("{}: the test returns to centre {} after visiting centre {}; the friction map needs one "
+                            "visit per centre (cut the trace with --from/--to, or give other --centers).",
+                            where, position_text(centers[static_cast<std::size_t>(spans[s].center)], map),
+                            position_text(centers[static_cast<std::size_t>(spans[s + 1].center)], map)));
         }
         spans[s].last = spans[s + 1].first;  // the samples between two visits go to the earlier segment
     }
@@ -260,8 +268,8 @@ void find_outstanding(const FrictionMapOptions& options, FrictionMap& map, std::
                 std::abs(difference) > 3.0 * combined) {
                 stands_out[l].push_back(key);
                 map.findings.push_back(
-                    fmt::format("centre {:.3f} mm: {} = {:.4g} {} is {:.1f} % {} the median {:.4g} of the {} locations",
-                                location.center * 1e3, parameter->symbol, value, parameter->unit,
+                    fmt::format("centre {}: {} = {:.4g} {} is {:.1f} % {} the median {:.4g} of the {} locations",
+                                position_text(location.center, map), parameter->symbol, value, parameter->unit,
                                 100.0 * std::abs(difference) / std::abs(typical), difference > 0.0 ? "above" : "below",
                                 typical, values.size()));
             }
@@ -274,14 +282,15 @@ nlohmann::json map_document(const Trace& trace, const FrictionMapOptions& option
                             const std::vector<nlohmann::json>& deviations,
                             const std::vector<std::vector<std::string>>& stands_out) {
     nlohmann::json locations = nlohmann::json::array();
+    const std::string length = ParameterNaming{map.rotary}.length_key_suffix();
     for (std::size_t l = 0; l < map.locations.size(); ++l) {
         const auto& location = map.locations[l];
-        nlohmann::json entry{{"center_m", location.center},
+        nlohmann::json entry{{"center" + length, location.center},
                              {"from_s", location.from_s},
                              {"to_s", location.to_s},
                              {"samples", location.last - location.first},
-                             {"position_min_m", location.min_position},
-                             {"position_max_m", location.max_position},
+                             {"position_min" + length, location.min_position},
+                             {"position_max" + length, location.max_position},
                              {"status", location.result.status},
                              {"deviation_pct", deviations[l]},
                              {"stands_out", stands_out[l]}};
@@ -301,6 +310,7 @@ nlohmann::json map_document(const Trace& trace, const FrictionMapOptions& option
               {"duration_s", finite_or_null(base.duration_s)}}},
             {"model", options.identify.model == FrictionModelKind::asymmetric ? "asymmetric" : "symmetric"},
             {"centers_detected", map.centers_detected},
+            {"rotary", map.rotary},
             {"locations", locations},
             {"findings", map.findings}};
 }
@@ -311,6 +321,7 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
     if (auto problem = options.validate(); !problem.empty()) throw InputError("friction map: " + problem + ".");
     const std::string where = trace.source_path.empty() ? std::string("trace") : trace.source_path;
     FrictionMap map;
+    map.rotary = trace.rotary;
     const std::vector<double> centers = map_centers(trace, options, where, map);
     const auto x = stroke_signal(trace);
     identify_segments(trace, x, centers, segment_spans(x, centers, where, map), options, map);

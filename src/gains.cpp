@@ -25,6 +25,7 @@
 #include "feedid/gains.hpp"
 #include "feedid/least_squares.hpp"
 #include "feedid/native_interval.hpp"
+#include "feedid/parameters.hpp"
 
 namespace feedid {
 
@@ -250,6 +251,7 @@ Column following_error(std::span<const double> reference, std::span<const double
 // The signals the gains are identified from.
 struct GainSignals {
     std::string source;  // the trace's file, for messages
+    bool rotary{false};  // rad and N*m instead of m and N
     std::size_t samples{0};
     double dt{0.0};                     // T [s]
     int hold_factor{1};                 // the position signal holds each value over this many samples
@@ -281,6 +283,7 @@ void use_native_rate(const Trace& trace, GainSignals& signals) {
 GainSignals gain_signals(const Trace& trace, std::span<const double> drive_force) {
     GainSignals signals;
     signals.source = trace.source_path.empty() ? std::string("trace") : trace.source_path;
+    signals.rotary = trace.rotary;
     const auto* reference_channel = trace.find(Role::reference_position);
     const auto* position_channel = trace.find(Role::position);
     if (position_channel == nullptr) {
@@ -572,9 +575,10 @@ VelocityLoopFit fit_velocity_loop(const VelocityLoopRegression& regression, cons
         const double se = std::sqrt(std::max(0.0, loop.fit.covariance(index, index)));
         if (loop.fit.rank_deficient || !(ki > 3.0 * se)) {
             diagnostics.push_back(
-                fmt::format("no significant integral action in the velocity loop (K_i = {:.4g} +- {:.2g} N/m): "
+                fmt::format("no significant integral action in the velocity loop (K_i = {:.4g} +- {:.2g} {}): "
                             "identified as P only",
-                            loop.fit.rank_deficient ? 0.0 : ki, loop.fit.rank_deficient ? 0.0 : se));
+                            loop.fit.rank_deficient ? 0.0 : ki, loop.fit.rank_deficient ? 0.0 : se,
+                            ParameterNaming{regression.signals.rotary}.velocity_integral_gain_unit()));
             loop.integral = false;
             loop.structure = search_structure(regression, space, options, false);
             loop.fit = fit(regression.problem(loop.structure, false), options.rls);

@@ -8,6 +8,7 @@
 
 #include "feedid/error.hpp"
 #include "feedid/gains.hpp"
+#include "feedid/parameters.hpp"
 
 namespace feedid {
 
@@ -24,27 +25,29 @@ Estimate scaled(const Estimate& estimate, double factor) {
 }  // namespace
 
 nlohmann::json gains_document(const GainResult& result, const GainOptions& options, const Trace& trace) {
+    const ParameterNaming naming{trace.rotary};
     nlohmann::json document;
     document["gains"] = {
         {"position_gain_per_s", result.position_gain_per_s},
-        {"velocity_gain_N_s_per_m", result.velocity_gain_N_s_per_m},
-        {"velocity_integral_gain_N_per_m", result.velocity_integral_gain_N_per_m},
+        {naming.velocity_gain_key(), result.velocity_gain_N_s_per_m},
+        {naming.velocity_integral_gain_key(), result.velocity_integral_gain_N_per_m},
         {"velocity_feedforward", result.velocity_feedforward},
     };
     if (options.force_per_signal != 0.0) {
         const double per = 1.0 / options.force_per_signal;
-        document["gains"]["velocity_gain_signal_per_m_per_s"] = scaled(result.velocity_gain_N_s_per_m, per);
-        document["gains"]["velocity_integral_gain_signal_per_m"] = scaled(result.velocity_integral_gain_N_per_m, per);
+        document["gains"][naming.signal_velocity_gain_key()] = scaled(result.velocity_gain_N_s_per_m, per);
+        document["gains"][naming.signal_integral_gain_key()] = scaled(result.velocity_integral_gain_N_per_m, per);
         document["signal"] = {{"unit", options.signal_unit}, {"force_per_signal", options.force_per_signal}};
     }
-    const auto kv = scaled(result.position_gain_per_s, m_per_min_per_mm_per_1_per_s);
     const auto tn = scaled(result.reset_time_s, 1000.0);
-    document["nc_units"] = {
-        {"kv_m_per_min_per_mm", kv.value},
-        {"kv_m_per_min_per_mm_stderr", kv.standard_error},
-        {"tn_ms", tn.value},
-        {"tn_ms_stderr", tn.standard_error},
-    };
+    document["nc_units"] = {{"tn_ms", tn.value}, {"tn_ms_stderr", tn.standard_error}};
+    if (!trace.rotary) {
+        // K_v as NCs state it for a linear axis, (m/min)/mm; a rotary axis's K_v is in 1/s (position_gain_per_s).
+        const auto kv = scaled(result.position_gain_per_s, m_per_min_per_mm_per_1_per_s);
+        document["nc_units"]["kv_m_per_min_per_mm"] = kv.value;
+        document["nc_units"]["kv_m_per_min_per_mm_stderr"] = kv.standard_error;
+    }
+    if (trace.rotary) document["rotary"] = true;  // without it a gains document is of a linear axis
     document["structure"] = {
         {"method", result.method},
         {"velocity_loop", result.velocity_integral_gain_N_per_m.value ? "PI" : "P"},
@@ -52,7 +55,7 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
         {"reference_delay_samples", result.reference_delay_samples},
         {"current_lag_s", result.current_lag_s},
         {"drive_delay_samples", result.drive_delay_samples},
-        {"saturation_N", result.controller.saturation_N},
+        {naming.saturation_key(), result.controller.saturation_N},
         {"sample_time_s", result.controller.velocity_cycle_s},
     };
     // a position loop slower than the velocity loop (a position held over several samples): its own cycle
@@ -80,14 +83,20 @@ ControllerModel controller_from_document(const nlohmann::json& document, const s
         throw InputError(fmt::format("{}: not a gains document (no \"gains\" object)", source));
     }
     const auto& gains = document["gains"];
+    // A rotary axis's document carries the rotary keys (velocity_gain_Nms_per_rad, ...); "rotary" says which, and
+    // without it the keys present do.
+    const bool rotary = document.contains("rotary") && document["rotary"].is_boolean()
+                            ? document["rotary"].get<bool>()
+                            : gains.is_object() && gains.contains(ParameterNaming{true}.velocity_gain_key());
+    const ParameterNaming naming{rotary};
     ControllerModel model;
     const auto kv = value_of(gains, "position_gain_per_s");
-    const auto kp = value_of(gains, "velocity_gain_N_s_per_m");
+    const auto kp = value_of(gains, naming.velocity_gain_key().c_str());
     if (!kv) throw InputError(fmt::format("{}: gains.position_gain_per_s.value is missing or null", source));
-    if (!kp) throw InputError(fmt::format("{}: gains.velocity_gain_N_s_per_m.value is missing or null", source));
+    if (!kp) throw InputError(fmt::format("{}: gains.{}.value is missing or null", source, naming.velocity_gain_key()));
     model.position_gain_per_s = *kv;
     model.velocity_gain_N_s_per_m = *kp;
-    model.velocity_integral_gain_N_per_m = value_of(gains, "velocity_integral_gain_N_per_m").value_or(0.0);
+    model.velocity_integral_gain_N_per_m = value_of(gains, naming.velocity_integral_gain_key().c_str()).value_or(0.0);
     model.velocity_feedforward = value_of(gains, "velocity_feedforward").value_or(0.0);
     if (document.contains("structure") && document["structure"].is_object()) {
         const auto& structure = document["structure"];
@@ -95,7 +104,7 @@ ControllerModel controller_from_document(const nlohmann::json& document, const s
             model.velocity_difference_samples = static_cast<int>(std::lround(*n));
         }
         model.current_lag_s = value_of(structure, "current_lag_s").value_or(0.0);
-        model.saturation_N = value_of(structure, "saturation_N");
+        model.saturation_N = value_of(structure, naming.saturation_key().c_str());
         model.velocity_cycle_s = value_of(structure, "sample_time_s").value_or(0.0);
         model.position_cycle_s = value_of(structure, "position_cycle_s").value_or(model.velocity_cycle_s);
     }

@@ -1,6 +1,7 @@
 #include "feedid/parameters.hpp"
 
 #include <array>
+#include <numbers>
 
 namespace feedid {
 
@@ -33,6 +34,34 @@ std::string ParameterNaming::unit(Term term) const {
         case Term::stribeck_velocity: return rotary ? "rad/s" : "m/s";
     }
     return {};
+}
+
+double ParameterNaming::display_position_scale() const {
+    return rotary ? 180.0 / std::numbers::pi : 1e3;
+}
+
+double ParameterNaming::display_feed_scale() const {
+    return 60.0 * display_position_scale();
+}
+
+std::string ParameterNaming::velocity_gain_key() const {
+    return rotary ? "velocity_gain_Nms_per_rad" : "velocity_gain_N_s_per_m";
+}
+
+std::string ParameterNaming::velocity_integral_gain_key() const {
+    return rotary ? "velocity_integral_gain_Nm_per_rad" : "velocity_integral_gain_N_per_m";
+}
+
+std::string ParameterNaming::signal_velocity_gain_key() const {
+    return rotary ? "velocity_gain_signal_per_rad_per_s" : "velocity_gain_signal_per_m_per_s";
+}
+
+std::string ParameterNaming::signal_integral_gain_key() const {
+    return rotary ? "velocity_integral_gain_signal_per_rad" : "velocity_integral_gain_signal_per_m";
+}
+
+std::string ParameterNaming::signal_velocity_gain_unit(const std::string& signal_unit) const {
+    return (signal_unit.empty() ? std::string("signal") : signal_unit) + (rotary ? "/(rad/s)" : "/(m/s)");
 }
 
 std::string ParameterNaming::symbol(Term term, Direction direction) {

@@ -517,19 +517,20 @@ ValidationMetrics validate_simulation(const Trace& trace, std::span<const double
     return metrics;
 }
 
-nlohmann::json validation_document(const ValidationMetrics& m) {
+nlohmann::json validation_document(const ValidationMetrics& m, bool rotary) {
+    const std::string unit = ParameterNaming{rotary}.length_key_suffix();
     return {
         {"relative_error_pct",
          {{"position", m.position_relative_error_pct},
           {"velocity", m.velocity_relative_error_pct},
           {"acceleration", m.acceleration_relative_error_pct},
           {"force", m.force_relative_error_pct}}},
-        {"tracking_error_mae_m",
+        {"tracking_error_mae" + unit,
          {{"model", m.tracking_error_mae_model_m}, {"machine", m.tracking_error_mae_machine_m}}},
-        {"modelling_error_mae_m", m.modelling_error_mae_m},
-        {"tracking_error_max_m",
+        {"modelling_error_mae" + unit, m.modelling_error_mae_m},
+        {"tracking_error_max" + unit,
          {{"model", m.tracking_error_max_model_m}, {"machine", m.tracking_error_max_machine_m}}},
-        {"modelling_error_max_m", m.modelling_error_max_m},
+        {"modelling_error_max" + unit, m.modelling_error_max_m},
     };
 }
 
@@ -559,7 +560,7 @@ ValidationSeries validation_series(const Trace& trace, const SimulationOutput& s
 }
 
 nlohmann::json validation_series_document(const ValidationSeries& series, bool rotary) {
-    const std::string unit = rotary ? "_rad" : "_m";
+    const std::string unit = ParameterNaming{rotary}.length_key_suffix();
     return {{"time_s", series.time},
             {"tracking_error_machine" + unit, series.tracking_error_machine},
             {"tracking_error_model" + unit, series.tracking_error_model},
@@ -637,13 +638,14 @@ TraceSimulation simulate_trace(const Trace& trace, std::span<const double> drive
 nlohmann::json simulation_document(const Trace& trace, const TwinController& controller,
                                    const TraceSimulation& simulation) {
     const ControllerModel& model = controller.model;
-    nlohmann::json document = validation_document(simulation.metrics);
+    const ParameterNaming naming{trace.rotary};
+    nlohmann::json document = validation_document(simulation.metrics, trace.rotary);
     document["trace"] = {
         {"path", trace.source_path}, {"samples", trace.samples()}, {"sample_time_s", trace.time_base().sample_time_s}};
     document["controller"] = {{"position_gain_per_s", model.position_gain_per_s},
-                              {"velocity_gain_N_s_per_m", model.velocity_gain_N_s_per_m},
-                              {"velocity_integral_gain_N_per_m", model.velocity_integral_gain_N_per_m},
-                              {"saturation_N", model.saturation_N},
+                              {naming.velocity_gain_key(), model.velocity_gain_N_s_per_m},
+                              {naming.velocity_integral_gain_key(), model.velocity_integral_gain_N_per_m},
+                              {naming.saturation_key(), model.saturation_N},
                               {"current_lag_s", model.current_lag_s},
                               {"velocity_difference_samples", model.velocity_difference_samples}};
     document["rotary"] = trace.rotary;

@@ -307,9 +307,10 @@ FrictionFit fit_friction_curve(const Derivatives& derivatives, const Selection& 
         const ParameterNaming naming{derivatives.rotary};
         out.diagnostics.push_back(fmt::format(
             "Stribeck: only {} quasi-static samples below {:.3g} {} (a tenth of the typical constant-velocity speed): "
-            "F_B and v_s cannot be determined; add slow constant-velocity passes (e.g. 10 to 1000 mm/min, see feedid "
+            "F_B and v_s cannot be determined; add slow constant-velocity passes (e.g. 10 to 1000 {}, see feedid "
             "plan)",
-            slow, selection.stribeck_band * naming.display_velocity_scale(), naming.display_velocity_unit()));
+            slow, selection.stribeck_band * naming.display_velocity_scale(), naming.display_velocity_unit(),
+            naming.display_feed_unit()));
     }
     return out;
 }

@@ -1,6 +1,7 @@
 #include "feedid/testplan.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <limits>
@@ -186,6 +187,16 @@ std::string TestPlanOptions::validate() const {
     for (const char c : axis) {
         if (!std::isalnum(static_cast<unsigned char>(c)))
             return fmt::format("axis '{}' is not an axis name (letters and digits only)", axis);
+    }
+    // A, B and C (A1, C2 on SINUMERIK) turn about X, Y, Z (DIN 66025 / ISO 6983): the test below is in mm and mm/min
+    // through a ball screw, which on a rotary axis would be degrees taken for millimetres.
+    if (const char letter = static_cast<char>(std::toupper(static_cast<unsigned char>(axis.front())));
+        (letter == 'A' || letter == 'B' || letter == 'C') &&
+        std::all_of(axis.begin() + 1, axis.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); })) {
+        return fmt::format(
+            "axis '{}' is a rotary axis (A, B, C turn about X, Y, Z): feedid plan designs tests of "
+            "linear axes in mm and mm/min and does not plan rotary axes",
+            axis);
     }
     if (!std::isfinite(travel_min) || !std::isfinite(travel_max) || !(travel_min < travel_max))
         return fmt::format("travel {:.3f}:{:.3f} mm is not a range MIN:MAX with MIN < MAX", to_mm(travel_min),

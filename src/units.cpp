@@ -242,9 +242,10 @@ UnitConversion parse_unit_or_throw(std::string_view unit, std::string_view chann
 
 Rating parse_rating(std::string_view text) {
     const auto fail = [&](std::string_view why) {
-        return InputError(fmt::format("--rated {}: {} (give the value 100 % stands for with its unit, e.g. "
-                                      "--rated 18A for a current, --rated 2.4Nm for a torque)",
-                                      text, why));
+        return InputError(
+            fmt::format("--rated {}: {} (give the value 100 % stands for with its unit, e.g. "
+                        "--rated 18A for a current, --rated 2.4Nm for a torque)",
+                        text, why));
     };
     std::string_view rest = text;
     while (!rest.empty() && rest.front() == ' ') rest.remove_prefix(1);

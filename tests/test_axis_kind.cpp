@@ -73,13 +73,13 @@ TEST(AxisKind, DegreesAndRpmAreARotaryAxisWithoutALead) {
 
 TEST(AxisKind, ALeadIsNotUsedOnARotaryAxis) {
     // --lead 360 on a rotary axis once gave m/s beside rad: the lead is now left out, and a finding says so
-    const Trace trace =
-        imported("time [s],phi [deg],speed [rpm]\n0,90,60\n0.002,180,-30\n", with_lead(0.360));
+    const Trace trace = imported("time [s],phi [deg],speed [rpm]\n0,90,60\n0.002,180,-30\n", with_lead(0.360));
     EXPECT_TRUE(trace.rotary);
     EXPECT_EQ(trace.find("speed")->unit, "rad/s");
     EXPECT_NEAR(trace.find("speed")->values[0], 2.0 * pi, 1e-14);
     bool said = false;
-    for (const auto& finding : trace.findings) said = said || finding.find("--lead 360 mm is not used") != std::string::npos;
+    for (const auto& finding : trace.findings)
+        said = said || finding.find("--lead 360 mm is not used") != std::string::npos;
     EXPECT_TRUE(said);
 }
 
@@ -114,8 +114,8 @@ TEST(AxisKind, LinearAxesStayLinear) {
 
 TEST(AxisKind, AMotorTorqueOnALinearAxisNeedsTheLead) {
     const std::string text = "time [s],x [mm],F [Nm]\n0,1,1.5\n0.001,2,-1.5\n";
-    expect_names(refusal(text), {"'F'", "'Nm'", "rotary unit", "axis is linear", "position channel 'x' in mm",
-                                 "--lead"});
+    expect_names(refusal(text),
+                 {"'F'", "'Nm'", "rotary unit", "axis is linear", "position channel 'x' in mm", "--lead"});
     const Trace trace = imported(text, with_lead(0.010));  // the drive turns it into force through the screw
     EXPECT_EQ(trace.find("F")->unit, "N*m");
     EXPECT_FALSE(trace.rotary);
@@ -126,8 +126,7 @@ TEST(AxisKind, UnitsOfTheOtherKindAreRefusedNamingChannelUnitAndKind) {
     expect_names(refusal("time [s],x [mm],v [deg/s]\n0,1,0\n0.001,2,3\n"),
                  {"axis.csv", "'v'", "'deg/s'", "rotary unit", "axis is linear"});
     // a revolution speed on a linear axis without a lead: the lead is what is missing
-    expect_names(refusal("time [s],x [mm],v [rpm]\n0,1,0\n0.001,2,3\n"),
-                 {"'v'", "'rpm'", "axis is linear", "--lead"});
+    expect_names(refusal("time [s],x [mm],v [rpm]\n0,1,0\n0.001,2,3\n"), {"'v'", "'rpm'", "axis is linear", "--lead"});
     // a table velocity on a rotary axis
     expect_names(refusal("time [s],phi [deg],v [mm/min]\n0,1,0\n0.001,2,3\n"),
                  {"'v'", "'mm/min'", "linear unit", "axis is rotary", "position channel 'phi' in deg"});

@@ -137,7 +137,7 @@ TEST(HistoryStore, MigratesAnOlderFileAndKeepsItsRuns) {
         EXPECT_EQ(store->runs().size(), 1u);
     }
     auto store = history::open_sqlite_store(path);
-    EXPECT_EQ(store->schema_version(), 3);
+    EXPECT_EQ(store->schema_version(), history::sqlite_schema_version);
     store->add_run(sample_run("bb", 743.0));
     const auto runs = store->runs();
     ASSERT_EQ(runs.size(), 2u);
@@ -145,6 +145,98 @@ TEST(HistoryStore, MigratesAnOlderFileAndKeepsItsRuns) {
     EXPECT_TRUE(runs[0].result.empty());
     EXPECT_EQ(runs[1].result["friction_curve"]["forward"]["force_N"][0], 750.0);
     EXPECT_EQ(integrity(path), "ok");
+}
+
+/// sample_run as a rotary table's run: its parameters under the rotary keys.
+history::RunRecord rotary_run(const std::string& sha) {
+    auto run = sample_run(sha, 0.0);
+    run.parameters.clear();
+    run.parameters["inertia_kgm2"] = {0.0007, 1e-6};
+    run.parameters["coulomb_Nm"] = {2.36, 0.001};
+    run.axis_kind = "rotary";
+    return run;
+}
+
+TEST(HistoryStore, AnAxisHoldsRunsOfOneAxisKind) {
+    const auto folder = temp_dir();
+    auto store = history::open_sqlite_store(folder / "h.db");
+    const auto linear = store->add_run(sample_run("aa", 742.0));  // no axis_kind given: its keys say linear
+    try {
+        (void)store->add_run(rotary_run("bb"));
+        ADD_FAILURE() << "a rotary run was recorded on a linear axis";
+    } catch (const feedid::InputError& e) {
+        const std::string message = e.what();
+        for (const std::string& part :
+             std::vector<std::string>{"machine 'DMU 50'", "axis 'X'", "is a linear axis",
+                                      fmt::format("run #{}", linear.id), "this run is of a rotary axis"})
+            EXPECT_NE(message.find(part), std::string::npos) << part << " in " << message;
+    }
+    EXPECT_EQ(store->runs().size(), 1u);  // nothing written
+    auto on_c = rotary_run("bb");
+    on_c.axis = "C";
+    EXPECT_TRUE(store->add_run(on_c).inserted);
+    EXPECT_TRUE(store->add_run(sample_run("cc", 743.0)).inserted);  // X stays linear
+    auto linear_on_c = sample_run("dd", 742.0);
+    linear_on_c.axis = "C";
+    EXPECT_THROW((void)store->add_run(linear_on_c), feedid::InputError);
+    const auto runs = store->runs();
+    ASSERT_EQ(runs.size(), 3u);
+    EXPECT_EQ(runs[0].axis_kind, "linear");
+    EXPECT_EQ(runs[1].axis_kind, "rotary");
+    EXPECT_EQ(runs[2].axis_kind, "linear");
+}
+
+TEST(HistoryStore, MigrationGivesEarlierRunsTheirAxisKind) {
+    const auto folder = temp_dir();
+    const auto path = folder / "h.db";
+    {
+        history::SqliteOpenOptions old;
+        old.target_schema_version = 3;
+        auto store = history::open_sqlite_store(path, old);
+        store->add_run(sample_run("aa", 742.0));
+        auto rotary = rotary_run("bb");
+        rotary.axis = "C";
+        store->add_run(rotary);
+    }
+    auto store = history::open_sqlite_store(path);
+    EXPECT_EQ(store->schema_version(), 4);
+    const auto runs = store->runs();
+    ASSERT_EQ(runs.size(), 2u);
+    EXPECT_EQ(runs[0].axis_kind, "linear");
+    EXPECT_EQ(runs[1].axis_kind, "rotary");
+    EXPECT_THROW((void)store->add_run(rotary_run("cc")), feedid::InputError);  // X was linear before the migration
+    EXPECT_EQ(integrity(path), "ok");
+}
+
+TEST(HistoryStore, TheAxisKindComesFromTheResult) {
+    auto document = small_result("x.csv", 742.0);
+    EXPECT_EQ(history::run_from_result(document, "r.json").axis_kind, "linear");
+    document["rotary"] = true;
+    EXPECT_EQ(history::run_from_result(document, "r.json").axis_kind, "rotary");
+    document.erase("rotary");
+    document["parameters"].erase("mass_kg");
+    document["parameters"]["inertia_kgm2"] = {{"value", 0.0007}, {"stderr", 1e-6}};
+    EXPECT_EQ(history::run_from_result(document, "r.json").axis_kind, "rotary");
+}
+
+TEST(HistoryCli, ARotaryRunOnALinearAxisIsExitTwo) {
+    const auto folder = temp_dir();
+    const auto results = write_small_results(folder, "run", 2);
+    auto rotary = nlohmann::json::parse(read_text(results[1]));
+    rotary["rotary"] = true;
+    write_text(results[1], rotary.dump());
+    const auto database = folder / "h.db";
+    const auto command = [&](const std::filesystem::path& result) {
+        return run_shell(
+            fmt::format("{} history {} --record {} --machine M1 --axis X", cli(), quoted(database), quoted(result)),
+            folder);
+    };
+    ASSERT_EQ(command(results[0]).exit_code, 0);
+    const auto refused = command(results[1]);
+    EXPECT_EQ(refused.exit_code, 2);
+    EXPECT_EQ(count_lines(refused.err), 1) << refused.err;
+    for (const std::string part : {"machine 'M1'", "axis 'X'", "linear", "rotary"})
+        EXPECT_NE(refused.err.find(part), std::string::npos) << part << " in " << refused.err;
 }
 
 TEST(HistoryStore, ResultDocumentIsStoredWithoutTheRlsHistory) {

@@ -112,7 +112,7 @@ TEST(Units, RevolutionSpeedsWithoutALeadAreAngularVelocities) {
 
 TEST(Units, RpmWithALeadAndAGearRatioIsATableVelocity) {
     UnitContext context;
-    context.lead_m = 0.020;  // 20 mm per screw revolution
+    context.lead_m = 0.020;    // 20 mm per screw revolution
     context.gear_ratio = 4.0;  // 4 motor revolutions per screw revolution
     // 3000 motor rpm = 50 motor rev/s = 12.5 screw rev/s; * 20 mm = 0.25 m/s
     expect_si("rpm", 3000.0, Quantity::velocity, "m/s", 0.25, context);

@@ -7,13 +7,14 @@
 #include "cli.hpp"
 #include "feedid/error.hpp"
 #include "feedid/gains.hpp"
+#include "feedid/parameters.hpp"
 #include "gain_arguments.hpp"
 
 namespace feedid::cli {
 
 namespace {
 
-std::string format_estimate(const Estimate& estimate, const char* unit, double scale = 1.0) {
+std::string format_estimate(const Estimate& estimate, const std::string& unit, double scale = 1.0) {
     if (!estimate.value) return "—";
     std::string text = fmt::format("{:.6g}", *estimate.value * scale);
     if (estimate.standard_error && std::isfinite(*estimate.standard_error)) {
@@ -47,21 +48,27 @@ struct GainsCommand {
                    result.method == "velocity_command"
                        ? "position and velocity loop each from the logged velocity command"
                        : "from reference, position and drive signal");
-        fmt::print("  position loop  K_v   {:<28} ({})\n", format_estimate(result.position_gain_per_s, "1/s"),
-                   format_estimate(result.position_gain_per_s, "(m/min)/mm", m_per_min_per_mm_per_1_per_s));
+        const ParameterNaming naming{trace.rotary};
+        fmt::print("  position loop  K_v   {:<28}", format_estimate(result.position_gain_per_s, "1/s"));
+        if (!trace.rotary) {
+            fmt::print(" ({})",
+                       format_estimate(result.position_gain_per_s, "(m/min)/mm", m_per_min_per_mm_per_1_per_s));
+        }
+        fmt::print("\n");
         if (result.velocity_feedforward.value) {
             fmt::print("                 k_ff  {}\n", format_estimate(result.velocity_feedforward, ""));
         }
-        fmt::print("  velocity loop  K_p   {:<28}", format_estimate(result.velocity_gain_N_s_per_m, "N*s/m"));
+        fmt::print("  velocity loop  K_p   {:<28}",
+                   format_estimate(result.velocity_gain_N_s_per_m, naming.velocity_gain_unit()));
         if (options.force_per_signal != 0.0) {
-            const std::string unit =
-                (options.signal_unit.empty() ? std::string("signal") : options.signal_unit) + "/(m/s)";
-            Estimate signal = result.velocity_gain_N_s_per_m;
-            fmt::print(" ({})", format_estimate(signal, unit.c_str(), 1.0 / options.force_per_signal));
+            fmt::print(" ({})", format_estimate(result.velocity_gain_N_s_per_m,
+                                                naming.signal_velocity_gain_unit(options.signal_unit),
+                                                1.0 / options.force_per_signal));
         }
         fmt::print("\n");
         if (result.velocity_integral_gain_N_per_m.value) {
-            fmt::print("                 K_i   {}\n", format_estimate(result.velocity_integral_gain_N_per_m, "N/m"));
+            fmt::print("                 K_i   {}\n",
+                       format_estimate(result.velocity_integral_gain_N_per_m, naming.velocity_integral_gain_unit()));
             fmt::print("                 T_n   {}\n", format_estimate(result.reset_time_s, "ms", 1000.0));
         } else {
             fmt::print("                 K_i   — (P-only velocity loop)\n");

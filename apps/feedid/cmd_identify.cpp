@@ -10,6 +10,7 @@
 #include "feedid/error.hpp"
 #include "feedid/friction_map.hpp"
 #include "feedid/identify.hpp"
+#include "feedid/parameters.hpp"
 #include "feedid/result_document.hpp"
 #include "record_arguments.hpp"
 
@@ -46,8 +47,8 @@ struct IdentifyCommand {
                            "its own: a friction map, in which a worn stretch of the screw stands out");
         location
             ->add_option("--centers", centers_mm,
-                         "Centres of the strokes C1,C2,... [mm] for --by-location (write --centers=-300,0,300); "
-                         "default: found from the strokes in the trace")
+                         "Centres of the strokes C1,C2,... [mm; deg on a rotary axis] for --by-location (write "
+                         "--centers=-300,0,300); default: found from the strokes in the trace")
             ->delimiter(',');
         auto* pre = sub.add_option_group("Preprocessing");
         pre->add_option("--differentiation", differentiation,
@@ -103,16 +104,17 @@ struct IdentifyCommand {
         const auto optional = [](const auto& value) {
             return value ? nlohmann::json(*value) : nlohmann::json(nullptr);
         };
-        return {{"drive",
-                 {{"kt_Nm_per_A", optional(drive_arguments.kt)},
-                  {"lead_mm", optional(drive_arguments.lead_mm)},
-                  {"gear_ratio", drive_arguments.gear_ratio},
-                  {"force_constant", drive_arguments.force_constant}}},
-                {"channels", trace_arguments.channel_assignments},
-                {"units", trace_arguments.unit_assignments},
-                {"axis", trace_arguments.axis},
-                {"format", trace_arguments.format},
-                {"rated", trace_arguments.rated.empty() ? nlohmann::json(nullptr) : nlohmann::json(trace_arguments.rated)}};
+        return {
+            {"drive",
+             {{"kt_Nm_per_A", optional(drive_arguments.kt)},
+              {"lead_mm", optional(drive_arguments.lead_mm)},
+              {"gear_ratio", drive_arguments.gear_ratio},
+              {"force_constant", drive_arguments.force_constant}}},
+            {"channels", trace_arguments.channel_assignments},
+            {"units", trace_arguments.unit_assignments},
+            {"axis", trace_arguments.axis},
+            {"format", trace_arguments.format},
+            {"rated", trace_arguments.rated.empty() ? nlohmann::json(nullptr) : nlohmann::json(trace_arguments.rated)}};
     }
 
     int run() const {
@@ -144,7 +146,9 @@ struct IdentifyCommand {
     int run_by_location(const Trace& trace, const IdentifyOptions& o) const {
         FrictionMapOptions map_options;
         map_options.identify = o;
-        for (const double c : centers_mm) map_options.centers.push_back(c * 1e-3);
+        // --centers is in mm, or in deg on a rotary axis: positions as the friction map shows them
+        const ParameterNaming naming{trace.rotary};
+        for (const double c : centers_mm) map_options.centers.push_back(c / naming.display_position_scale());
         const FrictionMap map = friction_map(trace, map_options);
         if (!json_path.empty()) write_json(map.document, json_path);
         const bool any = std::any_of(map.locations.begin(), map.locations.end(),
@@ -156,7 +160,9 @@ struct IdentifyCommand {
                 const std::string reason = location.error                        ? *location.error
                                            : location.result.diagnostics.empty() ? std::string("not identified")
                                                                                  : location.result.diagnostics.front();
-                why += fmt::format("{}centre {:.3f} mm: {}", why.empty() ? "" : "; ", location.center * 1e3, reason);
+                why += fmt::format("{}centre {:.3f} {}: {}", why.empty() ? "" : "; ",
+                                   location.center * naming.display_position_scale(), naming.display_position_unit(),
+                                   reason);
             }
             fmt::print(stderr, "feedid: no location could be identified ({})\n", why);
             return 1;
@@ -177,13 +183,14 @@ struct IdentifyCommand {
                 if (!seen) columns.push_back(&p);
             }
         }
-        fmt::print("\n  {:>12} {:>17}", "centre [mm]", "time [s]");
+        const ParameterNaming naming{map.rotary};
+        fmt::print("\n  {:>12} {:>17}", fmt::format("centre [{}]", naming.display_position_unit()), "time [s]");
         for (const auto* c : columns) fmt::print(" {:>14}", fmt::format("{} [{}]", c->symbol, c->unit));
         fmt::print("\n");
         for (std::size_t l = 0; l < map.locations.size(); ++l) {
             const auto& location = map.locations[l];
             const auto& outstanding = map.document["locations"][l]["stands_out"];
-            fmt::print("  {:>12.3f} {:>17}", location.center * 1e3,
+            fmt::print("  {:>12.3f} {:>17}", location.center * naming.display_position_scale(),
                        fmt::format("{:.1f}..{:.1f}", location.from_s, location.to_s));
             for (const auto* c : columns) {
                 const auto* p = location.result.find(c->key);

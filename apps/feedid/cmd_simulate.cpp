@@ -9,6 +9,7 @@
 #include "cli.hpp"
 #include "feedid/error.hpp"
 #include "feedid/io/csv.hpp"
+#include "feedid/parameters.hpp"
 #include "feedid/simulate.hpp"
 #include "gain_arguments.hpp"
 
@@ -32,6 +33,11 @@ struct SimulateCommand {
         const std::optional<nlohmann::json> gains_document =
             gains_path.empty() ? std::nullopt : std::optional<nlohmann::json>(read_json(gains_path));
         const Trace trace = read_trace_for_drive(trace_arguments, drive_arguments);
+        if (axis.rotary != trace.rotary) {
+            throw InputError(fmt::format("{}: the result is of a {} axis, the trace {} of a {} axis", result_path,
+                                         ParameterNaming{axis.rotary}.axis_kind(), trace.source_path,
+                                         ParameterNaming{trace.rotary}.axis_kind()));
+        }
         const DriveConstants drive = drive_arguments.constants();
         const std::vector<double> force = drive_force(trace, drive);
         const GainOptions gain_options = gain_arguments.options(trace, drive);
@@ -53,7 +59,7 @@ struct SimulateCommand {
             write_json(simulation_document(trace, controller, simulation), json_path);
             if (json_path == "-") return 0;
         }
-        const char* unit = trace.rotary ? "mrad" : "mm";
+        const std::string unit = ParameterNaming{trace.rotary}.display_small_length_unit();
         fmt::print("{}: closed-loop simulation of the identified axis on the recorded reference ({} samples)\n",
                    trace.source_path, trace.samples());
         for (const auto& note : controller.notes) fmt::print("  {}\n", note);

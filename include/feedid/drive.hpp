@@ -3,8 +3,8 @@
 //   linear axis:  F_d = K_t * i * g / R,  R = lead / 2*pi   (g: gear ratio motor:screw, motor turns per screw turn)
 //   rotary axis:  T_d = K_t * i * g
 //   or directly:  F_d = force_constant * signal   (a drive that logs a command voltage or a torque)
-// A drive signal logged as a motor torque T (N*m, or % of a rated torque) is a force on a linear axis through the screw,
-// F_d = T * g * 2*pi / lead (no K_t needed), and the drive torque as it is on a rotary axis.
+// A drive signal logged as a motor torque T (N*m, or % of a rated torque) is a force on a linear axis through the
+// screw, F_d = T * g * 2*pi / lead (no K_t needed), and the drive torque as it is on a rotary axis.
 
 #include <optional>
 #include <span>

@@ -20,7 +20,7 @@ namespace feedid {
 
 struct FrictionMapOptions {
     IdentifyOptions identify;         ///< applied to every segment
-    std::vector<double> centers;      ///< centres [m]; empty = detect them from the strokes
+    std::vector<double> centers;      ///< centres [m] (rotary axis: [rad]); empty = detect them from the strokes
     double turning_hysteresis{2e-5};  ///< a turning point needs the axis to come back this far [m]
     double center_tolerance{5e-4};    ///< stroke midpoints this close belong to one centre [m]
     int min_strokes{4};               ///< a detected centre needs at least this many strokes about it
@@ -47,6 +47,7 @@ struct LocationResult {
 struct FrictionMap {
     std::vector<LocationResult> locations;
     bool centers_detected{false};
+    bool rotary{false};                 ///< positions in rad (keys `center_rad`, ...), shown in deg
     std::vector<std::string> findings;  ///< which locations stand out, in words
     nlohmann::json document;            ///< the friction-map document (see friction_map_document)
 };

@@ -37,6 +37,34 @@ struct ParameterNaming {
     /// Keys of the friction-curve plot series.
     [[nodiscard]] std::string curve_velocity_key() const { return rotary ? "velocity_rad_per_s" : "velocity_m_per_s"; }
     [[nodiscard]] std::string curve_force_key() const { return rotary ? "torque_Nm" : "force_N"; }
+
+    /// "linear" or "rotary": the axis kind (runs in the history, messages).
+    [[nodiscard]] std::string axis_kind() const { return rotary ? "rotary" : "linear"; }
+    /// The SI unit of a position ("m", "rad") and the suffix of keys that hold one ("_m", "_rad").
+    [[nodiscard]] std::string length_unit() const { return rotary ? "rad" : "m"; }
+    [[nodiscard]] std::string length_key_suffix() const { return rotary ? "_rad" : "_m"; }
+    /// Small lengths (tracking and modelling errors) are shown in mm, rotary ones in mrad: value * 1000.
+    [[nodiscard]] static constexpr double display_small_length_scale() { return 1e3; }
+    [[nodiscard]] std::string display_small_length_unit() const { return rotary ? "mrad" : "mm"; }
+    /// Positions along the axis (stroke centres) are shown in mm, rotary ones in deg.
+    [[nodiscard]] double display_position_scale() const;
+    [[nodiscard]] std::string display_position_unit() const { return rotary ? "deg" : "mm"; }
+    /// Feedrates of part programs and test advice: mm/min, rotary deg/min; value [SI/s] * scale.
+    [[nodiscard]] double display_feed_scale() const;
+    [[nodiscard]] std::string display_feed_unit() const { return rotary ? "deg/min" : "mm/min"; }
+
+    /// Controller gains (gains and simulate documents): K_p per unit of velocity, K_i per unit of position, and the
+    /// same per unit of the logged drive signal.
+    [[nodiscard]] std::string velocity_gain_key() const;
+    [[nodiscard]] std::string velocity_integral_gain_key() const;
+    [[nodiscard]] std::string velocity_gain_unit() const { return rotary ? "N*m*s/rad" : "N*s/m"; }
+    [[nodiscard]] std::string velocity_integral_gain_unit() const { return rotary ? "N*m/rad" : "N/m"; }
+    [[nodiscard]] std::string signal_velocity_gain_key() const;
+    [[nodiscard]] std::string signal_integral_gain_key() const;
+    /// The drive-signal gain's unit: "V/(m/s)", "A/(rad/s)", ...
+    [[nodiscard]] std::string signal_velocity_gain_unit(const std::string& signal_unit) const;
+    /// The force-limit key of a controller ("saturation_N", "saturation_Nm").
+    [[nodiscard]] std::string saturation_key() const { return rotary ? "saturation_Nm" : "saturation_N"; }
 };
 
 /// What a result-document key names: its term, direction and whether it is a rotary axis's key.

@@ -100,8 +100,8 @@ struct ValidationMetrics {
 ValidationMetrics validate_simulation(const Trace& trace, std::span<const double> measured_force,
                                       const SimulationOutput& simulated);
 
-/// The simulate document of DESIGN.md.
-nlohmann::json validation_document(const ValidationMetrics& metrics);
+/// The simulate document of DESIGN.md; a rotary axis's lengths in rad (`tracking_error_mae_rad`, ...).
+nlohmann::json validation_document(const ValidationMetrics& metrics, bool rotary = false);
 
 /// The errors of the paper's Fig. 6 over time, thinned for plotting by extreme_preserving_indices() over all three
 /// together: every point is one real sample (so e_m = e_model - e_machine holds at each), and each error's largest and

@@ -23,6 +23,7 @@
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
+#include "feedid/parameters.hpp"
 
 namespace feedid::history {
 namespace {
@@ -51,6 +52,10 @@ const char* const migrations[] = {
     "  pinned_at TEXT NOT NULL, PRIMARY KEY (machine, axis));",
     // 3: the result document (without the RLS history) for the report's friction curve
     "ALTER TABLE runs ADD COLUMN result_json TEXT NOT NULL DEFAULT '{}';",
+    // 4: the axis kind of each run; earlier runs' from their mass key (a rotary axis's result has inertia_kgm2)
+    "ALTER TABLE runs ADD COLUMN axis_kind TEXT NOT NULL DEFAULT '';"
+    "UPDATE runs SET axis_kind = CASE WHEN EXISTS (SELECT 1 FROM parameters p WHERE p.run_id = runs.id AND "
+    "p.key = 'inertia_kgm2') THEN 'rotary' ELSE 'linear' END;",
 };
 static_assert(std::size(migrations) == sqlite_schema_version);
 
@@ -141,6 +146,14 @@ void Statement::fail(const char* what) const {
     throw SqliteError(fmt::format("{}: {}: {}", path_, what, describe(code, db_)), code);
 }
 
+// The axis kind a run's parameter keys name: "rotary" for inertia_kgm2, viscous_Nms_per_rad, ...
+std::string axis_kind_of(const std::map<std::string, StoredEstimate>& parameters) {
+    for (const auto& [key, estimate] : parameters) {
+        if (const auto parsed = parse_parameter_key(key); parsed && parsed->rotary) return "rotary";
+    }
+    return "linear";
+}
+
 class SqliteStore final : public HistoryStore {
 public:
     SqliteStore(const std::filesystem::path& path, const SqliteOpenOptions& options)
@@ -191,24 +204,9 @@ public:
             existing.bind(1, run.trace_sha256).bind(2, options_json);
             if (existing.step()) return AddOutcome{existing.integer(0), false};
 
-            // A file kept at an older schema (tests of the migrations) has no result_json column.
-            const bool with_result = schema_version_ >= 3;
-            Statement insert(
-                db_,
-                with_result ? "INSERT INTO runs (machine, axis, location, recorded_at, trace_path, trace_sha256, "
-                              "feedid_version, model, status, options_json, fit_json, diagnostics_json, stored_at, "
-                              "result_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)"
-                            : "INSERT INTO runs (machine, axis, location, recorded_at, trace_path, trace_sha256, "
-                              "feedid_version, model, status, options_json, fit_json, diagnostics_json, stored_at) "
-                              "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)",
-                path_);
-            insert.bind(1, run.machine).bind(2, run.axis).bind(3, run.location).bind(4, run.recorded_at);
-            insert.bind(5, run.trace_path).bind(6, run.trace_sha256).bind(7, run.feedid_version).bind(8, run.model);
-            insert.bind(9, run.status).bind(10, options_json).bind(11, fit_json).bind(12, diagnostics_json);
-            insert.bind(13, stored_at);
-            if (with_result) insert.bind(14, result_json);
-            insert.step();
-            count_write_statement();
+            const std::string axis_kind = run.axis_kind.empty() ? axis_kind_of(run.parameters) : run.axis_kind;
+            require_same_axis_kind(run, axis_kind);
+            insert_run(run, axis_kind, {options_json, fit_json, diagnostics_json, result_json, stored_at});
             const std::int64_t id = sqlite3_last_insert_rowid(db_);
 
             Statement parameter(db_, "INSERT INTO parameters (run_id, key, value, stderr) VALUES (?1, ?2, ?3, ?4)",
@@ -230,14 +228,15 @@ public:
             const char* where =
                 " WHERE (?1 = '' OR r.machine = ?1) AND (?2 = '' OR r.axis = ?2) "
                 "AND (?3 = '' OR r.location = ?3)";
-            Statement select(db_,
-                             (std::string("SELECT r.id, r.machine, r.axis, r.location, r.recorded_at, r.trace_path, "
-                                          "r.trace_sha256, r.feedid_version, r.model, r.status, r.options_json, "
-                                          "r.fit_json, r.diagnostics_json, r.stored_at, ") +
-                              (schema_version_ >= 3 ? "r.result_json" : "'{}'") + " FROM runs r" + where +
-                              " ORDER BY r.recorded_at, r.id")
-                                 .c_str(),
-                             path_);
+            Statement select(
+                db_,
+                (std::string("SELECT r.id, r.machine, r.axis, r.location, r.recorded_at, r.trace_path, "
+                             "r.trace_sha256, r.feedid_version, r.model, r.status, r.options_json, "
+                             "r.fit_json, r.diagnostics_json, r.stored_at, ") +
+                 (schema_version_ >= 3 ? "r.result_json" : "'{}'") + (schema_version_ >= 4 ? ", r.axis_kind" : ", ''") +
+                 " FROM runs r" + where + " ORDER BY r.recorded_at, r.id")
+                    .c_str(),
+                path_);
             select.bind(1, filter.machine).bind(2, filter.axis).bind(3, filter.location);
             std::map<std::int64_t, std::size_t> index;
             while (select.step()) {
@@ -260,6 +259,7 @@ public:
                         if (line.is_string()) run.diagnostics.push_back(line.get<std::string>());
                 run.stored_at = select.text(13);
                 run.result = parse_stored_json(select.text(14), run.id);
+                run.axis_kind = select.text(15);
                 index[run.id] = result.size();
                 result.push_back(std::move(run));
             }
@@ -315,6 +315,53 @@ public:
     int schema_version() const override { return schema_version_; }
 
 private:
+    /// One axis holds runs of one kind: a rotary run on an axis of linear runs (or the reverse) is refused.
+    void require_same_axis_kind(const RunRecord& run, const std::string& axis_kind) const {
+        if (schema_version_ < 4) return;
+        Statement other(db_,
+                        "SELECT id, axis_kind FROM runs WHERE machine = ?1 AND axis = ?2 AND axis_kind != ?3 AND "
+                        "axis_kind != '' ORDER BY id LIMIT 1",
+                        path_);
+        other.bind(1, run.machine).bind(2, run.axis).bind(3, axis_kind);
+        if (!other.step()) return;
+        throw InputError(
+            fmt::format("{}: machine '{}' axis '{}' is a {} axis (run #{}), this run is of a {} axis: "
+                        "record it under another machine or axis name",
+                        path_, run.machine, run.axis, other.text(1), other.integer(0), axis_kind));
+    }
+
+    /// A run's JSON columns and its storage time, as written.
+    struct StoredText {
+        const std::string& options_json;
+        const std::string& fit_json;
+        const std::string& diagnostics_json;
+        const std::string& result_json;
+        const std::string& stored_at;
+    };
+
+    void insert_run(const RunRecord& run, const std::string& axis_kind, const StoredText& text) {
+        // A file kept at an older schema (tests of the migrations) lacks the later columns.
+        std::string columns =
+            "machine, axis, location, recorded_at, trace_path, trace_sha256, feedid_version, model, status, "
+            "options_json, fit_json, diagnostics_json, stored_at";
+        int count = 13;
+        if (schema_version_ >= 3) columns += ", result_json";
+        if (schema_version_ >= 3) ++count;
+        if (schema_version_ >= 4) columns += ", axis_kind";
+        if (schema_version_ >= 4) ++count;
+        std::string placeholders;
+        for (int i = 1; i <= count; ++i) placeholders += fmt::format("{}?{}", i == 1 ? "" : ", ", i);
+        Statement insert(db_, fmt::format("INSERT INTO runs ({}) VALUES ({})", columns, placeholders).c_str(), path_);
+        insert.bind(1, run.machine).bind(2, run.axis).bind(3, run.location).bind(4, run.recorded_at);
+        insert.bind(5, run.trace_path).bind(6, run.trace_sha256).bind(7, run.feedid_version).bind(8, run.model);
+        insert.bind(9, run.status).bind(10, text.options_json).bind(11, text.fit_json);
+        insert.bind(12, text.diagnostics_json).bind(13, text.stored_at);
+        if (schema_version_ >= 3) insert.bind(14, text.result_json);
+        if (schema_version_ >= 4) insert.bind(15, axis_kind);
+        insert.step();
+        count_write_statement();
+    }
+
     void exec(const char* sql) const {
         char* message = nullptr;
         const int code = sqlite3_exec(db_, sql, nullptr, nullptr, &message);
@@ -485,6 +532,7 @@ RunRecord run_from_result(const nlohmann::json& result, const std::string& sourc
     if (!result.contains("model") || !result["model"].is_string()) throw not_a_result("it has no \"model\"");
     RunRecord run;
     run.model = result["model"].get<std::string>();
+
     for (const auto& [key, entry] : result["parameters"].items()) {
         if (!entry.is_object() || !entry.contains("value"))
             throw not_a_result(fmt::format("parameter \"{}\" has no \"value\"", key));
@@ -504,6 +552,10 @@ RunRecord run_from_result(const nlohmann::json& result, const std::string& sourc
     if (result.contains("diagnostics") && result["diagnostics"].is_array())
         for (const auto& line : result["diagnostics"])
             if (line.is_string()) run.diagnostics.push_back(line.get<std::string>());
+    // The axis kind as the result states it; older results without "rotary" by their keys.
+    run.axis_kind = result.contains("rotary") && result["rotary"].is_boolean()
+                        ? ParameterNaming{result["rotary"].get<bool>()}.axis_kind()
+                        : axis_kind_of(run.parameters);
     run.result = result;
     if (run.result.contains("rls") && run.result["rls"].is_object()) run.result["rls"].erase("history");
     return run;
@@ -519,6 +571,7 @@ nlohmann::json to_json(const RunRecord& run) {
             {"trace", {{"path", run.trace_path}, {"sha256", run.trace_sha256}}},
             {"feedid_version", run.feedid_version},
             {"model", run.model},
+            {"axis_kind", run.axis_kind},
             {"status", run.status},
             {"options", run.options},
             {"parameters", parameters},

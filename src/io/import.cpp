@@ -211,11 +211,17 @@ void convert_units(Trace& trace, const ImportOptions& options) {
     const AxisDecision axis = decide_axis_kind(trace, options.unit_context);
     trace.rotary = axis.kind == AxisKind::rotary;
     UnitContext context = options.unit_context;
+    if (trace.rotary) {
+        // The reader's assumption of a linear axis no longer holds: the units were stated.
+        std::erase_if(trace.findings,
+                      [](const std::string& finding) { return finding.starts_with(sinumerik_linear_units_finding); });
+    }
     if (trace.rotary && context.lead_m) {
         // A lead turns motor revolutions into table travel; a rotary axis has no table travel.
-        trace.findings.push_back(fmt::format("--lead {:g} mm is not used for units: the axis is rotary ({}), so "
-                                             "revolution speeds stay angular (rad/s)",
-                                             *context.lead_m * 1e3, axis.reason));
+        trace.findings.push_back(
+            fmt::format("--lead {:g} mm is not used for units: the axis is rotary ({}), so "
+                        "revolution speeds stay angular (rad/s)",
+                        *context.lead_m * 1e3, axis.reason));
         context.lead_m.reset();
         context.gear_ratio.reset();
     }

@@ -609,8 +609,9 @@ void assign_roles(const std::vector<Signal>& signals, const std::vector<std::siz
     }
     if (!guesses.empty()) {
         findings.push_back(
-            "SINUMERIK units taken for a linear metric axis: posn in mm, velo in mm/min (state "
-            "others with --unit ROLE=UNIT, e.g. --unit position=deg for a rotary axis)");
+            fmt::format("{}: posn in mm, velo in mm/min (state others with --unit ROLE=UNIT, e.g. --unit position=deg "
+                        "--unit velocity=rpm for a rotary axis)",
+                        sinumerik_linear_units_finding));
     }
 }
 

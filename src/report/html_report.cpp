@@ -121,28 +121,36 @@ struct SimulationSeries {
     std::vector<double> modelling;
 };
 
+/// The suffix of a simulate document's summary keys: "_rad" on a rotary axis; "_m" on a linear one and in rotary
+/// documents of feedid versions that wrote metre keys for both.
+std::string summary_length_suffix(const nlohmann::json& simulation, bool rotary) {
+    const std::string suffix = ParameterNaming{rotary}.length_key_suffix();
+    return simulation.contains("tracking_error_mae" + suffix) ? suffix : std::string("_m");
+}
+
 SimulationSeries read_simulation_series(const nlohmann::json& simulation, const std::string& source) {
     const auto wrong_kind = [&](const std::string& why) {
         return InputError(fmt::format("{}: not a simulate document (feedid simulate --json): {}", source, why));
     };
     if (!simulation.is_object()) throw wrong_kind("not a JSON object");
-    if (!simulation.contains("tracking_error_mae_m") || !simulation["tracking_error_mae_m"].is_object())
-        throw wrong_kind("it has no 'tracking_error_mae_m'");
-    for (const char* key : {"model", "machine"})
-        if (!number_at(simulation["tracking_error_mae_m"], key))
-            throw wrong_kind(fmt::format("'tracking_error_mae_m.{}' is not a number", key));
-    if (!number_at(simulation, "modelling_error_mae_m")) throw wrong_kind("'modelling_error_mae_m' is not a number");
-    if (!simulation.contains("series") || !simulation["series"].is_object())
-        throw InputError(
-            fmt::format("{}: the simulate document has no 'series' of errors over time (written by an "
-                        "older feedid; run feedid simulate --json again)",
-                        source));
     SimulationSeries out;
     if (simulation.contains("rotary")) {
         if (!simulation["rotary"].is_boolean())
             throw InputError(fmt::format("{}: 'rotary' is not true or false", source));
         out.rotary = simulation["rotary"].get<bool>();
     }
+    const std::string length = summary_length_suffix(simulation, out.rotary);
+    const std::string mae = "tracking_error_mae" + length;
+    if (!simulation.contains(mae) || !simulation[mae].is_object()) throw wrong_kind(fmt::format("it has no '{}'", mae));
+    for (const char* key : {"model", "machine"})
+        if (!number_at(simulation[mae], key)) throw wrong_kind(fmt::format("'{}.{}' is not a number", mae, key));
+    if (!number_at(simulation, ("modelling_error_mae" + length).c_str()))
+        throw wrong_kind(fmt::format("'modelling_error_mae{}' is not a number", length));
+    if (!simulation.contains("series") || !simulation["series"].is_object())
+        throw InputError(
+            fmt::format("{}: the simulate document has no 'series' of errors over time (written by an "
+                        "older feedid; run feedid simulate --json again)",
+                        source));
     const auto& series = simulation["series"];
     const auto column = [&](const std::string& key) {
         if (!series.contains(key) || !series[key].is_array())
@@ -156,7 +164,7 @@ SimulationSeries read_simulation_series(const nlohmann::json& simulation, const 
         }
         return values;
     };
-    const std::string unit = out.rotary ? "_rad" : "_m";
+    const std::string unit = ParameterNaming{out.rotary}.length_key_suffix();
     out.time = column("time_s");
     out.machine = column("tracking_error_machine" + unit);
     out.model = column("tracking_error_model" + unit);
@@ -486,8 +494,9 @@ std::string validation_section(const SimulationDocument& simulation, const std::
             "<p class=\"alarm\">The simulation ran on <code>{}</code>, the result was identified from "
             "<code>{}</code>.</p>\n",
             escape_xml(simulated_trace), escape_xml(result_trace));
-    const auto mae = object("tracking_error_mae_m");
-    const auto largest = object("tracking_error_max_m");
+    const std::string length = summary_length_suffix(document, rotary);
+    const auto mae = object(("tracking_error_mae" + length).c_str());
+    const auto largest = object(("tracking_error_max" + length).c_str());
     body += fmt::format(
         "<table>\n<tr><th class=\"text\">error</th><th>model</th><th>machine</th>"
         "<th class=\"text\">unit</th></tr>\n"
@@ -501,8 +510,8 @@ std::string validation_section(const SimulationDocument& simulation, const std::
         "<td class=\"text\">{}</td></tr>\n</table>\n",
         cell(number_at(mae, "model"), display_scale), cell(number_at(mae, "machine"), display_scale), unit,
         cell(number_at(largest, "model"), display_scale), cell(number_at(largest, "machine"), display_scale), unit,
-        cell(number_at(document, "modelling_error_mae_m"), display_scale), unit,
-        cell(number_at(document, "modelling_error_max_m"), display_scale), unit);
+        cell(number_at(document, ("modelling_error_mae" + length).c_str()), display_scale), unit,
+        cell(number_at(document, ("modelling_error_max" + length).c_str()), display_scale), unit);
     const auto relative = object("relative_error_pct");
     body +=
         "<table>\n<tr><th class=\"text\">relative error 100·‖y − y_sim‖/‖y‖</th><th>position</th>"

@@ -40,7 +40,10 @@ struct RunRecord {
     std::string trace_sha256;    ///< lower-case hex SHA-256 of the trace file's bytes
     std::string feedid_version;  ///< version that produced the result
     std::string model;           ///< "symmetric", "asymmetric", ...
-    std::string status;          ///< the result's status ("ok", "partial", ...), "" when it had none
+    /// "linear" or "rotary" (from the result; runs stored before schema version 4 get it from their parameter keys).
+    /// One axis of one machine holds runs of one kind: add_run refuses the other with an InputError.
+    std::string axis_kind;
+    std::string status;  ///< the result's status ("ok", "partial", ...), "" when it had none
     nlohmann::json options = nlohmann::json::object();  ///< identification options used (canonical key order)
     std::map<std::string, StoredEstimate> parameters;   ///< keys as in the result document ("coulomb_N", ...)
     nlohmann::json fit = nlohmann::json::object();      ///< {relative_error_pct, condition_number, samples_used}
@@ -76,6 +79,7 @@ class HistoryStore {
 public:
     virtual ~HistoryStore() = default;
     /// Adds a run in one transaction. Duplicate (same trace hash and options): returns the existing id, adds nothing.
+    /// InputError naming machine, axis and both kinds when the axis holds runs of the other axis kind.
     virtual AddOutcome add_run(const RunRecord& run) = 0;
     /// Runs matching the filter, ordered by recording time, then id.
     [[nodiscard]] virtual std::vector<RunRecord> runs(const RunFilter& filter = {}) const = 0;
@@ -89,7 +93,7 @@ public:
 };
 
 /// The newest schema this build writes (PRAGMA user_version of the SQLite file).
-inline constexpr int sqlite_schema_version = 3;
+inline constexpr int sqlite_schema_version = 4;
 
 struct SqliteOpenOptions {
     bool read_only{false};  ///< open for reading only; the file must exist and is never written

@@ -21,6 +21,10 @@
 
 namespace feedid {
 
+/// How the finding that says the SINUMERIK units were taken for a linear metric axis begins: the import drops it once
+/// the axis is known to be rotary (--unit position=deg).
+inline constexpr std::string_view sinumerik_linear_units_finding = "SINUMERIK units taken for a linear metric axis";
+
 /// Reads the signals of one axis into raw channels on the finest interval's time base (channel "time" in s, the
 /// others in their source units, named after the NC variable without path and axis suffix, e.g.
 /// "nckServoDataActPos2ndEnc64"). `axis` selects it by NC axis index ("2", from the `[u1, 2]` suffix) or by name;
