@@ -24,6 +24,7 @@
 #include "feedid/error.hpp"
 #include "feedid/gains.hpp"
 #include "feedid/least_squares.hpp"
+#include "feedid/native_interval.hpp"
 #include "feedid/parameters.hpp"
 
 namespace feedid {
@@ -253,6 +254,9 @@ struct GainSignals {
     bool rotary{false};  // rad and N*m instead of m and N
     std::size_t samples{0};
     double dt{0.0};                     // T [s]
+    int hold_factor{1};                 // the position signal holds each value over this many samples
+    int hold_phase{0};                  // the rows (k % hold_factor) where it takes a new value
+    Column interpolated_position;       // a held position interpolated between its own samples (else empty)
     std::span<const double> position;   // x [m]
     std::span<const double> reference;  // x_ref [m]
     const Channel* velocity{nullptr};   // the logged velocity, when there is one
@@ -260,6 +264,19 @@ struct GainSignals {
     Column velocity_command;            // v_cmd [m/s], when logged
     Column force;                       // F [N]
 };
+
+// A position held over k >= 2 samples (sampled at the position loop's cycle, the drive signal at the velocity loop's):
+// the controller holds its reference and velocity command too, so those are exact at every sample, while the position
+// it measured between its samples is interpolated (interpolate_held()). The regressions use the rows where the
+// position is new.
+void use_native_rate(const Trace& trace, GainSignals& signals) {
+    const auto factor = static_cast<int>(std::lround(native_interval_of(trace, Role::position) / signals.dt));
+    if (factor < 2) return;
+    signals.hold_factor = factor;
+    signals.hold_phase = hold_phase(signals.position, factor);
+    signals.interpolated_position = interpolate_held(signals.position, factor, signals.hold_phase);
+    signals.position = signals.interpolated_position;
+}
 
 // The trace's position, reference, velocity command and velocity, and the drive force, checked: position and
 // reference there, as many force samples as trace samples, and enough of them.
@@ -289,6 +306,7 @@ GainSignals gain_signals(const Trace& trace, std::span<const double> drive_force
     signals.dt = trace.time_base().sample_time_s;
     signals.position = position_channel->values;
     signals.reference = reference_channel->values;
+    use_native_rate(trace, signals);
     signals.velocity = trace.find(Role::velocity);
     if (const auto* command_channel = trace.find(Role::velocity_command)) {
         signals.logged_command = true;
@@ -296,6 +314,15 @@ GainSignals gain_signals(const Trace& trace, std::span<const double> drive_force
     }
     signals.force.assign(drive_force.begin(), drive_force.end());
     return signals;
+}
+
+// Only the rows where a held position is new (all rows when it is not held).
+void keep_fresh_rows(const GainSignals& signals, std::vector<char>& use) {
+    if (signals.hold_factor < 2) return;
+    const auto factor = static_cast<std::size_t>(signals.hold_factor);
+    for (std::size_t k = 0; k < use.size(); ++k) {
+        if (k % factor != static_cast<std::size_t>(signals.hold_phase)) use[k] = 0;
+    }
 }
 
 // The following error must carry signal, or no position gain can be seen.
@@ -366,8 +393,10 @@ SearchSpace search_space(const GainSignals& signals, const GainOptions& options)
 // Position loop (only with a logged velocity command): v_cmd = K_v*e(k-d) [+ k_ff*x_ref'(k-d)], the delay d by the
 // smallest residual. Sets K_v (and k_ff), d and the position loop's relative error.
 void identify_position_loop(const GainSignals& signals, const GainOptions& options, GainResult& result) {
-    const Column reference_velocity = difference_velocity(signals.reference, 1, signals.dt);
-    const std::vector<char> use = rows_past_start_up(signals.samples);
+    // the reference changes once per position-loop cycle: its velocity over that cycle
+    const Column reference_velocity = difference_velocity(signals.reference, signals.hold_factor, signals.dt);
+    std::vector<char> use = rows_past_start_up(signals.samples);
+    keep_fresh_rows(signals, use);
     double best_rss = std::numeric_limits<double>::infinity();
     Problem best;
     for (int d : {0, 1, 2}) {
@@ -609,7 +638,8 @@ void set_structure_and_fit(const VelocityLoopFit& loop, bool logged_command, Gai
 
 // The identified controller, for simulation: the gains (0 where the data did not determine them), the structure
 // found, both loops at the trace's sample time.
-ControllerModel identified_controller(const GainResult& result, const GainOptions& options, double dt) {
+ControllerModel identified_controller(const GainResult& result, const GainOptions& options, double dt,
+                                      int hold_factor) {
     ControllerModel controller;
     controller.position_gain_per_s = result.position_gain_per_s.value.value_or(0.0);
     controller.velocity_gain_N_s_per_m = result.velocity_gain_N_s_per_m.value.value_or(0.0);
@@ -617,7 +647,7 @@ ControllerModel identified_controller(const GainResult& result, const GainOption
     controller.velocity_feedforward = result.velocity_feedforward.value.value_or(0.0);
     controller.saturation_N = options.saturation_N;
     controller.current_lag_s = result.current_lag_s;
-    controller.position_cycle_s = dt;
+    controller.position_cycle_s = dt * hold_factor;
     controller.velocity_cycle_s = dt;
     controller.velocity_difference_samples = result.velocity_difference_samples;
     return controller;
@@ -631,14 +661,21 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
     require_following_error(signals);
     GainResult result;
     result.method = signals.logged_command ? "velocity_command" : "structure";
-    const std::vector<char> use = velocity_loop_rows(signals.force, options.saturation_N, result.diagnostics);
+    std::vector<char> use = velocity_loop_rows(signals.force, options.saturation_N, result.diagnostics);
+    keep_fresh_rows(signals, use);
+    if (signals.hold_factor > 1) {
+        result.diagnostics.push_back(fmt::format(
+            "the position holds each value over {} samples: fitted on the samples where it is new, the position "
+            "loop taken to run every {:.6g} ms and the velocity loop every {:.6g} ms (the drive signal's interval)",
+            signals.hold_factor, signals.dt * signals.hold_factor * 1e3, signals.dt * 1e3));
+    }
     if (signals.logged_command) identify_position_loop(signals, options, result);
     const VelocityLoopRegression regression{signals, use};
     const VelocityLoopFit velocity_loop =
         fit_velocity_loop(regression, search_space(signals, options), options, result.diagnostics);
     set_velocity_loop_gains(velocity_loop, signals.logged_command, result);
     set_structure_and_fit(velocity_loop, signals.logged_command, result);
-    result.controller = identified_controller(result, options, signals.dt);
+    result.controller = identified_controller(result, options, signals.dt, signals.hold_factor);
     return result;
 }
 

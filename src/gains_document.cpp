@@ -58,6 +58,9 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
         {naming.saturation_key(), result.controller.saturation_N},
         {"sample_time_s", result.controller.velocity_cycle_s},
     };
+    // a position loop slower than the velocity loop (a position held over several samples): its own cycle
+    if (result.controller.position_cycle_s > result.controller.velocity_cycle_s)
+        document["structure"]["position_cycle_s"] = result.controller.position_cycle_s;
     document["fit"] = {{"relative_error_pct", result.relative_error_pct},
                        {"position_loop_relative_error_pct",
                         result.method == "velocity_command" ? nlohmann::json(result.position_loop_relative_error_pct)
@@ -102,8 +105,8 @@ ControllerModel controller_from_document(const nlohmann::json& document, const s
         }
         model.current_lag_s = value_of(structure, "current_lag_s").value_or(0.0);
         model.saturation_N = value_of(structure, naming.saturation_key().c_str());
-        model.position_cycle_s = value_of(structure, "sample_time_s").value_or(0.0);
-        model.velocity_cycle_s = model.position_cycle_s;
+        model.velocity_cycle_s = value_of(structure, "sample_time_s").value_or(0.0);
+        model.position_cycle_s = value_of(structure, "position_cycle_s").value_or(model.velocity_cycle_s);
     }
     if (const auto problem = model.validate(); !problem.empty()) {
         throw InputError(fmt::format("{}: {}", source, problem));

@@ -263,6 +263,7 @@ std::optional<FrictionCurvePoints> bin_friction_curve(const Derivatives& d, cons
 IdentifyResult run_stages(const Trace& trace, std::span<const double> force, const IdentifyOptions& options) {
     IdentifyResult result = start_result(trace, options);
     const Derivatives derivatives = preprocess(trace, force, options.preprocess);
+    result.diagnostics.insert(result.diagnostics.end(), derivatives.notes.begin(), derivatives.notes.end());
     if (derivatives.failed()) return failed(std::move(result), derivatives.failure);
     const Regressors regressors = build_regressors(derivatives, options.model, options.offset);
     SelectionOptions selection_options = options.selection;

@@ -2,10 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
+#include <string>
 
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
+#include "feedid/native_interval.hpp"
 #include "feedid/signal.hpp"
 
 namespace feedid {
@@ -87,6 +90,53 @@ void decimate_columns(Derivatives& d, int factor) {
     d.time = std::move(time);
 }
 
+/// Where a held position takes new values: every `factor`-th sample from `phase` (factor 1: not held).
+struct PositionHold {
+    int factor{1};
+    int phase{0};
+};
+
+PositionHold position_hold(const Trace& trace, std::span<const double> position) {
+    const double interval = native_interval_of(trace, Role::position);
+    const auto factor = static_cast<int>(std::lround(interval / trace.time_base().sample_time_s));
+    if (factor < 2) return {};
+    return {factor, hold_phase(position, factor)};
+}
+
+/// A drive force sampled faster than a held position, through the position's Butterworth (zero phase, the same
+/// cut-off): what the force holds above the position's band its derivatives cannot match, and a force with it and an
+/// acceleration without it bias M (IDIM's parallel filtering of y and phi; on the rotary SINUMERIK-like synthetic
+/// axis M came out 1.25 % high without, 0.9 % with, and the fit's relative error fell from 5.4 % to 1.4 %). Empty
+/// when the position is not held or not Butterworth-filtered: the force is used as it is.
+std::vector<double> force_in_position_band(std::span<const double> force, PositionHold hold, const Derivatives& d,
+                                           const PreprocessOptions& options) {
+    if (hold.factor < 2 || options.differentiation != Differentiation::butterworth) return {};
+    return filtfilt(butterworth_lowpass(options.filter_order, d.used.cutoff_hz, 1.0 / d.sample_time_s), force);
+}
+
+/// min(100 Hz, fs/10) of the position signal's native rate.
+double default_cutoff_hz(const PreprocessOptions& options, double position_interval_s) {
+    const double fs = 1.0 / position_interval_s;  // as fs/10, not 0.1/T: the same last bit as ever
+    return std::min(options.max_default_cutoff_hz, options.default_cutoff_fraction * fs);
+}
+
+/// Said when the position signal is slower than the time base: which interval the defaults used, and why.
+std::optional<std::string> held_position_note(const Derivatives& d, const PreprocessOptions& options) {
+    const double ratio = d.position_interval_s / d.sample_time_s;
+    if (!(ratio > 1.5)) return std::nullopt;
+    std::string note = fmt::format(
+        "the position signal's native interval is {:.6g} ms ({:.0f} samples of the {:.6g} ms time base; it holds each "
+        "value that long, so it is interpolated between its own samples before it is differentiated, and the drive "
+        "force goes through the same low-pass)",
+        d.position_interval_s * 1e3, ratio, d.sample_time_s * 1e3);
+    if (options.cutoff_hz) return note + fmt::format(": the cut-off {:.6g} Hz is as given", d.used.cutoff_hz);
+    return note + fmt::format(
+                      ": the default cut-off is min({:.6g} Hz, fs/{:.0f}) of its {:.6g} Hz, {:.6g} Hz, not of the "
+                      "time base's {:.6g} Hz",
+                      options.max_default_cutoff_hz, 1.0 / options.default_cutoff_fraction, 1.0 / d.position_interval_s,
+                      d.used.cutoff_hz, 1.0 / d.sample_time_s);
+}
+
 }  // namespace
 
 Derivatives preprocess(const Trace& trace, std::span<const double> force, const PreprocessOptions& options) {
@@ -111,7 +161,10 @@ Derivatives preprocess(const Trace& trace, std::span<const double> force, const 
             d.source, last > first ? last - first : 0);
         return d;
     }
-    const std::span<const double> x(position.data() + first, last - first);
+    const PositionHold hold = position_hold(trace, position);
+    const std::vector<double> sampled =
+        hold.factor > 1 ? interpolate_held(position, hold.factor, hold.phase) : std::vector<double>{};
+    const std::span<const double> x((sampled.empty() ? position.data() : sampled.data()) + first, last - first);
     if (const auto [low, high] = std::minmax_element(x.begin(), x.end()); !(*high > *low)) {
         d.failure = fmt::format(
             "{}: the position never changes in the analysis window: the axis did not move, so "
@@ -122,9 +175,9 @@ Derivatives preprocess(const Trace& trace, std::span<const double> force, const 
 
     // ---- derivatives
     d.sample_time_s = d.total >= 2 ? trace.time_base().sample_time_s : 0.0;
-    const double fs = 1.0 / d.sample_time_s;
-    d.used.cutoff_hz =
-        options.cutoff_hz.value_or(std::min(options.max_default_cutoff_hz, options.default_cutoff_fraction * fs));
+    d.position_interval_s = native_interval_of(trace, Role::position);
+    d.used.cutoff_hz = options.cutoff_hz.value_or(default_cutoff_hz(options, d.position_interval_s));
+    if (auto note = held_position_note(d, options)) d.notes.push_back(std::move(*note));
     Differentiated derivatives = differentiate(x, d.sample_time_s, options, d.used);
     if (derivatives.velocity.empty()) {
         d.failure = fmt::format("{}: the trace is shorter than the Savitzky-Golay window", d.source);
@@ -142,11 +195,13 @@ Derivatives preprocess(const Trace& trace, std::span<const double> force, const 
     const std::size_t keep_first = edge, keep_last = x.size() - edge;
     d.window = keep_last - keep_first;
     d.time = slice(time, first + keep_first, first + keep_last);
-    d.force = slice(force, first + keep_first, first + keep_last);
+    const std::vector<double> force_in_band = force_in_position_band(force, hold, d, options);
+    d.force = slice(force_in_band.empty() ? force : std::span<const double>(force_in_band), first + keep_first,
+                    first + keep_last);
     d.velocity = slice(derivatives.velocity, keep_first, keep_last);
     d.acceleration = slice(derivatives.acceleration, keep_first, keep_last);
     d.velocity_noise = noise_floor(d.velocity);
-    d.position_quantum = position_quantum(x);
+    d.position_quantum = position_quantum(position.subspan(first, last - first));  // the logged steps
 
     // ---- decimation
     d.used.decimation = std::max(1, options.decimation);

@@ -7,6 +7,7 @@
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
+#include "feedid/native_interval.hpp"
 #include "feedid/result_document.hpp"
 #include "feedid/signal.hpp"
 
@@ -439,6 +440,31 @@ double relative_error_pct(std::span<const double> measured, std::span<const doub
 
 }  // namespace
 
+namespace {
+
+/// The hold of the trace's channel with this role: {factor, phase}, factor 1 when it is not held (or absent).
+std::pair<int, int> hold_of(const Trace& trace, Role role) {
+    const auto* channel = trace.find(role);
+    if (channel == nullptr || trace.samples() < 2) return {1, 0};
+    const auto factor = static_cast<int>(std::lround(native_interval_of(trace, role) / trace.time_base().sample_time_s));
+    if (factor < 2) return {1, 0};
+    return {factor, hold_phase(channel->values, factor)};
+}
+
+/// A simulated signal as the trace records the channel with this role: held over its native interval, at the same
+/// samples (between its samples the machine's value is not known, so the comparison holds the model's alike).
+std::vector<double> held_like(const Trace& trace, Role role, std::span<const double> simulated) {
+    std::vector<double> out(simulated.begin(), simulated.end());
+    const auto [factor, phase] = hold_of(trace, role);
+    if (factor < 2) return out;
+    for (std::size_t k = static_cast<std::size_t>(phase) + 1; k < out.size(); ++k) {
+        if ((k - static_cast<std::size_t>(phase)) % static_cast<std::size_t>(factor) != 0) out[k] = out[k - 1];
+    }
+    return out;
+}
+
+}  // namespace
+
 ValidationMetrics validate_simulation(const Trace& trace, std::span<const double> measured_force,
                                       const SimulationOutput& simulated) {
     const std::size_t n = simulated.position.size();
@@ -450,25 +476,34 @@ ValidationMetrics validate_simulation(const Trace& trace, std::span<const double
     if (n == 0) return metrics;
     const double dt = trace.time_base().sample_time_s;
     // Measured velocity and acceleration: the logged velocity, or the position low-passed forwards and backwards
-    // (4th-order Butterworth at min(100 Hz, fs/10), the EMPS practice) and differenced centrally.
-    std::vector<double> velocity;
+    // (4th-order Butterworth at min(100 Hz, fs/10), the EMPS practice, fs the position signal's native rate) and
+    // differenced centrally.
+    std::vector<double> velocity, velocity_for_acceleration;
     if (const auto* logged = trace.find(Role::velocity)) {
         velocity = logged->values;
+        // a held velocity between its own samples, for its differences
+        const auto [factor, phase] = hold_of(trace, Role::velocity);
+        if (factor > 1) velocity_for_acceleration = interpolate_held(velocity, factor, phase);
     } else {
         const double fs = 1.0 / dt;
-        const auto filter = butterworth_lowpass(4, std::min(100.0, 0.1 * fs), fs);
+        const double native_rate = 1.0 / native_interval_of(trace, Role::position);
+        const auto filter = butterworth_lowpass(4, std::min(100.0, 0.1 * native_rate), fs);
         velocity = central_difference(filtfilt(filter, position), dt);
     }
-    const std::vector<double> acceleration = central_difference(velocity, dt);
-    metrics.position_relative_error_pct = relative_error_pct(position, simulated.position);
-    metrics.velocity_relative_error_pct = relative_error_pct(velocity, simulated.velocity);
+    const std::vector<double> acceleration =
+        central_difference(velocity_for_acceleration.empty() ? velocity : velocity_for_acceleration, dt);
+    const std::vector<double> simulated_position = held_like(trace, Role::position, simulated.position);
+    metrics.position_relative_error_pct = relative_error_pct(position, simulated_position);
+    metrics.velocity_relative_error_pct =
+        relative_error_pct(velocity, trace.has(Role::velocity) ? held_like(trace, Role::velocity, simulated.velocity)
+                                                               : simulated.velocity);
     metrics.acceleration_relative_error_pct = relative_error_pct(acceleration, simulated.acceleration);
     metrics.force_relative_error_pct = relative_error_pct(measured_force, simulated.force);
     double model = 0.0, machine = 0.0, modelling = 0.0;
     for (std::size_t k = 0; k < n; ++k) {
-        const double e_model = simulated.reference[k] - simulated.position[k];
+        const double e_model = simulated.reference[k] - simulated_position[k];
         const double e_machine = simulated.reference[k] - position[k];
-        const double e_m = position[k] - simulated.position[k];
+        const double e_m = position[k] - simulated_position[k];
         model += std::abs(e_model);
         machine += std::abs(e_machine);
         modelling += std::abs(e_m);
@@ -505,11 +540,12 @@ ValidationSeries validation_series(const Trace& trace, const SimulationOutput& s
     if (position.size() != n) throw InputError("simulation and trace differ in length");
     if (max_points < 6) throw InputError("validation series: at least 6 points are needed (two per error)");
     std::vector<double> machine(n), model(n), modelling(n);
+    const std::vector<double> simulated_position = held_like(trace, Role::position, simulated.position);
     // The same differences as validate_simulation(), so the series' extremes equal its largest errors.
     for (std::size_t k = 0; k < n; ++k) {
         machine[k] = simulated.reference[k] - position[k];
-        model[k] = simulated.reference[k] - simulated.position[k];
-        modelling[k] = position[k] - simulated.position[k];
+        model[k] = simulated.reference[k] - simulated_position[k];
+        modelling[k] = position[k] - simulated_position[k];
     }
     const std::array<std::span<const double>, 3> errors{machine, model, modelling};
     ValidationSeries series;

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 #include <random>
+#include <map>
 #include <set>
 
 #include <fmt/core.h>
@@ -11,6 +12,7 @@
 
 #include "feedid/error.hpp"
 #include "feedid/io/import.hpp"
+#include "feedid/units.hpp"
 
 namespace feedid {
 
@@ -36,7 +38,63 @@ constexpr double demo_integral_time_s = 0.020;
 constexpr double demo_current_lag_s = 0.3e-3;
 constexpr double demo_saturation_A = 36.0;
 
+// The rotary demo (a direct-drive rotary table): K_p such that the velocity loop's crossover K_p/J = 200 rad/s keeps
+// about 40 degrees of phase margin at a 2 ms cycle with a velocity measured over 4 ms, and above the Stribeck slope
+// (F_B - F_C)/v_s = 120 N*m*s/rad; the torque limit at 100 A.
+constexpr double rotary_demo_inertia_kgm2 = 2.0;
+constexpr double rotary_demo_velocity_gain_Nms_per_rad = 400.0;
+constexpr double rotary_demo_kt_Nm_per_A = 2.0;
+constexpr double rotary_demo_saturation_A = 100.0;
+
+// A rotary axis' test and sensor lengths are in degrees where the drive file says mm: 1 "m" of them is 1000 deg.
+constexpr double rotary_rad_per_length_unit = 1000.0 * std::numbers::pi / 180.0;
+
+// SINUMERIK servo trace: 2 ms time base, position-loop signals every 4 ms.
+constexpr double sinumerik_sample_time_s = 0.002;
+constexpr double sinumerik_position_interval_s = 0.004;
+
+// SI per unit of a recorded position or velocity ("deg" -> pi/180 rad); InputError for a unit that is not one of the
+// role's quantity on this axis kind.
+double recording_unit_scale(const std::string& unit, Role role, bool rotary) {
+    const bool position = role == Role::position;
+    const Quantity wanted = position ? (rotary ? Quantity::angle : Quantity::length)
+                                     : (rotary ? Quantity::angular_velocity : Quantity::velocity);
+    if (const auto conversion = parse_unit(unit); conversion && conversion->offset == 0.0) {
+        if (conversion->quantity == wanted) return conversion->scale;
+    } else if (rotary && !position) {
+        // motor speed on a rotary axis: revolutions per minute of the axis itself
+        for (const std::string_view rpm : {"rpm", "rev/min", "r/min", "1/min", "U/min"}) {
+            if (unit == rpm) return 2.0 * std::numbers::pi / 60.0;
+        }
+    }
+    throw InputError(fmt::format("recording: '{}' is not a unit of {} on a {} axis", unit,
+                                 position ? "position" : "velocity", rotary ? "rotary" : "linear"));
+}
+
 }  // namespace
+
+std::string RecordingModel::validate(bool rotary, double sample_time_s) const {
+    for (const auto& [name, interval] : {std::pair{"position", position_interval_s},
+                                         std::pair{"velocity", velocity_interval_s},
+                                         std::pair{"drive", drive_interval_s}}) {
+        if (!(interval >= 0.0 && std::isfinite(interval)))
+            return fmt::format("the {} signal's interval must be a time >= 0", name);
+        const double samples = interval / sample_time_s;
+        if (interval > 0.0 && (samples < 1.0 - 1e-9 || std::abs(samples - std::round(samples)) > 1e-6))
+            return fmt::format("the {} signal's interval ({:.6g} ms) must be a whole multiple of the sample time "
+                               "({:.6g} ms)",
+                               name, interval * 1e3, sample_time_s * 1e3);
+    }
+    for (const auto& [role, unit] : {std::pair{Role::position, &position_unit}, std::pair{Role::velocity, &velocity_unit}}) {
+        if (unit->empty()) continue;
+        try {
+            (void)recording_unit_scale(*unit, role, rotary);
+        } catch (const InputError& e) {
+            return e.what();
+        }
+    }
+    return {};
+}
 
 std::string TestReference::validate() const {
     if (feedrates_mm_per_min.empty() && !(slow_passes && !slow_feedrates_mm_per_min.empty())) {
@@ -74,6 +132,7 @@ std::string SensorModel::validate() const {
 }
 
 double SynthSpec::force_constant_N_per_A() const {
+    if (axis.rotary) return kt_Nm_per_A * gear_ratio;  // torque at the axis through the gear
     // eq. (2): F_d = K_t * i / R, R = l / 2*pi, times the gear ratio motor:screw
     return kt_Nm_per_A * gear_ratio * 2.0 * std::numbers::pi / lead_m;
 }
@@ -82,13 +141,9 @@ std::string SynthSpec::validate() const {
     if (!(kt_Nm_per_A > 0.0) || !(lead_m > 0.0) || !(gear_ratio > 0.0))
         return "K_t, lead and gear ratio must be positive";
     if (!(axis.mass > 0.0)) return "the mass must be positive";
-    // The test is given in mm and mm/min and the drive acts through a ball screw: a rotary table would come out as a
-    // linear axis with the wrong units. Refuse it rather than write such a trace.
-    if (axis.rotary)
-        return "rotary axes are not synthesised (the test is in mm and mm/min, the drive a ball screw); "
-               "give a linear axis";
     if (auto problem = controller.validate(); !problem.empty()) return problem;
     if (auto problem = sensors.validate(); !problem.empty()) return problem;
+    if (auto problem = recording.validate(axis.rotary, sensors.sample_time_s); !problem.empty()) return problem;
     if (auto problem = test.validate(); !problem.empty()) return problem;
     SimulationOptions zones;
     zones.friction_zones = friction_zones;
@@ -111,6 +166,39 @@ SynthSpec demo_spec() {
     spec.controller.current_lag_s = demo_current_lag_s;
     spec.controller.saturation_N = demo_saturation_A * spec.force_constant_N_per_A();
     return spec;
+}
+
+SynthSpec rotary_demo_spec() {
+    SynthSpec spec = demo_spec();
+    FrictionBranch branch;
+    branch.viscous = 5.0;
+    branch.coulomb = 20.0;
+    branch.breakaway = 26.0;
+    branch.stribeck_velocity = 0.05;
+    spec.axis.rotary = true;
+    spec.axis.mass = rotary_demo_inertia_kgm2;
+    spec.axis.friction = Friction::symmetric(branch);
+    spec.kt_Nm_per_A = rotary_demo_kt_Nm_per_A;
+    spec.controller.velocity_gain_N_s_per_m = rotary_demo_velocity_gain_Nms_per_rad;
+    spec.controller.velocity_integral_gain_N_per_m = rotary_demo_velocity_gain_Nms_per_rad / demo_integral_time_s;
+    spec.controller.saturation_N = rotary_demo_saturation_A * spec.force_constant_N_per_A();
+    return spec;
+}
+
+void apply_sinumerik_recording(SynthSpec& spec) {
+    spec.sensors.sample_time_s = sinumerik_sample_time_s;
+    spec.controller.position_cycle_s = sinumerik_position_interval_s;
+    spec.controller.velocity_cycle_s = sinumerik_sample_time_s;
+    spec.controller.velocity_difference_samples =
+        static_cast<int>(std::lround(sinumerik_position_interval_s / sinumerik_sample_time_s));
+    auto& r = spec.recording;
+    r.position_interval_s = sinumerik_position_interval_s;
+    r.velocity_interval_s = sinumerik_position_interval_s;
+    r.drive_interval_s = sinumerik_sample_time_s;
+    r.log_velocity = true;
+    r.log_torque = spec.axis.rotary;
+    r.position_unit = spec.axis.rotary ? "deg" : "mm";
+    r.velocity_unit = spec.axis.rotary ? "rpm" : "mm/min";
 }
 
 namespace {
@@ -143,6 +231,12 @@ public:
         if (!object_[key].is_boolean())
             throw InputError(fmt::format("{}: {}.{} must be true or false", source_, path_, key));
         return object_[key].get<bool>();
+    }
+    std::optional<std::string> text(const std::string& key) {
+        known_.insert(key);
+        if (!has(key)) return std::nullopt;
+        if (!object_[key].is_string()) throw InputError(fmt::format("{}: {}.{} must be a text", source_, path_, key));
+        return object_[key].get<std::string>();
     }
     std::optional<std::vector<double>> numbers(const std::string& key) {
         known_.insert(key);
@@ -231,6 +325,19 @@ void read_sensors(const nlohmann::json& object, const std::string& source, Senso
     s.reject_unknown();
 }
 
+// recording: each signal group's interval in ms (0 = every sample), which signals are logged, the units written.
+void read_recording(const nlohmann::json& object, const std::string& source, RecordingModel& recording) {
+    Section r(object, "recording", source);
+    if (const auto v = r.number("position_interval_ms")) recording.position_interval_s = *v * 1e-3;
+    if (const auto v = r.number("velocity_interval_ms")) recording.velocity_interval_s = *v * 1e-3;
+    if (const auto v = r.number("drive_interval_ms")) recording.drive_interval_s = *v * 1e-3;
+    if (const auto v = r.boolean("log_velocity")) recording.log_velocity = *v;
+    if (const auto v = r.boolean("log_torque")) recording.log_torque = *v;
+    if (auto v = r.text("position_unit")) recording.position_unit = std::move(*v);
+    if (auto v = r.text("velocity_unit")) recording.velocity_unit = std::move(*v);
+    r.reject_unknown();
+}
+
 void read_test(const nlohmann::json& object, const std::string& source, TestReference& test) {
     Section t(object, "test", source);
     if (auto v = t.numbers("feedrates_mm_per_min")) test.feedrates_mm_per_min = std::move(*v);
@@ -277,6 +384,8 @@ SynthSpec spec_from_json(const nlohmann::json& document, const std::string& sour
     top.accept("drive");
     if (top.has("sensors")) read_sensors(document["sensors"], source, spec.sensors);
     top.accept("sensors");
+    if (top.has("recording")) read_recording(document["recording"], source, spec.recording);
+    top.accept("recording");
     if (top.has("test")) read_test(document["test"], source, spec.test);
     top.accept("test");
     if (top.has("friction_zones")) spec.friction_zones = read_friction_zones(document["friction_zones"], source);
@@ -336,19 +445,33 @@ SynthSpec read_spec(const std::filesystem::path& path) {
     }
 }
 
-nlohmann::json spec_to_json(const SynthSpec& spec) {
+namespace {
+
+// The axis keys of a drive file: a linear axis' (mass_kg, ..._N) or a rotary one's (inertia_kgm2, ..._Nm).
+nlohmann::json axis_to_json(const AxisModel& model) {
+    const bool rotary = model.rotary;
+    const std::string force = rotary ? "Nm" : "N", viscous = rotary ? "Nms_per_rad" : "Ns_per_m",
+                      speed = rotary ? "rad_per_s" : "m_per_s";
     nlohmann::json axis;
-    axis["mass_kg"] = spec.axis.mass;
-    axis["offset_N"] = spec.axis.offset;
-    for (const auto& [direction, branch] : {std::pair{std::string("forward"), &spec.axis.friction.forward},
-                                            std::pair{std::string("reverse"), &spec.axis.friction.reverse}}) {
-        axis["viscous_" + direction + "_Ns_per_m"] = branch->viscous;
-        axis["coulomb_" + direction + "_N"] = branch->coulomb;
-        axis["breakaway_" + direction + "_N"] =
+    if (rotary) axis["rotary"] = true;
+    axis[rotary ? "inertia_kgm2" : "mass_kg"] = model.mass;
+    axis["offset_" + force] = model.offset;
+    for (const auto& [direction, branch] : {std::pair{std::string("forward"), &model.friction.forward},
+                                            std::pair{std::string("reverse"), &model.friction.reverse}}) {
+        axis["viscous_" + direction + "_" + viscous] = branch->viscous;
+        axis["coulomb_" + direction + "_" + force] = branch->coulomb;
+        axis["breakaway_" + direction + "_" + force] =
             branch->has_stribeck() ? nlohmann::json(*branch->breakaway) : nlohmann::json();
-        axis["stribeck_velocity_" + direction + "_m_per_s"] =
+        axis["stribeck_velocity_" + direction + "_" + speed] =
             branch->has_stribeck() ? nlohmann::json(*branch->stribeck_velocity) : nlohmann::json();
     }
+    return axis;
+}
+
+}  // namespace
+
+nlohmann::json spec_to_json(const SynthSpec& spec) {
+    const nlohmann::json axis = axis_to_json(spec.axis);
     const auto& c = spec.controller;
     nlohmann::json controller{{"position_gain_per_s", c.position_gain_per_s},
                               {"velocity_gain_N_s_per_m", c.velocity_gain_N_s_per_m},
@@ -361,6 +484,7 @@ nlohmann::json spec_to_json(const SynthSpec& spec) {
                               {"velocity_difference_samples", c.velocity_difference_samples}};
     const auto& s = spec.sensors;
     const auto& t = spec.test;
+    const auto& r = spec.recording;
     nlohmann::json zones = nlohmann::json::array();
     for (const auto& zone : spec.friction_zones) {
         zones.push_back(
@@ -388,6 +512,14 @@ nlohmann::json spec_to_json(const SynthSpec& spec) {
           {"acceleration_m_per_s2", t.acceleration_m_per_s2},
           {"dwell_s", t.dwell_s},
           {"start_mm", t.start_m * 1e3}}},
+        {"recording",
+         {{"position_interval_ms", r.position_interval_s * 1e3},
+          {"velocity_interval_ms", r.velocity_interval_s * 1e3},
+          {"drive_interval_ms", r.drive_interval_s * 1e3},
+          {"log_velocity", r.log_velocity},
+          {"log_torque", r.log_torque},
+          {"position_unit", r.position_unit},
+          {"velocity_unit", r.velocity_unit}}},
         {"friction_zones", zones},
         {"seed", spec.seed}};
 }
@@ -462,85 +594,170 @@ std::vector<double> test_reference(const TestReference& test, double sample_time
     return reference;
 }
 
+namespace {
+
+// Holds every factor-th sample (from the first) over the samples in between: a signal logged every `interval_s` on a
+// time base of `dt`.
+std::vector<double> held_every(std::vector<double> values, double interval_s, double dt) {
+    const long factor = interval_s > 0.0 ? std::lround(interval_s / dt) : 1L;
+    if (factor < 2) return values;
+    const auto step = static_cast<std::size_t>(factor);
+    for (std::size_t k = 0; k < values.size(); ++k) values[k] = values[k - k % step];
+    return values;
+}
+
+// A channel as the recorder logs it: held over its interval, which it states.
+void record(Trace& trace, std::string name, Role role, std::string unit, std::vector<double> values,
+            double interval_s, double dt) {
+    auto& channel = trace.set(std::move(name), role, std::move(unit), held_every(std::move(values), interval_s, dt));
+    channel.source_unit = channel.unit;
+    channel.native_interval_s = interval_s > 0.0 ? interval_s : dt;
+    channel.interval_source = interval_s > 0.0 ? IntervalSource::format : IntervalSource::time_base;
+}
+
+struct SensorReadings {
+    std::vector<double> time;   ///< [s]
+    std::vector<double> drive;  ///< current [A], or the torque (force) from it [N*m or N]
+};
+
+// Time stamps k/f_s (k*T where the rate is not a whole number of hertz), jittered as the sensors say, and the drive
+// force [N or N*m] as a current sensor (noise, quantum) reads it, or as the drive's torque (force) from that current.
+SensorReadings read_sensors(const SynthSpec& spec, const std::vector<double>& force) {
+    // a local generator, seeded, so that a trace is reproducible
+    std::mt19937_64 generator(spec.seed);
+    std::normal_distribution<double> noise(0.0, 1.0);
+    std::uniform_real_distribution<double> jitter(-1.0, 1.0);
+    const double dt = spec.sensors.sample_time_s;
+    const double per_ampere = spec.force_constant_N_per_A();
+    const double quantum = spec.sensors.current_resolution_A;
+    // k/f_s rather than k*T where the rate is a whole number of hertz: 0.009, not 0.009000000000000001.
+    const double rate = std::round(1.0 / dt);
+    const bool whole_rate = std::abs(rate * dt - 1.0) < whole_rate_tolerance;
+    SensorReadings out{std::vector<double>(force.size()), std::vector<double>(force.size())};
+    for (std::size_t k = 0; k < force.size(); ++k) {
+        out.time[k] = (whole_rate ? static_cast<double>(k) / rate : static_cast<double>(k) * dt) +
+                      (spec.sensors.jitter_s > 0.0 ? spec.sensors.jitter_s * jitter(generator) : 0.0);
+        const double amperes = force[k] / per_ampere + (spec.sensors.current_noise_A > 0.0
+                                                            ? spec.sensors.current_noise_A * noise(generator)
+                                                            : 0.0);
+        // + 0.0 turns -0 into 0 (a quantised zero prints as 0, not -0).
+        const double current = (quantum > 0.0 ? quantum * std::nearbyint(amperes / quantum) : amperes) + 0.0;
+        out.drive[k] = spec.recording.log_torque ? current * per_ampere : current;
+    }
+    return out;
+}
+
+// The drive constants and the true values, keyed with the axis kind's units.
+void true_values(const SynthSpec& spec, const ControllerModel& controller, std::map<std::string, double>& constants) {
+    const bool rotary = spec.axis.rotary;
+    const std::string force = rotary ? "Nm" : "N", viscous = rotary ? "Nms_per_rad" : "Ns_per_m",
+                      speed = rotary ? "rad_per_s" : "m_per_s", length = rotary ? "rad" : "m";
+    constants["kt_Nm_per_A"] = spec.kt_Nm_per_A;
+    constants["gear_ratio"] = spec.gear_ratio;
+    if (rotary) {
+        constants["torque_constant_Nm_per_A"] = spec.force_constant_N_per_A();
+    } else {
+        constants["lead_m"] = spec.lead_m;
+        constants["force_constant_N_per_A"] = spec.force_constant_N_per_A();
+    }
+    constants["seed"] = static_cast<double>(spec.seed);
+    constants[rotary ? "true_inertia_kgm2" : "true_mass_kg"] = spec.axis.mass;
+    constants["true_offset_" + force] = spec.axis.offset;
+    for (const auto& [direction, branch] : {std::pair{std::string("forward"), &spec.axis.friction.forward},
+                                            std::pair{std::string("reverse"), &spec.axis.friction.reverse}}) {
+        constants["true_viscous_" + direction + "_" + viscous] = branch->viscous;
+        constants["true_coulomb_" + direction + "_" + force] = branch->coulomb;
+        if (branch->has_stribeck()) {
+            constants["true_breakaway_" + direction + "_" + force] = *branch->breakaway;
+            constants["true_stribeck_velocity_" + direction + "_" + speed] = *branch->stribeck_velocity;
+        }
+    }
+    const double zone_scale = rotary ? rotary_rad_per_length_unit : 1.0;
+    for (std::size_t z = 0; z < spec.friction_zones.size(); ++z) {
+        const auto& zone = spec.friction_zones[z];
+        constants[fmt::format("true_friction_zone{}_from_{}", z + 1, length)] = zone.from_m * zone_scale;
+        constants[fmt::format("true_friction_zone{}_to_{}", z + 1, length)] = zone.to_m * zone_scale;
+        constants[fmt::format("true_friction_zone{}_coulomb_factor", z + 1)] = zone.coulomb_factor;
+    }
+    constants["true_position_gain_per_s"] = controller.position_gain_per_s;
+    constants[rotary ? "true_velocity_gain_Nms_per_rad" : "true_velocity_gain_N_s_per_m"] =
+        controller.velocity_gain_N_s_per_m;
+    constants[rotary ? "true_velocity_integral_gain_Nm_per_rad" : "true_velocity_integral_gain_N_per_m"] =
+        controller.velocity_integral_gain_N_per_m;
+    constants["true_current_lag_s"] = controller.current_lag_s;
+}
+
+// The closed loop simulated on the reference: lengths of a rotary axis' test, encoder and friction zones in radians.
+SimulationOutput simulate_spec(const SynthSpec& spec, const ControllerModel& controller,
+                               const std::vector<double>& reference) {
+    const double scale = spec.axis.rotary ? rotary_rad_per_length_unit : 1.0;
+    SimulationInput input;
+    input.sample_time_s = spec.sensors.sample_time_s;
+    input.reference = reference;
+    SimulationOptions options;
+    options.substeps = spec.sensors.substeps;
+    if (spec.sensors.position_resolution_m > 0.0)
+        options.position_resolution_m = spec.sensors.position_resolution_m * scale;
+    options.friction_zones = spec.friction_zones;
+    for (auto& zone : options.friction_zones) {
+        zone.from_m *= scale;
+        zone.to_m *= scale;
+    }
+    return simulate(spec.axis, controller, input, options);
+}
+
+}  // namespace
+
 Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>& reference_override) {
     if (const auto problem = spec.validate(); !problem.empty()) throw InputError("synth: " + problem);
     const double dt = spec.sensors.sample_time_s;
-    const std::vector<double> reference = reference_override ? *reference_override : test_reference(spec.test, dt);
+    std::vector<double> reference = reference_override ? *reference_override : test_reference(spec.test, dt);
     if (reference.size() < 2) throw InputError("synth: the reference needs at least two samples");
+    if (spec.axis.rotary && !reference_override) {
+        for (double& r : reference) r *= rotary_rad_per_length_unit;  // the test's "mm" are degrees
+    }
 
     ControllerModel controller = spec.controller;
     if (controller.position_cycle_s == 0.0) controller.position_cycle_s = dt;
     if (controller.velocity_cycle_s == 0.0) controller.velocity_cycle_s = controller.position_cycle_s;
-    SimulationInput input;
-    input.sample_time_s = dt;
-    input.reference = reference;
-    SimulationOptions options;
-    options.substeps = spec.sensors.substeps;
-    if (spec.sensors.position_resolution_m > 0.0) options.position_resolution_m = spec.sensors.position_resolution_m;
-    options.friction_zones = spec.friction_zones;
-    const SimulationOutput simulated = simulate(spec.axis, controller, input, options);
+    SimulationOutput simulated = simulate_spec(spec, controller, reference);
 
-    // Sensors: a local generator, seeded, so that a trace is reproducible.
-    std::mt19937_64 generator(spec.seed);
-    std::normal_distribution<double> noise(0.0, 1.0);
-    std::uniform_real_distribution<double> jitter(-1.0, 1.0);
-    const std::size_t n = reference.size();
-    const double force_per_ampere = spec.force_constant_N_per_A();
-    const auto quantise = [](double value, double quantum) {
-        // + 0.0 turns -0 into 0 (a quantised zero prints as 0, not -0).
-        return (quantum > 0.0 ? quantum * std::nearbyint(value / quantum) : value) + 0.0;
-    };
-    std::vector<double> time(n), current(n);
-    // k/f_s rather than k*T where the rate is a whole number of hertz: 0.009, not 0.009000000000000001.
-    const double rate = std::round(1.0 / dt);
-    const bool whole_rate = std::abs(rate * dt - 1.0) < whole_rate_tolerance;
-    for (std::size_t k = 0; k < n; ++k) {
-        time[k] = (whole_rate ? static_cast<double>(k) / rate : static_cast<double>(k) * dt) +
-                  (spec.sensors.jitter_s > 0.0 ? spec.sensors.jitter_s * jitter(generator) : 0.0);
-        const double amperes =
-            simulated.force[k] / force_per_ampere +
-            (spec.sensors.current_noise_A > 0.0 ? spec.sensors.current_noise_A * noise(generator) : 0.0);
-        current[k] = quantise(amperes, spec.sensors.current_resolution_A);
-    }
+    SensorReadings sensors = read_sensors(spec, simulated.force);
 
+    const bool rotary = spec.axis.rotary;
+    const std::string length = rotary ? "rad" : "m", speed = rotary ? "rad/s" : "m/s";
+    const auto& r = spec.recording;
     Trace trace;
     trace.format = "synthetic";
-    trace.rotary = spec.axis.rotary;
-    trace.set("t", Role::time, "s", std::move(time));
-    trace.set("x_ref", Role::reference_position, "m", reference);
-    trace.set("x", Role::position, "m", simulated.measured_position);
-    trace.set("v_cmd", Role::velocity_command, "m/s", simulated.velocity_command);
-    trace.set("i", Role::current, "A", std::move(current));
-    for (auto& channel : trace.channels) channel.source_unit = channel.unit;
-
-    auto& constants = trace.constants;
-    constants["kt_Nm_per_A"] = spec.kt_Nm_per_A;
-    constants["lead_m"] = spec.lead_m;
-    constants["gear_ratio"] = spec.gear_ratio;
-    constants["force_constant_N_per_A"] = force_per_ampere;
-    constants["seed"] = static_cast<double>(spec.seed);
-    constants["true_mass_kg"] = spec.axis.mass;
-    constants["true_offset_N"] = spec.axis.offset;
-    for (const auto& [direction, branch] : {std::pair{std::string("forward"), &spec.axis.friction.forward},
-                                            std::pair{std::string("reverse"), &spec.axis.friction.reverse}}) {
-        constants["true_viscous_" + direction + "_Ns_per_m"] = branch->viscous;
-        constants["true_coulomb_" + direction + "_N"] = branch->coulomb;
-        if (branch->has_stribeck()) {
-            constants["true_breakaway_" + direction + "_N"] = *branch->breakaway;
-            constants["true_stribeck_velocity_" + direction + "_m_per_s"] = *branch->stribeck_velocity;
-        }
-    }
-    for (std::size_t z = 0; z < spec.friction_zones.size(); ++z) {
-        const auto& zone = spec.friction_zones[z];
-        constants[fmt::format("true_friction_zone{}_from_m", z + 1)] = zone.from_m;
-        constants[fmt::format("true_friction_zone{}_to_m", z + 1)] = zone.to_m;
-        constants[fmt::format("true_friction_zone{}_coulomb_factor", z + 1)] = zone.coulomb_factor;
-    }
-    constants["true_position_gain_per_s"] = controller.position_gain_per_s;
-    constants["true_velocity_gain_N_s_per_m"] = controller.velocity_gain_N_s_per_m;
-    constants["true_velocity_integral_gain_N_per_m"] = controller.velocity_integral_gain_N_per_m;
-    constants["true_current_lag_s"] = controller.current_lag_s;
+    trace.rotary = rotary;
+    record(trace, "t", Role::time, "s", std::move(sensors.time), 0.0, dt);
+    record(trace, "x_ref", Role::reference_position, length, reference, r.position_interval_s, dt);
+    record(trace, "x", Role::position, length, std::move(simulated.measured_position), r.position_interval_s, dt);
+    record(trace, "v_cmd", Role::velocity_command, speed, std::move(simulated.velocity_command), r.position_interval_s,
+           dt);
+    if (r.log_velocity)
+        record(trace, "v", Role::velocity, speed, std::move(simulated.velocity), r.velocity_interval_s, dt);
+    if (r.log_torque)
+        record(trace, "tau", Role::force, rotary ? "N*m" : "N", std::move(sensors.drive), r.drive_interval_s, dt);
+    else
+        record(trace, "i", Role::current, "A", std::move(sensors.drive), r.drive_interval_s, dt);
+    true_values(spec, controller, trace.constants);
     return trace;
+}
+
+Trace in_recording_units(const Trace& trace, const RecordingModel& recording) {
+    Trace out = trace;
+    for (auto& channel : out.channels) {
+        const bool position = channel.role == Role::position || channel.role == Role::reference_position;
+        const bool velocity = channel.role == Role::velocity || channel.role == Role::velocity_command;
+        const std::string& unit = position ? recording.position_unit : velocity ? recording.velocity_unit : "";
+        if (unit.empty() || (!position && !velocity)) continue;
+        const double scale = recording_unit_scale(unit, position ? Role::position : Role::velocity, trace.rotary);
+        for (double& value : channel.values) value /= scale;
+        channel.unit = unit;
+        channel.source_unit = unit;
+    }
+    return out;
 }
 
 }  // namespace feedid

@@ -36,6 +36,15 @@ std::string_view role_name(Role role) {
     return "other";
 }
 
+std::string_view interval_source_name(IntervalSource source) {
+    switch (source) {
+        case IntervalSource::format: return "format";
+        case IntervalSource::detected: return "detected";
+        case IntervalSource::time_base: break;
+    }
+    return "time base";
+}
+
 std::optional<Role> parse_role(std::string_view name) {
     for (const auto& [r, role_string] : role_names) {
         if (role_string == name) return r;
@@ -90,6 +99,8 @@ Channel& Trace::set(std::string name, Role role, std::string unit, std::vector<d
         existing->role = role;
         existing->unit = std::move(unit);
         existing->values = std::move(values);
+        existing->native_interval_s.reset();  // new values: what was known of the old ones no longer holds
+        existing->interval_source = IntervalSource::time_base;
         return *existing;
     }
     channels.push_back(Channel{std::move(name), role, unit, unit, std::move(values)});
@@ -172,7 +183,8 @@ Trace Trace::slice(std::size_t first, std::size_t last) const {
     last = std::min(last, samples());
     first = std::min(first, last);
     for (const auto& channel : channels) {
-        Channel copy{channel.name, channel.role, channel.unit, channel.source_unit, {}};
+        Channel copy{channel.name, channel.role, channel.unit, channel.source_unit, {}, channel.native_interval_s,
+                     channel.interval_source};
         copy.values.assign(channel.values.begin() + static_cast<std::ptrdiff_t>(first),
                            channel.values.begin() + static_cast<std::ptrdiff_t>(last));
         out.channels.push_back(std::move(copy));

@@ -179,15 +179,25 @@ TEST(Synth, DriveFileOverridesTheDemoAndRejectsUnknownKeys) {
                  feedid::InputError);
 }
 
-TEST(Synth, ARotaryDriveIsRefusedNotWrittenInLinearUnits) {
-    feedid::SynthSpec spec = feedid::demo_spec();
-    spec.axis.rotary = true;
-    try {
-        (void)feedid::synthesize(spec);
-        FAIL() << "expected an InputError";
-    } catch (const feedid::InputError& e) {
-        EXPECT_NE(std::string(e.what()).find("rotary"), std::string::npos) << e.what();
-    }
+TEST(Synth, ARotaryDriveIsWrittenInRotaryUnitsNotLinearOnes) {
+    auto spec = feedid::rotary_demo_spec();
+    spec.test.feedrates_mm_per_min = {1250, 9350};
+    spec.test.slow_passes = false;
+    const auto trace = feedid::synthesize(spec);
+    EXPECT_TRUE(trace.rotary);
+    EXPECT_EQ(trace.find(feedid::Role::position)->unit, "rad");
+    EXPECT_EQ(trace.find(feedid::Role::velocity_command)->unit, "rad/s");
+    // the test's 30 "mm" stroke is 30 degrees on a rotary axis
+    const auto reference = trace.column(feedid::Role::reference_position);
+    EXPECT_NEAR(*std::max_element(reference.begin(), reference.end()), 30.0 * M_PI / 180.0, 1e-12);
+    // torque per ampere without a lead: K_t times the gear ratio
+    EXPECT_DOUBLE_EQ(trace.constants.at("torque_constant_Nm_per_A"), 2.0);
+    EXPECT_EQ(trace.constants.count("force_constant_N_per_A"), 0u);
+    EXPECT_DOUBLE_EQ(trace.constants.at("true_viscous_forward_Nms_per_rad"), 5.0);
+    // the printed drive file is rotary and reads back to the same spec
+    const auto printed = feedid::spec_to_json(spec);
+    EXPECT_TRUE(printed["axis"].contains("inertia_kgm2"));
+    EXPECT_EQ(feedid::spec_to_json(feedid::spec_from_json(printed, "printed")), printed);
 }
 
 TEST(Synth, DriveFileFrictionZones) {

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -23,6 +24,13 @@ std::optional<std::pair<double, double>> finite_range(const std::vector<double>&
         range->second = std::max(range->second, value);
     }
     return range;
+}
+
+// "4 ms (format)", "4 ms (detected)", "2 ms (time base)"; "-" when unknown.
+std::string native_interval_text(const Channel& channel) {
+    if (!channel.native_interval_s) return "-";
+    return fmt::format("{:.6g} ms ({})", *channel.native_interval_s * 1e3,
+                       interval_source_name(channel.interval_source));
 }
 
 struct InfoCommand {
@@ -47,6 +55,9 @@ struct InfoCommand {
             const auto range = finite_range(channel.values);
             entry["min"] = range ? nlohmann::json(range->first) : nlohmann::json();
             entry["max"] = range ? nlohmann::json(range->second) : nlohmann::json();
+            entry["native_interval_s"] =
+                channel.native_interval_s ? nlohmann::json(*channel.native_interval_s) : nlohmann::json();
+            entry["interval_source"] = interval_source_name(channel.interval_source);
             document["channels"].push_back(entry);
         }
         document["constants"] = trace.constants;
@@ -63,13 +74,15 @@ struct InfoCommand {
         fmt::print("  duration     {:.6g} s\n", base.duration_s);
         fmt::print("  axis         {}\n", trace.rotary ? "rotary" : "linear");
         fmt::print("  channels\n");
-        fmt::print("    {:<28} {:<20} {:<8} {:<10} {:>14} {:>14}\n", "name", "role", "unit", "source", "min", "max");
+        fmt::print("    {:<28} {:<20} {:<8} {:<10} {:>14} {:>14}  {}\n", "name", "role", "unit", "source", "min", "max",
+                   "native interval");
         for (const auto& channel : trace.channels) {
             const auto range = finite_range(channel.values);
-            fmt::print(
-                "    {:<28} {:<20} {:<8} {:<10} {:>14} {:>14}\n", channel.name, role_name(channel.role),
-                channel.unit.empty() ? "-" : channel.unit, channel.source_unit.empty() ? "-" : channel.source_unit,
-                range ? fmt::format("{:.6g}", range->first) : "-", range ? fmt::format("{:.6g}", range->second) : "-");
+            fmt::print("    {:<28} {:<20} {:<8} {:<10} {:>14} {:>14}  {}\n", channel.name, role_name(channel.role),
+                       channel.unit.empty() ? "-" : channel.unit,
+                       channel.source_unit.empty() ? "-" : channel.source_unit,
+                       range ? fmt::format("{:.6g}", range->first) : "-",
+                       range ? fmt::format("{:.6g}", range->second) : "-", native_interval_text(channel));
         }
         if (!trace.constants.empty()) {
             fmt::print("  constants\n");

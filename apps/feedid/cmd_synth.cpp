@@ -49,10 +49,18 @@ struct SynthCommand {
     std::optional<std::uint64_t> seed;
     bool no_slow_passes{false};
     bool print_drive{false};
+    bool rotary{false};
+    std::string preset;
 
     int run() const {
-        SynthSpec spec = demo_spec();
+        SynthSpec spec = rotary ? rotary_demo_spec() : demo_spec();
         if (!drive_path.empty()) spec = read_spec(drive_path);
+        if (rotary && !spec.axis.rotary) {
+            throw InputError(fmt::format("synth --rotary: the drive file {} describes a linear axis (give "
+                                         "axis.inertia_kgm2, or leave out --rotary)",
+                                         drive_path));
+        }
+        if (preset == "sinumerik") apply_sinumerik_recording(spec);
         if (seed) spec.seed = *seed;
         if (no_slow_passes) spec.test.slow_passes = false;
         if (print_drive) {
@@ -63,7 +71,7 @@ struct SynthCommand {
         std::optional<std::vector<double>> reference;
         if (!reference_path.empty()) reference = read_reference(reference_path, spec.sensors.sample_time_s);
         Trace trace = synthesize(spec, reference);
-        const std::string text = write_csv(trace);
+        const std::string text = write_csv(in_recording_units(trace, spec.recording));
         std::ofstream out(out_path, std::ios::binary);
         out << text;
         if (!out) throw InputError(fmt::format("{}: cannot write the file", out_path));
@@ -92,6 +100,14 @@ Action add_synth_command(CLI::App& app) {
     sub->add_flag("--no-slow-passes", command->no_slow_passes,
                   "Leave out the slow passes: the paper's feedrate ladder (1250..9350 mm/min) alone");
     sub->add_flag("--print-drive", command->print_drive, "Print the drive file in use (every key) as JSON");
+    sub->add_flag("--rotary", command->rotary,
+                  "A rotary axis: the rotary demo drive (a rotary table, SI rad, kg*m^2, N*m), or check that the "
+                  "drive file's axis is rotary");
+    sub->add_option("--preset", command->preset,
+                    "Record as a control does: 'sinumerik' = a SINUMERIK servo trace (2 ms time base; position, "
+                    "reference, velocity command and actual velocity every 4 ms, held; torque (rotary) or current "
+                    "every 2 ms; positions in deg or mm, velocities in rpm or mm/min)")
+        ->check(CLI::IsMember({"sinumerik"}));
     sub->footer(
         "The default drive: the paper's M 69.1 kg, B 54.2 N*s/m, F_C 742.8 N, F_B 946.2 N, v_s 5 mm/s; K_v 2 "
         "(m/min)/mm, "
@@ -114,7 +130,9 @@ Action add_synth_command(CLI::App& app) {
         "      kv_m_per_min_per_mm = 2.5\n"
         "      velocity_gain_N_s_per_m = 40000.0\n"
         "      tn_ms = 15.0\n"
-        "  feedid identify synth.csv --force-constant force_constant_N_per_A");
+        "  feedid identify synth.csv --force-constant force_constant_N_per_A\n"
+        "  feedid synth --rotary --preset sinumerik --out rotary.csv      # deg, rpm, N*m; 2 ms and 4 ms signals\n"
+        "  feedid identify rotary.csv");
     return [command] { return command->run(); };
 }
 

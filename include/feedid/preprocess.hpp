@@ -18,7 +18,9 @@ enum class Differentiation { central, butterworth, savitzky_golay };
 struct PreprocessOptions {
     Differentiation differentiation{Differentiation::butterworth};
     int filter_order{4};                      ///< Butterworth order
-    std::optional<double> cutoff_hz;          ///< [Hz]; default min(max_default_cutoff_hz, default_cutoff_fraction*fs)
+    /// [Hz]; default min(max_default_cutoff_hz, default_cutoff_fraction*fs), fs the position signal's native rate
+    /// (1 / its native interval: a position held over k samples of a finer grid has 1/k of the grid's rate)
+    std::optional<double> cutoff_hz;
     int savitzky_golay_window{0};             ///< [samples], odd; 0 = the odd count spanning savitzky_golay_span_s
     int savitzky_golay_order{3};              ///< polynomial order
     int decimation{0};                        ///< keep every N-th sample after the anti-alias filter; 0 or 1 = none
@@ -70,6 +72,11 @@ struct Derivatives {
     /// column).
     std::vector<double> full_rate_velocity;
     std::vector<double> full_rate_acceleration;
+
+    /// The position signal's native interval, which the rate-dependent defaults come from [s].
+    double position_interval_s{0.0};
+    /// What the stage chose and why, where a user would not expect it (a position held over several samples).
+    std::vector<std::string> notes;
 
     /// Why nothing can be identified from this trace ("" when the stage succeeded).
     std::string failure;

@@ -50,7 +50,27 @@ struct SensorModel {
     [[nodiscard]] std::string validate() const;
 };
 
+/// How the recorder logs the signals (an NC's trace): each signal group's own interval, held (forward-filled) on the
+/// trace's time base as a SINUMERIK servo trace does, the units it writes, and which signals it logs.
+struct RecordingModel {
+    /// Position, reference position and velocity command are logged every this [s] (the position loop's cycle) and
+    /// held in between; 0 = every sample.
+    double position_interval_s{0.0};
+    double velocity_interval_s{0.0};  ///< the actual velocity's interval [s]; 0 = every sample
+    double drive_interval_s{0.0};     ///< the current's (or torque's) interval [s]; 0 = every sample
+    bool log_velocity{false};         ///< log the actual velocity too (channel `v`)
+    bool log_torque{false};           ///< log the drive torque (force) `tau` [N*m or N] instead of the current `i` [A]
+    std::string position_unit;        ///< the unit `feedid synth` writes positions in ("deg", "mm"); "" = SI
+    std::string velocity_unit;        ///< ... velocities ("rpm", "deg/min", "mm/min"); "" = SI
+
+    /// What is wrong, given the axis kind and the trace's sample time ("" when nothing).
+    [[nodiscard]] std::string validate(bool rotary, double sample_time_s) const;
+};
+
 /// Everything `feedid synth` needs: the drive, its controller, the sensors, the test, the seed.
+/// A rotary axis (axis.rotary) is SI of its kind inside: rad, rad/s, kg*m^2, N*m; its test and sensor lengths are read
+/// in degrees where the keys say mm, as an NC does for a rotary axis (stroke 30 mm is 30 deg, 9350 mm/min is
+/// 9350 deg/min, a 1 um encoder quantum 0.001 deg), and its drive has no lead: torque = K_t * gear ratio * i.
 struct SynthSpec {
     AxisModel axis;
     ControllerModel controller;
@@ -58,12 +78,13 @@ struct SynthSpec {
     double lead_m{0.020};       ///< ball-screw lead [m]
     double gear_ratio{1.0};     ///< motor revolutions per screw revolution
     SensorModel sensors;
+    RecordingModel recording;
     TestReference test;
     /// Friction along the axis: stretches with scaled Coulomb and breakaway friction (a worn part of the screw).
     std::vector<FrictionZone> friction_zones;
     std::uint64_t seed{1};
 
-    /// Force per ampere [N/A] = K_t * g * 2*pi / lead (eq. 2).
+    /// Force per ampere [N/A] = K_t * g * 2*pi / lead (eq. 2); on a rotary axis torque per ampere [N*m/A] = K_t * g.
     [[nodiscard]] double force_constant_N_per_A() const;
     [[nodiscard]] std::string validate() const;
 };
@@ -71,6 +92,20 @@ struct SynthSpec {
 /// The demo drive: the paper's M 69.1 kg, B 54.2 N*s/m, F_C 742.8 N, F_B 946.2 N with a ball-screw-typical
 /// v_s = 5 mm/s, K_v = 2 (m/min)/mm, K_p = 40000 N*s/m, T_n = 20 ms, 1 kHz, with slow passes.
 SynthSpec demo_spec();
+
+/// The rotary demo drive (a direct-drive rotary table): J 2.0 kg*m^2, B 5.0 N*m*s/rad, F_C 20 N*m, F_B 26 N*m,
+/// v_s 0.05 rad/s; K_v 2 (1000 deg/min)/deg, K_p 400 N*m*s/rad, T_n 20 ms; K_t 2 N*m/A; 1 kHz.
+SynthSpec rotary_demo_spec();
+
+/// Records `spec` as a SINUMERIK servo trace does: 2 ms time base, the position loop (and so position, reference and
+/// velocity command, and the actual velocity) every 4 ms, the velocity loop and the torque every 2 ms; the velocity
+/// loop measures its velocity over the last 4 ms; positions written in deg (rotary) or mm, velocities in rpm or
+/// mm/min, the torque in N*m (rotary) or the current in A.
+void apply_sinumerik_recording(SynthSpec& spec);
+
+/// The trace in the units the recording states (positions, velocities), for writing: values converted from SI and
+/// the channels' units set to them. Throws InputError for a unit that does not fit the axis kind.
+Trace in_recording_units(const Trace& trace, const RecordingModel& recording);
 
 /// Reads a drive file (JSON; see `feedid synth --help` and the README for the keys); unspecified fields keep the
 /// demo values. InputError naming `source` and the key on a bad value.
@@ -86,9 +121,12 @@ nlohmann::json spec_to_json(const SynthSpec& spec);
 /// limited) between dwells.
 std::vector<double> test_reference(const TestReference& test, double sample_time_s);
 
-/// Generates the trace: channels t [s], x_ref [m], x [m], v_cmd [m/s], i [A] (and F_ext [N] when an external force
-/// is given); constants kt_Nm_per_A, lead_m, gear_ratio, force_constant_N_per_A and the true values (true_mass_kg,
-/// ...). `reference` overrides the test (sampled every sensors.sample_time_s). Deterministic for a given seed.
+/// Generates the trace: channels t [s], x_ref [m], x [m], v_cmd [m/s], i [A] (or tau [N] with recording.log_torque;
+/// v [m/s] with recording.log_velocity); on a rotary axis rad, rad/s, N*m. Each channel's native interval is the
+/// recording's (format source), its values held over it. Constants kt_Nm_per_A, gear_ratio, lead_m and
+/// force_constant_N_per_A (linear) or torque_constant_Nm_per_A (rotary), and the true values (true_mass_kg or
+/// true_inertia_kgm2, ...). `reference` overrides the test (sampled every sensors.sample_time_s). Deterministic for a
+/// given seed.
 Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>& reference = std::nullopt);
 
 }  // namespace feedid

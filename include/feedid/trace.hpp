@@ -29,12 +29,27 @@ std::string_view role_name(Role role);
 /// The inverse of role_name; nullopt for an unknown name.
 std::optional<Role> parse_role(std::string_view name);
 
+/// How a channel's native interval is known.
+enum class IntervalSource {
+    time_base,  ///< none other known: the trace's own sample time (the channel was sampled on the grid)
+    format,     ///< stated by the file (a SINUMERIK dataSignal's interval, a TwinCAT Scope channel's sample time)
+    detected,   ///< found in the data: the channel holds each value over k grid samples (sample-and-hold, k >= 2)
+};
+
+/// "time base", "format", "detected" (as in `feedid info`).
+std::string_view interval_source_name(IntervalSource source);
+
 struct Channel {
     std::string name;  ///< As in the source file.
     Role role{Role::other};
     std::string unit;         ///< SI unit of `values` ("m", "A", ...); empty when the source gave none.
     std::string source_unit;  ///< The unit the source file stated (empty when none).
     std::vector<double> values;
+    /// The interval at which the source signal was sampled before it was put on the trace's time base [s]: a
+    /// multiple of the sample time for a slower signal held (forward-filled) on a finer grid. Empty until import
+    /// resolves it (resolve_native_intervals()); the time base's sample time when nothing else is known.
+    std::optional<double> native_interval_s{};
+    IntervalSource interval_source{IntervalSource::time_base};
 };
 
 /// Statistics of the time base: the sample time and how regular it is.

@@ -17,6 +17,7 @@
 #include "feedid/io/ni_daq.hpp"
 #include "feedid/io/sinumerik_trace.hpp"
 #include "feedid/io/twincat_scope.hpp"
+#include "feedid/native_interval.hpp"
 
 namespace feedid {
 
@@ -435,6 +436,7 @@ void prepare_trace(Trace& trace, const ImportOptions& options) {
     add_time_from_sample_time(trace, options);
     convert_units(trace, options);
     trace.validate();
+    resolve_native_intervals(trace);
 }
 
 std::string read_file_bytes(const std::filesystem::path& path) {

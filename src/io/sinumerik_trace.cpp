@@ -584,6 +584,8 @@ std::vector<Channel> axis_channels(const std::vector<Signal>& signals, const std
         channel.name = name_use[signal.variable] > 1 ? signal.variable + "_" + signal.key : signal.variable;
         channel.source_unit = unit_of(signal.units_type).value_or(signal.units_type);
         channel.values = held_on_time_base(signal, time);
+        channel.native_interval_s = signal.interval_s;
+        channel.interval_source = IntervalSource::format;
         channels.push_back(std::move(channel));
     }
     return channels;

@@ -567,9 +567,14 @@ Trace parse_twincat_scope(std::string_view text, const std::string& source) {
     for (std::size_t g = 0; g < layout.groups.size(); ++g) {
         for (std::size_t c = 0; c < layout.groups[g].channel_columns.size(); ++c) {
             const std::size_t k = samples.first_channel[g] + c;
-            trace.channels.push_back(
-                Channel{names[k], Role::other, "", units[k],
-                        values_on_base(samples.times[g], samples.values[k], g == base.finest, base)});
+            Channel channel{names[k], Role::other, "", units[k],
+                            values_on_base(samples.times[g], samples.values[k], g == base.finest, base)};
+            // each group's own sample time (its median time step, in ms)
+            if (std::isfinite(base.steps[g])) {
+                channel.native_interval_s = base.steps[g] * 1e-3;
+                channel.interval_source = IntervalSource::format;
+            }
+            trace.channels.push_back(std::move(channel));
         }
     }
     return trace;
