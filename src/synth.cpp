@@ -5,6 +5,7 @@
 #include <numbers>
 #include <random>
 #include <set>
+#include <span>
 
 #include <fmt/core.h>
 #include <toml++/toml.h>
@@ -73,6 +74,22 @@ std::string SensorModel::validate() const {
     return {};
 }
 
+double SquareWaveInjection::at(double time_s) const {
+    const double phase = time_s * frequency_Hz;
+    return phase - std::floor(phase) < 0.5 ? amplitude_N : 0.0;
+}
+
+std::string SquareWaveInjection::validate(double sample_time_s) const {
+    if (!(std::isfinite(amplitude_N) && amplitude_N != 0.0)) return "the injection's amplitude must be a number != 0 [N]";
+    // At least four samples per half period, so that each half of the wave is seen as a level.
+    const double highest = 1.0 / (8.0 * sample_time_s);
+    if (!(frequency_Hz > 0.0 && frequency_Hz <= highest)) {
+        return fmt::format("the injection's frequency must lie in (0, {:g}] Hz (four samples per half period)",
+                           highest);
+    }
+    return {};
+}
+
 double SynthSpec::force_constant_N_per_A() const {
     // eq. (2): F_d = K_t * i / R, R = l / 2*pi, times the gear ratio motor:screw
     return kt_Nm_per_A * gear_ratio * 2.0 * std::numbers::pi / lead_m;
@@ -90,6 +107,9 @@ std::string SynthSpec::validate() const {
     if (auto problem = controller.validate(); !problem.empty()) return problem;
     if (auto problem = sensors.validate(); !problem.empty()) return problem;
     if (auto problem = test.validate(); !problem.empty()) return problem;
+    if (injection) {
+        if (auto problem = injection->validate(sensors.sample_time_s); !problem.empty()) return problem;
+    }
     SimulationOptions zones;
     zones.friction_zones = friction_zones;
     if (auto problem = zones.validate(); !problem.empty()) return problem;
@@ -462,6 +482,32 @@ std::vector<double> test_reference(const TestReference& test, double sample_time
     return reference;
 }
 
+namespace {
+
+// The injected signal u_inj(k*T) [N] (held over each sample), or empty when the spec has none.
+std::vector<double> injected_signal(const SynthSpec& spec, std::size_t samples) {
+    std::vector<double> signal;
+    if (!spec.injection) return signal;
+    signal.resize(samples);
+    for (std::size_t k = 0; k < samples; ++k)
+        signal[k] = spec.injection->at(static_cast<double>(k) * spec.sensors.sample_time_s);
+    return signal;
+}
+
+// The injected signal as the controller logs it: its own channel, in the drive signal's units (A, as the current),
+// exact (a setpoint, not a measurement); and its true values.
+void log_injection(const SynthSpec& spec, std::span<const double> injection, Trace& trace) {
+    if (!spec.injection) return;
+    const double per_ampere = spec.force_constant_N_per_A();
+    std::vector<double> amperes(injection.size());
+    for (std::size_t k = 0; k < amperes.size(); ++k) amperes[k] = injection[k] / per_ampere;
+    trace.set("injection", Role::injection, "A", std::move(amperes)).source_unit = "A";
+    trace.constants["true_injection_amplitude_N"] = spec.injection->amplitude_N;
+    trace.constants["true_injection_frequency_Hz"] = spec.injection->frequency_Hz;
+}
+
+}  // namespace
+
 Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>& reference_override) {
     if (const auto problem = spec.validate(); !problem.empty()) throw InputError("synth: " + problem);
     const double dt = spec.sensors.sample_time_s;
@@ -471,9 +517,8 @@ Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>
     ControllerModel controller = spec.controller;
     if (controller.position_cycle_s == 0.0) controller.position_cycle_s = dt;
     if (controller.velocity_cycle_s == 0.0) controller.velocity_cycle_s = controller.position_cycle_s;
-    SimulationInput input;
-    input.sample_time_s = dt;
-    input.reference = reference;
+    const std::vector<double> injection = injected_signal(spec, reference.size());
+    const SimulationInput input{dt, reference, {}, injection};
     SimulationOptions options;
     options.substeps = spec.sensors.substeps;
     if (spec.sensors.position_resolution_m > 0.0) options.position_resolution_m = spec.sensors.position_resolution_m;
@@ -540,6 +585,7 @@ Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>
     constants["true_velocity_gain_N_s_per_m"] = controller.velocity_gain_N_s_per_m;
     constants["true_velocity_integral_gain_N_per_m"] = controller.velocity_integral_gain_N_per_m;
     constants["true_current_lag_s"] = controller.current_lag_s;
+    log_injection(spec, injection, trace);
     return trace;
 }
 

@@ -50,6 +50,19 @@ struct SensorModel {
     [[nodiscard]] std::string validate() const;
 };
 
+/// A test signal added to the controller's force command before the current loop, as a disturbance-injection
+/// experiment adds it (EMPS's validation pulses, SINUMERIK's additive torque setpoint, a drive's function
+/// generator): a square wave at `amplitude_N` for the first half of each period and 0 for the second, from t = 0.
+struct SquareWaveInjection {
+    double amplitude_N{300.0};  ///< the wave's high level [N] (negative: a wave below zero)
+    double frequency_Hz{1.0};   ///< [Hz]
+
+    /// u_inj(t) [N].
+    [[nodiscard]] double at(double time_s) const;
+    /// What is wrong with it for a trace sampled every `sample_time_s` ("" when nothing).
+    [[nodiscard]] std::string validate(double sample_time_s) const;
+};
+
 /// Everything `feedid synth` needs: the drive, its controller, the sensors, the test, the seed.
 struct SynthSpec {
     AxisModel axis;
@@ -61,6 +74,8 @@ struct SynthSpec {
     TestReference test;
     /// Friction along the axis: stretches with scaled Coulomb and breakaway friction (a worn part of the screw).
     std::vector<FrictionZone> friction_zones;
+    /// A test signal injected at the controller's output, logged as its own channel; none = no injection.
+    std::optional<SquareWaveInjection> injection;
     std::uint64_t seed{1};
 
     /// Force per ampere [N/A] = K_t * g * 2*pi / lead (eq. 2).
@@ -87,7 +102,8 @@ nlohmann::json spec_to_json(const SynthSpec& spec);
 std::vector<double> test_reference(const TestReference& test, double sample_time_s);
 
 /// Generates the trace: channels t [s], x_ref [m], x [m], v_cmd [m/s], i [A] (and F_ext [N] when an external force
-/// is given); constants kt_Nm_per_A, lead_m, gear_ratio, force_constant_N_per_A and the true values (true_mass_kg,
+/// is given; `injection` [A], the injected signal in the current's units, role injection, when the spec has one: the
+/// current i contains it); constants kt_Nm_per_A, lead_m, gear_ratio, force_constant_N_per_A and the true values (true_mass_kg,
 /// ...). `reference` overrides the test (sampled every sensors.sample_time_s). Deterministic for a given seed.
 Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>& reference = std::nullopt);
 
