@@ -124,8 +124,7 @@ struct Fit {
 // white; what the model lacks (an injected signal, a missing term) varies slowly from sample to sample. For white
 // noise of variance s^2, E[(r_k - r_{k-1})^2] = 2*s^2 (von Neumann), while a slowly varying part barely changes the
 // differences; so ||r_s||^2 = ||r||^2 - N*s^2 with s^2 from the differences of rows that follow each other.
-double systematic_error_pct(const Eigen::VectorXd& residual, const std::vector<std::size_t>& rows,
-                            double target_norm) {
+double systematic_error_pct(const Eigen::VectorXd& residual, const std::vector<std::size_t>& rows, double target_norm) {
     double squares = 0.0;
     double differences = 0.0;
     std::size_t pairs = 0;
@@ -290,8 +289,7 @@ struct GainSignals {
 
 // The trace's position, reference, velocity command and velocity, and the drive force, checked: position and
 // reference there, as many force samples as trace samples, and enough of them.
-GainSignals gain_signals(const Trace& trace, std::span<const double> drive_force,
-                         std::span<const double> injection) {
+GainSignals gain_signals(const Trace& trace, std::span<const double> drive_force, std::span<const double> injection) {
     GainSignals signals;
     signals.source = trace.source_path.empty() ? std::string("trace") : trace.source_path;
     const auto* reference_channel = trace.find(Role::reference_position);

@@ -313,8 +313,7 @@ void simulate(const AxisModel& axis, const ControllerModel& model, const Simulat
         const double injection = input.injection.empty() ? 0.0 : input.injection[k];
         for (int sub = 0; sub < substeps; ++sub) {
             const double measured = sensor.measure(motion.position);
-            drive.step(reference_now, reference_next, static_cast<double>(sub) * inverse_substeps, measured,
-                       injection);
+            drive.step(reference_now, reference_next, static_cast<double>(sub) * inverse_substeps, measured, injection);
             const Motion at_sample = motion;
             const double applied = drive.drive_force() + external - plant.offset;
             const double acceleration = step_plant(plant, applied, h, motion, stick_transitions);
@@ -620,9 +619,10 @@ void check_divergence(const Trace& trace, TraceSimulation& simulation) {
         simulation.diagnostics.push_back(std::move(why));
     };
     if (const auto k = first_non_finite(simulation.output)) {
-        fail(fmt::format("the simulation diverged: its position, velocity or force is not a finite number from "
-                         "t = {:.6g} s on (an unstable loop: are the gains and the channels' signs right?)",
-                         simulation.output.time[*k]));
+        fail(
+            fmt::format("the simulation diverged: its position, velocity or force is not a finite number from "
+                        "t = {:.6g} s on (an unstable loop: are the gains and the channels' signs right?)",
+                        simulation.output.time[*k]));
         return;
     }
     const auto reference = trace.column(Role::reference_position);
@@ -633,10 +633,11 @@ void check_divergence(const Trace& trace, TraceSimulation& simulation) {
     const double away = simulation.metrics.modelling_error_max_m;
     if (travel > 0.0 && away > travel) {
         const char* unit = trace.rotary ? "rad" : "m";
-        fail(fmt::format("the simulation diverged: the simulated axis came {:.4g} {} away from the machine, farther "
-                         "than the whole travel of the trace ({:.4g} {}); an unstable loop: are the gains and the "
-                         "channels' signs right?",
-                         away, unit, travel, unit));
+        fail(
+            fmt::format("the simulation diverged: the simulated axis came {:.4g} {} away from the machine, farther "
+                        "than the whole travel of the trace ({:.4g} {}); an unstable loop: are the gains and the "
+                        "channels' signs right?",
+                        away, unit, travel, unit));
     }
 }
 

@@ -80,7 +80,8 @@ double SquareWaveInjection::at(double time_s) const {
 }
 
 std::string SquareWaveInjection::validate(double sample_time_s) const {
-    if (!(std::isfinite(amplitude_N) && amplitude_N != 0.0)) return "the injection's amplitude must be a number != 0 [N]";
+    if (!(std::isfinite(amplitude_N) && amplitude_N != 0.0))
+        return "the injection's amplitude must be a number != 0 [N]";
     // At least four samples per half period, so that each half of the wave is seen as a level.
     const double highest = 1.0 / (8.0 * sample_time_s);
     if (!(frequency_Hz > 0.0 && frequency_Hz <= highest)) {

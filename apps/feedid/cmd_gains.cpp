@@ -77,13 +77,14 @@ struct GainsCommand {
             "  structure      velocity measured as (x_k - x_k-{0})/({0}*T); reference delay {1} samples; "
             "current-loop lag {2:.3g} ms\n",
             result.velocity_difference_samples, result.reference_delay_samples, result.current_lag_s * 1e3);
-        fmt::print("  fit            relative error {:.3g} % (velocity loop; {:.3g} % not noise)", result.relative_error_pct,
-                   result.systematic_error_pct);
+        fmt::print("  fit            relative error {:.3g} % (velocity loop; {:.3g} % not noise)",
+                   result.relative_error_pct, result.systematic_error_pct);
         if (result.method == "velocity_command") {
             fmt::print(", {:.3g} % (position loop)", result.position_loop_relative_error_pct);
         }
         fmt::print("\n");
-        if (result.status == Status::failed) fmt::print("  status         failed: the gains above are not to be trusted\n");
+        if (result.status == Status::failed)
+            fmt::print("  status         failed: the gains above are not to be trusted\n");
         for (const auto& diagnostic : result.diagnostics) fmt::print("  note: {}\n", diagnostic);
     }
 };

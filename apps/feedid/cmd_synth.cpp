@@ -56,8 +56,7 @@ std::optional<double> number_with_unit(std::string_view text, std::string_view u
 SquareWaveInjection parse_injection(std::string_view text) {
     const auto at = text.find('@');
     const auto amplitude = number_with_unit(text.substr(0, at), "N");
-    const auto frequency =
-        at == std::string_view::npos ? std::nullopt : number_with_unit(text.substr(at + 1), "Hz");
+    const auto frequency = at == std::string_view::npos ? std::nullopt : number_with_unit(text.substr(at + 1), "Hz");
     if (!amplitude || !frequency) {
         throw InputError(fmt::format("--injection {}: expected AMPLITUDE@FREQUENCY, e.g. 300N@1Hz", text));
     }

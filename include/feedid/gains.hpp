@@ -60,7 +60,7 @@ struct GainResult {
     int reference_delay_samples{0};  ///< samples by which the controller's reference lags the logged one
     int drive_delay_samples{0};      ///< samples by which the logged drive signal lags the command
     double current_lag_s{0.0};
-    double relative_error_pct{0.0};                ///< of the velocity loop's force fit, 100*||F - F_hat||/||F||
+    double relative_error_pct{0.0};  ///< of the velocity loop's force fit, 100*||F - F_hat||/||F||
     /// 100*||r_s||/||F||, r_s the part of the velocity loop's residual that is not white (sensor) noise: what the
     /// model misses. The fit-quality gate (gain_fit_error_limit_pct) looks at this.
     double systematic_error_pct{0.0};

@@ -103,8 +103,9 @@ std::vector<double> test_reference(const TestReference& test, double sample_time
 
 /// Generates the trace: channels t [s], x_ref [m], x [m], v_cmd [m/s], i [A] (and F_ext [N] when an external force
 /// is given; `injection` [A], the injected signal in the current's units, role injection, when the spec has one: the
-/// current i contains it); constants kt_Nm_per_A, lead_m, gear_ratio, force_constant_N_per_A and the true values (true_mass_kg,
-/// ...). `reference` overrides the test (sampled every sensors.sample_time_s). Deterministic for a given seed.
+/// current i contains it); constants kt_Nm_per_A, lead_m, gear_ratio, force_constant_N_per_A and the true values
+/// (true_mass_kg, ...). `reference` overrides the test (sampled every sensors.sample_time_s). Deterministic for a
+/// given seed.
 Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>& reference = std::nullopt);
 
 }  // namespace feedid
