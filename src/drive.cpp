@@ -74,12 +74,18 @@ std::string where(const Trace& trace) {
     return trace.source_path.empty() ? std::string("trace") : trace.source_path;
 }
 
-// A motor torque on a linear axis: the screw turns it into force, F = T * 2*pi * g / lead (eq. 2 without K_t).
-std::vector<double> torque_as_force(const Trace& trace, const Channel& channel, const DriveConstants& constants) {
+bool is_force_unit(const std::string& unit) {
+    return unit == "N" || unit == "N*m";
+}
+
+// A channel in N or N*m as force: a motor torque on a linear axis is turned into force by the screw,
+// F = T * 2*pi * g / lead.
+std::vector<double> as_force(const Trace& trace, const Channel& channel, const DriveConstants& constants) {
+    if (trace.rotary || channel.unit != "N*m") return channel.values;
     if (!constants.lead_m) {
         throw InputError(
-            fmt::format("{}: the {} channel '{}' is a torque (N*m) on a linear axis: give the ball-screw "
-                        "lead (--lead, and --gear-ratio) to turn it into force",
+            fmt::format("{}: the {} channel '{}' is a torque (N*m) on a linear axis: give the ball-screw lead "
+                        "(--lead, and --gear-ratio) to turn it into force",
                         where(trace), role_name(channel.role), channel.name));
     }
     const double factor = 2.0 * std::numbers::pi * constants.gear_ratio / *constants.lead_m;
@@ -88,14 +94,17 @@ std::vector<double> torque_as_force(const Trace& trace, const Channel& channel, 
     return converted;
 }
 
+std::vector<double> scaled(std::span<const double> values, double factor) {
+    std::vector<double> out(values.size());
+    for (std::size_t k = 0; k < out.size(); ++k) out[k] = factor * values[k];
+    return out;
+}
+
 }  // namespace
 
 std::vector<double> drive_force(const Trace& trace, const DriveConstants& constants) {
     if (const auto problem = constants.validate(); !problem.empty()) throw InputError(problem);
-    if (const auto* force = trace.find(Role::force)) {
-        if (!trace.rotary && force->unit == "N*m") return torque_as_force(trace, *force, constants);
-        return force->values;
-    }
+    if (const auto* force = trace.find(Role::force)) return as_force(trace, *force, constants);
     const auto* current = trace.find(Role::current);
     if (current == nullptr) {
         throw InputError(
@@ -105,16 +114,37 @@ std::vector<double> drive_force(const Trace& trace, const DriveConstants& consta
     }
     const auto factor = constants.force_per_signal(trace);
     if (!factor) {
-        if (current->unit == "N*m" && !trace.rotary) return torque_as_force(trace, *current, constants);
-        if (current->unit == "N" || current->unit == "N*m") return current->values;
+        if (is_force_unit(current->unit)) return as_force(trace, *current, constants);
         throw InputError(fmt::format(
             "{}: the drive signal '{}' is in {} and no constant turns it into force: give "
             "--kt and --lead, or --force-constant",
             where(trace), current->name, current->unit.empty() ? std::string("unknown units") : current->unit));
     }
-    std::vector<double> force(current->values.size());
-    for (std::size_t k = 0; k < force.size(); ++k) force[k] = *factor * current->values[k];
-    return force;
+    return scaled(current->values, *factor);
+}
+
+std::vector<double> injection_force(const Trace& trace, const DriveConstants& constants) {
+    const auto* injection = trace.find(Role::injection);
+    if (injection == nullptr) return {};
+    if (const auto problem = constants.validate(); !problem.empty()) throw InputError(problem);
+    if (is_force_unit(injection->unit)) return as_force(trace, *injection, constants);
+    // In the drive signal's units: converted as the drive signal is.
+    const auto* drive = trace.find(Role::current);
+    if (drive == nullptr) drive = trace.find(Role::force);
+    const std::string unit = injection->unit.empty() ? std::string("no unit") : injection->unit;
+    if (drive != nullptr && drive->role == Role::current && drive->unit == injection->unit) {
+        if (const auto factor = constants.force_per_signal(trace)) return scaled(injection->values, *factor);
+    }
+    if (drive != nullptr && drive->role == Role::current && drive->unit != injection->unit) {
+        throw InputError(
+            fmt::format("{}: the injection channel '{}' is in {}, the drive signal '{}' in {}: an injection is in "
+                        "the drive signal's units or a force; state its unit with --unit injection=UNIT",
+                        where(trace), injection->name, unit, drive->name, drive->unit));
+    }
+    throw InputError(fmt::format(
+        "{}: the injection channel '{}' is in {} and no constant turns it into force: give --force-constant (or --kt "
+        "and --lead), or --unit injection=N when it is already a force",
+        where(trace), injection->name, unit));
 }
 
 }  // namespace feedid

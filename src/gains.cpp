@@ -69,7 +69,7 @@ struct Structure {
 
 struct Problem {
     std::vector<Column> columns;  // regressors, filtered
-    const std::vector<double>* y{nullptr};
+    Column y;                     // what the regressors explain
     const std::vector<char>* use{nullptr};
 };
 
@@ -77,7 +77,7 @@ struct Problem {
 // fast enough for the structure search; the final estimate uses QR and RLS).
 double residual_sum_of_squares(const Problem& problem) {
     const auto p = static_cast<Eigen::Index>(problem.columns.size());
-    const auto& y = *problem.y;
+    const auto& y = problem.y;
     const auto& use = *problem.use;
     const std::size_t n = y.size();
     Eigen::VectorXd scale(p);
@@ -117,9 +117,30 @@ struct Fit {
     Eigen::VectorXd batch;       // batch LS, unscaled
     Eigen::MatrixXd covariance;  // batch, unscaled
     double relative_error_pct{0.0};
+    double systematic_error_pct{0.0};  // the part of the residual that is not white noise
     std::size_t samples{0};
     bool rank_deficient{false};
 };
+
+// 100*||r_s||/||y||, r_s the part of the residual r that is not white noise. Sensor noise on the drive signal is
+// white; what the model lacks (an injected signal, a missing term) varies slowly from sample to sample. For white
+// noise of variance s^2, E[(r_k - r_{k-1})^2] = 2*s^2 (von Neumann), while a slowly varying part barely changes the
+// differences; so ||r_s||^2 = ||r||^2 - N*s^2 with s^2 from the differences of rows that follow each other.
+double systematic_error_pct(const Eigen::VectorXd& residual, const std::vector<std::size_t>& rows, double target_norm) {
+    double squares = 0.0;
+    double differences = 0.0;
+    std::size_t pairs = 0;
+    for (Eigen::Index k = 0; k < residual.size(); ++k) {
+        squares += residual(k) * residual(k);
+        if (k > 0 && rows[static_cast<std::size_t>(k)] == rows[static_cast<std::size_t>(k - 1)] + 1) {
+            differences += (residual(k) - residual(k - 1)) * (residual(k) - residual(k - 1));
+            ++pairs;
+        }
+    }
+    if (pairs == 0 || !(target_norm > 0.0)) return 0.0;
+    const double white = static_cast<double>(residual.size()) * differences / (2.0 * static_cast<double>(pairs));
+    return 100.0 * std::sqrt(std::max(0.0, squares - white)) / target_norm;
+}
 
 template <int N>
 Eigen::VectorXd run_rls(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, const RlsOptions& options) {
@@ -135,16 +156,18 @@ Eigen::VectorXd run_rls(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, co
 // RLS (the paper) and batch QR on normalised columns; returns both in the original scaling.
 Fit fit(const Problem& problem, const RlsOptions& options) {
     const auto p = static_cast<Eigen::Index>(problem.columns.size());
-    const auto& y = *problem.y;
+    const auto& y = problem.y;
     const auto& use = *problem.use;
     const auto rows = static_cast<Eigen::Index>(std::count(use.begin(), use.end(), char{1}));
     Eigen::MatrixXd phi(rows, p);
     Eigen::VectorXd target(rows);
+    std::vector<std::size_t> sample_of_row(static_cast<std::size_t>(rows));
     Eigen::Index row = 0;
     for (std::size_t k = 0; k < y.size(); ++k) {
         if (!use[k]) continue;
         for (Eigen::Index j = 0; j < p; ++j) phi(row, j) = problem.columns[static_cast<std::size_t>(j)][k];
         target(row) = y[k];
+        sample_of_row[static_cast<std::size_t>(row)] = k;
         ++row;
     }
     Eigen::VectorXd scale(p);
@@ -160,6 +183,10 @@ Fit fit(const Problem& problem, const RlsOptions& options) {
     result.samples = static_cast<std::size_t>(rows);
     result.rank_deficient = batch.rank_deficient;
     result.relative_error_pct = batch.relative_error_pct;
+    if (!batch.rank_deficient) {
+        const Eigen::VectorXd residual = target / y_scale - phi * batch.estimate;
+        result.systematic_error_pct = systematic_error_pct(residual, sample_of_row, target.norm() / y_scale);
+    }
     Eigen::VectorXd rls;
     const Eigen::VectorXd scaled_target = target / y_scale;
     switch (p) {
@@ -263,6 +290,7 @@ struct GainSignals {
     bool logged_command{false};         // whether the trace holds the velocity command
     Column velocity_command;            // v_cmd [m/s], when logged
     Column force;                       // F [N]
+    Column injection;                   // the test signal added to the controller's output [N]; empty = none
 };
 
 // A position held over k >= 2 samples (sampled at the position loop's cycle, the drive signal at the velocity loop's):
@@ -280,7 +308,7 @@ void use_native_rate(const Trace& trace, GainSignals& signals) {
 
 // The trace's position, reference, velocity command and velocity, and the drive force, checked: position and
 // reference there, as many force samples as trace samples, and enough of them.
-GainSignals gain_signals(const Trace& trace, std::span<const double> drive_force) {
+GainSignals gain_signals(const Trace& trace, std::span<const double> drive_force, std::span<const double> injection) {
     GainSignals signals;
     signals.source = trace.source_path.empty() ? std::string("trace") : trace.source_path;
     signals.rotary = trace.rotary;
@@ -299,6 +327,9 @@ GainSignals gain_signals(const Trace& trace, std::span<const double> drive_force
     if (drive_force.size() != n)
         throw InputError(
             fmt::format("{}: the drive force has {} samples, the trace {}", signals.source, drive_force.size(), n));
+    if (!injection.empty() && injection.size() != n)
+        throw InputError(
+            fmt::format("{}: the injection has {} samples, the trace {}", signals.source, injection.size(), n));
     if (n < 50) {
         throw AnalysisError(fmt::format("{}: {} samples are too few to identify controller gains", signals.source, n));
     }
@@ -313,6 +344,7 @@ GainSignals gain_signals(const Trace& trace, std::span<const double> drive_force
         signals.velocity_command.assign(command_channel->values.begin(), command_channel->values.end());
     }
     signals.force.assign(drive_force.begin(), drive_force.end());
+    signals.injection.assign(injection.begin(), injection.end());
     return signals;
 }
 
@@ -348,14 +380,17 @@ std::vector<char> rows_past_start_up(std::size_t n) {
     return use;
 }
 
-// The velocity loop's rows: past the start-up, not at the force limit, with a finite force.
-std::vector<char> velocity_loop_rows(const Column& force, std::optional<double> saturation_N,
+// The velocity loop's rows: past the start-up, not at the force limit, with a finite force. The limit holds for the
+// controller's output F - u_inj (before an injected signal is added) and for the drive's command F.
+std::vector<char> velocity_loop_rows(const GainSignals& signals, std::optional<double> saturation_N,
                                      std::vector<std::string>& diagnostics) {
+    const Column& force = signals.force;
     std::vector<char> use = rows_past_start_up(force.size());
     if (saturation_N) {
         std::size_t saturated = 0;
         for (std::size_t k = 0; k < force.size(); ++k) {
-            if (std::abs(force[k]) >= 0.999 * *saturation_N) {
+            const double controller_output = signals.injection.empty() ? force[k] : force[k] - signals.injection[k];
+            if (std::max(std::abs(force[k]), std::abs(controller_output)) >= 0.999 * *saturation_N) {
                 use[k] = 0;
                 ++saturated;
             }
@@ -403,7 +438,7 @@ void identify_position_loop(const GainSignals& signals, const GainOptions& optio
         Problem problem;
         problem.columns.push_back(following_error(signals.reference, signals.position, d));
         if (options.feedforward) problem.columns.push_back(delayed(reference_velocity, d));
-        problem.y = &signals.velocity_command;
+        problem.y = signals.velocity_command;
         problem.use = &use;
         const double rss = residual_sum_of_squares(problem);
         if (rss < best_rss) {
@@ -468,6 +503,8 @@ std::vector<Column> structure_columns(const GainSignals& signals, const Column& 
 }
 
 // The velocity loop's regression on its rows: one problem per structure, every column through the drive filter L.
+// An injected signal u_inj is added to the controller's output before the drive, so the logged force is
+// F = L[F_cmd + u_inj] = L[F_cmd] + L[u_inj]: the controller explains F - L[u_inj].
 struct VelocityLoopRegression {
     const GainSignals& signals;
     const std::vector<char>& use;
@@ -479,7 +516,12 @@ struct VelocityLoopRegression {
                                                  : structure_columns(signals, v, s.reference_delay, integral);
         const double a = lag_coefficient(s.lag_s, signals.dt);
         for (auto& column : problem.columns) apply_drive_filter(column, a, s.mu);
-        problem.y = &signals.force;
+        problem.y = signals.force;
+        if (!signals.injection.empty()) {
+            Column injected = signals.injection;
+            apply_drive_filter(injected, a, s.mu);
+            for (std::size_t k = 0; k < problem.y.size(); ++k) problem.y[k] -= injected[k];
+        }
         problem.use = &use;
         return problem;
     }
@@ -627,6 +669,7 @@ void set_structure_and_fit(const VelocityLoopFit& loop, bool logged_command, Gai
     result.current_lag_s = structure.lag_s;
     result.drive_delay_samples = structure.mu > 0.5 ? 1 : 0;
     result.relative_error_pct = loop.fit.relative_error_pct;
+    result.systematic_error_pct = loop.fit.systematic_error_pct;
     result.samples_used = loop.fit.samples;
     if (!(result.position_gain_per_s.value.value_or(0.0) > 0.0) ||
         !(loop.fit.estimate(gain_indices(logged_command).velocity_gain) > 0.0)) {
@@ -653,15 +696,36 @@ ControllerModel identified_controller(const GainResult& result, const GainOption
     return controller;
 }
 
+// Gains from a fit that leaves more of the drive signal unexplained than a correct model does (gains.hpp) are not to
+// be trusted: status failed, with the figures and the likely causes first among the diagnostics.
+void gate_fit_quality(bool injection_given, GainResult& result) {
+    if (result.systematic_error_pct <= gain_fit_error_limit_pct) return;
+    result.status = Status::failed;
+    const std::string injection =
+        injection_given ? std::string("the injection channel may not be the signal added (its sign, units or scale)")
+                        : std::string(
+                              "a signal added to the controller's output that the model lacks (an injected test "
+                              "signal, an additive torque setpoint, a torque feed-forward: map it with "
+                              "--channel injection=NAME)");
+    result.diagnostics.insert(
+        result.diagnostics.begin(),
+        fmt::format("the controller fit is poor: {:.3g} % of the drive signal is left unexplained beyond its noise "
+                    "(relative error {:.3g} %; a correct model leaves less than {:.3g} %), so the gains are not to be "
+                    "trusted. Likely causes: {}; a velocity feed-forward (--feedforward); channels with the wrong "
+                    "role or sign; a trace without motion",
+                    result.systematic_error_pct, result.relative_error_pct, gain_fit_error_limit_pct, injection));
+}
+
 }  // namespace
 
-GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options) {
+GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options,
+                          std::span<const double> injection) {
     if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
-    const GainSignals signals = gain_signals(trace, drive_force);
+    const GainSignals signals = gain_signals(trace, drive_force, injection);
     require_following_error(signals);
     GainResult result;
     result.method = signals.logged_command ? "velocity_command" : "structure";
-    std::vector<char> use = velocity_loop_rows(signals.force, options.saturation_N, result.diagnostics);
+    std::vector<char> use = velocity_loop_rows(signals, options.saturation_N, result.diagnostics);
     keep_fresh_rows(signals, use);
     if (signals.hold_factor > 1) {
         result.diagnostics.push_back(fmt::format(
@@ -676,6 +740,8 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
     set_velocity_loop_gains(velocity_loop, signals.logged_command, result);
     set_structure_and_fit(velocity_loop, signals.logged_command, result);
     result.controller = identified_controller(result, options, signals.dt, signals.hold_factor);
+    result.injection_subtracted = !signals.injection.empty();
+    gate_fit_quality(result.injection_subtracted, result);
     return result;
 }
 

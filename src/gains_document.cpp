@@ -61,7 +61,10 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
     // a position loop slower than the velocity loop (a position held over several samples): its own cycle
     if (result.controller.position_cycle_s > result.controller.velocity_cycle_s)
         document["structure"]["position_cycle_s"] = result.controller.position_cycle_s;
+    document["status"] = to_string(result.status);
     document["fit"] = {{"relative_error_pct", result.relative_error_pct},
+                       {"systematic_error_pct", result.systematic_error_pct},
+                       {"injection_subtracted", result.injection_subtracted},
                        {"position_loop_relative_error_pct",
                         result.method == "velocity_command" ? nlohmann::json(result.position_loop_relative_error_pct)
                                                             : nlohmann::json()},

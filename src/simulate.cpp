@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 #include <fmt/core.h>
 
@@ -54,6 +55,9 @@ void check_simulation(const AxisModel& axis, const ControllerModel& model, const
     }
     if (!input.external_force.empty() && input.external_force.size() != input.reference.size()) {
         throw InputError("simulation: the external force must have as many samples as the reference");
+    }
+    if (!input.injection.empty() && input.injection.size() != input.reference.size()) {
+        throw InputError("simulation: the injected signal must have as many samples as the reference");
     }
 }
 
@@ -200,6 +204,7 @@ public:
           velocity_every_(std::max(1L, std::lround(velocity_cycle(model, sample_time_s) / h))),
           reference_step_(static_cast<double>(position_every_) * h),
           lag_(model.current_lag_s > 0.0 ? std::exp(-h / model.current_lag_s) : 0.0),
+          saturation_(model.saturation_N.value_or(std::numeric_limits<double>::infinity())),
           controller_(model, reference_step_, static_cast<double>(velocity_every_) * h) {}
 
     // At rest at the measured position, on the first reference sample, the integrator holding `held_force` [N] (and
@@ -212,8 +217,10 @@ public:
     }
 
     // One integration step. The reference between samples is interpolated linearly (exact at the samples) at
-    // `fraction` of the way from `reference_now` to `reference_next`.
-    void step(double reference_now, double reference_next, double fraction, double measured) noexcept {
+    // `fraction` of the way from `reference_now` to `reference_next`; `injection` [N] is added to the force command
+    // before the current loop, and the sum saturates at the command's limit.
+    void step(double reference_now, double reference_next, double fraction, double measured,
+              double injection) noexcept {
         if (position_countdown_ == 0) {
             position_countdown_ = position_every_;
             const double reference = reference_now + fraction * (reference_next - reference_now);
@@ -228,7 +235,8 @@ public:
             force_command_ = controller_.velocity_step(velocity_command_, measured);
         }
         --velocity_countdown_;
-        drive_force_ = lag_ * drive_force_ + (1.0 - lag_) * force_command_;
+        const double command = std::clamp(force_command_ + injection, -saturation_, saturation_);
+        drive_force_ = lag_ * drive_force_ + (1.0 - lag_) * command;
     }
 
     [[nodiscard]] double velocity_command() const noexcept { return velocity_command_; }
@@ -247,6 +255,7 @@ private:
     long velocity_every_;
     double reference_step_;  // the position loop's period [s], for the reference velocity
     double lag_;             // exp(-h/tau)
+    double saturation_;      // |F_cmd + u_inj| limit [N] (infinite = none)
     Controller controller_;
     long position_countdown_{0};  // steps until the position loop runs again
     long velocity_countdown_{0};
@@ -302,9 +311,10 @@ void simulate(const AxisModel& axis, const ControllerModel& model, const Simulat
         const double reference_now = input.reference[k];
         const double reference_next = k + 1 < n ? input.reference[k + 1] : reference_now;
         const double external = input.external_force.empty() ? 0.0 : input.external_force[k];
+        const double injection = input.injection.empty() ? 0.0 : input.injection[k];
         for (int sub = 0; sub < substeps; ++sub) {
             const double measured = sensor.measure(motion.position);
-            drive.step(reference_now, reference_next, static_cast<double>(sub) * inverse_substeps, measured);
+            drive.step(reference_now, reference_next, static_cast<double>(sub) * inverse_substeps, measured, injection);
             const Motion at_sample = motion;
             const double applied = drive.drive_force() + external - plant.offset;
             const double acceleration = step_plant(plant, applied, h, motion, stick_transitions);
@@ -612,9 +622,12 @@ TwinController documented_twin_controller(const nlohmann::json& gains_document, 
 }
 
 TwinController identified_twin_controller(const Trace& trace, std::span<const double> drive_force,
-                                          const GainOptions& options) {
+                                          const GainOptions& options, std::span<const double> injection) {
     TwinController controller;
-    controller.model = identify_gains(trace, drive_force, options).controller;
+    const GainResult gains = identify_gains(trace, drive_force, options, injection);
+    controller.model = gains.controller;
+    controller.status = gains.status;
+    if (gains.status == Status::failed) controller.notes.push_back(gains.diagnostics.front());
     controller.notes.push_back(
         fmt::format("gains identified from the trace: K_v {:.6g} 1/s, K_p {:.6g} N*s/m, K_i {:.6g} N/m",
                     controller.model.position_gain_per_s, controller.model.velocity_gain_N_s_per_m,
@@ -622,16 +635,65 @@ TwinController identified_twin_controller(const Trace& trace, std::span<const do
     return controller;
 }
 
+namespace {
+
+// The first sample at which a simulated signal is not a finite number, or none.
+std::optional<std::size_t> first_non_finite(const SimulationOutput& output) {
+    for (std::size_t k = 0; k < output.position.size(); ++k) {
+        if (!std::isfinite(output.position[k]) || !std::isfinite(output.velocity[k]) ||
+            !std::isfinite(output.force[k])) {
+            return k;
+        }
+    }
+    return std::nullopt;
+}
+
+// A simulation that produced no numbers, or ran farther from the machine than the whole travel of the trace (an
+// unstable loop: gains or signs wrong), validates nothing: status failed, with the figures.
+void check_divergence(const Trace& trace, TraceSimulation& simulation) {
+    const auto fail = [&](std::string why) {
+        simulation.status = Status::failed;
+        simulation.diagnostics.push_back(std::move(why));
+    };
+    if (const auto k = first_non_finite(simulation.output)) {
+        fail(
+            fmt::format("the simulation diverged: its position, velocity or force is not a finite number from "
+                        "t = {:.6g} s on (an unstable loop: are the gains and the channels' signs right?)",
+                        simulation.output.time[*k]));
+        return;
+    }
+    const auto reference = trace.column(Role::reference_position);
+    const auto position = trace.column(Role::position);
+    const auto [reference_low, reference_high] = std::minmax_element(reference.begin(), reference.end());
+    const auto [position_low, position_high] = std::minmax_element(position.begin(), position.end());
+    const double travel = std::max(*reference_high, *position_high) - std::min(*reference_low, *position_low);
+    const double away = simulation.metrics.modelling_error_max_m;
+    if (travel > 0.0 && away > travel) {
+        const char* unit = trace.rotary ? "rad" : "m";
+        fail(
+            fmt::format("the simulation diverged: the simulated axis came {:.4g} {} away from the machine, farther "
+                        "than the whole travel of the trace ({:.4g} {}); an unstable loop: are the gains and the "
+                        "channels' signs right?",
+                        away, unit, travel, unit));
+    }
+}
+
+}  // namespace
+
 TraceSimulation simulate_trace(const Trace& trace, std::span<const double> drive_force, const AxisModel& axis,
-                               const ControllerModel& controller, SimulationOptions options) {
+                               const ControllerModel& controller, SimulationOptions options,
+                               std::span<const double> injection) {
     SimulationInput input;
     input.sample_time_s = trace.time_base().sample_time_s;
     input.reference = trace.column(Role::reference_position);
     if (const auto* external = trace.find(Role::external_force)) input.external_force = external->values;
+    input.injection = injection;
     if (!options.initial_position_m) options.initial_position_m = trace.column(Role::position)[0];
     TraceSimulation simulation;
     simulation.output = simulate(axis, controller, input, options);
+    simulation.injected = !injection.empty();
     simulation.metrics = validate_simulation(trace, drive_force, simulation.output);
+    check_divergence(trace, simulation);
     return simulation;
 }
 
@@ -651,7 +713,12 @@ nlohmann::json simulation_document(const Trace& trace, const TwinController& con
     document["rotary"] = trace.rotary;
     // The paper's Fig. 6 for `feedid report --simulation`: the errors over time, thinned for plotting.
     document["series"] = validation_series_document(validation_series(trace, simulation.output), trace.rotary);
-    document["diagnostics"] = controller.notes;
+    const bool failed = controller.status == Status::failed || simulation.status == Status::failed;
+    document["status"] = to_string(failed ? Status::failed : Status::ok);
+    document["injection"] = simulation.injected;
+    std::vector<std::string> diagnostics = simulation.diagnostics;
+    diagnostics.insert(diagnostics.end(), controller.notes.begin(), controller.notes.end());
+    document["diagnostics"] = diagnostics;
     return document;
 }
 

@@ -6,6 +6,7 @@
 #include <random>
 #include <map>
 #include <set>
+#include <span>
 
 #include <fmt/core.h>
 #include <toml++/toml.h>
@@ -131,6 +132,23 @@ std::string SensorModel::validate() const {
     return {};
 }
 
+double SquareWaveInjection::at(double time_s) const {
+    const double phase = time_s * frequency_Hz;
+    return phase - std::floor(phase) < 0.5 ? amplitude_N : 0.0;
+}
+
+std::string SquareWaveInjection::validate(double sample_time_s) const {
+    if (!(std::isfinite(amplitude_N) && amplitude_N != 0.0))
+        return "the injection's amplitude must be a number != 0 [N]";
+    // At least four samples per half period, so that each half of the wave is seen as a level.
+    const double highest = 1.0 / (8.0 * sample_time_s);
+    if (!(frequency_Hz > 0.0 && frequency_Hz <= highest)) {
+        return fmt::format("the injection's frequency must lie in (0, {:g}] Hz (four samples per half period)",
+                           highest);
+    }
+    return {};
+}
+
 double SynthSpec::force_constant_N_per_A() const {
     if (axis.rotary) return kt_Nm_per_A * gear_ratio;  // torque at the axis through the gear
     // eq. (2): F_d = K_t * i / R, R = l / 2*pi, times the gear ratio motor:screw
@@ -145,6 +163,9 @@ std::string SynthSpec::validate() const {
     if (auto problem = sensors.validate(); !problem.empty()) return problem;
     if (auto problem = recording.validate(axis.rotary, sensors.sample_time_s); !problem.empty()) return problem;
     if (auto problem = test.validate(); !problem.empty()) return problem;
+    if (injection) {
+        if (auto problem = injection->validate(sensors.sample_time_s); !problem.empty()) return problem;
+    }
     SimulationOptions zones;
     zones.friction_zones = friction_zones;
     if (auto problem = zones.validate(); !problem.empty()) return problem;
@@ -689,11 +710,12 @@ void true_values(const SynthSpec& spec, const ControllerModel& controller, std::
 
 // The closed loop simulated on the reference: lengths of a rotary axis' test, encoder and friction zones in radians.
 SimulationOutput simulate_spec(const SynthSpec& spec, const ControllerModel& controller,
-                               const std::vector<double>& reference) {
+                               const std::vector<double>& reference, std::span<const double> injection) {
     const double scale = spec.axis.rotary ? rotary_rad_per_length_unit : 1.0;
     SimulationInput input;
     input.sample_time_s = spec.sensors.sample_time_s;
     input.reference = reference;
+    input.injection = injection;
     SimulationOptions options;
     options.substeps = spec.sensors.substeps;
     if (spec.sensors.position_resolution_m > 0.0)
@@ -704,6 +726,34 @@ SimulationOutput simulate_spec(const SynthSpec& spec, const ControllerModel& con
         zone.to_m *= scale;
     }
     return simulate(spec.axis, controller, input, options);
+}
+
+// The injected signal u_inj(k*T) [N] (held over each sample), or empty when the spec has none.
+std::vector<double> injected_signal(const SynthSpec& spec, std::size_t samples) {
+    std::vector<double> signal;
+    if (!spec.injection) return signal;
+    signal.resize(samples);
+    for (std::size_t k = 0; k < samples; ++k)
+        signal[k] = spec.injection->at(static_cast<double>(k) * spec.sensors.sample_time_s);
+    return signal;
+}
+
+// The injected signal as the controller logs it: its own channel, in the drive signal's units (A, as the current),
+// exact (a setpoint, not a measurement); and its true values.
+void log_injection(const SynthSpec& spec, std::span<const double> injection, Trace& trace) {
+    if (!spec.injection) return;
+    // As the drive signal: a current [A], or with log_torque the force (torque) itself.
+    const bool as_force = spec.recording.log_torque;
+    const double per_unit = as_force ? 1.0 : spec.force_constant_N_per_A();
+    std::vector<double> values(injection.size());
+    for (std::size_t k = 0; k < values.size(); ++k) values[k] = injection[k] / per_unit;
+    const std::string unit = as_force ? (spec.axis.rotary ? "N*m" : "N") : "A";
+    auto& channel = trace.set("injection", Role::injection, unit, std::move(values));
+    channel.source_unit = unit;
+    channel.native_interval_s = spec.sensors.sample_time_s;
+    channel.interval_source = IntervalSource::time_base;
+    trace.constants["true_injection_amplitude_N"] = spec.injection->amplitude_N;
+    trace.constants["true_injection_frequency_Hz"] = spec.injection->frequency_Hz;
 }
 
 }  // namespace
@@ -720,7 +770,8 @@ Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>
     ControllerModel controller = spec.controller;
     if (controller.position_cycle_s == 0.0) controller.position_cycle_s = dt;
     if (controller.velocity_cycle_s == 0.0) controller.velocity_cycle_s = controller.position_cycle_s;
-    SimulationOutput simulated = simulate_spec(spec, controller, reference);
+    const std::vector<double> injection = injected_signal(spec, reference.size());
+    SimulationOutput simulated = simulate_spec(spec, controller, reference, injection);
 
     SensorReadings sensors = read_sensors(spec, simulated.force);
 
@@ -742,6 +793,7 @@ Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>
     else
         record(trace, "i", Role::current, "A", std::move(sensors.drive), r.drive_interval_s, dt);
     true_values(spec, controller, trace.constants);
+    log_injection(spec, injection, trace);
     return trace;
 }
 

@@ -12,7 +12,7 @@
 namespace feedid {
 
 namespace {
-constexpr std::array<std::pair<Role, std::string_view>, 9> role_names{{
+constexpr std::array<std::pair<Role, std::string_view>, 10> role_names{{
     {Role::other, "other"},
     {Role::time, "time"},
     {Role::position, "position"},
@@ -22,6 +22,7 @@ constexpr std::array<std::pair<Role, std::string_view>, 9> role_names{{
     {Role::current, "current"},
     {Role::force, "force"},
     {Role::external_force, "external_force"},
+    {Role::injection, "injection"},
 }};
 
 std::string where(const Trace& trace) {

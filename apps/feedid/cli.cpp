@@ -18,7 +18,7 @@ void TraceArguments::add_to(CLI::App& app) {
         ->required();
     app.add_option("--channel", channel_assignments,
                    "Use a channel for a role: ROLE=NAME (roles: time, position, reference_position, velocity, "
-                   "velocity_command, current, force, external_force); repeatable")
+                   "velocity_command, current, force, external_force, injection); repeatable")
         ->take_all()
         ->allow_extra_args(false);
     app.add_option("--unit", unit_assignments, "The unit of a role's channel where the file gives none: ROLE=UNIT")

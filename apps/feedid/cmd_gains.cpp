@@ -37,17 +37,25 @@ struct GainsCommand {
         const Trace trace = read_trace_for_drive(trace_arguments, drive_arguments);
         const DriveConstants drive = drive_arguments.constants();
         const std::vector<double> force = drive_force(trace, drive);
+        const std::vector<double> injection = injection_force(trace, drive);
         const GainOptions options = gain_arguments.options(trace, drive);
-        GainResult result = identify_gains(trace, force, options);
+        GainResult result = identify_gains(trace, force, options, injection);
         for (auto& warning : drive.warnings()) result.diagnostics.push_back(std::move(warning));
-        if (!json_path.empty()) {
-            write_json(gains_document(result, options, trace), json_path);
-            if (json_path == "-") return 0;
+        if (!json_path.empty()) write_json(gains_document(result, options, trace), json_path);
+        if (json_path != "-") print(trace, result, options);
+        if (result.status == Status::failed) {
+            fmt::print(stderr, "feedid: {}\n", result.diagnostics.front());
+            return 1;
         }
-        fmt::print("{}: controller gains ({} samples, {})\n", trace.source_path, result.samples_used,
+        return 0;
+    }
+
+    static void print(const Trace& trace, const GainResult& result, const GainOptions& options) {
+        fmt::print("{}: controller gains ({} samples, {}{})\n", trace.source_path, result.samples_used,
                    result.method == "velocity_command"
                        ? "position and velocity loop each from the logged velocity command"
-                       : "from reference, position and drive signal");
+                       : "from reference, position and drive signal",
+                   result.injection_subtracted ? "; the injected signal taken out of the drive signal" : "");
         const ParameterNaming naming{trace.rotary};
         fmt::print("  position loop  K_v   {:<28}", format_estimate(result.position_gain_per_s, "1/s"));
         if (!trace.rotary) {
@@ -77,13 +85,15 @@ struct GainsCommand {
             "  structure      velocity measured as (x_k - x_k-{0})/({0}*T); reference delay {1} samples; "
             "current-loop lag {2:.3g} ms\n",
             result.velocity_difference_samples, result.reference_delay_samples, result.current_lag_s * 1e3);
-        fmt::print("  fit            relative error {:.3g} % (velocity loop)", result.relative_error_pct);
+        fmt::print("  fit            relative error {:.3g} % (velocity loop; {:.3g} % not noise)",
+                   result.relative_error_pct, result.systematic_error_pct);
         if (result.method == "velocity_command") {
             fmt::print(", {:.3g} % (position loop)", result.position_loop_relative_error_pct);
         }
         fmt::print("\n");
+        if (result.status == Status::failed)
+            fmt::print("  status         failed: the gains above are not to be trusted\n");
         for (const auto& diagnostic : result.diagnostics) fmt::print("  note: {}\n", diagnostic);
-        return 0;
     }
 };
 
@@ -100,11 +110,15 @@ Action add_gains_command(CLI::App& app) {
     sub->footer(
         "Needs the reference position, the position and the drive signal; with a logged velocity command each loop is "
         "identified on its own, otherwise the known structure F = K_p*(K_v*(x_ref - x) - v) [+ K_i*integral] is "
-        "fitted.\n"
+        "fitted. A test signal added to the controller's output (--channel injection=NAME, in the drive signal's "
+        "units) is taken out of the drive signal first. A fit that leaves more than " +
+        fmt::format("{:g}", gain_fit_error_limit_pct) +
+        " % of the drive signal unexplained fails (exit 1): the gains are not to be trusted.\n"
         "Examples:\n"
         "  feedid gains ../shared/data/emps/DATA_EMPS.mat --channel position=qm --channel reference_position=qg \\\n"
         "      --channel current=vir --force-constant gtau --json -\n"
-        "  feedid gains synth.csv --force-constant force_constant_N_per_A");
+        "  feedid gains synth.csv --force-constant force_constant_N_per_A\n"
+        "  feedid gains injected.csv --force-constant force_constant_N_per_A --channel injection=injection");
     return [command] { return command->run(); };
 }
 

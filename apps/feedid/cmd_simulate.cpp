@@ -40,14 +40,14 @@ struct SimulateCommand {
         }
         const DriveConstants drive = drive_arguments.constants();
         const std::vector<double> force = drive_force(trace, drive);
+        const std::vector<double> injection = injection_force(trace, drive);
         const GainOptions gain_options = gain_arguments.options(trace, drive);
         const TwinController controller =
             gains_document ? documented_twin_controller(*gains_document, gains_path, gain_options, trace)
-                           : identified_twin_controller(trace, force, gain_options);
+                           : identified_twin_controller(trace, force, gain_options, injection);
         SimulationOptions options;
         options.substeps = substeps;
-        const TraceSimulation simulation = simulate_trace(trace, force, axis, controller.model, options);
-        const ValidationMetrics& metrics = simulation.metrics;
+        const TraceSimulation simulation = simulate_trace(trace, force, axis, controller.model, options, injection);
 
         if (!out_path.empty()) {
             std::ofstream out(out_path, std::ios::binary);
@@ -55,10 +55,19 @@ struct SimulateCommand {
             out << text;
             if (!out) throw InputError(fmt::format("{}: cannot write the file", out_path));
         }
-        if (!json_path.empty()) {
-            write_json(simulation_document(trace, controller, simulation), json_path);
-            if (json_path == "-") return 0;
+        if (!json_path.empty()) write_json(simulation_document(trace, controller, simulation), json_path);
+        if (json_path != "-") print(trace, controller, simulation);
+        // A twin with untrusted gains, or one that diverged, validates nothing.
+        if (controller.status == Status::failed || simulation.status == Status::failed) {
+            fmt::print(stderr, "feedid: {}\n",
+                       simulation.status == Status::failed ? simulation.diagnostics.front() : controller.notes.front());
+            return 1;
         }
+        return 0;
+    }
+
+    static void print(const Trace& trace, const TwinController& controller, const TraceSimulation& simulation) {
+        const ValidationMetrics& metrics = simulation.metrics;
         const std::string unit = ParameterNaming{trace.rotary}.display_small_length_unit();
         fmt::print("{}: closed-loop simulation of the identified axis on the recorded reference ({} samples)\n",
                    trace.source_path, trace.samples());
@@ -76,7 +85,8 @@ struct SimulateCommand {
             "force {:.4g} %\n",
             metrics.position_relative_error_pct, metrics.velocity_relative_error_pct,
             metrics.acceleration_relative_error_pct, metrics.force_relative_error_pct);
-        return 0;
+        if (simulation.injected) fmt::print("  the injected signal added to the simulated controller output\n");
+        for (const auto& diagnostic : simulation.diagnostics) fmt::print("  note: {}\n", diagnostic);
     }
 };
 
@@ -105,7 +115,10 @@ Action add_simulate_command(CLI::App& app) {
         "\\\n"
         "      --force-constant gtau --saturation 10 --result result.json\n"
         "  feedid simulate synth.csv --force-constant force_constant_N_per_A --result result.json --gains gains.json "
-        "--out sim.csv");
+        "--out sim.csv\n"
+        "A test signal injected at the controller's output (--channel injection=NAME) is added to the simulated "
+        "controller's output too. A simulation that diverges (values not finite, or farther from the machine than "
+        "the trace's whole travel), or gains identified here from a fit too poor to trust, exit 1.");
     return [command] { return command->run(); };
 }
 

@@ -1,5 +1,6 @@
 // feedid synth --out FILE: a synthetic NC trace of a known drive in closed loop, with realistic sensors.
 #include <algorithm>
+#include <charconv>
 #include <cstdio>
 #include <fstream>
 
@@ -42,11 +43,32 @@ std::vector<double> read_reference(const std::string& path, double sample_time_s
     return out;
 }
 
+// A number followed by an optional unit ("300N", "0.5Hz", "300"), nullopt when it is not one.
+std::optional<double> number_with_unit(std::string_view text, std::string_view unit) {
+    if (text.ends_with(unit)) text.remove_suffix(unit.size());
+    double value = 0.0;
+    const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+    if (error != std::errc() || end != text.data() + text.size() || text.empty()) return std::nullopt;
+    return value;
+}
+
+// --injection AMPLITUDE@FREQUENCY, e.g. 300N@1Hz: a square wave of 300 N (then 0 N) at 1 Hz.
+SquareWaveInjection parse_injection(std::string_view text) {
+    const auto at = text.find('@');
+    const auto amplitude = number_with_unit(text.substr(0, at), "N");
+    const auto frequency = at == std::string_view::npos ? std::nullopt : number_with_unit(text.substr(at + 1), "Hz");
+    if (!amplitude || !frequency) {
+        throw InputError(fmt::format("--injection {}: expected AMPLITUDE@FREQUENCY, e.g. 300N@1Hz", text));
+    }
+    return {*amplitude, *frequency};
+}
+
 struct SynthCommand {
     std::string out_path;
     std::string drive_path;
     std::string reference_path;
     std::optional<std::uint64_t> seed;
+    std::string injection;
     bool no_slow_passes{false};
     bool print_drive{false};
     bool rotary{false};
@@ -63,6 +85,10 @@ struct SynthCommand {
         if (preset == "sinumerik") apply_sinumerik_recording(spec);
         if (seed) spec.seed = *seed;
         if (no_slow_passes) spec.test.slow_passes = false;
+        if (!injection.empty()) {
+            spec.injection = parse_injection(injection);
+            if (const auto problem = spec.validate(); !problem.empty()) throw InputError("--injection: " + problem);
+        }
         if (print_drive) {
             write_json(spec_to_json(spec), "-");
             if (out_path.empty()) return 0;
@@ -97,6 +123,10 @@ Action add_synth_command(CLI::App& app) {
     sub->add_option("--reference", command->reference_path,
                     "A reference position to follow instead of the test: a file with time and x_ref columns (e.g. "
                     "from feedid plan --reference)");
+    sub->add_option("--injection", command->injection,
+                    "Add a test signal to the controller's output, a square wave AMPLITUDE@FREQUENCY (e.g. 300N@1Hz: "
+                    "300 N for the first half of each period, 0 N for the second), logged as the channel 'injection' "
+                    "in the current's unit (A); read it back with --channel injection=injection");
     sub->add_flag("--no-slow-passes", command->no_slow_passes,
                   "Leave out the slow passes: the paper's feedrate ladder (1250..9350 mm/min) alone");
     sub->add_flag("--print-drive", command->print_drive, "Print the drive file in use (every key) as JSON");
@@ -116,6 +146,7 @@ Action add_synth_command(CLI::App& app) {
         "`# name = value` lines.\n"
         "Examples:\n"
         "  feedid synth --out synth.csv\n"
+        "  feedid synth --injection 300N@1Hz --out injected.csv\n"
         "  feedid synth --print-drive > drive.json      # then edit, and:\n"
         "  feedid synth --drive drive.json --seed 7 --out synth.csv\n"
         "  feedid synth --drive drive.toml --no-slow-passes --out ladder.csv   # drive.toml, for instance:\n"

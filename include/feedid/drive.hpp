@@ -46,4 +46,11 @@ inline constexpr DriveConstantRange plausible_gear_ratio{0.01, 1000.0};
 /// InputError saying what is missing.
 std::vector<double> drive_force(const Trace& trace, const DriveConstants& constants);
 
+/// The injected test signal as a force (torque) per sample: the injection channel, a signal added to the controller's
+/// output before the drive. In N (N*m on a rotary axis; a torque on a linear axis is turned into force by the lead, as
+/// for the force channel) it is taken as it is; otherwise it is in the drive signal's units and is converted as the
+/// drive signal is (times force_per_signal). Empty when the trace has no injection channel. Throws InputError naming
+/// both channels and units when the injection is in other units than the drive signal, or when no constant converts it.
+std::vector<double> injection_force(const Trace& trace, const DriveConstants& constants);
+
 }  // namespace feedid

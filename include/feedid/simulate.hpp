@@ -1,7 +1,8 @@
 #pragma once
 // The digital twin: fixed-step simulation of an identified axis in closed loop with its controller, driven by a
 // reference position (the paper's validation, METHOD.md step 7; the EMPS benchmark's simulation).
-//   M*x'' = F_d + F_ext - F_f(x') - F_0,   F_d = current loop(F_cmd),   F_cmd = controller(x_ref, x)
+//   M*x'' = F_d + F_ext - F_f(x') - F_0,   F_d = current loop(F_cmd + u_inj),   F_cmd = controller(x_ref, x)
+// (F_ext: a force on the mass from outside the drive; u_inj: a test signal injected at the controller's output).
 // Stick-slip: at rest (x' = 0) the axis stays at rest while the applied force F_a = F_d + F_ext - F_0 lies within
 // [-F_B(reverse), F_B(forward)] (friction takes whatever value holds it), and starts in the direction of F_a when it
 // exceeds the breakaway force. A moving axis whose velocity would pass through zero within a step stops exactly
@@ -18,6 +19,7 @@
 #include "feedid/controller.hpp"
 #include "feedid/friction.hpp"
 #include "feedid/gains.hpp"
+#include "feedid/status.hpp"
 #include "feedid/trace.hpp"
 
 namespace feedid {
@@ -48,6 +50,9 @@ struct SimulationInput {
     double sample_time_s{0.0};               ///< T [s] of the reference samples
     std::span<const double> reference;       ///< x_ref(k*T) [m]
     std::span<const double> external_force;  ///< F_ext(k*T) [N], acting in +x; empty = none
+    /// u_inj(k*T) [N]: a test signal added to the controller's force command before the current loop (held over
+    /// the sample); the sum saturates as the command does. Empty = none.
+    std::span<const double> injection;
 };
 
 /// Signals at the sample instants k*T (the controller's state when it has just computed its outputs).
@@ -129,6 +134,7 @@ nlohmann::json validation_series_document(const ValidationSeries& series, bool r
 struct TwinController {
     ControllerModel model;           ///< loop sample times resolved (never 0)
     std::vector<std::string> notes;  ///< how it was obtained, for the simulate document's diagnostics
+    Status status{Status::ok};       ///< failed: gains identified from a fit too poor to trust (the first note says)
 };
 
 /// The controller of a gains document (`source` names it in messages) for simulating `trace`: the saturation,
@@ -137,23 +143,32 @@ struct TwinController {
 TwinController documented_twin_controller(const nlohmann::json& gains_document, const std::string& source,
                                           const GainOptions& options, const Trace& trace);
 
-/// The controller identified from the trace and its drive force [N] per sample (identify_gains), with a note giving
-/// its gains. Throws as identify_gains() does.
+/// The controller identified from the trace, its drive force [N] per sample and the injected signal [N] per sample
+/// (identify_gains), with a note giving its gains; status failed (and the reason first among the notes) when the
+/// gains' fit is too poor to trust. Throws as identify_gains() does.
 TwinController identified_twin_controller(const Trace& trace, std::span<const double> drive_force,
-                                          const GainOptions& options);
+                                          const GainOptions& options, std::span<const double> injection = {});
 
 /// A recorded trace simulated by its twin, and how the simulation compares with the machine.
 struct TraceSimulation {
     SimulationOutput output;
     ValidationMetrics metrics;
+    bool injected{false};  ///< an injected signal was added to the simulated controller output
+    /// failed when the simulation diverged: a simulated value not finite, or the simulated axis farther from the
+    /// machine than the trace's whole travel (an unstable loop); the diagnostics say which, with the figures.
+    Status status{Status::ok};
+    std::vector<std::string> diagnostics;
 };
 
 /// Simulates the axis in closed loop with `controller` on the trace's reference (and its external force, when
 /// logged), starting where the machine started unless `options` says otherwise, and compares the result with the
-/// trace and its drive force [N] per sample. Throws InputError as simulate() does, and for a trace without a
-/// reference or position.
+/// trace and its drive force [N] per sample. `injection` [N] per sample (injection_force() of drive.hpp; empty =
+/// none), a test signal the machine's controller added to its output, is added to the simulated controller's output
+/// likewise, so that measured and simulated force both contain it. Throws InputError as simulate() does, and for a
+/// trace without a reference or position.
 TraceSimulation simulate_trace(const Trace& trace, std::span<const double> drive_force, const AxisModel& axis,
-                               const ControllerModel& controller, SimulationOptions options = {});
+                               const ControllerModel& controller, SimulationOptions options = {},
+                               std::span<const double> injection = {});
 
 /// The simulate document of DESIGN.md (`feedid simulate --json`): the validation figures of validation_document(),
 /// the trace (path, samples, sample time), the controller simulated, whether the axis is rotary, the series of errors

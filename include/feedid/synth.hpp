@@ -67,6 +67,19 @@ struct RecordingModel {
     [[nodiscard]] std::string validate(bool rotary, double sample_time_s) const;
 };
 
+/// A test signal added to the controller's force command before the current loop, as a disturbance-injection
+/// experiment adds it (EMPS's validation pulses, SINUMERIK's additive torque setpoint, a drive's function
+/// generator): a square wave at `amplitude_N` for the first half of each period and 0 for the second, from t = 0.
+struct SquareWaveInjection {
+    double amplitude_N{300.0};  ///< the wave's high level [N] (negative: a wave below zero)
+    double frequency_Hz{1.0};   ///< [Hz]
+
+    /// u_inj(t) [N].
+    [[nodiscard]] double at(double time_s) const;
+    /// What is wrong with it for a trace sampled every `sample_time_s` ("" when nothing).
+    [[nodiscard]] std::string validate(double sample_time_s) const;
+};
+
 /// Everything `feedid synth` needs: the drive, its controller, the sensors, the test, the seed.
 /// A rotary axis (axis.rotary) is SI of its kind inside: rad, rad/s, kg*m^2, N*m; its test and sensor lengths are read
 /// in degrees where the keys say mm, as an NC does for a rotary axis (stroke 30 mm is 30 deg, 9350 mm/min is
@@ -82,6 +95,8 @@ struct SynthSpec {
     TestReference test;
     /// Friction along the axis: stretches with scaled Coulomb and breakaway friction (a worn part of the screw).
     std::vector<FrictionZone> friction_zones;
+    /// A test signal injected at the controller's output, logged as its own channel; none = no injection.
+    std::optional<SquareWaveInjection> injection;
     std::uint64_t seed{1};
 
     /// Force per ampere [N/A] = K_t * g * 2*pi / lead (eq. 2); on a rotary axis torque per ampere [N*m/A] = K_t * g.
@@ -122,7 +137,9 @@ nlohmann::json spec_to_json(const SynthSpec& spec);
 std::vector<double> test_reference(const TestReference& test, double sample_time_s);
 
 /// Generates the trace: channels t [s], x_ref [m], x [m], v_cmd [m/s], i [A] (or tau [N] with recording.log_torque;
-/// v [m/s] with recording.log_velocity); on a rotary axis rad, rad/s, N*m. Each channel's native interval is the
+/// v [m/s] with recording.log_velocity; `injection`, the injected signal in the drive signal's units (A, or N or N*m
+/// with log_torque), role injection, when the spec has one: the drive signal contains it); on a rotary axis rad,
+/// rad/s, N*m. Each channel's native interval is the
 /// recording's (format source), its values held over it. Constants kt_Nm_per_A, gear_ratio, lead_m and
 /// force_constant_N_per_A (linear) or torque_constant_Nm_per_A (rotary), and the true values (true_mass_kg or
 /// true_inertia_kgm2, ...). `reference` overrides the test (sampled every sensors.sample_time_s). Deterministic for a

@@ -21,7 +21,8 @@ enum class Role {
     velocity_command,
     current,
     force,
-    external_force,
+    external_force,  ///< a force acting on the mass from outside the drive (a load cell, a weight), in +x
+    injection,       ///< a test signal added to the controller's output before the drive (in the drive signal)
 };
 
 /// "position", "reference_position", ... (the names used on the command line and in JSON).

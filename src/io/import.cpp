@@ -113,6 +113,7 @@ bool compatible(Role role, Quantity quantity) {
         case Role::velocity:
         case Role::velocity_command: return quantity == Quantity::velocity || quantity == Quantity::angular_velocity;
         case Role::current:
+        case Role::injection:  // in the drive signal's units, or already a force (torque)
             return quantity == Quantity::current || quantity == Quantity::voltage || quantity == Quantity::torque ||
                    quantity == Quantity::force || quantity == Quantity::dimensionless;
         case Role::force:
@@ -129,7 +130,8 @@ std::string_view default_si_unit(Role role, bool rotary) {
         case Role::reference_position: return rotary ? "rad" : "m";
         case Role::velocity:
         case Role::velocity_command: return rotary ? "rad/s" : "m/s";
-        case Role::current: return "A";
+        case Role::current:
+        case Role::injection: return "A";
         case Role::force:
         case Role::external_force: return rotary ? "N*m" : "N";
         case Role::other: return "";
@@ -306,6 +308,31 @@ void check_axis_kind(const Trace& trace, const Channel& channel, Quantity quanti
                                  axis_kind_name(*kind), axis_kind_name(axis.kind), axis.reason, hint));
 }
 
+// An injected signal is added to the controller's output, so it is logged in the drive signal's units: an injection
+// channel without a unit of its own takes the drive signal's (the current channel's, else the force channel's), and
+// is converted with it. Said in the findings.
+void adopt_drive_signal_unit(Trace& trace) {
+    Channel* injection = trace.find(Role::injection);
+    if (injection == nullptr || !injection->source_unit.empty() || !injection->unit.empty()) return;
+    const Channel* drive = trace.find(Role::current);
+    if (drive == nullptr) drive = trace.find(Role::force);
+    if (drive == nullptr) return;
+    if (!drive->source_unit.empty()) {
+        injection->source_unit = drive->source_unit;  // converted below as the drive signal is
+    } else if (!drive->unit.empty()) {
+        injection->unit = drive->unit;  // a reader converted the drive signal itself
+    } else if (drive->role == Role::force) {
+        injection->unit = std::string(default_si_unit(Role::force, trace.rotary));
+    } else {
+        return;  // neither carries a unit: both take the current's default, and each default is said
+    }
+    const std::string& unit = injection->source_unit.empty() ? injection->unit : injection->source_unit;
+    trace.findings.push_back(
+        fmt::format("channel '{}' (injection) carries no unit: taken in the unit of the drive signal '{}', {} (state "
+                    "it with --unit injection=UNIT)",
+                    injection->name, drive->name, unit));
+}
+
 // The unit overrides (--unit ROLE=UNIT) replace what the source said.
 void apply_unit_overrides(Trace& trace, const ImportOptions& options) {
     for (auto& channel : trace.channels) {
@@ -351,6 +378,7 @@ std::optional<UnitConversion> channel_conversion(Trace& trace, const Channel& ch
 
 void convert_units(Trace& trace, const ImportOptions& options) {
     apply_unit_overrides(trace, options);
+    adopt_drive_signal_unit(trace);
     const AxisDecision axis = decide_axis_kind(trace, options.unit_context);
     trace.rotary = axis.kind == AxisKind::rotary;
     UnitContext context = options.unit_context;
@@ -423,7 +451,7 @@ std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::s
     if (!role || *role == Role::other) {
         throw InputError(
             fmt::format("{} {}: unknown role '{}' (roles: time, position, reference_position, velocity, "
-                        "velocity_command, current, force, external_force)",
+                        "velocity_command, current, force, external_force, injection)",
                         option, text, text.substr(0, equals)));
     }
     return {*role, std::string(text.substr(equals + 1))};
