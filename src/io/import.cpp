@@ -57,7 +57,7 @@ constexpr std::array<RoleNames, 7> common_names{{
     {Role::current,
      {"i", "iq", "current", "cur", "iact", "iqact", "actcurr", "actcurrent", "id", "idrive", "currentfeedback",
       "torque"}},
-    {Role::force, {"f", "force", "fd", "fdrive", "driveforce"}},
+    {Role::force, {"f", "force", "fd", "fdrive", "driveforce", "tau"}},
 }};
 
 bool is_common_name(std::string_view key) {
