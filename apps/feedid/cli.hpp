@@ -27,6 +27,9 @@ struct TraceArguments {
     std::string format;
     std::optional<double> lead_mm;  // shared with DriveArguments when both are present
     std::optional<double> rated;    // rated value for % units
+    std::string join;               // FILE[@SHIFT]: a second recording joined onto this one's time base
+    std::optional<double> join_max_shift_s;
+    std::vector<std::string> tare;  // roles zeroed from the samples at rest before the move
 
     void add_to(CLI::App& app);
     [[nodiscard]] ImportOptions import_options() const;
