@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Robustness of the trace readers (CSV, MATLAB .mat, SINUMERIK trace XML, TwinCAT Scope CSV, halscope/halsampler):
+# Robustness of the trace readers (CSV, MATLAB .mat, SINUMERIK trace XML, TwinCAT Scope CSV, halscope/halsampler,
+# MR Configurator2 and NI DAQ CSV):
 #   1. libFuzzer: each reader's fuzz target (fuzz/) built with clang into build-fuzz/ and run for a bounded time,
 #      seeded from the hand-made corpus in tests/fuzz/corpus/<reader>/, the kept regression inputs in
 #      tests/fuzz/regressions/<reader>/ and the real files in ../shared/data (read only);
@@ -12,6 +13,7 @@
 #   scripts/fuzz.sh              both parts, 30 s per fuzzer
 #   scripts/fuzz.sh fuzz         only the fuzzers        scripts/fuzz.sh asan   only the sanitized tests
 #   FUZZ_SECONDS=60 JOBS=2 scripts/fuzz.sh
+#   FUZZ_READERS="mr_configurator ni_daq" scripts/fuzz.sh fuzz   only these fuzzers
 #   FUZZ_SEED=1 scripts/fuzz.sh  the same mutations on every run (CI): a fixed seed makes a short run a repeatable
 #                                check, clean on every machine once it is clean here for longer; without it each run
 #                                explores anew (what to run locally, for minutes)
@@ -27,7 +29,7 @@ seed_option=()
 [ -n "${FUZZ_SEED:-}" ] && seed_option=(-seed="$FUZZ_SEED")
 jobs=${JOBS:-2}
 shared=${FEEDID_SHARED_DATA:-$root/../shared/data}
-readers=(csv mat sinumerik_trace twincat_scope halscope)
+readers=(${FUZZ_READERS:-csv mat sinumerik_trace twincat_scope halscope mr_configurator ni_daq})
 status=0
 # HDF5's own leaks on damaged v7.3 files are not feedid's (see the file); every other leak still fails.
 export LSAN_OPTIONS="suppressions=$root/fuzz/lsan.supp${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
@@ -37,6 +39,7 @@ seeds_from_shared() {
     mat) echo "$shared/emps" ;;
     sinumerik_trace) echo "$shared/sinumerik-trace" ;;
     twincat_scope) echo "$shared/twincat-scope" ;;
+    mr_configurator | ni_daq) echo "$shared/mitsubishi-mr" ;;
     *) ;;
   esac
 }
@@ -87,13 +90,15 @@ run_sanitized_tests() {
   cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1" \
     -DFEEDID_SANITIZE=ON -DFEEDID_WERROR=OFF \
     -DFEEDID_BUILD_BENCH=OFF -DFEEDID_SHARED_DATA="$shared" >/dev/null
-  cmake --build build-asan -j"$jobs" --target test_readers
+  cmake --build build-asan -j"$jobs" --target test_readers test_vendor_readers
   echo "asan: running the reader tests under AddressSanitizer + UBSan" >&2
-  if ! ASAN_OPTIONS=abort_on_error=1:detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-      build-asan/tests/test_readers; then
-    echo "asan: the reader tests FAILED under the sanitizers" >&2
-    status=1
-  fi
+  for tests in test_readers test_vendor_readers; do
+    if ! ASAN_OPTIONS=abort_on_error=1:detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+        "build-asan/tests/$tests"; then
+      echo "asan: the reader tests ($tests) FAILED under the sanitizers" >&2
+      status=1
+    fi
+  done
 }
 
 case "$what" in

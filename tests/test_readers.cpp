@@ -18,6 +18,8 @@
 #include "feedid/io/halscope.hpp"
 #include "feedid/io/import.hpp"
 #include "feedid/io/mat.hpp"
+#include "feedid/io/mr_configurator.hpp"
+#include "feedid/io/ni_daq.hpp"
 #include "feedid/io/sinumerik_trace.hpp"
 #include "feedid/io/twincat_scope.hpp"
 #include "testing.hpp"
@@ -564,6 +566,10 @@ TEST(ReaderFuzzRegressions, EveryKeptInputIsReadOrRefusedWithAnInputError) {
                 (void)parse_twincat_scope(bytes, "fuzz.csv");
             else if (reader == "halscope")
                 (void)parse_halscope(bytes, "fuzz.txt", 0.001);
+            else if (reader == "mr_configurator")
+                (void)parse_mr_configurator(bytes, "fuzz.csv");
+            else if (reader == "ni_daq")
+                (void)parse_ni_daq(bytes, "fuzz.csv");
             else if (reader == "csv")
                 (void)parse_csv(bytes, "fuzz.csv");
             else if (reader == "mat")

@@ -12,7 +12,9 @@
 namespace feedid::cli {
 
 void TraceArguments::add_to(CLI::App& app) {
-    app.add_option("FILE", file, "The trace: CSV, MATLAB .mat, SINUMERIK trace XML, TwinCAT Scope CSV or halscope text")
+    app.add_option("FILE", file,
+                   "The trace: CSV, MATLAB .mat, SINUMERIK trace XML, TwinCAT Scope CSV, halscope text, MR "
+                   "Configurator2 graph CSV or NI DAQ CSV")
         ->required();
     app.add_option("--channel", channel_assignments,
                    "Use a channel for a role: ROLE=NAME (roles: time, position, reference_position, velocity, "
@@ -26,7 +28,8 @@ void TraceArguments::add_to(CLI::App& app) {
                    "The axis: which one to read from a multi-axis trace (NC axis index or name) and its label in the "
                    "history");
     app.add_option("--format", format, "Read as this format instead of detecting it")
-        ->check(CLI::IsMember({"csv", "mat", "sinumerik-trace", "twincat-scope", "halscope"}));
+        ->check(
+            CLI::IsMember({"csv", "mat", "sinumerik-trace", "twincat-scope", "halscope", "mr-configurator", "ni-daq"}));
     app.add_option("--rated", rated, "What 100 % means for channels given in percent, in SI units (e.g. 18 for 18 A)");
     app.add_option("--join", join,
                    "A second recording of the same move (e.g. a DAQ's load cell): FILE[@SHIFT], its channels "

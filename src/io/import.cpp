@@ -4,6 +4,7 @@
 #include <array>
 #include <cctype>
 #include <fstream>
+#include <vector>
 
 #include <fmt/core.h>
 
@@ -11,6 +12,8 @@
 #include "feedid/io/csv.hpp"
 #include "feedid/io/halscope.hpp"
 #include "feedid/io/mat.hpp"
+#include "feedid/io/mr_configurator.hpp"
+#include "feedid/io/ni_daq.hpp"
 #include "feedid/io/sinumerik_trace.hpp"
 #include "feedid/io/tare.hpp"
 #include "feedid/io/twincat_scope.hpp"
@@ -85,7 +88,8 @@ std::string_view default_si_unit(Role role, bool rotary) {
     return "";
 }
 
-void assign_roles(Trace& trace, const ImportOptions& options) {
+// Roles given with --channel, then guesses from common names; returns the names of the channels given a role by guess.
+std::vector<std::string> assign_roles(Trace& trace, const ImportOptions& options) {
     // Explicit assignments first; they take a role away from any channel that had it.
     for (const auto& [role, name] : options.channels) {
         auto* channel = trace.find(name);
@@ -101,6 +105,7 @@ void assign_roles(Trace& trace, const ImportOptions& options) {
         channel->role = role;
     }
     // Then guesses for the roles still open, from common names; each guess is said.
+    std::vector<std::string> guessed;
     for (const auto& [role, names] : common_names) {
         if (trace.has(role) || std::find(options.assigned_elsewhere.begin(), options.assigned_elsewhere.end(), role) !=
                                    options.assigned_elsewhere.end())
@@ -115,6 +120,7 @@ void assign_roles(Trace& trace, const ImportOptions& options) {
             if (unit && !compatible(role, unit->quantity)) continue;
             if (std::find(names.begin(), names.end(), key) != names.end() && !key.empty()) {
                 channel.role = role;
+                guessed.push_back(channel.name);
                 trace.findings.push_back(
                     fmt::format("channel '{}' taken as {} (guessed from its name; set it with "
                                 "--channel {}=NAME)",
@@ -122,6 +128,38 @@ void assign_roles(Trace& trace, const ImportOptions& options) {
                 break;
             }
         }
+    }
+    return guessed;
+}
+
+// A guessed role channel whose unit does not fit the role (a load cell logged in V guessed as force by its name), or
+// needs a rating that was not given (% without --rated), is left without a role, with a finding that says why; given
+// with --channel, either stays an error. A guess with an unknown unit stays an error naming it.
+void drop_unusable_guesses(Trace& trace, const ImportOptions& options, const std::vector<std::string>& guessed) {
+    const UnitContext with_rating{std::nullopt, 1.0, Quantity::current};
+    for (auto& channel : trace.channels) {
+        if (channel.role == Role::other || channel.source_unit.empty() || options.units.contains(channel.role) ||
+            std::find(guessed.begin(), guessed.end(), channel.name) == guessed.end()) {
+            continue;
+        }
+        std::string reason;
+        if (const auto conversion = parse_unit(channel.source_unit, options.unit_context)) {
+            if (compatible(channel.role, conversion->quantity)) continue;
+            reason = fmt::format("channel '{}': unit '{}' is not one for {}", channel.name, channel.source_unit,
+                                 role_name(channel.role));
+        } else if (!options.unit_context.rated_value_si && parse_unit(channel.source_unit, with_rating)) {
+            try {
+                (void)parse_unit_or_throw(channel.source_unit, channel.name, options.unit_context);
+            } catch (const InputError& e) {
+                reason = e.what();
+            }
+        } else {
+            continue;
+        }
+        const auto guess = fmt::format("channel '{}' taken as {} (guessed", channel.name, role_name(channel.role));
+        std::erase_if(trace.findings, [&guess](const std::string& finding) { return finding.starts_with(guess); });
+        trace.findings.push_back(fmt::format("{}: not taken as {}", reason, role_name(channel.role)));
+        channel.role = Role::other;
     }
 }
 
@@ -199,7 +237,8 @@ std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::s
 }
 
 void prepare_trace(Trace& trace, const ImportOptions& options) {
-    assign_roles(trace, options);
+    const auto guessed = assign_roles(trace, options);
+    drop_unusable_guesses(trace, options, guessed);
     convert_units(trace, options);
     trace.validate();
 }
@@ -224,6 +263,8 @@ namespace {
 std::string format_from_content(std::string_view head, const std::filesystem::path& path) {
     if (head.substr(0, 6) == "MATLAB" || head.substr(0, 4) == "\x89HDF") return "mat";
     if (head.find("<traceSession") != std::string_view::npos) return "sinumerik-trace";
+    if (looks_like_mr_configurator(head)) return "mr-configurator";
+    if (looks_like_ni_daq(head)) return "ni-daq";
     // TwinCAT Scope: "Name<separator>scope name", then "File<separator>..." and "Starttime of export".
     if (head.size() > 5 && head.starts_with("Name") &&
         std::string_view("\t ;:,").find(head[4]) != std::string_view::npos &&
@@ -273,9 +314,15 @@ Trace read_source(const std::filesystem::path& path, const ImportOptions& option
             trace = parse_twincat_scope(bytes, path.string());
         else if (format == "halscope")
             trace = parse_halscope(bytes, path.string(), options.sample_time_s);
+        else if (format == "mr-configurator")
+            trace = parse_mr_configurator(bytes, path.string());
+        else if (format == "ni-daq")
+            trace = parse_ni_daq(bytes, path.string());
         else
-            throw InputError(fmt::format(
-                "--format {}: unknown format (csv, mat, sinumerik-trace, twincat-scope, halscope)", format));
+            throw InputError(
+                fmt::format("--format {}: unknown format (csv, mat, sinumerik-trace, twincat-scope, halscope, "
+                            "mr-configurator, ni-daq)",
+                            format));
     }
     trace.source_path = path.string();
     if (trace.format.empty()) trace.format = format;

@@ -3,8 +3,12 @@
 // Private to src/io: not part of the public API.
 
 #include <cstddef>
+#include <string>
 #include <string_view>
 #include <system_error>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
 
 #include <fast_float/fast_float.h>
 
@@ -52,6 +56,59 @@ inline std::string_view next_line(std::string_view text, std::size_t& position) 
     std::string_view line = text.substr(start, end - start);
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
     return line;
+}
+
+/// Splits a delimited line into cells (blanks around each trimmed, one level of double quotes removed); a quoted
+/// cell may hold the separator. `cells` is cleared first.
+inline void split_cells(std::string_view line, char separator, std::vector<std::string_view>& cells) {
+    cells.clear();
+    std::size_t start = 0;
+    bool quoted = false;
+    for (std::size_t k = 0; k <= line.size(); ++k) {
+        if (k < line.size() && line[k] == '"') quoted = !quoted;
+        if (k == line.size() || (line[k] == separator && !quoted)) {
+            std::string_view cell = trim(line.substr(start, k - start));
+            if (cell.size() >= 2 && cell.front() == '"' && cell.back() == '"')
+                cell = trim(cell.substr(1, cell.size() - 2));
+            cells.push_back(cell);
+            start = k + 1;
+        }
+    }
+}
+
+/// Equal ignoring ASCII case.
+inline bool iequals(std::string_view a, std::string_view b) {
+    if (a.size() != b.size()) return false;
+    for (std::size_t k = 0; k < a.size(); ++k) {
+        const auto x = static_cast<unsigned char>(a[k]);
+        const auto y = static_cast<unsigned char>(b[k]);
+        if ((x >= 'A' && x <= 'Z' ? x + 32 : x) != (y >= 'A' && y <= 'Z' ? y + 32 : y)) return false;
+    }
+    return true;
+}
+
+/// The text without a UTF-8 byte-order mark.
+inline std::string_view without_bom(std::string_view text) {
+    return text.starts_with("\xEF\xBB\xBF") ? text.substr(3) : text;
+}
+
+/// Makes repeated names unique by numbering the repeats in order ("x", "x#2", "x#3", skipping a number already taken
+/// by another column); returns each name that repeated, once, in order of first repetition.
+inline std::vector<std::string> number_repeated_names(std::vector<std::string>& names) {
+    std::unordered_set<std::string> taken(names.begin(), names.end());
+    std::unordered_map<std::string, int> seen;
+    std::vector<std::string> repeated;
+    for (auto& name : names) {
+        int& count = seen[name];
+        if (++count == 1) continue;
+        if (count == 2) repeated.push_back(name);
+        std::string candidate;
+        do {
+            candidate = name + "#" + std::to_string(count);
+        } while (!taken.insert(candidate).second && ++count > 0);
+        name = std::move(candidate);
+    }
+    return repeated;
 }
 
 }  // namespace feedid::scan

@@ -26,7 +26,8 @@ struct ImportOptions {
     std::string axis;
     /// Sampling period [s] for sources that carry none (halsampler output); ignored where the file states one.
     std::optional<double> sample_time_s;
-    /// Force a format instead of detecting it ("csv", "mat", "sinumerik-trace", "twincat-scope", "halscope").
+    /// Force a format instead of detecting it ("csv", "mat", "sinumerik-trace", "twincat-scope", "halscope",
+    /// "mr-configurator", "ni-daq").
     std::string format;
     /// A second recording joined onto this one's time base (`--join FILE[@SHIFT]`, see join.hpp). Channel and unit
     /// assignments may name channels of either file.
@@ -54,7 +55,7 @@ Trace read_trace(const std::filesystem::path& path, const ImportOptions& options
 Trace read_source(const std::filesystem::path& path, const ImportOptions& options = {});
 
 /// Names the format of a file from its first bytes and extension: "csv", "mat", "sinumerik-trace", "twincat-scope",
-/// "halscope", or "" when unknown.
+/// "halscope", "mr-configurator", "ni-daq", or "" when unknown.
 std::string detect_format(const std::filesystem::path& path);
 
 /// Reads a whole file into memory; InputError naming the file when it cannot be read.

@@ -1,0 +1,15 @@
+// libFuzzer target: NI DAQ CSV files. Read or InputError; anything else is a bug.
+#include <cstddef>
+#include <cstdint>
+#include <string_view>
+
+#include "feedid/error.hpp"
+#include "feedid/io/ni_daq.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+    const std::string_view text(reinterpret_cast<const char*>(data), size);
+    try {
+        (void)feedid::parse_ni_daq(text, "fuzz.csv");
+    } catch (const feedid::InputError&) {}
+    return 0;
+}
