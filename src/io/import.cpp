@@ -113,11 +113,6 @@ std::vector<std::string> assign_roles(Trace& trace, const ImportOptions& options
         for (auto& channel : trace.channels) {
             if (channel.role != Role::other) continue;
             const std::string key = lower_alnum(channel.name);
-            // a name is no guess against the channel's own unit ("Force" in V is a voltage, not a force)
-            const auto unit = channel.source_unit.empty()
-                                  ? std::nullopt
-                                  : parse_unit(channel.source_unit, options.unit_context);
-            if (unit && !compatible(role, unit->quantity)) continue;
             if (std::find(names.begin(), names.end(), key) != names.end() && !key.empty()) {
                 channel.role = role;
                 guessed.push_back(channel.name);
