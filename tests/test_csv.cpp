@@ -4,11 +4,13 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <map>
 #include <new>
 #include <numbers>
 #include <random>
@@ -241,9 +243,10 @@ TEST(Csv, NonNumericCellNamesLineColumnAndCell) {
     EXPECT_TRUE(contains(message, "column 2")) << message;
     EXPECT_TRUE(contains(message, "'x'")) << message;
     EXPECT_TRUE(contains(message, "'abc'")) << message;
-    // a number followed by junk is not a number either
-    const std::string junk = error_of("t,x\n0,1.5mm\n");
-    EXPECT_TRUE(contains(junk, "data.csv:2:")) << junk;
+    // a number followed by junk is not a number either (in a column of numbers; in the first row it makes a column
+    // of text, left out with a finding)
+    const std::string junk = error_of("t,x\n0,1\n0.001,1.5mm\n");
+    EXPECT_TRUE(contains(junk, "data.csv:3:")) << junk;
     EXPECT_TRUE(contains(junk, "'1.5mm'")) << junk;
 }
 
@@ -263,11 +266,10 @@ TEST(Csv, HeaderProblems) {
     EXPECT_TRUE(contains(error_of("# only a comment\n"), "no header row"));
     EXPECT_TRUE(contains(error_of("t,x\n"), "no data rows"));
     EXPECT_TRUE(contains(error_of("0,1\n0.001,2\n"), "holds numbers, not a header"));
-    EXPECT_TRUE(contains(error_of("t,x,t\n0,1,2\n"), "'t' appears twice"));
     EXPECT_TRUE(contains(error_of("t,,x\n0,1,2\n"), "column 2 has no name"));
 }
 
-// A header of many columns: its duplicate names are found however far apart (a set of names, not a search of the
+// A header of many columns: its repeated names are found however far apart (a set of names, not a search of the
 // columns before each one, which took seconds for 10000 columns), and a wide file is read.
 TEST(Csv, WideHeaderDuplicatesAreFoundAndAWideFileIsRead) {
     constexpr int columns = 20000;
@@ -282,7 +284,8 @@ TEST(Csv, WideHeaderDuplicatesAreFoundAndAWideFileIsRead) {
     EXPECT_EQ(trace.channels[12345].name, "c12345");
     ASSERT_EQ(trace.channels[12345].values.size(), 1U);
     EXPECT_EQ(trace.channels[12345].values[0], 5.0);
-    EXPECT_TRUE(contains(error_of(header + ",c0\n" + row + ",1\n"), "'c0' appears twice"));
+    const auto repeated = parse_csv(header + ",c0\n" + row + ",1\n", "wide.csv");
+    EXPECT_EQ(repeated.channels.back().name, "c0#2");
 }
 
 // A wide header over many blank lines made the parser reserve columns x lines values (gigabytes
@@ -524,4 +527,252 @@ TEST(CsvCli, RpmWithALeadIsATableVelocity) {
     // 3000 rev/min * 10 mm/rev = 30 m/min = 0.5 m/s; -600 rev/min -> -0.1 m/s
     EXPECT_NEAR(v.at("max").get<double>(), 0.5, 1e-15);
     EXPECT_NEAR(v.at("min").get<double>(), -0.1, 1e-15);
+}
+
+// ---- What real files add (issue 12): unit rows, repeated names, text columns, an index, a preamble, no time ---------
+
+TEST(Csv, UnitRowUnderTheHeaderGivesTheUnits) {
+    const auto trace = parse_csv("t,x,v,i,n\ns,mm,mm/min,A,\n0,1,2,3,4\n0.001,1.5,2.5,3.5,4.5\n", "units.csv");
+    ASSERT_EQ(trace.channels.size(), 5U);
+    EXPECT_EQ(trace.channels[0].source_unit, "s");
+    EXPECT_EQ(trace.channels[1].source_unit, "mm");
+    EXPECT_EQ(trace.channels[2].source_unit, "mm/min");
+    EXPECT_EQ(trace.channels[3].source_unit, "A");
+    EXPECT_EQ(trace.channels[4].source_unit, "");
+    EXPECT_EQ(trace.channels[1].values, (std::vector<double>{1.0, 1.5}));
+    ASSERT_EQ(trace.findings.size(), 1U);
+    EXPECT_TRUE(contains(trace.findings[0], "line 2")) << trace.findings[0];
+    // units that need context (rpm, %) count as units; a header cell's unit still works beside the row
+    const auto mixed = parse_csv("t [s],v,torque\n,r/min,%\n0,1,2\n", "mixed.csv");
+    EXPECT_EQ(mixed.channels[0].source_unit, "s");
+    EXPECT_EQ(mixed.channels[1].source_unit, "r/min");
+    EXPECT_EQ(mixed.channels[2].source_unit, "%");
+    // a header unit the row contradicts is an error naming both
+    const std::string message = error_of("t [s],x [mm]\ns,um\n0,1\n");
+    EXPECT_TRUE(contains(message, "data.csv:2:")) << message;
+    EXPECT_TRUE(contains(message, "'mm'")) << message;
+    EXPECT_TRUE(contains(message, "'um'")) << message;
+    // a first data row is no unit row, even of ones and blanks
+    const auto data = parse_csv("t,x\n1,\n2,1\n", "data.csv");
+    EXPECT_EQ(data.channels[0].values, (std::vector<double>{1.0, 2.0}));
+}
+
+TEST(Csv, RepeatedColumnNamesAreNumbered) {
+    const auto trace = parse_csv("t,x,t,x,x#2\n0,1,2,3,4\n", "twice.csv");
+    std::vector<std::string> names;
+    for (const auto& c : trace.channels) names.push_back(c.name);
+    // the third x would be x#2, which the file already has: it takes the next free number
+    EXPECT_EQ(names, (std::vector<std::string>{"t", "x", "t#2", "x#3", "x#2"}));
+    EXPECT_EQ(channel(trace, "t#2").values, (std::vector<double>{2.0}));
+    ASSERT_EQ(trace.findings.size(), 2U);
+    EXPECT_TRUE(contains(trace.findings[0], "'t' appears more than once")) << trace.findings[0];
+}
+
+TEST(Csv, TextColumnsAreLeftOutWithOneFinding) {
+    const auto trace = parse_csv(
+        "t,x,Machining_Process,note,tool_condition\n0,1,Starting,,unworn\n0.001,2,Prep,\"a, b\",unworn\n"
+        "0.002,3,Layer 1 Up,7,worn\n",
+        "mill.csv");
+    std::vector<std::string> names;
+    for (const auto& c : trace.channels) names.push_back(c.name);
+    EXPECT_EQ(names, (std::vector<std::string>{"t", "x"}));
+    EXPECT_EQ(channel(trace, "x").values, (std::vector<double>{1.0, 2.0, 3.0}));
+    ASSERT_EQ(trace.findings.size(), 1U);
+    const auto& finding = trace.findings[0];
+    EXPECT_TRUE(contains(finding, "'Machining_Process' ('Starting' at line 2)")) << finding;
+    EXPECT_TRUE(contains(finding, "'note' (")) << finding;  // empty first, then text: text
+    EXPECT_TRUE(contains(finding, "'tool_condition' ('unworn' at line 2)")) << finding;
+    // a column of numbers with one cell that is not is still an error naming the line and the cell
+    EXPECT_TRUE(contains(error_of("t,x\n0,1\n0.001,oops\n"), "data.csv:3: column 2 ('x') holds 'oops'"));
+    // a text column given for a role is an error naming it
+    CsvOptions options;
+    options.numeric_columns = {"Machining_Process"};
+    try {
+        (void)parse_csv("t,Machining_Process\n0,Prep\n", "mill.csv", options);
+        ADD_FAILURE() << "a text column given for a role was accepted";
+    } catch (const InputError& e) {
+        EXPECT_TRUE(contains(e.what(), "mill.csv:2: column 2 ('Machining_Process') holds 'Prep'")) << e.what();
+    }
+    EXPECT_TRUE(contains(error_of("a,b\nx,y\n"), "no column holds numbers"));
+}
+
+TEST(Csv, UnnamedIndexColumnIsLeftOut) {
+    const auto trace = parse_csv(",t,x\n0,0.1,5\n1,0.2,6\n2,0.3,7\n", "pandas.csv");
+    ASSERT_EQ(trace.channels.size(), 2U);
+    EXPECT_EQ(trace.channels[0].name, "t");
+    EXPECT_EQ(trace.channels[1].values, (std::vector<double>{5.0, 6.0, 7.0}));
+    ASSERT_EQ(trace.findings.size(), 1U);
+    EXPECT_TRUE(contains(trace.findings[0], "index")) << trace.findings[0];
+    EXPECT_EQ(parse_csv("Unnamed: 0,t\n0,1\n1,2\n", "again.csv").channels.size(), 1U);
+    // unnamed and not counting 0, 1, 2: a column without a name
+    const std::string message = error_of(",t\n5,1\n6,2\n");
+    EXPECT_TRUE(contains(message, "data.csv:1: column 1 has no name")) << message;
+}
+
+TEST(Csv, SkipRowsPassesAPreambleNoReaderKnows) {
+    CsvOptions options;
+    options.skip_rows = 2;
+    const auto trace = parse_csv("Recorder 7, serial 1234\nexported by hand\nt,x\n0,1\n0.5,2\n", "pre.csv", options);
+    ASSERT_EQ(trace.channels.size(), 2U);
+    EXPECT_EQ(trace.channels[1].values, (std::vector<double>{1.0, 2.0}));
+    options.skip_rows = 9;
+    try {
+        (void)parse_csv("a\nb\nc\n", "short.csv", options);
+        ADD_FAILURE() << "skipping past the end was accepted";
+    } catch (const InputError& e) {
+        EXPECT_TRUE(contains(e.what(), "--skip-rows 9 skips the whole file (3 lines)")) << e.what();
+    }
+}
+
+TEST(CsvCli, NoTimeColumnTakesTheSampleTimeOrAsksForIt) {
+    const auto dir = feedid::testing::temp_dir();
+    const auto path = dir / "log.csv";
+    write_text(path, "x [mm],i [A]\n1,2\n2,3\n3,4\n");
+    const auto result = run_cli("info '" + path.string() + "' --sample-time 0.1 --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto document = nlohmann::json::parse(result.out);
+    EXPECT_NEAR(document.at("sample_time_s").get<double>(), 0.1, 1e-15);
+    EXPECT_NEAR(document.at("duration_s").get<double>(), 0.2, 1e-15);
+    EXPECT_EQ(document.at("channels").at(2).at("role"), "time");
+    EXPECT_TRUE(contains(document.at("findings").dump(), "--sample-time 0.1 s")) << document.at("findings").dump();
+    const auto refused = run_cli("info '" + path.string() + "'");
+    EXPECT_EQ(refused.exit_code, 2);
+    EXPECT_EQ(count_lines(refused.err), 1) << refused.err;
+    EXPECT_TRUE(contains(refused.err, "no time column")) << refused.err;
+    EXPECT_TRUE(contains(refused.err, "--sample-time SECONDS")) << refused.err;
+    // --skip-rows from the command line, and a text column given for a role names it
+    write_text(dir / "pre.csv", "Recorder 7\nt,x,step\n0,1,Prep\n0.1,2,Cut\n");
+    EXPECT_EQ(run_cli("info '" + (dir / "pre.csv").string() + "' --skip-rows 1").exit_code, 0);
+    const auto text_role = run_cli("info '" + (dir / "pre.csv").string() + "' --skip-rows 1 --channel position=step");
+    EXPECT_EQ(text_role.exit_code, 2);
+    EXPECT_TRUE(contains(text_role.err, "'step' holds 'Prep'") || contains(text_role.err, "('step') holds 'Prep'"))
+        << text_role.err;
+}
+
+TEST(CsvCli, MillLogWrittenByPandasReads) {
+    const auto file = feedid::testing::shared_data() / "umich-cnc-mill/experiment_01.csv";
+    FEEDID_REQUIRE_SHARED("umich-cnc-mill/experiment_01.csv");
+    const auto result =
+        run_cli("info '" + file.string() + "' --sample-time 0.1 --channel position=X1_ActualPosition --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto document = nlohmann::json::parse(result.out);
+    // 1055 rows, 100 ms apart; the index and the two text columns left out, a time channel made
+    EXPECT_EQ(document.at("samples"), 1055);
+    EXPECT_NEAR(document.at("duration_s").get<double>(), 105.4, 1e-9);
+    const auto& channels = document.at("channels");
+    EXPECT_EQ(channels.size(), 47U + 1U);
+    for (const auto& c : channels) {
+        EXPECT_NE(c.at("name"), "Machining_Process");
+        EXPECT_NE(c.at("name"), "tool_condition");
+    }
+    const std::string findings = document.at("findings").dump();
+    EXPECT_TRUE(contains(findings, "'Machining_Process' ('Starting' at line 2)")) << findings;
+    EXPECT_TRUE(contains(findings, "index")) << findings;
+    // X1_ActualPosition as the raw text has it (column 2 of each row): 198 mm at the start, rounded to 1 mm
+    EXPECT_EQ(channels.at(0).at("name"), "X1_ActualPosition");
+    EXPECT_EQ(channels.at(0).at("role"), "position");
+    const std::string text = feedid::testing::read_text(file);
+    double low = 1e300;
+    double high = -1e300;
+    std::size_t line_start = text.find('\n') + 1;
+    while (line_start < text.size()) {
+        const auto comma = text.find(',', line_start);
+        const double x = std::stod(text.substr(comma + 1, text.find(',', comma + 1) - comma - 1));
+        low = std::min(low, x);
+        high = std::max(high, x);
+        line_start = text.find('\n', line_start) + 1;
+        if (line_start == 0) break;
+    }
+    EXPECT_EQ(channels.at(0).at("min").get<double>(), low);
+    EXPECT_EQ(channels.at(0).at("max").get<double>(), high);
+}
+
+// ---- Role guessing from drive and CNC log names, and the --axis prefix filter (issue 12) ---------------------------
+
+namespace {
+const char* const mill_log = "umich-cnc-mill/experiment_01.csv";
+
+std::map<std::string, std::string> roles_of(const nlohmann::json& document) {
+    std::map<std::string, std::string> roles;
+    for (const auto& c : document.at("channels")) roles[c.at("name")] = c.at("role");
+    return roles;
+}
+}  // namespace
+
+TEST(CsvCli, AxisPrefixChoosesTheMillAxisAndItsRolesAreGuessed) {
+    FEEDID_REQUIRE_SHARED(mill_log);
+    const auto file = feedid::testing::shared_data() / mill_log;
+    const auto result = run_cli("info '" + file.string() + "' --axis x1 --sample-time 0.1 --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto document = nlohmann::json::parse(result.out);
+    const auto roles = roles_of(document);
+    EXPECT_EQ(roles.at("X1_ActualPosition"), "position");
+    EXPECT_EQ(roles.at("X1_CommandPosition"), "reference_position");
+    EXPECT_EQ(roles.at("X1_ActualVelocity"), "velocity");
+    EXPECT_EQ(roles.at("X1_CommandVelocity"), "velocity_command");
+    EXPECT_EQ(roles.at("X1_CurrentFeedback"), "current");
+    EXPECT_EQ(roles.at("X1_OutputCurrent"), "other");
+    EXPECT_EQ(roles.at("M1_CURRENT_FEEDRATE"), "other");  // no axis: kept, never guessed
+    for (const auto& [name, role] : roles) {
+        EXPECT_FALSE(name.starts_with("Y1_") || name.starts_with("Z1_") || name.starts_with("S1_")) << name;
+    }
+    EXPECT_TRUE(contains(document.at("findings").dump(), "other axes (Y1, Z1, S1) left out"))
+        << document.at("findings").dump();
+}
+
+TEST(CsvCli, SeveralAxesWithoutAChoiceAreNamedNotGuessed) {
+    FEEDID_REQUIRE_SHARED(mill_log);
+    const auto file = feedid::testing::shared_data() / mill_log;
+    const auto refused = run_cli("info '" + file.string() + "' --sample-time 0.1");
+    EXPECT_EQ(refused.exit_code, 2);
+    EXPECT_EQ(count_lines(refused.err), 1) << refused.err;
+    EXPECT_TRUE(contains(refused.err, "several axes (X1, Y1, Z1, S1)")) << refused.err;
+    EXPECT_TRUE(contains(refused.err, "--axis")) << refused.err;
+    const auto unknown = run_cli("info '" + file.string() + "' --sample-time 0.1 --axis B2");
+    EXPECT_EQ(unknown.exit_code, 2);
+    EXPECT_TRUE(contains(unknown.err, "--axis B2")) << unknown.err;
+    EXPECT_TRUE(contains(unknown.err, "X1, Y1, Z1, S1")) << unknown.err;
+    // explicit roles work without --axis; nothing is guessed from the axes' names then
+    const auto explicit_roles =
+        run_cli("info '" + file.string() + "' --sample-time 0.1 --channel position=Y1_ActualPosition --json -");
+    ASSERT_EQ(explicit_roles.exit_code, 0) << explicit_roles.err;
+    const auto roles = roles_of(nlohmann::json::parse(explicit_roles.out));
+    EXPECT_EQ(roles.at("Y1_ActualPosition"), "position");
+    EXPECT_EQ(roles.at("X1_ActualPosition"), "other");
+    EXPECT_EQ(roles.at("Y1_CurrentFeedback"), "other");
+}
+
+TEST(CsvCli, DriveExportNamesAreGuessedAndAUnitNeedingARatingIsSaid) {
+    const auto path = feedid::testing::temp_dir() / "drive.csv";
+    write_text(path, "time [ms],Servo motor speed [mm/s],Torque [%]\n0,0,10\n1,5,-20\n2,10,30\n");
+    const auto without = run_cli("info '" + path.string() + "' --json -");
+    ASSERT_EQ(without.exit_code, 0) << without.err;
+    const auto document = nlohmann::json::parse(without.out);
+    auto roles = roles_of(document);
+    EXPECT_EQ(roles.at("Servo motor speed"), "velocity");
+    EXPECT_EQ(roles.at("Torque"), "other");  // % without --rated: no role, and a finding says what it needs
+    EXPECT_TRUE(contains(document.at("findings").dump(), "--rated")) << document.at("findings").dump();
+    const auto rated = run_cli("info '" + path.string() + "' --rated 4 --json -");
+    ASSERT_EQ(rated.exit_code, 0) << rated.err;
+    const auto with_rating = nlohmann::json::parse(rated.out);
+    roles = roles_of(with_rating);
+    EXPECT_EQ(roles.at("Torque"), "current");
+    // 30 % and -20 % of 4 A
+    EXPECT_NEAR(with_rating.at("channels").at(2).at("max").get<double>(), 1.2, 1e-15);
+    EXPECT_NEAR(with_rating.at("channels").at(2).at("min").get<double>(), -0.8, 1e-15);
+}
+
+TEST(CsvCli, MrConfiguratorExportGetsItsRolesFromTheSlotNames) {
+    const auto file = feedid::testing::shared_data() / "mitsubishi-mr/a3MR.csv";
+    FEEDID_REQUIRE_SHARED("mitsubishi-mr/a3MR.csv");
+    const auto result = run_cli("info '" + file.string() + "' --lead 20 --rated 1 --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto document = nlohmann::json::parse(result.out);
+    const auto roles = roles_of(document);
+    EXPECT_EQ(roles.at("Time"), "time");
+    EXPECT_EQ(roles.at("Servo motor speed"), "velocity");
+    EXPECT_EQ(roles.at("Torque"), "current");
+    // the rig authors' own conversion: v = rpm * 20 mm / 1000 / 60; the slowest sample is -1981 r/min
+    const auto& speed = document.at("channels").at(1);
+    EXPECT_NEAR(speed.at("min").get<double>(), -1981.0 * 0.020 / 60.0, 1e-12);
 }

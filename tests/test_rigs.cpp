@@ -167,3 +167,27 @@ TEST(UmichMill, PerDirectionTheLogSaysWhichSpeedIsMissing) {
     EXPECT_TRUE(contains(why, "the steady speeds forward are nearly all")) << why;
     EXPECT_FALSE(contains(why, "micro-step")) << why;
 }
+
+TEST(UmichMill, TheCommandLineReadsThePandasFileAsItIs) {
+    FEEDID_REQUIRE_SHARED("umich-cnc-mill/experiment_01.csv");
+    const auto file = shared_data() / "umich-cnc-mill" / "experiment_01.csv";
+    for (const std::string axis : {"X1", "Y1"}) {
+        const auto run = run_cli("identify " + quoted(file) + " --axis " + axis +
+                                 " --sample-time 0.1 --unit position=mm --unit velocity=mm/s --force-constant 1 --json -");
+        ASSERT_EQ(run.exit_code, 0) << axis << ": " << run.err;
+        const Json document = Json::parse(run.out);
+        EXPECT_EQ(document.at("status"), "partial") << axis;
+        EXPECT_TRUE(document.at("parameters").at("mass_kg").at("value").is_null()) << axis;
+        // the same numbers as the library on the columns read by hand (above)
+        feedid::IdentifyOptions options;
+        options.drive.force_constant = 1.0;
+        const feedid::IdentifyResult library = feedid::identify(umich_axis(file, axis), options);
+        for (const std::string key : {"viscous_Ns_per_m", "coulomb_N"}) {
+            ASSERT_TRUE(library.find(key)->estimate.value) << axis << " " << key;
+            EXPECT_NEAR(value(document, key), *library.find(key)->estimate.value,
+                        1e-9 * std::abs(*library.find(key)->estimate.value))
+                << axis << " " << key;
+        }
+        EXPECT_TRUE(contains(document.at("friction_only").at("reason").get<std::string>(), "10 Hz sampling")) << axis;
+    }
+}

@@ -102,7 +102,8 @@ TEST(MrConfigurator, TheRigsExportReadsAsItsReadmeDescribesIt) {
 
 TEST(MrConfigurator, InfoDetectsItAndGivesTheSampleTimeInSeconds) {
     FEEDID_REQUIRE_SHARED(mr_file);
-    const auto result = run_cli("info '" + (shared_data() / mr_file).string() + "' --json -");
+    // --lead 20: the rig's 20 mm of rack per motor revolution (its README), for the speed in r/min
+    const auto result = run_cli("info '" + (shared_data() / mr_file).string() + "' --lead 20 --json -");
     ASSERT_EQ(result.exit_code, 0) << result.err;
     const auto document = nlohmann::json::parse(result.out);
     EXPECT_EQ(document.at("format"), "mr-configurator");

@@ -25,8 +25,8 @@ void TraceArguments::add_to(CLI::App& app) {
         ->take_all()
         ->allow_extra_args(false);
     app.add_option("--axis", axis,
-                   "The axis: which one to read from a multi-axis trace (NC axis index or name) and its label in the "
-                   "history");
+                   "The axis: which one to read from a multi-axis trace (NC axis index or name; the X1 of X1_... "
+                   "channel names in a CSV log) and its label in the history");
     app.add_option("--format", format, "Read as this format instead of detecting it")
         ->check(
             CLI::IsMember({"csv", "mat", "sinumerik-trace", "twincat-scope", "halscope", "mr-configurator", "ni-daq"}));
@@ -42,6 +42,10 @@ void TraceArguments::add_to(CLI::App& app) {
                    "ROLE; repeatable")
         ->take_all()
         ->allow_extra_args(false);
+    app.add_option("--sample-time", sample_time_s,
+                   "Time between samples [s] for files without a time column (a CSV log, halsampler output)")
+        ->check(CLI::PositiveNumber);
+    app.add_option("--skip-rows", skip_rows, "CSV: lines to skip at the top of the file before the header row");
 }
 
 ImportOptions TraceArguments::import_options() const {
@@ -71,6 +75,8 @@ ImportOptions TraceArguments::import_options() const {
             throw InputError(fmt::format("--tare {}: not a role to zero (e.g. force, current, external_force)", text));
         options.tare.push_back(*role);
     }
+    options.sample_time_s = sample_time_s;
+    options.skip_rows = skip_rows;
     if (lead_mm) options.unit_context.lead_m = *lead_mm * 1e-3;
     if (rated) {
         options.unit_context.rated_value_si = *rated;

@@ -18,7 +18,7 @@ namespace feedid::cli {
 /// What a subcommand runs after parsing; returns the exit code (0 ok, 1 analysis failed, 2 bad input).
 using Action = std::function<int()>;
 
-/// `FILE [--channel ROLE=NAME]... [--unit ROLE=UNIT]... [--axis N] [--format F]`
+/// `FILE [--channel ROLE=NAME]... [--unit ROLE=UNIT]... [--axis N] [--format F] [--sample-time S] [--skip-rows N]`
 struct TraceArguments {
     std::string file;
     std::vector<std::string> channel_assignments;
@@ -30,6 +30,8 @@ struct TraceArguments {
     std::string join;               // FILE[@SHIFT]: a second recording joined onto this one's time base
     std::optional<double> join_max_shift_s;
     std::vector<std::string> tare;  // roles zeroed from the samples at rest before the move
+    std::optional<double> sample_time_s;
+    std::size_t skip_rows{0};
 
     void add_to(CLI::App& app);
     [[nodiscard]] ImportOptions import_options() const;

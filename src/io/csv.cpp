@@ -19,6 +19,8 @@
 
 #include "feedid/error.hpp"
 #include "feedid/io/import.hpp"
+#include "feedid/units.hpp"
+#include "text_scan.hpp"
 
 namespace feedid {
 
@@ -260,32 +262,98 @@ std::vector<std::string> header_cells(std::string_view header_row, char separato
     return cells;
 }
 
-// A channel per header cell, its unit taken from the cell (split_name_unit).
+// A channel per header cell, its unit taken from the cell (split_name_unit). Repeated names are numbered, and a
+// finding says so; an unnamed first column is kept with an empty name for drop_index_column to judge.
 void add_header_channels(Trace& trace, const std::vector<std::string>& header, const std::string& source,
                          std::size_t header_line) {
     const std::size_t columns = header.size();
-    trace.channels.reserve(columns);
-    std::unordered_set<std::string> names;  // a set, not a search of the columns so far: a wide header is not quadratic
+    std::vector<std::string> names;
+    std::vector<std::string> units;
     names.reserve(columns);
+    units.reserve(columns);
     for (std::size_t c = 0; c < columns; ++c) {
         auto [name, unit] = split_name_unit(header[c]);
-        if (name.empty()) {
+        if (c == 0 && (name.empty() || name.starts_with("Unnamed: "))) {
+            name.clear();  // pandas writes its index unnamed (read back and written again: "Unnamed: 0")
+        } else if (name.empty()) {
             throw InputError(fmt::format("{}:{}: column {} has no name in the header", source, header_line, c + 1));
-        }
-        if (!names.insert(name).second) {
-            throw InputError(fmt::format("{}:{}: column name '{}' appears twice", source, header_line, name));
         }
         // a header whose "names" are all numbers is data, not a header
         double probe = 0.0;
         const auto* first = name.data();
-        if (fast_float::from_chars(first, first + name.size(), probe).ptr == first + name.size() && unit.empty()) {
+        if (!name.empty() && fast_float::from_chars(first, first + name.size(), probe).ptr == first + name.size() &&
+            unit.empty()) {
             throw InputError(
                 fmt::format("{}:{}: the first row holds numbers, not a header of channel names "
                             "(write one like 'time [s],x [mm],i [A]')",
                             source, header_line));
         }
-        trace.channels.push_back(Channel{name, Role::other, "", unit, {}});
+        names.push_back(std::move(name));
+        units.push_back(std::move(unit));
     }
+    for (const auto& name : scan::number_repeated_names(names)) {
+        trace.findings.push_back(
+            fmt::format("column name '{}' appears more than once in the header (line {}): the "
+                        "repeats are named {}#2, ...",
+                        name, header_line, name));
+    }
+    trace.channels.reserve(columns);
+    for (std::size_t c = 0; c < columns; ++c)
+        trace.channels.push_back(Channel{std::move(names[c]), Role::other, "", std::move(units[c]), {}});
+}
+
+enum class UnitCell { empty, unit, other };
+
+// A cell of a possible unit row: empty (or "-"), a unit (one that may need context, such as rpm or %), or other.
+UnitCell classify_unit_cell(std::string_view cell) {
+    cell = unquote(cell);
+    if (cell.empty() || cell == "-") return UnitCell::empty;
+    double number = 0.0;
+    if (fast_float::from_chars(cell.data(), cell.data() + cell.size(), number).ptr == cell.data() + cell.size())
+        return UnitCell::other;
+    const UnitContext any_context{1.0, 1.0, Quantity::current};
+    const auto conversion = parse_unit(cell, any_context);
+    if (!conversion) return UnitCell::other;
+    return conversion->quantity == Quantity::dimensionless ? UnitCell::empty : UnitCell::unit;
+}
+
+// A row of units directly under the header (every cell a unit or empty, at least one a unit) gives the columns their
+// units; a column whose header states another unit is an error naming both. Otherwise the line is left unread.
+void read_unit_row(TextLines& lines, Trace& trace, char separator, const std::string& source) {
+    const TextLines before = lines;
+    std::string_view line;
+    if (!lines.next(line) || is_comment_or_blank(line)) {
+        lines = before;
+        return;
+    }
+    auto cells = split_header(line, separator);
+    if (cells.size() == trace.channels.size() + 1 && cells.back().empty()) cells.pop_back();  // a trailing separator
+    std::size_t units = 0;
+    for (const auto& cell : cells) {
+        const UnitCell kind = classify_unit_cell(cell);
+        if (kind == UnitCell::other) {
+            lines = before;
+            return;
+        }
+        units += kind == UnitCell::unit;
+    }
+    if (units == 0 || cells.size() != trace.channels.size()) {
+        lines = before;
+        return;
+    }
+    for (std::size_t c = 0; c < cells.size(); ++c) {
+        const auto unit = std::string(unquote(cells[c]));
+        auto& channel = trace.channels[c];
+        if (classify_unit_cell(unit) != UnitCell::unit) continue;
+        if (!channel.source_unit.empty() && channel.source_unit != unit) {
+            throw InputError(
+                fmt::format("{}:{}: column {} ('{}') has the unit '{}' in the header and '{}' in the "
+                            "row of units under it",
+                            source, lines.number, c + 1, channel.name, channel.source_unit, unit));
+        }
+        channel.source_unit = unit;
+    }
+    trace.findings.push_back(fmt::format("units taken from the row under the header (line {})", lines.number));
 }
 
 // A row of n cells takes at least n bytes (n - 1 separators and a line end), which bounds the rows the rest of the
@@ -297,13 +365,38 @@ void reserve_rows(std::vector<Channel>& channels, std::string_view text, std::si
     for (auto& channel : channels) channel.values.reserve(estimate);
 }
 
+// Columns found to hold text: per column a flag, and where its first text cell was (for the finding).
+struct TextColumns {
+    std::vector<char> is_text;
+    std::vector<std::pair<std::size_t, std::string>> first_cell;
+};
+
 // What the data rows are read into and checked against.
 struct DataRows {
     const std::string& source;
     char separator;
     std::size_t columns;
     std::vector<Channel>& channels;
+    TextColumns& text;
 };
+
+// A cell that is not a number in column c: skipped when the column holds text (a column whose cells so far were all
+// missing or text becomes one here); returns where the cell ends, or nullptr when the column holds numbers.
+const char* skip_text_cell(const DataRows& rows, std::size_t c, std::size_t line_number, const char* cell_start,
+                           const char* end) {
+    if (c >= rows.columns) return nullptr;
+    if (rows.text.is_text[c] == 0) {
+        const auto& values = rows.channels[c].values;
+        if (std::any_of(values.begin(), values.end(), [](double v) { return !std::isnan(v); })) return nullptr;
+        rows.text.is_text[c] = 1;
+        const char* stop = std::find(cell_start, end, rows.separator);
+        rows.text.first_cell[c] = {
+            line_number, printable(trim(std::string_view(cell_start, static_cast<std::size_t>(stop - cell_start))))};
+    }
+    const char* cell_end =
+        *cell_start == '"' ? std::find(cell_start + 1, end, '"') + 1 : std::find(cell_start, end, rows.separator);
+    return std::min(cell_end, end);
+}
 
 InputError not_a_number(const DataRows& rows, std::size_t line_number, std::size_t c, const char* cell_start,
                         const char* end) {
@@ -350,9 +443,15 @@ void read_row(std::string_view line, std::size_t line_number, const fast_float::
             const auto parsed = fast_float::from_chars_advanced(p, end, value, options);
             if (parsed.ec != std::errc() || parsed.ptr == p) {
                 p = read_unusual_cell(cell_start, end, separator, options, value);
-                if (p == nullptr) throw not_a_number(rows, line_number, c, cell_start, end);
             } else {
                 p = parsed.ptr;
+                while (p < end && (*p == ' ' || *p == '\t' || *p == '\r') && *p != separator) ++p;
+                if (p < end && *p != separator) p = nullptr;  // a number followed by more: "1.5mm"
+            }
+            if (p == nullptr) {
+                value = missing;
+                p = skip_text_cell(rows, c, line_number, cell_start, end);
+                if (p == nullptr) throw not_a_number(rows, line_number, c, cell_start, end);
             }
         }
         while (p < end && (*p == ' ' || *p == '\t' || *p == '\r') && *p != separator) ++p;
@@ -419,12 +518,68 @@ void shrink_columns(std::vector<Channel>& channels) {
     }
 }
 
+// Leaves out the columns found to hold text, with one finding naming them; one given with --channel is an error.
+void drop_text_columns(Trace& trace, const TextColumns& text, const CsvOptions& options, const std::string& source) {
+    if (std::find(text.is_text.begin(), text.is_text.end(), 1) == text.is_text.end()) return;
+    std::string dropped;
+    std::vector<Channel> kept;
+    kept.reserve(trace.channels.size());
+    for (std::size_t c = 0; c < trace.channels.size(); ++c) {
+        auto& channel = trace.channels[c];
+        if (text.is_text[c] == 0) {
+            kept.push_back(std::move(channel));
+            continue;
+        }
+        const auto& [line, cell] = text.first_cell[c];
+        if (std::find(options.numeric_columns.begin(), options.numeric_columns.end(), channel.name) !=
+            options.numeric_columns.end()) {
+            throw InputError(
+                fmt::format("{}:{}: column {} ('{}') holds '{}', text, not numbers: it cannot be used "
+                            "for a role (--channel)",
+                            source, line, c + 1, channel.name, cell));
+        }
+        dropped += fmt::format("{}'{}' ('{}' at line {})", dropped.empty() ? "" : ", ", channel.name, cell, line);
+    }
+    if (kept.empty()) throw InputError(fmt::format("{}: no column holds numbers (text in {})", source, dropped));
+    trace.channels = std::move(kept);
+    trace.findings.push_back(fmt::format("columns holding text, not numbers, left out: {}", dropped));
+}
+
+// An unnamed first column counting 0, 1, 2, ... is the index pandas writes: left out, with a finding. Unnamed and
+// counting anything else, it is a column without a name: an error.
+void drop_index_column(Trace& trace, const std::string& source, std::size_t header_line) {
+    if (trace.channels.empty() || !trace.channels.front().name.empty()) return;
+    const auto& values = trace.channels.front().values;
+    for (std::size_t k = 0; k < values.size(); ++k) {
+        if (values[k] != static_cast<double>(k)) {
+            throw InputError(
+                fmt::format("{}:{}: column 1 has no name in the header, and it does not count 0, 1, 2, "
+                            "... like an index (it holds {} in row {})",
+                            source, header_line, values[k], k + 1));
+        }
+    }
+    if (trace.channels.size() == 1) throw InputError(fmt::format("{}: the only column is an unnamed index", source));
+    trace.channels.erase(trace.channels.begin());
+    trace.findings.push_back("the unnamed first column counts 0, 1, 2, ... (an index, as pandas writes one): left out");
+}
+
+// Skips the lines --skip-rows names; the file must hold more.
+void skip_rows(TextLines& lines, std::size_t count, const std::string& source) {
+    std::string_view line;
+    for (std::size_t k = 0; k < count; ++k) {
+        if (!lines.next(line)) {
+            throw InputError(fmt::format("{}: --skip-rows {} skips the whole file ({} lines)", source, count, k));
+        }
+    }
+}
+
 // The parser proper. `release(upto)` is called now and then with a pointer below which the text is no longer read,
 // so a memory-mapped file can hand those pages back (read_csv); parse_csv passes a no-op.
-Trace parse_csv_text(std::string_view text, const std::string& source,
+Trace parse_csv_text(std::string_view text, const std::string& source, const CsvOptions& options,
                      const std::function<void(const char*)>& release) {
     text = checked_text(text, source);
     TextLines lines{text};
+    skip_rows(lines, options.skip_rows, source);
     Preamble preamble = read_preamble(lines, source);
     const std::size_t header_line = lines.number;
     const char separator =
@@ -435,11 +590,16 @@ Trace parse_csv_text(std::string_view text, const std::string& source,
     trace.format = "csv";
     trace.constants = std::move(preamble.constants);
     add_header_channels(trace, header_cells(preamble.header_row, separator), source, header_line);
+    read_unit_row(lines, trace, separator, source);
     reserve_rows(trace.channels, text, lines.position);
-    const DataRows rows{source, separator, trace.channels.size(), trace.channels};
+    TextColumns text_columns{std::vector<char>(trace.channels.size(), 0),
+                             std::vector<std::pair<std::size_t, std::string>>(trace.channels.size())};
+    const DataRows rows{source, separator, trace.channels.size(), trace.channels, text_columns};
     if (read_data_rows(lines, rows, release) == 0) {
         throw InputError(fmt::format("{}: the file has a header but no data rows", source));
     }
+    drop_text_columns(trace, text_columns, options, source);
+    drop_index_column(trace, source, header_line);
     shrink_columns(trace.channels);
     return trace;
 }
@@ -483,17 +643,19 @@ private:
 
 }  // namespace
 
-Trace parse_csv(std::string_view text, const std::string& source) {
-    return parse_csv_text(text, source, [](const char*) {});
+Trace parse_csv(std::string_view text, const std::string& source, const CsvOptions& options) {
+    return parse_csv_text(text, source, options, [](const char*) {});
 }
 
-Trace read_csv(const std::filesystem::path& path) {
+Trace read_csv(const std::filesystem::path& path, const CsvOptions& options) {
     const std::string source = path.string();
     const MappedFile file(path);
-    if (file.mapped()) return parse_csv_text(file.text(), source, [&file](const char* upto) { file.release(upto); });
+    if (file.mapped()) {
+        return parse_csv_text(file.text(), source, options, [&file](const char* upto) { file.release(upto); });
+    }
     // Not a regular file that can be mapped (a pipe, an empty file): read it whole.
     const std::string bytes = read_file_bytes(path);
-    return parse_csv(bytes, source);
+    return parse_csv(bytes, source, options);
 }
 
 std::string write_csv(const Trace& trace) {

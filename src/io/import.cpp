@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <cmath>
 #include <fstream>
 #include <vector>
 
@@ -36,6 +37,9 @@ struct RoleNames {
     Role role;
     std::array<std::string_view, 16> names;
 };
+// Drive and CNC logs add their own: `X1_ActualPosition`, `X1_CommandVelocity`, `X1_CurrentFeedback` (guessed without
+// the axis prefix), MR Configurator2's `Servo motor speed` and `Torque` (the drive signal: the current role takes
+// torque and % units).
 constexpr std::array<RoleNames, 7> common_names{{
     {Role::time, {"t", "time", "times", "zeit", "timestamp", "tsec", "ts"}},
     {Role::position,
@@ -43,14 +47,59 @@ constexpr std::array<RoleNames, 7> common_names{{
       "phi", "angle"}},
     {Role::reference_position,
      {"xref", "xset", "xcmd", "qg", "qr", "qref", "posref", "posset", "poscmd", "cmdpos", "setpos", "possetpoint",
-      "reference", "ref", "xr"}},
-    {Role::velocity, {"v", "vel", "velocity", "dq", "qd", "vact", "velact", "actvel", "speed"}},
+      "reference", "ref", "xr", "commandposition"}},
+    {Role::velocity,
+     {"v", "vel", "velocity", "dq", "qd", "vact", "velact", "actvel", "speed", "actualvelocity", "servomotorspeed",
+      "motorspeed"}},
     {Role::velocity_command,
      {"vset", "vcmd", "vref", "velset", "velcmd", "velref", "cmdvel", "velocitycommand", "velocitysetpoint", "nset",
-      "speedsetpoint"}},
-    {Role::current, {"i", "iq", "current", "cur", "iact", "iqact", "actcurr", "actcurrent", "id", "idrive"}},
+      "speedsetpoint", "commandvelocity"}},
+    {Role::current,
+     {"i", "iq", "current", "cur", "iact", "iqact", "actcurr", "actcurrent", "id", "idrive", "currentfeedback",
+      "torque"}},
     {Role::force, {"f", "force", "fd", "fdrive", "driveforce"}},
 }};
+
+bool is_common_name(std::string_view key) {
+    return std::any_of(common_names.begin(), common_names.end(), [key](const RoleNames& entry) {
+        return std::find(entry.names.begin(), entry.names.end(), key) != entry.names.end();
+    });
+}
+
+// The CNC axis prefix of a channel name, as drive and NC logs write it: letters then digits, then '_'
+// ("X1_ActualPosition" -> "X1"); "" when there is none.
+std::string_view axis_prefix(std::string_view name) {
+    std::size_t k = 0;
+    while (k < name.size() && std::isalpha(static_cast<unsigned char>(name[k]))) ++k;
+    const std::size_t letters = k;
+    while (k < name.size() && std::isdigit(static_cast<unsigned char>(name[k]))) ++k;
+    if (letters == 0 || k == letters || k >= name.size() || name[k] != '_') return {};
+    return name.substr(0, k);
+}
+
+std::string upper(std::string_view text) {
+    std::string out(text);
+    for (char& c : out) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    return out;
+}
+
+// The axes a trace's channel names carry: prefixes of at least one name whose rest is a common role name.
+std::vector<std::string> axes_in_names(const Trace& trace) {
+    std::vector<std::string> axes;
+    for (const auto& channel : trace.channels) {
+        const auto prefix = axis_prefix(channel.name);
+        if (prefix.empty() || !is_common_name(lower_alnum(std::string_view(channel.name).substr(prefix.size() + 1))))
+            continue;
+        if (std::find(axes.begin(), axes.end(), upper(prefix)) == axes.end()) axes.push_back(upper(prefix));
+    }
+    return axes;
+}
+
+std::string joined(const std::vector<std::string>& items) {
+    std::string out;
+    for (const auto& item : items) out += (out.empty() ? "" : ", ") + item;
+    return out;
+}
 
 std::string where(const Trace& trace) {
     return trace.source_path.empty() ? std::string("trace") : trace.source_path;
@@ -88,8 +137,7 @@ std::string_view default_si_unit(Role role, bool rotary) {
     return "";
 }
 
-// Roles given with --channel, then guesses from common names; returns the names of the channels given a role by guess.
-std::vector<std::string> assign_roles(Trace& trace, const ImportOptions& options) {
+void assign_explicit_roles(Trace& trace, const ImportOptions& options) {
     // Explicit assignments first; they take a role away from any channel that had it.
     for (const auto& [role, name] : options.channels) {
         auto* channel = trace.find(name);
@@ -104,15 +152,67 @@ std::vector<std::string> assign_roles(Trace& trace, const ImportOptions& options
         }
         channel->role = role;
     }
-    // Then guesses for the roles still open, from common names; each guess is said.
+}
+
+// Which axis prefix names are guessed from ("" = names without one only), after leaving out the channels of the other
+// axes when --axis chose one. Several axes and no choice is an error, unless the roles were given with --channel.
+std::string select_axis(Trace& trace, const ImportOptions& options) {
+    if (trace.format == "sinumerik-trace") return {};  // its reader has already read the chosen axis alone
+    const auto axes = axes_in_names(trace);
+    if (axes.empty()) return {};
+    if (options.axis.empty()) {
+        if (axes.size() == 1) return axes.front();
+        if (options.channels.empty()) {
+            throw InputError(
+                fmt::format("{}: channels of several axes ({}): choose one with --axis NAME, or give the "
+                            "roles with --channel ROLE=NAME",
+                            where(trace), joined(axes)));
+        }
+        trace.findings.push_back(
+            fmt::format("channels of several axes ({}): no role guessed from their names (choose "
+                        "one with --axis NAME)",
+                        joined(axes)));
+        return "-";
+    }
+    const std::string chosen = upper(options.axis);
+    if (std::find(axes.begin(), axes.end(), chosen) == axes.end()) {
+        if (axes.size() == 1) return axes.front();  // --axis is then the axis's label in the history only
+        throw InputError(fmt::format("{}: --axis {}: no channels named {}_...; the file holds the axes {}",
+                                     where(trace), options.axis, options.axis, joined(axes)));
+    }
+    std::vector<std::string> left_out;
+    std::erase_if(trace.channels, [&](const Channel& channel) {
+        const std::string prefix = upper(axis_prefix(channel.name));
+        const bool other_axis = !prefix.empty() && prefix != chosen &&
+                                std::find(axes.begin(), axes.end(), prefix) != axes.end() &&
+                                channel.role == Role::other;
+        if (other_axis && std::find(left_out.begin(), left_out.end(), prefix) == left_out.end())
+            left_out.push_back(prefix);
+        return other_axis;
+    });
+    if (!left_out.empty()) {
+        trace.findings.push_back(
+            fmt::format("--axis {}: the channels of the other axes ({}) left out", options.axis, joined(left_out)));
+    }
+    return chosen;
+}
+
+// Guesses for the roles still open, from common names (without the chosen axis prefix); each guess is said. Returns
+// the names of the channels given a role by guess.
+std::vector<std::string> guess_roles(Trace& trace, const std::string& axis, const std::vector<Role>& assigned_elsewhere) {
     std::vector<std::string> guessed;
     for (const auto& [role, names] : common_names) {
-        if (trace.has(role) || std::find(options.assigned_elsewhere.begin(), options.assigned_elsewhere.end(), role) !=
-                                   options.assigned_elsewhere.end())
+        if (trace.has(role) ||
+            std::find(assigned_elsewhere.begin(), assigned_elsewhere.end(), role) != assigned_elsewhere.end())
             continue;
         for (auto& channel : trace.channels) {
             if (channel.role != Role::other) continue;
-            const std::string key = lower_alnum(channel.name);
+            std::string_view name = channel.name;
+            if (const auto prefix = axis_prefix(name); !prefix.empty() && !axis.empty()) {
+                if (axis == "-" || upper(prefix) != axis) continue;
+                name.remove_prefix(prefix.size() + 1);
+            }
+            const std::string key = lower_alnum(name);
             if (std::find(names.begin(), names.end(), key) != names.end() && !key.empty()) {
                 channel.role = role;
                 guessed.push_back(channel.name);
@@ -214,6 +314,29 @@ void convert_units(Trace& trace, const ImportOptions& options) {
     }
 }
 
+// A trace without a time channel gets one from the stated sample time (a finding says so); without one it is an
+// error that says what to give.
+void add_time_from_sample_time(Trace& trace, const ImportOptions& options) {
+    if (trace.has(Role::time) || trace.channels.empty()) return;
+    if (!options.sample_time_s) {
+        throw InputError(
+            fmt::format("{}: no time column (none is named like 't' or 'time'); give the sample time "
+                        "with --sample-time SECONDS, or name the column with --channel time=NAME",
+                        where(trace)));
+    }
+    const double dt = *options.sample_time_s;
+    if (!(dt > 0.0) || !std::isfinite(dt)) {
+        throw InputError(fmt::format("--sample-time {}: must be a positive number of seconds", dt));
+    }
+    std::string name = "time";
+    while (trace.find(name) != nullptr) name += "#2";
+    std::vector<double> time(trace.channels.front().values.size());
+    for (std::size_t k = 0; k < time.size(); ++k) time[k] = static_cast<double>(k) * dt;
+    auto& channel = trace.set(name, Role::time, "s", std::move(time));
+    channel.source_unit = "s";
+    trace.findings.push_back(fmt::format("no time column: channel '{}' made from --sample-time {} s", name, dt));
+}
+
 }  // namespace
 
 std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::string_view option) {
@@ -232,8 +355,10 @@ std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::s
 }
 
 void prepare_trace(Trace& trace, const ImportOptions& options) {
-    const auto guessed = assign_roles(trace, options);
+    assign_explicit_roles(trace, options);
+    const auto guessed = guess_roles(trace, select_axis(trace, options), options.assigned_elsewhere);
     drop_unusable_guesses(trace, options, guessed);
+    add_time_from_sample_time(trace, options);
     convert_units(trace, options);
     trace.validate();
 }
@@ -295,11 +420,20 @@ Trace read_source(const std::filesystem::path& path, const ImportOptions& option
     std::error_code error;
     if (!std::filesystem::exists(path, error)) throw InputError(fmt::format("{}: no such file", path.string()));
     const std::string format = options.format.empty() ? detect_format(path) : options.format;
+    if (options.skip_rows > 0 && format != "csv") {
+        throw InputError(
+            fmt::format("{}: --skip-rows applies to plain CSV files; this file reads as {} (add "
+                        "--format csv to read it as plain CSV)",
+                        path.string(), format));
+    }
     Trace trace;
     if (format == "mat") {
         trace = read_mat(path);
     } else if (format == "csv") {
-        trace = read_csv(path);
+        CsvOptions csv;
+        csv.skip_rows = options.skip_rows;
+        for (const auto& [role, name] : options.channels) csv.numeric_columns.push_back(name);
+        trace = read_csv(path, csv);
     } else {
         const std::string bytes = read_file_bytes(path);
         if (bytes.empty()) throw InputError(fmt::format("{}: empty file", path.string()));

@@ -23,9 +23,15 @@ struct ImportOptions {
     UnitContext unit_context;
     /// For sources holding several axes (a SINUMERIK trace): which axis to read, by NC axis index ("2", from the
     /// `[u1, 2]` suffix) or by axis name ("X"); empty = the only or first one. Also the axis label for the history.
+    /// For other sources whose channel names carry CNC axis prefixes (`X1_ActualPosition`, `Y1_...`): the prefix whose
+    /// channels are kept and guessed from (case-insensitive); several prefixes and none chosen is an InputError naming
+    /// them, unless roles are given in `channels`.
     std::string axis;
-    /// Sampling period [s] for sources that carry none (halsampler output); ignored where the file states one.
+    /// Sampling period [s] for sources that carry none (halsampler output, a CSV without a time column: a time channel
+    /// is made from it, with a finding); ignored where the file has time stamps.
     std::optional<double> sample_time_s;
+    /// CSV: lines skipped at the top of the file before the header is looked for (from `--skip-rows N`).
+    std::size_t skip_rows{0};
     /// Force a format instead of detecting it ("csv", "mat", "sinumerik-trace", "twincat-scope", "halscope",
     /// "mr-configurator", "ni-daq").
     std::string format;
