@@ -552,6 +552,14 @@ TEST(Csv, UnitRowUnderTheHeaderGivesTheUnits) {
     EXPECT_TRUE(contains(message, "data.csv:2:")) << message;
     EXPECT_TRUE(contains(message, "'mm'")) << message;
     EXPECT_TRUE(contains(message, "'um'")) << message;
+    // a vendor unit among known ones is kept as the column's unit (import judges it), not taken for text
+    const auto vendor = parse_csv("t,x,droop\ns,mm,pulse\n0,1,2\n", "vendor.csv");
+    ASSERT_EQ(vendor.channels.size(), 3U);
+    EXPECT_EQ(vendor.channels[2].source_unit, "pulse");
+    EXPECT_EQ(vendor.channels[2].values, (std::vector<double>{2.0}));
+    // a row of mostly text is data: its columns are text
+    const auto words = parse_csv("t,step,tool\n0,Prep,unworn\n0.1,Cut,unworn\n", "words.csv");
+    EXPECT_EQ(words.channels.size(), 1U);
     // a first data row is no unit row, even of ones and blanks
     const auto data = parse_csv("t,x\n1,\n2,1\n", "data.csv");
     EXPECT_EQ(data.channels[0].values, (std::vector<double>{1.0, 2.0}));

@@ -1,7 +1,9 @@
 // Golden documents: what the command line writes for EMPS (identify, gains, simulate) and for the demo trace, against
 // the documents an earlier feedid wrote (tests/golden, made by scripts/golden/make_golden.sh). Every key must be there
-// and every number equal to 1e-12 relative: a refactoring moves nothing, and a change that moves a number shows here
-// and must be explained (CHANGELOG) when the documents are made anew.
+// and every number equal to 1e-9 relative: a refactoring moves nothing, and a change that moves a number shows here
+// and must be explained (CHANGELOG) when the documents are made anew. Not 1e-12: the same source on another x86-64
+// machine moved the demo fit's Coulomb friction by 1.0e-12 relative (0.17670179160935742 -> 0.1767017916091764; glibc
+// picks exp/log/pow variants by CPU), while an intended change moves numbers by far more (the --decimate fix: 1 %).
 // Also: a result document read back (from_json) and written again (to_json) is the same document, and feedid's EMPS
 // estimates scored in significant digits against the published IDIM-LS values (log relative error, as NIST StRD).
 
@@ -68,11 +70,14 @@ void compare(const Json& expected, const Json& actual, const std::string& path, 
     }
 }
 
+/// See the top of the file for why 1e-9.
+constexpr double golden_relative_tolerance = 1e-9;
+
 void expect_same_document(const std::string& name, const std::string& text, const std::filesystem::path& work) {
     const std::string data = std::filesystem::canonical(feedid::testing::shared_data()).string();
     const std::string normalised = replace_all(replace_all(text, data, "<DATA>"), work.string(), "<WORK>");
     std::vector<std::string> differences;
-    compare(read_json(golden(name)), Json::parse(normalised), "", 1e-12, differences);
+    compare(read_json(golden(name)), Json::parse(normalised), "", golden_relative_tolerance, differences);
     EXPECT_TRUE(differences.empty()) << name << ": " << differences.size() << " differences, the first:\n"
                                      <<
         [&] {

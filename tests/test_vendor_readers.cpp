@@ -118,6 +118,11 @@ TEST(MrConfigurator, InfoDetectsItAndGivesTheSampleTimeInSeconds) {
     bool said = false;
     for (const auto& finding : document.at("findings")) said = said || contains(finding, "Droop pulses");
     EXPECT_TRUE(said) << document.at("findings").dump();
+    // Torque in % without --rated: no role, said once
+    int torque_findings = 0;
+    for (const auto& finding : document.at("findings")) torque_findings += contains(finding, "'Torque'") ? 1 : 0;
+    EXPECT_EQ(torque_findings, 1) << document.at("findings").dump();
+    EXPECT_TRUE(contains(document.at("findings").dump(), "not taken as current")) << document.at("findings").dump();
 }
 
 TEST(MrConfigurator, FixtureChannelsUnitsAndValues) {

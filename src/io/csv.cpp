@@ -302,23 +302,26 @@ void add_header_channels(Trace& trace, const std::vector<std::string>& header, c
         trace.channels.push_back(Channel{std::move(names[c]), Role::other, "", std::move(units[c]), {}});
 }
 
-enum class UnitCell { empty, unit, other };
+enum class UnitCell { empty, unit, number, other };
 
-// A cell of a possible unit row: empty (or "-"), a unit (one that may need context, such as rpm or %), or other.
+// A cell of a possible unit row: empty (or "-"), a unit (one that may need context, such as rpm or %), a number, or
+// other text.
 UnitCell classify_unit_cell(std::string_view cell) {
     cell = unquote(cell);
     if (cell.empty() || cell == "-") return UnitCell::empty;
     double number = 0.0;
     if (fast_float::from_chars(cell.data(), cell.data() + cell.size(), number).ptr == cell.data() + cell.size())
-        return UnitCell::other;
+        return UnitCell::number;
     const UnitContext any_context{1.0, 1.0, Quantity::current};
     const auto conversion = parse_unit(cell, any_context);
     if (!conversion) return UnitCell::other;
     return conversion->quantity == Quantity::dimensionless ? UnitCell::empty : UnitCell::unit;
 }
 
-// A row of units directly under the header (every cell a unit or empty, at least one a unit) gives the columns their
-// units; a column whose header states another unit is an error naming both. Otherwise the line is left unread.
+// A row of units directly under the header gives the columns their units: no cell a number, and more than half of
+// the cells that are not empty known units (so that one vendor unit, "pulse" or "inc", does not turn the row into
+// data and every column into text; such a unit is kept as the column's, for import to judge). A column whose header
+// states another unit is an error naming both. Otherwise the line is left unread.
 void read_unit_row(TextLines& lines, Trace& trace, char separator, const std::string& source) {
     const TextLines before = lines;
     std::string_view line;
@@ -329,22 +332,24 @@ void read_unit_row(TextLines& lines, Trace& trace, char separator, const std::st
     auto cells = split_header(line, separator);
     if (cells.size() == trace.channels.size() + 1 && cells.back().empty()) cells.pop_back();  // a trailing separator
     std::size_t units = 0;
+    std::size_t others = 0;
     for (const auto& cell : cells) {
         const UnitCell kind = classify_unit_cell(cell);
-        if (kind == UnitCell::other) {
+        if (kind == UnitCell::number) {
             lines = before;
             return;
         }
         units += kind == UnitCell::unit;
+        others += kind == UnitCell::other;
     }
-    if (units == 0 || cells.size() != trace.channels.size()) {
+    if (units <= others || cells.size() != trace.channels.size()) {
         lines = before;
         return;
     }
     for (std::size_t c = 0; c < cells.size(); ++c) {
         const auto unit = std::string(unquote(cells[c]));
         auto& channel = trace.channels[c];
-        if (classify_unit_cell(unit) != UnitCell::unit) continue;
+        if (classify_unit_cell(unit) == UnitCell::empty) continue;
         if (!channel.source_unit.empty() && channel.source_unit != unit) {
             throw InputError(
                 fmt::format("{}:{}: column {} ('{}') has the unit '{}' in the header and '{}' in the "

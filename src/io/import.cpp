@@ -302,7 +302,11 @@ void convert_units(Trace& trace, const ImportOptions& options) {
                 try {
                     (void)parse_unit_or_throw(channel.source_unit, channel.name, options.unit_context);
                 } catch (const InputError& e) {
-                    trace.findings.push_back(fmt::format("{}; values left as they are", e.what()));
+                    // once: a guess dropped for this unit has said it already (drop_unusable_guesses)
+                    const std::string reason = e.what();
+                    if (std::none_of(trace.findings.begin(), trace.findings.end(),
+                                     [&reason](const std::string& finding) { return finding.starts_with(reason); }))
+                        trace.findings.push_back(fmt::format("{}; values left as they are", reason));
                 }
                 continue;
             }
