@@ -37,8 +37,9 @@ std::vector<std::size_t> passes_only(const std::vector<std::size_t>& rows, std::
     for (std::size_t begin = 0; begin < rows.size();) {
         std::size_t end = begin + 1;
         while (end < rows.size() && rows[end] == rows[end - 1] + 1) ++end;
-        if (end - begin >= minimum) kept.insert(kept.end(), rows.begin() + static_cast<std::ptrdiff_t>(begin),
-                                                rows.begin() + static_cast<std::ptrdiff_t>(end));
+        if (end - begin >= minimum)
+            kept.insert(kept.end(), rows.begin() + static_cast<std::ptrdiff_t>(begin),
+                        rows.begin() + static_cast<std::ptrdiff_t>(end));
         begin = end;
     }
     return kept;
@@ -117,10 +118,11 @@ Resolution assess_resolution(const Derivatives& d, const FrictionOnlyOptions& op
     const Display display{d.rotary};
     r.description = fmt::format("{:.4g} Hz sampling", r.sample_rate_hz);
     if (r.position_quantum > 0.0) {
-        r.description += fmt::format(" and {:.3g} {} position resolution ({:.3g} {} of travel per sample at the typical "
-                                     "speed {:.3g} {})",
-                                     display.length(r.position_quantum), display.length_unit(), display.length(travel),
-                                     display.length_unit(), display.length(r.typical_speed), display.speed_unit());
+        r.description += fmt::format(
+            " and {:.3g} {} position resolution ({:.3g} {} of travel per sample at the typical "
+            "speed {:.3g} {})",
+            display.length(r.position_quantum), display.length_unit(), display.length(travel), display.length_unit(),
+            display.length(r.typical_speed), display.speed_unit());
     }
     if (r.accelerations_unresolved) {
         r.description += fmt::format(
@@ -139,7 +141,8 @@ FrictionOnlyFit fit_friction_only(const Derivatives& d, const Selection& s, Fric
     }
     const std::vector<std::size_t> rows = steady_samples(d, s, options);
     fit.samples = rows.size();
-    for (const auto k : s.moving) fit.largest_acceleration = std::max(fit.largest_acceleration, std::abs(d.acceleration[k]));
+    for (const auto k : s.moving)
+        fit.largest_acceleration = std::max(fit.largest_acceleration, std::abs(d.acceleration[k]));
     const std::size_t needed = options.minimum_samples_per_parameter * fit.columns.size();
     if (rows.size() < needed) {
         fit.failure = fmt::format("only {} steady-speed samples ({} needed)", rows.size(), needed);
@@ -160,7 +163,8 @@ FrictionOnlyFit fit_friction_only(const Derivatives& d, const Selection& s, Fric
         y(row) = source.force[rows[i]];
         for (std::size_t c = 0; c < fit.columns.size(); ++c) {
             const auto& column = fit.columns[c];
-            const bool forward = column.direction == Direction::forward, reverse = column.direction == Direction::reverse;
+            const bool forward = column.direction == Direction::forward,
+                       reverse = column.direction == Direction::reverse;
             double value = 1.0;  // the offset
             if (column.term == Term::viscous) value = forward ? std::max(x, 0.0) : reverse ? std::min(x, 0.0) : x;
             if (column.term == Term::coulomb) value = forward ? (x > 0.0) : reverse ? -double(x < 0.0) : sign(x);
@@ -169,8 +173,9 @@ FrictionOnlyFit fit_friction_only(const Derivatives& d, const Selection& s, Fric
     }
     fit.batch = solve_least_squares(phi, y);
     if (fit.batch.rank_deficient) {
-        fit.failure = "the steady-speed samples cannot separate the friction parameters (one direction only, and an "
-                      "offset?)";
+        fit.failure =
+            "the steady-speed samples cannot separate the friction parameters (one direction only, and an "
+            "offset?)";
         return fit;
     }
     if (fit.largest_acceleration > 0.0)

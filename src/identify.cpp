@@ -291,8 +291,8 @@ IdentifyResult friction_only_result(IdentifyResult result, const Derivatives& d,
                                    d.travel * (d.rotary ? 1.0 : 1e6), d.rotary ? "rad" : "um");
             }
         }
-        return failed(std::move(result), fmt::format("{}; friction alone cannot be identified either: {}", why,
-                                                     fit.failure));
+        return failed(std::move(result),
+                      fmt::format("{}; friction alone cannot be identified either: {}", why, fit.failure));
     }
     const ParameterNaming naming{d.rotary};
     Step1Report report;
@@ -319,8 +319,8 @@ IdentifyResult friction_only_result(IdentifyResult result, const Derivatives& d,
         fit.samples));
     flag_undetermined(result);
     result.axis = axis_from_parameters(result.parameters, result.model, result.rotary);
-    result.friction_curve = FrictionCurveReport{bin_friction_curve(d, s, result.axis, true),
-                                                bin_friction_curve(d, s, result.axis, false)};
+    result.friction_curve =
+        FrictionCurveReport{bin_friction_curve(d, s, result.axis, true), bin_friction_curve(d, s, result.axis, false)};
     result.status = Status::partial;
     return result;
 }

@@ -113,9 +113,10 @@ bool use_logged_velocity(const Trace& trace, std::span<const double> logged, dou
     if (options.velocity_source == VelocitySource::position) return false;
     if (!trace.has(Role::velocity)) {
         if (options.velocity_source == VelocitySource::logged) {
-            throw InputError(fmt::format("{}: --velocity-source velocity: the trace has no velocity channel (map one "
-                                         "with --channel velocity=NAME)",
-                                         trace.source_path.empty() ? "trace" : trace.source_path));
+            throw InputError(
+                fmt::format("{}: --velocity-source velocity: the trace has no velocity channel (map one "
+                            "with --channel velocity=NAME)",
+                            trace.source_path.empty() ? "trace" : trace.source_path));
         }
         return false;
     }
@@ -178,24 +179,27 @@ std::span<const double> velocity_signal(const Trace& trace, std::size_t first, s
     const auto* position = trace.find(Role::position);
     const auto* logged = trace.find(Role::velocity);
     if (position == nullptr && logged == nullptr) {
-        throw InputError(fmt::format("{}: no position and no velocity channel: map one with --channel position=NAME "
-                                     "or --channel velocity=NAME",
-                                     d.source));
+        throw InputError(
+            fmt::format("{}: no position and no velocity channel: map one with --channel position=NAME "
+                        "or --channel velocity=NAME",
+                        d.source));
     }
     const auto window = [&](const Channel* c) {
         return std::span<const double>(c->values.data() + first, last - first);
     };
     if (position != nullptr) d.position_quantum = position_quantum(window(position));
-    const bool from_velocity = use_logged_velocity(trace, logged != nullptr ? window(logged) : std::span<const double>{},
-                                                   d.position_quantum, d.sample_time_s, options);
+    const bool from_velocity =
+        use_logged_velocity(trace, logged != nullptr ? window(logged) : std::span<const double>{}, d.position_quantum,
+                            d.sample_time_s, options);
     d.used.velocity_source = from_velocity ? "velocity" : "position";
     const std::span<const double> x = window(from_velocity ? logged : position);
     d.travel = travel(position != nullptr ? window(position) : std::span<const double>{}, x, d.sample_time_s);
     const auto [low, high] = std::minmax_element(x.begin(), x.end());
     const bool still = from_velocity ? !(std::max(std::abs(*low), std::abs(*high)) > 0.0) : !(*high > *low);
     if (still) {
-        d.failure = fmt::format("{}: the {} in the analysis window: the axis did not move, so nothing can be identified",
-                                d.source, from_velocity ? "logged velocity is zero throughout" : "position never changes");
+        d.failure =
+            fmt::format("{}: the {} in the analysis window: the axis did not move, so nothing can be identified",
+                        d.source, from_velocity ? "logged velocity is zero throughout" : "position never changes");
     }
     return x;
 }

@@ -176,8 +176,8 @@ TEST(FrictionOnly, TheCommandLineExitsZeroAndWritesTheResult) {
     }
     const auto path = feedid::testing::temp_dir() / "mill.csv";
     feedid::testing::write_text(path, csv);
-    const auto run = feedid::testing::run_cli("identify '" + path.string() +
-                                              "' --force-constant 100 --model asymmetric --json -");
+    const auto run =
+        feedid::testing::run_cli("identify '" + path.string() + "' --force-constant 100 --model asymmetric --json -");
     ASSERT_EQ(run.exit_code, 0) << run.err;
     const auto document = nlohmann::json::parse(run.out);
     EXPECT_EQ(document.at("status"), "partial");

@@ -56,8 +56,8 @@ std::string joined_findings(const Trace& trace) {
 
 TEST(Join, ResamplingIsExactOnLinearDataAfterTheShift) {
     // first: 1.5 kHz from 0; second: 2 kHz from 0, stamped 4 ms early (t_first = t_second + 0.004)
-    const Trace first = sampled("drive.csv", 0.0, 1.0 / 1500.0, 1024, "speed", Role::velocity, "m/s",
-                                [](double t) { return t; });
+    const Trace first =
+        sampled("drive.csv", 0.0, 1.0 / 1500.0, 1024, "speed", Role::velocity, "m/s", [](double t) { return t; });
     const double shift = 0.004;
     const Trace second = sampled("daq.csv", 0.0, 0.0005, 1077, "load", Role::force, "N",
                                  [&](double t) { return 3.0 + 250.0 * (t + shift); });  // on the first's time base
@@ -176,14 +176,13 @@ TEST(Tare, RemovesTheMeanOverTheLeadingRestSamples) {
     trace.set("F", Role::force, "N", force);
     const TareReport report = tare(trace, Role::force);
     EXPECT_NEAR(report.removed, -26.0, 0.5 / 40.0 + 1e-12);  // 80 rest samples of +-0.5: the mean is within 1/80
-    EXPECT_EQ(report.samples, 80u);  // 100 at rest (0 .. 0.099 s), less the last fifth
+    EXPECT_EQ(report.samples, 80u);                          // 100 at rest (0 .. 0.099 s), less the last fifth
     EXPECT_NEAR(trace.find(Role::force)->values[300], force[300] - report.removed, 1e-12);
     EXPECT_TRUE(contains(joined_findings(trace), "--tare force")) << joined_findings(trace);
 }
 
 TEST(Tare, WithoutRestBeforeTheMoveItSaysSo) {
-    Trace trace =
-        sampled("rig.csv", 0.0, 0.001, 200, "v", Role::velocity, "m/s", [](double t) { return 0.5 + t; });
+    Trace trace = sampled("rig.csv", 0.0, 0.001, 200, "v", Role::velocity, "m/s", [](double t) { return 0.5 + t; });
     trace.set("F", Role::force, "N", std::vector<double>(200, 1.0));
     try {
         (void)tare(trace, Role::force);

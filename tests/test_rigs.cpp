@@ -76,7 +76,8 @@ TEST(MitsubishiRig, AnAutomaticShiftIsReportedWithItsCorrelation) {
     // the torque leads the load cell by the motor's own inertia: the broad peak lies at 6 to 9 ms (found outside
     // feedid with numpy), a few ms from the authors' 4 ms, and the figure is printed so that the user can judge it
     const std::string text = run.out + run.err;
-    const std::regex finding(R"(shift ([-0-9.]+) ms found by cross-correlation \(correlation coefficient ([-0-9.]+)\))");
+    const std::regex finding(
+        R"(shift ([-0-9.]+) ms found by cross-correlation \(correlation coefficient ([-0-9.]+)\))");
     std::smatch match;
     ASSERT_TRUE(std::regex_search(text, match, finding)) << text;
     EXPECT_GT(std::stod(match[1]), 6.0) << text;
@@ -172,8 +173,9 @@ TEST(UmichMill, TheCommandLineReadsThePandasFileAsItIs) {
     FEEDID_REQUIRE_SHARED("umich-cnc-mill/experiment_01.csv");
     const auto file = shared_data() / "umich-cnc-mill" / "experiment_01.csv";
     for (const std::string axis : {"X1", "Y1"}) {
-        const auto run = run_cli("identify " + quoted(file) + " --axis " + axis +
-                                 " --sample-time 0.1 --unit position=mm --unit velocity=mm/s --force-constant 1 --json -");
+        const auto run =
+            run_cli("identify " + quoted(file) + " --axis " + axis +
+                    " --sample-time 0.1 --unit position=mm --unit velocity=mm/s --force-constant 1 --json -");
         ASSERT_EQ(run.exit_code, 0) << axis << ": " << run.err;
         const Json document = Json::parse(run.out);
         EXPECT_EQ(document.at("status"), "partial") << axis;

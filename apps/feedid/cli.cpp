@@ -35,8 +35,7 @@ void TraceArguments::add_to(CLI::App& app) {
                    "A second recording of the same move (e.g. a DAQ's load cell): FILE[@SHIFT], its channels "
                    "resampled onto this trace's time base after shifting its time stamps by SHIFT (@4ms, @-0.004s; "
                    "@auto or @auto:OURS=THEIRS: found by cross-correlation); --channel may name its channels");
-    app.add_option("--join-max-shift", join_max_shift_s,
-                   "Largest shift @auto searches, either way [s] (default 0.1)");
+    app.add_option("--join-max-shift", join_max_shift_s, "Largest shift @auto searches, either way [s] (default 0.1)");
     app.add_option("--tare", tare,
                    "Zero a role's channel from the samples at rest before the move (e.g. a load cell's offset): "
                    "ROLE; repeatable")

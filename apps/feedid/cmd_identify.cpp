@@ -114,15 +114,15 @@ struct IdentifyCommand {
             return value ? nlohmann::json(*value) : nlohmann::json(nullptr);
         };
         nlohmann::json document{{"drive",
-                 {{"kt_Nm_per_A", optional(drive_arguments.kt)},
-                  {"lead_mm", optional(drive_arguments.lead_mm)},
-                  {"gear_ratio", drive_arguments.gear_ratio},
-                  {"force_constant", drive_arguments.force_constant}}},
-                {"channels", trace_arguments.channel_assignments},
-                {"units", trace_arguments.unit_assignments},
-                {"axis", trace_arguments.axis},
-                {"format", trace_arguments.format},
-                {"rated", optional(trace_arguments.rated)}};
+                                 {{"kt_Nm_per_A", optional(drive_arguments.kt)},
+                                  {"lead_mm", optional(drive_arguments.lead_mm)},
+                                  {"gear_ratio", drive_arguments.gear_ratio},
+                                  {"force_constant", drive_arguments.force_constant}}},
+                                {"channels", trace_arguments.channel_assignments},
+                                {"units", trace_arguments.unit_assignments},
+                                {"axis", trace_arguments.axis},
+                                {"format", trace_arguments.format},
+                                {"rated", optional(trace_arguments.rated)}};
         // a second recording and tares shape the result too; absent when not used (older documents lack them)
         if (!trace_arguments.join.empty()) document["join"] = trace_arguments.join;
         if (!trace_arguments.tare.empty()) document["tare"] = trace_arguments.tare;

@@ -43,9 +43,9 @@ struct FrictionOnlyOptions {
 /// What the data resolves, in figures.
 struct Resolution {
     double sample_rate_hz{0.0};
-    double position_quantum{0.0};       ///< [m]; 0 without a position
-    double typical_speed{0.0};          ///< 95th percentile of |x'| [m/s]
-    double largest_speed_step{0.0};     ///< 99th percentile of |x'(k+1) - x'(k)| [m/s]
+    double position_quantum{0.0};    ///< [m]; 0 without a position
+    double typical_speed{0.0};       ///< 95th percentile of |x'| [m/s]
+    double largest_speed_step{0.0};  ///< 99th percentile of |x'(k+1) - x'(k)| [m/s]
     bool position_too_coarse{false};
     bool accelerations_unresolved{false};
     [[nodiscard]] bool coarse() const { return position_too_coarse || accelerations_unresolved; }
@@ -60,7 +60,7 @@ Resolution assess_resolution(const Derivatives& derivatives, const FrictionOnlyO
 struct FrictionOnlyFit {
     std::vector<RegressorColumn> columns;  ///< the friction columns of the step-1 model (no mass)
     LeastSquaresResult batch;
-    std::size_t samples{0};  ///< steady samples used
+    std::size_t samples{0};            ///< steady samples used
     double largest_acceleration{0.0};  ///< [m/s^2] among the moving samples
     /// The smallest mass whose inertial force at the largest acceleration stands above the friction scatter [kg].
     double smallest_detectable_mass{0.0};

@@ -37,8 +37,8 @@ struct IdentifyOptions {
 
     PreprocessOptions preprocess;
     SelectionOptions selection;
-    Step1Options step1;           ///< with the RLS options
-    FrictionFitOptions friction;  ///< step 2
+    Step1Options step1;                 ///< with the RLS options
+    FrictionFitOptions friction;        ///< step 2
     FrictionOnlyOptions friction_only;  ///< when the data cannot determine a mass
 
     /// What is wrong with these options ("" when nothing).

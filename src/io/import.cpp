@@ -199,7 +199,8 @@ std::string select_axis(Trace& trace, const ImportOptions& options) {
 
 // Guesses for the roles still open, from common names (without the chosen axis prefix); each guess is said. Returns
 // the names of the channels given a role by guess.
-std::vector<std::string> guess_roles(Trace& trace, const std::string& axis, const std::vector<Role>& assigned_elsewhere) {
+std::vector<std::string> guess_roles(Trace& trace, const std::string& axis,
+                                     const std::vector<Role>& assigned_elsewhere) {
     std::vector<std::string> guessed;
     for (const auto& [role, names] : common_names) {
         if (trace.has(role) ||
@@ -504,8 +505,8 @@ Trace read_joined(const std::filesystem::path& path, const ImportOptions& option
     Trace second = read_source(options.join->path, second_read);
     for (const auto& [role, name] : options.channels) {
         if (first.find(name) == nullptr && second.find(name) == nullptr) {
-            throw InputError(fmt::format("--channel {}={}: neither {} nor {} has a channel named '{}'",
-                                         role_name(role), name, first.source_path, second.source_path, name));
+            throw InputError(fmt::format("--channel {}={}: neither {} nor {} has a channel named '{}'", role_name(role),
+                                         name, first.source_path, second.source_path, name));
         }
     }
     prepare_trace(first, options_for(first, options));

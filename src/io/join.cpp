@@ -21,7 +21,8 @@ std::string where(const Trace& trace) {
 double parse_shift(std::string_view text, std::string_view whole) {
     const auto unit_start = text.find_first_not_of("+-0123456789.eE ");
     const std::string number(text.substr(0, unit_start));
-    const std::string_view unit = unit_start == std::string_view::npos ? std::string_view("s") : text.substr(unit_start);
+    const std::string_view unit =
+        unit_start == std::string_view::npos ? std::string_view("s") : text.substr(unit_start);
     double value = 0.0;
     std::size_t used = 0;
     try {
@@ -183,14 +184,15 @@ Trace join_traces(const Trace& first, const Trace& second, const JoinOptions& op
     }
     // the first trace's samples inside the second's shifted span
     const double begin = their_time.front() + done.shift_s, end = their_time.back() + done.shift_s;
-    const auto first_in = static_cast<std::size_t>(std::lower_bound(our_time.begin(), our_time.end(), begin) -
-                                                   our_time.begin());
-    const auto last_in = static_cast<std::size_t>(std::upper_bound(our_time.begin(), our_time.end(), end) -
-                                                  our_time.begin());
+    const auto first_in =
+        static_cast<std::size_t>(std::lower_bound(our_time.begin(), our_time.end(), begin) - our_time.begin());
+    const auto last_in =
+        static_cast<std::size_t>(std::upper_bound(our_time.begin(), our_time.end(), end) - our_time.begin());
     if (last_in <= first_in + 1) {
-        throw InputError(fmt::format("--join {}: its time span ({:.6g} to {:.6g} s after the shift) does not overlap "
-                                     "that of {} ({:.6g} to {:.6g} s)",
-                                     where(second), begin, end, where(first), our_time.front(), our_time.back()));
+        throw InputError(
+            fmt::format("--join {}: its time span ({:.6g} to {:.6g} s after the shift) does not overlap "
+                        "that of {} ({:.6g} to {:.6g} s)",
+                        where(second), begin, end, where(first), our_time.front(), our_time.back()));
     }
     done.dropped_before = first_in;
     done.dropped_after = our_time.size() - last_in;
@@ -209,21 +211,22 @@ Trace join_traces(const Trace& first, const Trace& second, const JoinOptions& op
         joined.channels.push_back(std::move(copy));
     }
     for (const auto& [name, value] : second.constants) joined.constants.emplace(name, value);
-    for (const auto& finding : second.findings) joined.findings.push_back(fmt::format("{}: {}", where(second), finding));
+    for (const auto& finding : second.findings)
+        joined.findings.push_back(fmt::format("{}: {}", where(second), finding));
     if (done.automatic) {
         joined.findings.push_back(fmt::format(
             "joined {}: shift {:.4g} ms found by cross-correlation (correlation coefficient {:.3f}); give it with "
             "--join FILE@SHIFT if the physics says otherwise",
             where(second), done.shift_s * 1e3, done.correlation));
     } else {
-        joined.findings.push_back(fmt::format("joined {}: its time stamps shifted by {:.4g} ms", where(second),
-                                              done.shift_s * 1e3));
+        joined.findings.push_back(
+            fmt::format("joined {}: its time stamps shifted by {:.4g} ms", where(second), done.shift_s * 1e3));
     }
     if (done.dropped_before + done.dropped_after > 0) {
-        joined.findings.push_back(fmt::format(
-            "{} samples of {} outside the span of {} dropped ({} before, {} after; never extrapolated)",
-            done.dropped_before + done.dropped_after, where(first), where(second), done.dropped_before,
-            done.dropped_after));
+        joined.findings.push_back(
+            fmt::format("{} samples of {} outside the span of {} dropped ({} before, {} after; never extrapolated)",
+                        done.dropped_before + done.dropped_after, where(first), where(second), done.dropped_before,
+                        done.dropped_after));
     }
     if (report != nullptr) *report = done;
     return joined;

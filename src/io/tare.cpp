@@ -61,10 +61,10 @@ TareReport tare(Trace& trace, Role role, const TareOptions& options) {
     report.samples = used;
     report.rest_end_s = trace.column(Role::time)[used - 1];
     for (double& x : channel->values) x -= report.removed;
-    trace.findings.push_back(fmt::format(
-        "--tare {}: {:.6g} {} removed from '{}' (its mean over the {} samples at rest up to {:.4g} s)",
-        role_name(role), report.removed, channel->unit.empty() ? std::string("(no unit)") : channel->unit,
-        channel->name, used, report.rest_end_s));
+    trace.findings.push_back(
+        fmt::format("--tare {}: {:.6g} {} removed from '{}' (its mean over the {} samples at rest up to {:.4g} s)",
+                    role_name(role), report.removed, channel->unit.empty() ? std::string("(no unit)") : channel->unit,
+                    channel->name, used, report.rest_end_s));
     return report;
 }
 

@@ -32,11 +32,11 @@ struct JoinOptions {
 
 /// What join_traces did.
 struct JoinReport {
-    double shift_s{0.0};               ///< the shift applied [s]
-    bool automatic{false};             ///< found by cross-correlation
-    double correlation{0.0};           ///< correlation coefficient at the shift found (automatic only)
-    std::size_t dropped_before{0};     ///< samples of the first trace before the second's span
-    std::size_t dropped_after{0};      ///< ... and after it
+    double shift_s{0.0};            ///< the shift applied [s]
+    bool automatic{false};          ///< found by cross-correlation
+    double correlation{0.0};        ///< correlation coefficient at the shift found (automatic only)
+    std::size_t dropped_before{0};  ///< samples of the first trace before the second's span
+    std::size_t dropped_after{0};   ///< ... and after it
 };
 
 /// `FILE[@SHIFT]` of --join: SHIFT is a time with a unit ("4ms", "-0.004s", "-0.004" = s), or "auto", or

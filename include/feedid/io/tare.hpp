@@ -23,9 +23,9 @@ struct TareOptions {
 };
 
 struct TareReport {
-    double removed{0.0};      ///< the mean subtracted, in the channel's SI unit
-    std::size_t samples{0};   ///< rest samples averaged
-    double rest_end_s{0.0};   ///< time of the last averaged sample [s]
+    double removed{0.0};     ///< the mean subtracted, in the channel's SI unit
+    std::size_t samples{0};  ///< rest samples averaged
+    double rest_end_s{0.0};  ///< time of the last averaged sample [s]
 };
 
 /// Subtracts from the channel of `role` its mean over the leading rest samples and adds a finding with the value.
