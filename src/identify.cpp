@@ -259,23 +259,82 @@ std::optional<FrictionCurvePoints> bin_friction_curve(const Derivatives& d, cons
     return curve;
 }
 
-/// The four stages on a drive force (N, or the drive signal's own unit when no constant is known).
-IdentifyResult run_stages(const Trace& trace, std::span<const double> force, const IdentifyOptions& options) {
-    IdentifyResult result = start_result(trace, options);
-    const Derivatives derivatives = preprocess(trace, force, options.preprocess);
-    result.diagnostics.insert(result.diagnostics.end(), derivatives.notes.begin(), derivatives.notes.end());
-    if (derivatives.failed()) return failed(std::move(result), derivatives.failure);
-    const Regressors regressors = build_regressors(derivatives, options.model, options.offset);
-    SelectionOptions selection_options = options.selection;
-    selection_options.stribeck = options.stribeck;
-    selection_options.minimum_step1_samples_per_parameter = options.step1.minimum_samples_per_parameter;
-    const Selection selection = select_samples(derivatives, regressors, selection_options);
-    result.preprocessing = derivatives.used;
-    result.selection = selection.report;
+/// The reason in figures why M is null, from the resolution and the friction-only fit.
+std::string mass_reason(const Derivatives& d, const Resolution& resolution, const FrictionOnlyFit& fit,
+                        const std::string& step1_failure) {
+    const ParameterNaming naming{d.rotary};
+    std::string reason = fmt::format("{}: mass not identifiable: {}", d.source, resolution.description);
+    if (!resolution.coarse() && !step1_failure.empty())
+        reason += "; the acceleration explains too little of the drive force";
+    if (fit.largest_acceleration > 0.0) {
+        reason += fmt::format(
+            "; the largest acceleration the samples resolve, {:.3g} {}/s^2, would lift the inertial force of a mass "
+            "below {:.3g} {} no higher than {:g}x the friction scatter {:.3g} {}",
+            fit.largest_acceleration, d.rotary ? "rad" : "m", fit.smallest_detectable_mass, naming.unit(Term::mass),
+            FrictionOnlyOptions{}.detectable_force_multiple, fit.batch.residual_std, naming.force_unit());
+    }
+    return reason;
+}
 
+/// M (and the Stribeck terms) null, B and F_C from the steady-speed samples; failed when those cannot give them
+/// either.
+IdentifyResult friction_only_result(IdentifyResult result, const Derivatives& d, const Selection& s,
+                                    const Resolution& resolution, const std::string& step1_failure,
+                                    const IdentifyOptions& options) {
+    const FrictionOnlyFit fit = fit_friction_only(d, s, options.model, options.offset, options.friction_only);
+    if (fit.failed()) {
+        std::string why = step1_failure;
+        if (why.empty()) {
+            why = fmt::format("{}: the trace carries no usable mass information: {}", d.source, resolution.description);
+            if (d.travel < options.step1.creep_travel) {
+                why += fmt::format("; a micro-step or creep test (the axis travelled {:.3g} {}) cannot determine mass",
+                                   d.travel * (d.rotary ? 1.0 : 1e6), d.rotary ? "rad" : "um");
+            }
+        }
+        return failed(std::move(result),
+                      fmt::format("{}; friction alone cannot be identified either: {}", why, fit.failure));
+    }
+    const ParameterNaming naming{d.rotary};
+    Step1Report report;
+    for (std::size_t c = 0; c < fit.columns.size(); ++c) {
+        const auto i = static_cast<Eigen::Index>(c);
+        const Estimate estimate = Estimate::of(fit.batch.estimate(i), fit.batch.standard_error(i));
+        parameter(result, fit.columns[c].term, fit.columns[c].direction).estimate = estimate;
+        report.keys.push_back(naming.key(fit.columns[c].term, fit.columns[c].direction));
+        report.batch.push_back(estimate);
+    }
+    report.relative_error_pct = fit.batch.relative_error_pct;
+    report.condition_number = fit.batch.condition_number;
+    report.samples_used = fit.batch.samples;
+    report.residual_std = fit.batch.residual_std;
+    report.r_diagonal.assign(fit.batch.r_diagonal.data(), fit.batch.r_diagonal.data() + fit.batch.r_diagonal.size());
+    result.step1 = std::move(report);
+    const std::string reason = mass_reason(d, resolution, fit, step1_failure);
+    result.friction_only =
+        FrictionOnlyReport{reason, fit.samples, fit.batch.relative_error_pct, fit.batch.residual_std};
+    result.diagnostics.push_back(reason);
+    result.diagnostics.push_back(fmt::format(
+        "friction only: B and F_C from {} steady-speed samples (the drive force there is friction); F_B and v_s not "
+        "estimated",
+        fit.samples));
+    flag_undetermined(result);
+    result.axis = axis_from_parameters(result.parameters, result.model, result.rotary);
+    result.friction_curve =
+        FrictionCurveReport{bin_friction_curve(d, s, result.axis, true), bin_friction_curve(d, s, result.axis, false)};
+    result.status = Status::partial;
+    return result;
+}
+
+/// Steps 1 and 2 on the selected samples, and the result's final touches.
+IdentifyResult fit_steps(IdentifyResult result, const Derivatives& derivatives, const Regressors& regressors,
+                         const Selection& selection, const IdentifyOptions& options) {
     const Step1Fit step1 = fit_step1(regressors, derivatives, selection.step1, options.step1);
-    if (step1.batch.samples > 0) result.step1 = step1_report(step1, ParameterNaming{trace.rotary});
-    if (step1.failed()) return failed(std::move(result), step1.failure);
+    if (step1.batch.samples > 0) result.step1 = step1_report(step1, ParameterNaming{derivatives.rotary});
+    if (step1.failed()) {
+        if (!step1.mass_unidentifiable) return failed(std::move(result), step1.failure);
+        return friction_only_result(std::move(result), derivatives, selection,
+                                    assess_resolution(derivatives, options.friction_only), step1.failure, options);
+    }
     apply_step1(step1, result);
 
     if (options.stribeck) {
@@ -294,6 +353,26 @@ IdentifyResult run_stages(const Trace& trace, std::span<const double> force, con
                                       [](const Parameter& p) { return !p.estimate.value; });
     result.status = any_null ? Status::partial : Status::ok;
     return result;
+}
+
+/// The four stages on a drive force (N, or the drive signal's own unit when no constant is known). A trace too
+/// coarse for a mass (its figures say so before any fit: a mass fitted to it would be noise) gives a friction-only
+/// result, or fails saying why in figures.
+IdentifyResult run_stages(const Trace& trace, std::span<const double> force, const IdentifyOptions& options) {
+    IdentifyResult result = start_result(trace, options);
+    const Derivatives derivatives = preprocess(trace, force, options.preprocess);
+    result.diagnostics.insert(result.diagnostics.end(), derivatives.notes.begin(), derivatives.notes.end());
+    if (derivatives.failed()) return failed(std::move(result), derivatives.failure);
+    const Regressors regressors = build_regressors(derivatives, options.model, options.offset);
+    SelectionOptions selection_options = options.selection;
+    selection_options.stribeck = options.stribeck;
+    selection_options.minimum_step1_samples_per_parameter = options.step1.minimum_samples_per_parameter;
+    const Selection selection = select_samples(derivatives, regressors, selection_options);
+    result.preprocessing = derivatives.used;
+    result.selection = selection.report;
+    if (const Resolution resolution = assess_resolution(derivatives, options.friction_only); resolution.coarse())
+        return friction_only_result(std::move(result), derivatives, selection, resolution, {}, options);
+    return fit_steps(std::move(result), derivatives, regressors, selection, options);
 }
 
 /// A drive signal without a constant that turns it into force (a current in A, no --kt/--lead).

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+
 #include <optional>
 #include <string>
 
@@ -74,6 +75,62 @@ Differentiated differentiate(std::span<const double> x, double dt, const Preproc
     return out;
 }
 
+/// x' and x'' from a logged velocity: the same filter the position would get (zero-phase), then its derivative.
+Differentiated differentiate_velocity(std::span<const double> v, double dt, const PreprocessOptions& options,
+                                      PreprocessReport& used) {
+    const double fs = 1.0 / dt;
+    Differentiated out;
+    switch (options.differentiation) {
+        case Differentiation::central:
+            used.differentiation = "central";
+            out.velocity.assign(v.begin(), v.end());
+            break;
+        case Differentiation::butterworth:
+            used.differentiation = "butterworth";
+            if (!(used.cutoff_hz < 0.5 * fs)) {
+                throw InputError(
+                    fmt::format("--cutoff {} Hz must be below half the sample rate ({} Hz)", used.cutoff_hz, 0.5 * fs));
+            }
+            out.velocity = filtfilt(butterworth_lowpass(options.filter_order, used.cutoff_hz, fs), v);
+            out.default_edge =
+                static_cast<std::size_t>(std::ceil(options.filter_settling_periods * fs / used.cutoff_hz));
+            break;
+        case Differentiation::savitzky_golay: {
+            used.differentiation = "savitzky-golay";
+            const int window = options.savitzky_golay_window != 0
+                                   ? options.savitzky_golay_window
+                                   : std::max(5, static_cast<int>(std::lround(options.savitzky_golay_span_s * fs)) | 1);
+            if (static_cast<std::size_t>(window) > v.size()) return out;  // the caller reports it
+            out.velocity = savitzky_golay(v, window, options.savitzky_golay_order, 0, dt);
+            out.default_edge = static_cast<std::size_t>(window / 2 + 1);
+            break;
+        }
+    }
+    out.acceleration = central_difference(out.velocity, dt);
+    return out;
+}
+
+/// Whether x' comes from the logged velocity: asked for, or automatic and the position is missing or too coarse
+/// (its quantum above a fraction of the travel per sample at the typical logged speed).
+bool use_logged_velocity(const Trace& trace, std::span<const double> logged, double quantum, double dt,
+                         const PreprocessOptions& options) {
+    if (options.velocity_source == VelocitySource::position) return false;
+    if (!trace.has(Role::velocity)) {
+        if (options.velocity_source == VelocitySource::logged) {
+            throw InputError(
+                fmt::format("{}: --velocity-source velocity: the trace has no velocity channel (map one "
+                            "with --channel velocity=NAME)",
+                            trace.source_path.empty() ? "trace" : trace.source_path));
+        }
+        return false;
+    }
+    if (options.velocity_source == VelocitySource::logged || !trace.has(Role::position)) return true;
+    std::vector<double> speeds;
+    for (const double v : logged) speeds.push_back(std::abs(v));
+    const double typical = speeds.empty() ? 0.0 : percentile(std::move(speeds), 0.95);
+    return quantum > options.coarse_position_fraction * typical * dt;
+}
+
 std::vector<double> slice(std::span<const double> column, std::size_t first, std::size_t last) {
     return {column.begin() + static_cast<std::ptrdiff_t>(first), column.begin() + static_cast<std::ptrdiff_t>(last)};
 }
@@ -137,18 +194,10 @@ std::optional<std::string> held_position_note(const Derivatives& d, const Prepro
                       d.used.cutoff_hz, 1.0 / d.sample_time_s);
 }
 
-}  // namespace
 
-Derivatives preprocess(const Trace& trace, std::span<const double> force, const PreprocessOptions& options) {
-    Derivatives d;
-    d.rotary = trace.rotary;
-    d.source = trace.source_path.empty() ? "trace" : trace.source_path;
-    d.total = trace.samples();
-    d.used.filter_order = options.filter_order;
-    const auto time = trace.column(Role::time);
-    const auto position = trace.column(Role::position);
-
-    // ---- the analysis window
+/// The analysis window [first, last) from --from/--to; sets `failure` when it is too short.
+std::pair<std::size_t, std::size_t> analysis_window(std::span<const double> time, const PreprocessOptions& options,
+                                                    Derivatives& d) {
     std::size_t first = 0, last = d.total;
     if (options.from_s)
         first = static_cast<std::size_t>(std::lower_bound(time.begin(), time.end(), *options.from_s) - time.begin());
@@ -159,26 +208,89 @@ Derivatives preprocess(const Trace& trace, std::span<const double> force, const 
             "{}: only {} samples in the analysis window: too short to identify anything (record "
             "at least a few seconds of motion)",
             d.source, last > first ? last - first : 0);
-        return d;
     }
-    const PositionHold hold = position_hold(trace, position);
-    const std::vector<double> sampled =
-        hold.factor > 1 ? interpolate_held(position, hold.factor, hold.phase) : std::vector<double>{};
-    const std::span<const double> x((sampled.empty() ? position.data() : sampled.data()) + first, last - first);
-    if (const auto [low, high] = std::minmax_element(x.begin(), x.end()); !(*high > *low)) {
-        d.failure = fmt::format(
-            "{}: the position never changes in the analysis window: the axis did not move, so "
-            "nothing can be identified",
-            d.source);
-        return d;
-    }
+    return {first, last};
+}
 
-    // ---- derivatives
+/// Largest minus smallest position: of the position, or of the integrated velocity without one.
+double travel(std::span<const double> position, std::span<const double> velocity, double dt) {
+    std::vector<double> integrated;
+    if (position.empty()) {
+        double x = 0.0;
+        for (const double v : velocity) integrated.push_back(x += v * dt);
+        position = integrated;
+    }
+    if (position.empty()) return 0.0;
+    const auto [low, high] = std::minmax_element(position.begin(), position.end());
+    return *high - *low;
+}
+
+/// The signal x' comes from, over the window: the position, or the logged velocity (said in d.used).
+/// A held position (a position loop logged at its own, slower cycle) is interpolated between its own samples into
+/// `held`, which the returned span then views.
+std::span<const double> velocity_signal(const Trace& trace, std::size_t first, std::size_t last,
+                                        const PreprocessOptions& options, Derivatives& d, PositionHold& hold,
+                                        std::vector<double>& held) {
+    const auto* position = trace.find(Role::position);
+    const auto* logged = trace.find(Role::velocity);
+    if (position == nullptr && logged == nullptr) {
+        throw InputError(
+            fmt::format("{}: no position and no velocity channel: map one with --channel position=NAME "
+                        "or --channel velocity=NAME",
+                        d.source));
+    }
+    const auto window = [&](const Channel* c) {
+        return std::span<const double>(c->values.data() + first, last - first);
+    };
+    if (position != nullptr) d.position_quantum = position_quantum(window(position));
+    const bool from_velocity =
+        use_logged_velocity(trace, logged != nullptr ? window(logged) : std::span<const double>{}, d.position_quantum,
+                            d.sample_time_s, options);
+    d.used.velocity_source = from_velocity ? "velocity" : "position";
+    if (!from_velocity) {
+        hold = position_hold(trace, position->values);
+        if (hold.factor > 1) held = interpolate_held(position->values, hold.factor, hold.phase);
+    }
+    const std::span<const double> x =
+        held.empty() ? window(from_velocity ? logged : position) : std::span<const double>(held.data() + first, last - first);
+    d.travel = travel(position != nullptr ? window(position) : std::span<const double>{}, x, d.sample_time_s);
+    const auto [low, high] = std::minmax_element(x.begin(), x.end());
+    const bool still = from_velocity ? !(std::max(std::abs(*low), std::abs(*high)) > 0.0) : !(*high > *low);
+    if (still) {
+        d.failure =
+            fmt::format("{}: the {} in the analysis window: the axis did not move, so nothing can be identified",
+                        d.source, from_velocity ? "logged velocity is zero throughout" : "position never changes");
+    }
+    return x;
+}
+
+}  // namespace
+
+Derivatives preprocess(const Trace& trace, std::span<const double> force, const PreprocessOptions& options) {
+    Derivatives d;
+    d.rotary = trace.rotary;
+    d.source = trace.source_path.empty() ? "trace" : trace.source_path;
+    d.total = trace.samples();
+    d.used.filter_order = options.filter_order;
+    const auto time = trace.column(Role::time);
     d.sample_time_s = d.total >= 2 ? trace.time_base().sample_time_s : 0.0;
-    d.position_interval_s = native_interval_of(trace, Role::position);
+
+    const auto [first, last] = analysis_window(time, options, d);
+    if (d.failed()) return d;
+    PositionHold hold;
+    std::vector<double> held;
+    const std::span<const double> x = velocity_signal(trace, first, last, options, d, hold, held);
+    if (d.failed()) return d;
+
+    // ---- derivatives: the rate-dependent defaults from the native interval of the signal differentiated
+    const bool from_velocity = !d.velocity_from_position();
+    d.position_interval_s = native_interval_of(trace, from_velocity ? Role::velocity : Role::position);
     d.used.cutoff_hz = options.cutoff_hz.value_or(default_cutoff_hz(options, d.position_interval_s));
-    if (auto note = held_position_note(d, options)) d.notes.push_back(std::move(*note));
-    Differentiated derivatives = differentiate(x, d.sample_time_s, options, d.used);
+    if (!from_velocity) {
+        if (auto note = held_position_note(d, options)) d.notes.push_back(std::move(*note));
+    }
+    Differentiated derivatives = from_velocity ? differentiate_velocity(x, d.sample_time_s, options, d.used)
+                                               : differentiate(x, d.sample_time_s, options, d.used);
     if (derivatives.velocity.empty()) {
         d.failure = fmt::format("{}: the trace is shorter than the Savitzky-Golay window", d.source);
         return d;
@@ -200,8 +312,11 @@ Derivatives preprocess(const Trace& trace, std::span<const double> force, const 
                     first + keep_last);
     d.velocity = slice(derivatives.velocity, keep_first, keep_last);
     d.acceleration = slice(derivatives.acceleration, keep_first, keep_last);
+    if (from_velocity) {
+        d.logged_velocity.assign(x.begin(), x.end());
+        d.logged_force = slice(force, first, last);
+    }
     d.velocity_noise = noise_floor(d.velocity);
-    d.position_quantum = position_quantum(position.subspan(first, last - first));  // the logged steps
 
     // ---- decimation
     d.used.decimation = std::max(1, options.decimation);

@@ -28,7 +28,8 @@ void to_json(Json& j, const PreprocessReport& p) {
              {"filter_order", p.filter_order},
              {"cutoff_hz", p.cutoff_hz},
              {"decimation", p.decimation},
-             {"edge_samples", p.edge_samples}};
+             {"edge_samples", p.edge_samples},
+             {"velocity_source", p.velocity_source}};
 }
 
 void to_json(Json& j, const SelectionReport& s) {
@@ -146,6 +147,12 @@ void to_json(Json& document, const IdentifyResult& result) {
     if (result.rls) document["rls"] = rls_json(*result.rls);
     if (result.stribeck) document["stribeck"] = stribeck_json(*result.stribeck);
     if (result.friction_curve) document["friction_curve"] = friction_curve_json(*result.friction_curve, naming);
+    if (result.friction_only) {
+        document["friction_only"] = {{"reason", result.friction_only->reason},
+                                     {"samples_used", result.friction_only->samples_used},
+                                     {"relative_error_pct", result.friction_only->relative_error_pct},
+                                     {"residual_std", result.friction_only->residual_std}};
+    }
     if (!result.options.is_null()) document["options"] = result.options;
 }
 
@@ -165,6 +172,7 @@ void from_json(const Json& j, PreprocessReport& p) {
     p.cutoff_hz = number(j, "cutoff_hz");
     p.decimation = j.at("decimation").get<int>();
     p.edge_samples = j.at("edge_samples").get<std::size_t>();
+    p.velocity_source = j.value("velocity_source", std::string("position"));  // documents before it existed
 }
 
 void from_json(const Json& j, SelectionReport& s) {
@@ -292,6 +300,11 @@ void read_records(const Json& j, IdentifyResult& r) {
     if (j.contains("fit") && j.contains("step1")) r.step1 = read_step1(j.at("fit"), j.at("step1"));
     if (j.contains("rls")) r.rls = read_rls(j.at("rls"));
     if (j.contains("stribeck")) r.stribeck = read_stribeck(j.at("stribeck"));
+    if (j.contains("friction_only")) {
+        const Json& f = j.at("friction_only");
+        r.friction_only = FrictionOnlyReport{f.at("reason").get<std::string>(), f.at("samples_used").get<std::size_t>(),
+                                             number(f, "relative_error_pct"), number(f, "residual_std")};
+    }
     if (j.contains("friction_curve"))
         r.friction_curve = read_friction_curve(j.at("friction_curve"), ParameterNaming{r.rotary});
 }
@@ -332,6 +345,9 @@ nlohmann::json identify_options_document(const IdentifyOptions& o, const nlohman
                   {"offset", o.offset},
                   {"stribeck", o.stribeck},
                   {"differentiation", differentiation},
+                  {"velocity_source", p.velocity_source == VelocitySource::position ? "position"
+                                      : p.velocity_source == VelocitySource::logged ? "velocity"
+                                                                                    : "auto"},
                   {"filter_order", p.filter_order},
                   {"cutoff_hz", p.cutoff_hz},
                   {"savitzky_golay_window", p.savitzky_golay_window},

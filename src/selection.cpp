@@ -120,7 +120,8 @@ double max_speed(const Derivatives& d) {
 void select_moving(const Derivatives& d, const SelectionOptions& options, double fastest, Selection& s) {
     const Units units{ParameterNaming{d.rotary}};
     const double threshold = options.moving_threshold.value_or(
-        std::max({options.rest_noise_multiple * d.velocity_noise, d.position_quantum * d.used.cutoff_hz,
+        std::max({options.rest_noise_multiple * d.velocity_noise,
+                  d.velocity_from_position() ? d.position_quantum * d.used.cutoff_hz : 0.0,
                   options.rest_fraction_of_max_speed * fastest}));
     s.report.moving_threshold = threshold;
     for (std::size_t k = 0; k < d.size(); ++k) {

@@ -204,12 +204,18 @@ Step1Fit fit_step1(const Regressors& regressors, const Derivatives& derivatives,
     const double mass = fit.batch.estimate(0), mass_se = fit.batch.standard_error(0);
     if (!(mass > 0.0) || !(mass_se < options.mass_relative_standard_error * mass)) {
         const ParameterNaming naming{derivatives.rotary};
+        fit.mass_unidentifiable = true;
+        const std::string why =
+            derivatives.travel < options.creep_travel
+                ? fmt::format("a micro-step or creep test (the axis travelled {:.3g} {}) cannot determine mass",
+                              derivatives.travel * (derivatives.rotary ? 1.0 : 1e6), derivatives.rotary ? "rad" : "um")
+                : std::string("the strokes hold too little acceleration against the force's scatter");
         fit.failure = fmt::format(
             "{}: the trace carries no usable mass information: the acceleration (at most {:.3g} {}/s^2 in the samples "
-            "used) explains too little of the drive force (estimate {:.4g} +/- {:.2g} {}); a micro-step or creep test "
-            "cannot determine mass. Record strokes with real accelerations and reversals (see feedid plan)",
+            "used) explains too little of the drive force (estimate {:.4g} +/- {:.2g} {}); {}. Record strokes with "
+            "real accelerations and reversals (see feedid plan)",
             derivatives.source, fit.max_acceleration, derivatives.rotary ? "rad" : "m", mass, mass_se,
-            naming.unit(Term::mass));
+            naming.unit(Term::mass), why);
         return fit;
     }
     // RLS on the same samples, in time order.

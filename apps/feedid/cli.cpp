@@ -33,6 +33,16 @@ void TraceArguments::add_to(CLI::App& app) {
     app.add_option("--rated", rated,
                    "What 100 % means for channels given in percent, with its unit: 18A (rated current), 2.4Nm (rated "
                    "torque); a bare number is in A");
+    app.add_option("--join", join,
+                   "A second recording of the same move (e.g. a DAQ's load cell): FILE[@SHIFT], its channels "
+                   "resampled onto this trace's time base after shifting its time stamps by SHIFT (@4ms, @-0.004s; "
+                   "@auto or @auto:OURS=THEIRS: found by cross-correlation); --channel may name its channels");
+    app.add_option("--join-max-shift", join_max_shift_s, "Largest shift @auto searches, either way [s] (default 0.1)");
+    app.add_option("--tare", tare,
+                   "Zero a role's channel from the samples at rest before the move (e.g. a load cell's offset): "
+                   "ROLE; repeatable")
+        ->take_all()
+        ->allow_extra_args(false);
     app.add_option("--sample-time", sample_time_s,
                    "Time between samples [s] for files without a time column (a CSV log, halsampler output)")
         ->check(CLI::PositiveNumber);
@@ -51,6 +61,21 @@ ImportOptions TraceArguments::import_options() const {
     }
     options.axis = axis;
     options.format = format;
+    if (!join.empty()) {
+        options.join = parse_join_spec(join);
+        if (join_max_shift_s) {
+            if (!(*join_max_shift_s > 0.0)) throw InputError("--join-max-shift must be a positive time [s]");
+            options.join->options.max_shift_s = *join_max_shift_s;
+        }
+    } else if (join_max_shift_s) {
+        throw InputError("--join-max-shift needs --join FILE@auto");
+    }
+    for (const auto& text : tare) {
+        const auto role = parse_role(text);
+        if (!role || *role == Role::other || *role == Role::time)
+            throw InputError(fmt::format("--tare {}: not a role to zero (e.g. force, current, external_force)", text));
+        options.tare.push_back(*role);
+    }
     options.sample_time_s = sample_time_s;
     options.skip_rows = skip_rows;
     if (lead_mm) options.unit_context.lead_m = *lead_mm * 1e-3;

@@ -24,6 +24,7 @@ struct IdentifyCommand {
     IdentifyOptions options;
     std::string model{"symmetric"};
     std::string differentiation{"butterworth"};
+    std::string velocity_source{"auto"};
     std::string rls_variant{"directional"};
     bool no_stribeck{false};
     std::string json_path;
@@ -55,6 +56,12 @@ struct IdentifyCommand {
                         "How velocity and acceleration are obtained from position: butterworth (zero-phase low-pass, "
                         "then central differences), central (the paper), savitzky-golay")
             ->check(CLI::IsMember({"butterworth", "central", "savitzky-golay"}))
+            ->capture_default_str();
+        pre->add_option("--velocity-source", velocity_source,
+                        "Where velocity comes from: position (differentiated), velocity (the logged velocity channel, "
+                        "filtered like the position; acceleration is its derivative) or auto (the logged velocity "
+                        "when there is no position or it is too coarse)")
+            ->check(CLI::IsMember({"auto", "position", "velocity"}))
             ->capture_default_str();
         pre->add_option("--filter-order", options.preprocess.filter_order, "Butterworth order")->capture_default_str();
         pre->add_option("--cutoff", options.preprocess.cutoff_hz,
@@ -94,6 +101,9 @@ struct IdentifyCommand {
         o.preprocess.differentiation = differentiation == "central"          ? Differentiation::central
                                        : differentiation == "savitzky-golay" ? Differentiation::savitzky_golay
                                                                              : Differentiation::butterworth;
+        o.preprocess.velocity_source = velocity_source == "position"   ? VelocitySource::position
+                                       : velocity_source == "velocity" ? VelocitySource::logged
+                                                                       : VelocitySource::automatic;
         o.step1.rls.variant = rls_variant == "paper" ? RlsVariant::exponential : RlsVariant::directional;
         o.stribeck = !no_stribeck;
         return o;
@@ -104,17 +114,20 @@ struct IdentifyCommand {
         const auto optional = [](const auto& value) {
             return value ? nlohmann::json(*value) : nlohmann::json(nullptr);
         };
-        return {
-            {"drive",
-             {{"kt_Nm_per_A", optional(drive_arguments.kt)},
-              {"lead_mm", optional(drive_arguments.lead_mm)},
-              {"gear_ratio", drive_arguments.gear_ratio},
-              {"force_constant", drive_arguments.force_constant}}},
-            {"channels", trace_arguments.channel_assignments},
-            {"units", trace_arguments.unit_assignments},
-            {"axis", trace_arguments.axis},
-            {"format", trace_arguments.format},
-            {"rated", trace_arguments.rated.empty() ? nlohmann::json(nullptr) : nlohmann::json(trace_arguments.rated)}};
+        nlohmann::json document{{"drive",
+                                 {{"kt_Nm_per_A", optional(drive_arguments.kt)},
+                                  {"lead_mm", optional(drive_arguments.lead_mm)},
+                                  {"gear_ratio", drive_arguments.gear_ratio},
+                                  {"force_constant", drive_arguments.force_constant}}},
+                                {"channels", trace_arguments.channel_assignments},
+                                {"units", trace_arguments.unit_assignments},
+                                {"axis", trace_arguments.axis},
+                                {"format", trace_arguments.format},
+                                {"rated", trace_arguments.rated.empty() ? nlohmann::json(nullptr) : nlohmann::json(trace_arguments.rated)}};
+        // a second recording and tares shape the result too; absent when not used (older documents lack them)
+        if (!trace_arguments.join.empty()) document["join"] = trace_arguments.join;
+        if (!trace_arguments.tare.empty()) document["tare"] = trace_arguments.tare;
+        return document;
     }
 
     int run() const {

@@ -17,6 +17,7 @@
 #include "feedid/drive.hpp"
 #include "feedid/estimate.hpp"
 #include "feedid/friction.hpp"
+#include "feedid/friction_only.hpp"
 #include "feedid/parameters.hpp"
 #include "feedid/preprocess.hpp"
 #include "feedid/rls.hpp"
@@ -36,8 +37,9 @@ struct IdentifyOptions {
 
     PreprocessOptions preprocess;
     SelectionOptions selection;
-    Step1Options step1;           ///< with the RLS options
-    FrictionFitOptions friction;  ///< step 2
+    Step1Options step1;                 ///< with the RLS options
+    FrictionFitOptions friction;        ///< step 2
+    FrictionOnlyOptions friction_only;  ///< when the data cannot determine a mass
 
     /// What is wrong with these options ("" when nothing).
     [[nodiscard]] std::string validate() const;
@@ -109,6 +111,14 @@ struct FrictionCurveReport {
     std::optional<FrictionCurvePoints> reverse;
 };
 
+/// A friction-only result (M, F_B and v_s null): why, and the steady-speed fit the friction came from.
+struct FrictionOnlyReport {
+    std::string reason;  ///< why the mass cannot be identified, in figures
+    std::size_t samples_used{0};
+    double relative_error_pct{0.0};
+    double residual_std{0.0};  ///< the friction scatter [N or N*m]
+};
+
 struct IdentifyResult {
     Status status{Status::ok};
     FrictionModelKind model{FrictionModelKind::symmetric};
@@ -125,6 +135,7 @@ struct IdentifyResult {
     std::optional<RlsReport> rls;
     std::optional<StribeckReport> stribeck;
     std::optional<FrictionCurveReport> friction_curve;
+    std::optional<FrictionOnlyReport> friction_only;
     std::vector<std::string> diagnostics;
     /// The options that shape the result, recorded with it (identify_options_document); null when not set.
     nlohmann::json options;
@@ -134,8 +145,11 @@ struct IdentifyResult {
     [[nodiscard]] std::string model_name() const;
 };
 
-/// Runs the whole pipeline. Throws InputError for a trace that lacks what is needed (position, drive signal);
-/// numerical trouble (nothing identifiable) comes back as Status::failed with diagnostics, never an exception.
+/// Runs the whole pipeline. Throws InputError for a trace that lacks what is needed (position or velocity, drive
+/// signal); numerical trouble (nothing identifiable) comes back as Status::failed with diagnostics, never an exception.
+/// When the data cannot determine a mass (too coarse: assess_resolution; or no acceleration explains the force) but
+/// its steady-speed samples determine the friction, the result is friction-only: Status::partial, M, F_B and v_s
+/// null, `friction_only` saying why in figures.
 IdentifyResult identify(const Trace& trace, const IdentifyOptions& options);
 
 }  // namespace feedid

@@ -15,8 +15,14 @@ namespace feedid {
 
 enum class Differentiation { central, butterworth, savitzky_golay };
 
+/// Where x' comes from: the position (differentiated), or a logged velocity channel (filtered like the position
+/// would be; x'' is its derivative). automatic: the logged velocity when the trace has no position, or when the
+/// position is too coarse for its derivative (below).
+enum class VelocitySource { automatic, position, logged };
+
 struct PreprocessOptions {
     Differentiation differentiation{Differentiation::butterworth};
+    VelocitySource velocity_source{VelocitySource::automatic};
     int filter_order{4};                      ///< Butterworth order
     /// [Hz]; default min(max_default_cutoff_hz, default_cutoff_fraction*fs), fs the position signal's native rate
     /// (1 / its native interval: a position held over k samples of a finer grid has 1/k of the grid's rate)
@@ -40,6 +46,10 @@ struct PreprocessOptions {
     double savitzky_golay_span_s{0.02};
     /// Fewer samples than this in the window (beyond the trimmed edges) cannot identify anything.
     std::size_t minimum_samples{20};
+    /// automatic velocity source: a logged velocity replaces the position's derivative when the position's
+    /// quantisation step exceeds this fraction of the travel per sample at the typical speed (the 95th percentile of
+    /// the logged |v|): the differentiated position would then carry more than this relative quantisation error.
+    double coarse_position_fraction{0.1};
 };
 
 /// What preprocess() did: the values it used, which may differ from the options given (defaults resolved).
@@ -49,6 +59,7 @@ struct PreprocessReport {
     double cutoff_hz{0.0};        ///< the cut-off used [Hz] (resolved default; reported for every method)
     int decimation{1};            ///< the factor used (1 = none)
     std::size_t edge_samples{0};  ///< the edge trim used, at each end
+    std::string velocity_source;  ///< "position" (differentiated) or "velocity" (the logged velocity channel)
 };
 
 /// Velocity, acceleration and force on the analysed samples (after the window, the edge trim and the decimation),
@@ -61,7 +72,12 @@ struct Derivatives {
     std::size_t window{0};         ///< samples inside --from/--to and the edge trim (before decimation)
     double sample_time_s{0.0};     ///< of the trace (before decimation) [s]
     double velocity_noise{0.0};    ///< noise floor of the velocity at the full rate [m/s]
-    double position_quantum{0.0};  ///< smallest step of the position signal (its resolution) [m]
+    double position_quantum{0.0};  ///< smallest step of the position signal (its resolution) [m]; 0 without one
+    double travel{0.0};            ///< largest minus smallest position in the window (integrated velocity) [m]
+    /// The logged velocity and the force over the whole analysis window, unfiltered and untrimmed (empty when x'
+    /// comes from the position): steady-speed samples need no filter, so they lose no edge to it [m/s], [N].
+    std::vector<double> logged_velocity;
+    std::vector<double> logged_force;
 
     std::vector<double> time;          ///< [s]
     std::vector<double> velocity;      ///< x' [m/s]
@@ -82,11 +98,13 @@ struct Derivatives {
     std::string failure;
     [[nodiscard]] bool failed() const { return !failure.empty(); }
     [[nodiscard]] std::size_t size() const { return velocity.size(); }
+    [[nodiscard]] bool velocity_from_position() const { return used.velocity_source == "position"; }
 };
 
-/// Differentiates the trace's position and lines up `force` (the drive force, one value per trace sample) with it.
-/// Throws InputError for impossible options (a cut-off at or above Nyquist); a trace too short or without motion
-/// comes back with `failure` set.
+/// Differentiates the trace's position (or filters and differentiates its logged velocity, see VelocitySource) and
+/// lines up `force` (the drive force, one value per trace sample) with it. Throws InputError for impossible options (a
+/// cut-off at or above Nyquist) and for a trace with neither position nor velocity; a trace too short or without
+/// motion comes back with `failure` set.
 Derivatives preprocess(const Trace& trace, std::span<const double> force, const PreprocessOptions& options);
 
 /// Smallest step the position signal takes (its quantisation), ignoring round-off: the 1st percentile of the nonzero

@@ -55,6 +55,8 @@ struct Step1Options {
     /// M is usable only when its standard error is below this fraction of it (the acceleration explains a
     /// significant part of the force).
     double mass_relative_standard_error{0.25};
+    /// A trace whose travel stays below this is a micro-step or creep test, and the message says so [m or rad].
+    double creep_travel{1e-3};
     /// The RLS transient ends where every parameter stays within max(this fraction of |batch estimate|,
     /// rls_settle_standard_errors * its batch standard error) of the final RLS estimate.
     double rls_settle_fraction{0.02};
@@ -86,6 +88,7 @@ struct Step1Fit {
 
     /// Why step 1 cannot identify the model ("" when it can); when set, `batch` may still hold the attempted fit.
     std::string failure;
+    bool mass_unidentifiable{false};  ///< the failure is the mass's (the friction may still be determined)
     [[nodiscard]] bool failed() const { return !failure.empty(); }
     /// The batch estimate of a parameter (0 when the model has no such column).
     [[nodiscard]] double coefficient(Term term, Direction direction) const;

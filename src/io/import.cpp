@@ -16,6 +16,7 @@
 #include "feedid/io/mr_configurator.hpp"
 #include "feedid/io/ni_daq.hpp"
 #include "feedid/io/sinumerik_trace.hpp"
+#include "feedid/io/tare.hpp"
 #include "feedid/io/twincat_scope.hpp"
 #include "feedid/native_interval.hpp"
 
@@ -201,10 +202,13 @@ std::string select_axis(Trace& trace, const ImportOptions& options) {
 
 // Guesses for the roles still open, from common names (without the chosen axis prefix); each guess is said. Returns
 // the names of the channels given a role by guess.
-std::vector<std::string> guess_roles(Trace& trace, const std::string& axis) {
+std::vector<std::string> guess_roles(Trace& trace, const std::string& axis,
+                                     const std::vector<Role>& assigned_elsewhere) {
     std::vector<std::string> guessed;
     for (const auto& [role, names] : common_names) {
-        if (trace.has(role)) continue;
+        if (trace.has(role) ||
+            std::find(assigned_elsewhere.begin(), assigned_elsewhere.end(), role) != assigned_elsewhere.end())
+            continue;
         for (auto& channel : trace.channels) {
             if (channel.role != Role::other) continue;
             std::string_view name = channel.name;
@@ -459,7 +463,7 @@ std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::s
 
 void prepare_trace(Trace& trace, const ImportOptions& options) {
     assign_explicit_roles(trace, options);
-    const auto guessed = guess_roles(trace, select_axis(trace, options));
+    const auto guessed = guess_roles(trace, select_axis(trace, options), options.assigned_elsewhere);
     drop_unusable_guesses(trace, options, guessed);
     add_time_from_sample_time(trace, options);
     convert_units(trace, options);
@@ -520,7 +524,7 @@ std::string detect_format(const std::filesystem::path& path) {
     return format_from_content(head, path);
 }
 
-Trace read_trace(const std::filesystem::path& path, const ImportOptions& options) {
+Trace read_source(const std::filesystem::path& path, const ImportOptions& options) {
     std::error_code error;
     if (!std::filesystem::exists(path, error)) throw InputError(fmt::format("{}: no such file", path.string()));
     const std::string format = options.format.empty() ? detect_format(path) : options.format;
@@ -559,7 +563,75 @@ Trace read_trace(const std::filesystem::path& path, const ImportOptions& options
     }
     trace.source_path = path.string();
     if (trace.format.empty()) trace.format = format;
-    prepare_trace(trace, options);
+    return trace;
+}
+
+namespace {
+
+/// The options for one of two joined files: the channel assignments that name one of its channels.
+ImportOptions options_for(const Trace& raw, const ImportOptions& options) {
+    ImportOptions own = options;
+    own.join.reset();
+    own.channels.clear();
+    for (const auto& [role, name] : options.channels) {
+        if (raw.find(name) != nullptr)
+            own.channels[role] = name;
+        else
+            own.assigned_elsewhere.push_back(role);
+    }
+    return own;
+}
+
+/// After a join each role belongs to one channel: the one named by --channel, else the first file's.
+void settle_roles(Trace& joined, const ImportOptions& options) {
+    for (std::size_t a = 0; a < joined.channels.size(); ++a) {
+        auto& channel = joined.channels[a];
+        if (channel.role == Role::other) continue;
+        const auto named = options.channels.find(channel.role);
+        for (std::size_t b = a + 1; b < joined.channels.size(); ++b) {
+            auto& later = joined.channels[b];
+            if (later.role != channel.role) continue;
+            const bool later_named = named != options.channels.end() && named->second == later.name;
+            auto& loser = later_named ? channel : later;
+            joined.findings.push_back(fmt::format("channel '{}' is not used as {} ('{}' is)", loser.name,
+                                                  role_name(loser.role), (later_named ? later : channel).name));
+            loser.role = Role::other;
+            if (later_named) break;
+        }
+    }
+}
+
+Trace read_joined(const std::filesystem::path& path, const ImportOptions& options) {
+    Trace first = read_source(path, options);
+    ImportOptions second_read;
+    second_read.sample_time_s = options.sample_time_s;
+    Trace second = read_source(options.join->path, second_read);
+    for (const auto& [role, name] : options.channels) {
+        if (first.find(name) == nullptr && second.find(name) == nullptr) {
+            throw InputError(fmt::format("--channel {}={}: neither {} nor {} has a channel named '{}'", role_name(role),
+                                         name, first.source_path, second.source_path, name));
+        }
+    }
+    prepare_trace(first, options_for(first, options));
+    prepare_trace(second, options_for(second, options));
+    Trace joined = join_traces(first, second, options.join->options);
+    settle_roles(joined, options);
+    if (!first.has(Role::position)) joined.rotary = second.rotary;
+    joined.validate();
+    return joined;
+}
+
+}  // namespace
+
+Trace read_trace(const std::filesystem::path& path, const ImportOptions& options) {
+    Trace trace;
+    if (options.join) {
+        trace = read_joined(path, options);
+    } else {
+        trace = read_source(path, options);
+        prepare_trace(trace, options);
+    }
+    for (const Role role : options.tare) tare(trace, role);
     return trace;
 }
 

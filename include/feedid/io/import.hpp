@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "feedid/io/join.hpp"
 #include "feedid/trace.hpp"
 #include "feedid/units.hpp"
 
@@ -34,6 +35,13 @@ struct ImportOptions {
     /// Force a format instead of detecting it ("csv", "mat", "sinumerik-trace", "twincat-scope", "halscope",
     /// "mr-configurator", "ni-daq").
     std::string format;
+    /// A second recording joined onto this one's time base (`--join FILE[@SHIFT]`, see join.hpp). Channel and unit
+    /// assignments may name channels of either file.
+    std::optional<JoinSpec> join;
+    /// Roles not guessed from names in this file (a joined file's channel holds them by --channel).
+    std::vector<Role> assigned_elsewhere;
+    /// Channels zeroed from the samples at rest before the move (`--tare ROLE`, see tare.hpp), after the join.
+    std::vector<Role> tare;
 };
 
 /// Parses `ROLE=VALUE` (for --channel and --unit); throws InputError naming the option.
@@ -45,8 +53,12 @@ std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::s
 /// in findings.
 void prepare_trace(Trace& trace, const ImportOptions& options);
 
-/// Reads any supported file (format from the content, then the extension) and prepares it.
+/// Reads any supported file (format from the content, then the extension) and prepares it; with `options.join`, the
+/// second file is read the same way (its own format detected) and joined onto this one's time base; then the tares.
 Trace read_trace(const std::filesystem::path& path, const ImportOptions& options = {});
+
+/// The format reader alone: raw channels in their source units, roles unassigned (the first step of read_trace).
+Trace read_source(const std::filesystem::path& path, const ImportOptions& options = {});
 
 /// Names the format of a file from its first bytes and extension: "csv", "mat", "sinumerik-trace", "twincat-scope",
 /// "halscope", "mr-configurator", "ni-daq", or "" when unknown.
