@@ -36,6 +36,12 @@ struct Differentiated {
     std::size_t default_edge{2};  ///< central differences: one-sided at the ends
 };
 
+/// The Savitzky-Golay window [samples]: as given, or the default span at this rate (odd, at least 5).
+int savitzky_golay_window(const PreprocessOptions& options, double fs) {
+    if (options.savitzky_golay_window != 0) return options.savitzky_golay_window;
+    return std::max(5, static_cast<int>(std::lround(options.savitzky_golay_span_s * fs)) | 1);
+}
+
 /// x' and x'' of the window's position by the chosen method, and the edge trim that method needs.
 Differentiated differentiate(std::span<const double> x, double dt, const PreprocessOptions& options,
                              PreprocessReport& used) {
@@ -62,9 +68,7 @@ Differentiated differentiate(std::span<const double> x, double dt, const Preproc
         }
         case Differentiation::savitzky_golay: {
             used.differentiation = "savitzky-golay";
-            const int window = options.savitzky_golay_window != 0
-                                   ? options.savitzky_golay_window
-                                   : std::max(5, static_cast<int>(std::lround(options.savitzky_golay_span_s * fs)) | 1);
+            const int window = savitzky_golay_window(options, fs);
             if (static_cast<std::size_t>(window) > x.size()) return out;  // the caller reports it
             out.velocity = savitzky_golay(x, window, options.savitzky_golay_order, 1, dt);
             out.acceleration = savitzky_golay(x, window, options.savitzky_golay_order, 2, dt);
@@ -97,9 +101,7 @@ Differentiated differentiate_velocity(std::span<const double> v, double dt, cons
             break;
         case Differentiation::savitzky_golay: {
             used.differentiation = "savitzky-golay";
-            const int window = options.savitzky_golay_window != 0
-                                   ? options.savitzky_golay_window
-                                   : std::max(5, static_cast<int>(std::lround(options.savitzky_golay_span_s * fs)) | 1);
+            const int window = savitzky_golay_window(options, fs);
             if (static_cast<std::size_t>(window) > v.size()) return out;  // the caller reports it
             out.velocity = savitzky_golay(v, window, options.savitzky_golay_order, 0, dt);
             out.default_edge = static_cast<std::size_t>(window / 2 + 1);

@@ -20,17 +20,7 @@ constexpr std::string_view count_key = "Number of sampling data";
 constexpr std::string_view interval_key = "Sampling time interval(ms)";
 constexpr std::string_view not_selected = "Not selected";
 
-struct Lines {
-    std::string_view text;
-    std::size_t position{0};
-    std::size_t number{0};
-    bool next(std::string_view& line) {
-        if (position >= text.size()) return false;
-        line = scan::next_line(text, position);
-        ++number;
-        return true;
-    }
-};
+using scan::Lines;
 
 // A preamble figure as stated, with the number of decimals it was written with (its rounding).
 struct Stated {

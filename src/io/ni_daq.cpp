@@ -15,17 +15,7 @@ namespace feedid {
 
 namespace {
 
-struct Lines {
-    std::string_view text;
-    std::size_t position{0};
-    std::size_t number{0};
-    bool next(std::string_view& line) {
-        if (position >= text.size()) return false;
-        line = scan::next_line(text, position);
-        ++number;
-        return true;
-    }
-};
+using scan::Lines;
 
 // The header block: per key ("Timestamp", "Interval", "Channel name", "Unit", ...) the value of each channel.
 struct Header {

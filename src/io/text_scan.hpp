@@ -58,6 +58,19 @@ inline std::string_view next_line(std::string_view text, std::size_t& position) 
     return line;
 }
 
+/// The lines of a text, one at a time, counted (1-based) for messages.
+struct Lines {
+    std::string_view text;
+    std::size_t position{0};
+    std::size_t number{0};  ///< of the line `next` gave last
+    bool next(std::string_view& line) {
+        if (position >= text.size()) return false;
+        line = next_line(text, position);
+        ++number;
+        return true;
+    }
+};
+
 /// Splits a delimited line into cells (blanks around each trimmed, one level of double quotes removed); a quoted
 /// cell may hold the separator. `cells` is cleared first.
 inline void split_cells(std::string_view line, char separator, std::vector<std::string_view>& cells) {
