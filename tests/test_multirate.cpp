@@ -89,8 +89,7 @@ TEST(MultiRateSynth, CsvInDegreesAndRpmReadsBackWithTheHoldDetected) {
 class RotarySinumerikTrace : public ::testing::Test {
 protected:
     static void SetUpTestSuite() {
-        const auto dir = feedid::testing::test_files_root() / "RotarySinumerikTrace";
-        std::filesystem::create_directories(dir);
+        const auto dir = feedid::testing::suite_dir("RotarySinumerikTrace");
         path_ = new std::string((dir / "rotary.csv").string());
         synth_ = new feedid::testing::CliResult(run_cli("synth --rotary --preset sinumerik --out '" + *path_ + "'"));
     }

@@ -50,8 +50,7 @@ struct Files {
 const Files& files() {
     static const Files written = [] {
         Files f;
-        f.dir = feedid::testing::test_files_root() / "rotary-axis";
-        std::filesystem::create_directories(f.dir);
+        f.dir = feedid::testing::suite_dir("rotary-axis");
         f.linear = f.dir / "linear.csv";
         f.rotary = f.dir / "rotary.csv";
         const feedid::SynthSpec spec = feedid::demo_spec();

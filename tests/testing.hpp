@@ -45,6 +45,14 @@ inline std::filesystem::path temp_dir() {
     return dir;
 }
 
+/// A folder for files a test suite shares between its tests, of this process only: ctest runs each test in its own
+/// process, in parallel, and a file one process rewrites while another reads it (mapped) is a crash, not a test.
+inline std::filesystem::path suite_dir(const std::string& name) {
+    auto dir = test_files_root() / (name + "-" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir);
+    return dir;
+}
+
 inline std::string read_text(const std::filesystem::path& path) {
     std::ifstream in(path, std::ios::binary);
     return {std::istreambuf_iterator<char>(in), {}};
