@@ -36,6 +36,18 @@ struct Differentiated {
     std::size_t default_edge{2};  ///< central differences: one-sided at the ends
 };
 
+/// A Butterworth cut-off must lie below half the sample rate.
+void require_cutoff_below_nyquist(double cutoff_hz, double fs) {
+    if (!(cutoff_hz < 0.5 * fs)) {
+        throw InputError(fmt::format("--cutoff {} Hz must be below half the sample rate ({} Hz)", cutoff_hz, 0.5 * fs));
+    }
+}
+
+/// The samples a zero-phase Butterworth's start-up transient spoils at each edge.
+std::size_t butterworth_edge(const PreprocessOptions& options, double cutoff_hz, double fs) {
+    return static_cast<std::size_t>(std::ceil(options.filter_settling_periods * fs / cutoff_hz));
+}
+
 /// The Savitzky-Golay window [samples]: as given, or the default span at this rate (odd, at least 5).
 int savitzky_golay_window(const PreprocessOptions& options, double fs) {
     if (options.savitzky_golay_window != 0) return options.savitzky_golay_window;
@@ -55,15 +67,11 @@ Differentiated differentiate(std::span<const double> x, double dt, const Preproc
             break;
         case Differentiation::butterworth: {
             used.differentiation = "butterworth";
-            if (!(used.cutoff_hz < 0.5 * fs)) {
-                throw InputError(
-                    fmt::format("--cutoff {} Hz must be below half the sample rate ({} Hz)", used.cutoff_hz, 0.5 * fs));
-            }
+            require_cutoff_below_nyquist(used.cutoff_hz, fs);
             const auto filtered = filtfilt(butterworth_lowpass(options.filter_order, used.cutoff_hz, fs), x);
             out.velocity = central_difference(filtered, dt);
             out.acceleration = central_difference(out.velocity, dt);
-            out.default_edge =
-                static_cast<std::size_t>(std::ceil(options.filter_settling_periods * fs / used.cutoff_hz));
+            out.default_edge = butterworth_edge(options, used.cutoff_hz, fs);
             break;
         }
         case Differentiation::savitzky_golay: {
@@ -91,13 +99,9 @@ Differentiated differentiate_velocity(std::span<const double> v, double dt, cons
             break;
         case Differentiation::butterworth:
             used.differentiation = "butterworth";
-            if (!(used.cutoff_hz < 0.5 * fs)) {
-                throw InputError(
-                    fmt::format("--cutoff {} Hz must be below half the sample rate ({} Hz)", used.cutoff_hz, 0.5 * fs));
-            }
+            require_cutoff_below_nyquist(used.cutoff_hz, fs);
             out.velocity = filtfilt(butterworth_lowpass(options.filter_order, used.cutoff_hz, fs), v);
-            out.default_edge =
-                static_cast<std::size_t>(std::ceil(options.filter_settling_periods * fs / used.cutoff_hz));
+            out.default_edge = butterworth_edge(options, used.cutoff_hz, fs);
             break;
         case Differentiation::savitzky_golay: {
             used.differentiation = "savitzky-golay";

@@ -126,7 +126,8 @@ Action add_synth_command(CLI::App& app) {
     sub->add_option("--injection", command->injection,
                     "Add a test signal to the controller's output, a square wave AMPLITUDE@FREQUENCY (e.g. 300N@1Hz: "
                     "300 N for the first half of each period, 0 N for the second), logged as the channel 'injection' "
-                    "in the current's unit (A); read it back with --channel injection=injection");
+                    "in the drive signal's unit (A; N or N*m with --preset sinumerik's torque); read it back with "
+                    "--channel injection=injection");
     sub->add_flag("--no-slow-passes", command->no_slow_passes,
                   "Leave out the slow passes: the paper's feedrate ladder (1250..9350 mm/min) alone");
     sub->add_flag("--print-drive", command->print_drive, "Print the drive file in use (every key) as JSON");
