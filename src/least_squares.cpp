@@ -1,6 +1,9 @@
 #include "feedid/least_squares.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Dense>
 
@@ -41,7 +44,40 @@ LeastSquaresResult solve_least_squares(const Eigen::MatrixXd& phi, const Eigen::
     const Eigen::MatrixXd r_inverse = r.triangularView<Eigen::Upper>().solve(Eigen::MatrixXd::Identity(p, p));
     result.covariance = result.residual_std * result.residual_std * (r_inverse * r_inverse.transpose());
     result.standard_error = result.covariance.diagonal().cwiseSqrt();
+    result.white_noise_standard_error = result.standard_error;
     return result;
+}
+
+Eigen::MatrixXd long_run_covariance(const Eigen::MatrixXd& phi, const Eigen::VectorXd& residual,
+                                    std::span<const std::size_t> index, std::size_t block) {
+    const auto n = phi.rows();
+    const auto p = phi.cols();
+    // rows by block: sample index / block (rows come in time order per sample set, the sets one after another)
+    std::vector<std::pair<std::size_t, Eigen::Index>> order(static_cast<std::size_t>(n));
+    for (Eigen::Index t = 0; t < n; ++t)
+        order[static_cast<std::size_t>(t)] = {index[static_cast<std::size_t>(t)] / block, t};
+    if (!std::is_sorted(order.begin(), order.end())) std::sort(order.begin(), order.end());
+    Eigen::MatrixXd s = Eigen::MatrixXd::Zero(p, p);
+    Eigen::VectorXd sum = Eigen::VectorXd::Zero(p);
+    for (std::size_t i = 0; i < order.size(); ++i) {
+        if (i > 0 && order[i].first != order[i - 1].first) {
+            s.selfadjointView<Eigen::Lower>().rankUpdate(sum);
+            sum.setZero();
+        }
+        sum += phi.row(order[i].second).transpose() * residual(order[i].second);
+    }
+    if (n > 0) s.selfadjointView<Eigen::Lower>().rankUpdate(sum);
+    s = s.selfadjointView<Eigen::Lower>();
+    return n > p ? Eigen::MatrixXd(s * (static_cast<double>(n) / static_cast<double>(n - p))) : s;
+}
+
+void account_for_correlated_residuals(LeastSquaresResult& result, const Eigen::MatrixXd& phi, const Eigen::VectorXd& y,
+                                      std::span<const std::size_t> index, std::size_t block) {
+    if (block <= 1 || result.rank_deficient || !(result.residual_std > 0.0)) return;
+    const Eigen::VectorXd residual = y - phi * result.estimate;
+    const Eigen::MatrixXd inverse_information = result.covariance / (result.residual_std * result.residual_std);
+    result.covariance = inverse_information * long_run_covariance(phi, residual, index, block) * inverse_information;
+    result.standard_error = result.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
 }
 
 }  // namespace feedid
