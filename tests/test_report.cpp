@@ -215,6 +215,11 @@ YAxis y_axis_of(const std::string& svg) {
     return {value_at(bottom), value_at(top)};
 }
 
+std::size_t count_of(const std::string& text, const std::string& what) {
+    std::size_t n = 0;
+    for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+    return n;
+}
 
 TEST(ReportSvg, PlotIsWellFormedXmlWithTitleAndAxisLabels) {
     report::Plot plot;
@@ -383,6 +388,86 @@ TEST(ReportSvg, TransientBeyondTheSettledPartIsClippedAndMarked) {
         }
     }
     expect_text_inside_and_apart(svg);
+}
+
+// The issue's case: a friction curve binned at three speeds two decades apart on a log axis. Drawn only through the
+// bins it showed about 2.5 N·m between them where the model gives 0.66; the model curve now follows eq. (3) over the
+// whole measured range.
+TEST(ReportSvg, FittedFrictionModelIsDrawnDenselyOverTheSpeedRange) {
+    const double viscous = 0.002, coulomb = 0.6, breakaway = 2.6, stribeck = 0.01;  // [N·m·s/rad, N·m, N·m, rad/s]
+    const auto law = [&](double w) { return viscous * w + coulomb + (breakaway - coulomb) * std::exp(-w / stribeck); };
+    nlohmann::json result = {{"model", "symmetric"}, {"rotary", true}, {"status", "ok"}};
+    result["parameters"] = {{"inertia_kgm2", {{"value", 0.05}, {"stderr", 1e-4}}},
+                            {"viscous_Nms_per_rad", {{"value", viscous}, {"stderr", 1e-4}}},
+                            {"coulomb_Nm", {{"value", coulomb}, {"stderr", 1e-3}}},
+                            {"breakaway_Nm", {{"value", breakaway}, {"stderr", 1e-2}}},
+                            {"stribeck_velocity_rad_per_s", {{"value", stribeck}, {"stderr", 1e-4}}}};
+    const std::vector<double> speeds{0.001, 0.1, 10.0};
+    for (const char* direction : {"forward", "reverse"}) {
+        std::vector<double> fitted;
+        for (const double w : speeds) fitted.push_back(law(w));
+        result["friction_curve"][direction] = {
+            {"velocity_rad_per_s", speeds}, {"torque_Nm", {2.4, 0.61, 0.62}}, {"fitted_torque_Nm", fitted}};
+    }
+    const auto plots = report::result_plots(result, "sparse.json");
+    ASSERT_EQ(plots.size(), 1u);
+    const auto& plot = plots[0];
+    EXPECT_TRUE(plot.log_x);
+    const auto model = std::find_if(plot.series.begin(), plot.series.end(),
+                                    [](const auto& s) { return s.name.find("fitted model") != std::string::npos; });
+    ASSERT_NE(model, plot.series.end());
+    ASSERT_GE(model->x.size(), 100u);
+    EXPECT_LE(model->x.front(), speeds.front() * (1.0 + 1e-9));
+    EXPECT_GE(model->x.back(), speeds.back() * (1.0 - 1e-9));
+    for (std::size_t i = 0; i < model->x.size(); ++i)
+        EXPECT_NEAR(model->y[i], law(model->x[i]), 1e-12 * law(model->x[i])) << model->x[i];
+    // Between two points the plot draws a straight line in log speed: within 0.5 % of the model everywhere.
+    for (std::size_t i = 1; i < model->x.size(); ++i) {
+        const double middle = std::sqrt(model->x[i - 1] * model->x[i]);
+        EXPECT_NEAR((model->y[i - 1] + model->y[i]) / 2.0, law(middle), 0.005 * law(middle)) << middle;
+    }
+    // At 0.03 rad/s, between the bins, the curve reads the model's 0.70 N·m.
+    const auto after = std::upper_bound(model->x.begin(), model->x.end(), 0.03) - model->x.begin();
+    ASSERT_GT(after, 0);
+    const double t = std::log(0.03 / model->x[after - 1]) / std::log(model->x[after] / model->x[after - 1]);
+    EXPECT_NEAR(model->y[after - 1] + t * (model->y[after] - model->y[after - 1]), law(0.03), 0.005 * law(0.03));
+    // The SVG's polyline holds every point.
+    const auto svg = report::render_svg(plot);
+    std::size_t longest = 0;
+    pugi::xml_document document;
+    ASSERT_TRUE(document.load_string(svg.c_str()));
+    for (const auto& node : document.select_nodes("//polyline"))
+        longest = std::max(longest, count_of(node.node().attribute("points").value(), ","));
+    EXPECT_EQ(longest, model->x.size());
+
+    // An asymmetric model: one curve per direction, each from its own parameters.
+    struct Branch {
+        const char* direction;
+        double viscous, coulomb, breakaway, stribeck;
+    };
+    const std::array<Branch, 2> branches{{{"forward", 0.002, 0.5, 2.6, 0.01}, {"reverse", 0.003, 0.7, 2.2, 0.02}}};
+    result["model"] = "asymmetric";
+    result["parameters"] = {{"inertia_kgm2", {{"value", 0.05}, {"stderr", 1e-4}}}};
+    for (const auto& b : branches) {
+        const std::string d = b.direction;
+        result["parameters"]["viscous_" + d + "_Nms_per_rad"] = {{"value", b.viscous}, {"stderr", 1e-4}};
+        result["parameters"]["coulomb_" + d + "_Nm"] = {{"value", b.coulomb}, {"stderr", 1e-3}};
+        result["parameters"]["breakaway_" + d + "_Nm"] = {{"value", b.breakaway}, {"stderr", 1e-2}};
+        result["parameters"]["stribeck_velocity_" + d + "_rad_per_s"] = {{"value", b.stribeck}, {"stderr", 1e-4}};
+    }
+    const auto asymmetric = report::result_plots(result, "asymmetric.json");
+    ASSERT_EQ(asymmetric.size(), 1u);
+    for (const auto& b : branches) {
+        const std::string name = std::string(b.direction) + ": fitted model";
+        const auto curve = std::find_if(asymmetric[0].series.begin(), asymmetric[0].series.end(),
+                                        [&](const auto& s) { return s.name == name; });
+        ASSERT_NE(curve, asymmetric[0].series.end()) << name;
+        for (std::size_t i = 0; i < curve->x.size(); ++i) {
+            const double w = curve->x[i];
+            const double own = b.viscous * w + b.coulomb + (b.breakaway - b.coulomb) * std::exp(-w / b.stribeck);
+            EXPECT_NEAR(curve->y[i], own, 1e-12 * own) << name << " at " << w;
+        }
+    }
 }
 
 TEST(ReportSvg, RunAxisTicksAreWholeNumbers) {
@@ -638,7 +723,15 @@ TEST_F(ReportEndToEnd, HistoryReportHasTrendsAlarmsAndTheLatestFrictionCurve) {
     ASSERT_NE(friction, by_heading.end());
     EXPECT_EQ(friction->second.x_label, "speed |v| [m/s]");
     EXPECT_EQ(friction->second.y_label, "friction force [N]");
-    for (const auto& svg : svgs) expect_text_inside_and_apart(svg);
+    // Runs are counted in whole numbers; nothing is clipped or overlaps.
+    for (const auto& svg : svgs) {
+        expect_text_inside_and_apart(svg);
+        if (svg.find("id=\"trend-") == std::string::npos && svg.find("id=\"cusum-") == std::string::npos) continue;
+        pugi::xml_document document;
+        ASSERT_TRUE(document.load_string(svg.c_str()));
+        for (const auto& node : document.select_nodes("//g[@class='ticks']/text[@text-anchor='middle']"))
+            EXPECT_TRUE(std::regex_match(text_of(node.node()), std::regex(R"(\d+)"))) << text_of(node.node());
+    }
     // The alarm is in the page, and marked in the Coulomb plots only.
     EXPECT_NE(html.find("axis &apos;X&apos; parameter coulomb_N at run #11"), std::string::npos);
     for (const auto& svg : svgs) {
@@ -679,6 +772,145 @@ TEST_F(ReportEndToEnd, ResultReportHasRlsHistoriesAndTheFrictionCurve) {
         GTEST_SKIP() << "headless Chromium not found (install Debian's chromium package); the "
                         "browser rendering check is skipped";
     expect_rendered(render_in_chromium(chromium, page, folder_), svgs);
+}
+
+// On a real result: every RLS plot's y axis is set by the settled part (after the transient) and the batch value of the
+// same samples (step 1's, not the final value after the friction-curve fit), the transient is marked where it leaves;
+// the friction model is drawn from the identified parameters; no text is clipped or overlaps.
+TEST_F(ReportEndToEnd, ResultPlotsAreReadAtAGlance) {
+    const auto document = nlohmann::json::parse(read_text(result_));
+    const auto& rls = document["rls"];
+    ASSERT_TRUE(rls["settled"].get<bool>()) << "the fixture's RLS settles";
+    const double settled_from = rls["transient_end_s"].get<double>();
+    const auto plots = report::result_plots(document, result_.string());
+    std::size_t rls_plots = 0;
+    std::size_t marked = 0;
+    for (const auto& plot : plots) {
+        const auto svg = report::render_svg(plot);
+        expect_text_inside_and_apart(svg);
+        if (plot.id.rfind("rls-", 0) != 0) continue;
+        ++rls_plots;
+        // The batch line is step 1's batch estimate of this parameter.
+        std::string parameter;
+        for (const auto& [k, values] : document["step1"]["batch"].items()) {
+            const auto label = report::parameter_label(k);
+            if (plot.y_label == label.name + " [" + label.unit + "]") parameter = k;
+        }
+        ASSERT_FALSE(parameter.empty()) << plot.id;
+        const double batch = document["step1"]["batch"][parameter]["value"].get<double>();
+        ASSERT_FALSE(plot.horizontal.empty());
+        EXPECT_EQ(plot.horizontal[0].label, "batch least-squares value");
+        EXPECT_DOUBLE_EQ(plot.horizontal[0].y, batch) << parameter;
+        // The axis holds the settled values drawn and the lines, and not much more.
+        double low = std::numeric_limits<double>::infinity(), high = -low;
+        for (const auto& line : plot.horizontal) {
+            low = std::min(low, line.y);
+            high = std::max(high, line.y);
+        }
+        bool beyond = false;
+        const auto& series = plot.series.at(0);
+        for (std::size_t i = 0; i < series.x.size(); ++i)
+            if (series.x[i] >= settled_from) {
+                low = std::min(low, series.y[i]);
+                high = std::max(high, series.y[i]);
+            }
+        const auto axis = y_axis_of(svg);
+        EXPECT_LE(axis.low, low) << parameter;
+        EXPECT_GE(axis.high, high) << parameter;
+        EXPECT_LE(axis.high - axis.low, 1.25 * (high - low)) << parameter;
+        for (const double y : series.y) beyond = beyond || y < axis.low || y > axis.high;
+        EXPECT_EQ(svg.find("class=\"off-scale\"") != std::string::npos, beyond) << parameter;
+        marked += beyond ? 1 : 0;
+    }
+    EXPECT_EQ(rls_plots, document["rls"]["history"].size() - 1);
+    EXPECT_GT(marked, 0u) << "the fixture's start-up transient leaves the settled range somewhere";
+    // The friction model from the parameters: F_C + (F_B - F_C) exp(-|v|/v_s) + B |v| at every drawn speed.
+    const auto& p = document["parameters"];
+    const auto value = [&](const char* key) { return p[key]["value"].get<double>(); };
+    const auto curve =
+        std::find_if(plots.begin(), plots.end(), [](const auto& plot) { return plot.id == "friction-curve"; });
+    ASSERT_NE(curve, plots.end());
+    const auto model = std::find_if(curve->series.begin(), curve->series.end(),
+                                    [](const auto& s) { return s.name.find("fitted model") != std::string::npos; });
+    ASSERT_NE(model, curve->series.end());
+    for (std::size_t i = 0; i < model->x.size(); ++i) {
+        const double v = model->x[i];
+        const double expected =
+            value("viscous_Ns_per_m") * v + value("coulomb_N") +
+            (value("breakaway_N") - value("coulomb_N")) * std::exp(-v / value("stribeck_velocity_m_per_s"));
+        EXPECT_NEAR(model->y[i], expected, 1e-9 * expected) << v;
+    }
+}
+
+// A simulation that diverges (the result's viscous friction made -1e5 N·s/m): simulate writes status "failed" with a
+// diagnostic and nulls; the report says so in a warning, shows the figures it has, and draws the machine's tracking
+// error on its own scale with the diverged model clipped and marked.
+TEST_F(ReportEndToEnd, FailedSimulationIsShownWithAWarning) {
+    auto document = nlohmann::json::parse(read_text(result_));
+    document["parameters"]["viscous_Ns_per_m"]["value"] = -1e5;
+    const auto diverging = folder_ / "diverging.json";
+    write_text(diverging, document.dump());
+    const auto simulation = folder_ / "diverged-sim.json";
+    const auto simulate =
+        run_shell(fmt::format("{} simulate {} --force-constant force_constant_N_per_A --result {} "
+                              "--json {}",
+                              cli(), quoted(folder_ / "x.csv"), quoted(diverging), quoted(simulation)),
+                  folder_);
+    ASSERT_TRUE(fs::exists(simulation)) << simulate.err;
+    const auto written = nlohmann::json::parse(read_text(simulation));
+    ASSERT_EQ(written.value("status", ""), "failed") << simulate.err;
+    ASSERT_FALSE(written["diagnostics"].empty());
+    const auto page = folder_ / "diverged.html";
+    const auto r = run_shell(
+        fmt::format("{} report {} --simulation {} -o {}", cli(), quoted(result_), quoted(simulation), quoted(page)),
+        folder_);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto html = read_text(page);
+    EXPECT_NE(html.find("class=\"warning\""), std::string::npos);
+    EXPECT_NE(html.find("has status &quot;failed&quot;"), std::string::npos);
+    EXPECT_NE(html.find(report::escape_xml(written["diagnostics"][0].get<std::string>())), std::string::npos);
+    const auto svgs = svgs_of(html);
+    const auto tracking = std::find_if(svgs.begin(), svgs.end(), [](const auto& svg) {
+        return svg.find("id=\"fig6-tracking-error\"") != std::string::npos;
+    });
+    ASSERT_NE(tracking, svgs.end());
+    double low = 0.0, high = 0.0;  // the machine's tracking error [mm]
+    for (const auto& e : written["series"]["tracking_error_machine_m"]) {
+        low = std::min(low, e.get<double>() * 1e3);
+        high = std::max(high, e.get<double>() * 1e3);
+    }
+    const auto axis = y_axis_of(*tracking);
+    EXPECT_LE(axis.low, low);
+    EXPECT_GE(axis.high, high);
+    EXPECT_LE(axis.high - axis.low, 1.25 * (high - low)) << "the machine's scale, not the diverged model's";
+    EXPECT_NE(tracking->find("class=\"off-scale\""), std::string::npos);
+    EXPECT_NE(tracking->find("model diverges"), std::string::npos);
+    for (const auto& svg : svgs) expect_text_inside_and_apart(svg);
+    // A null in a document that says it succeeded is still refused.
+    auto lying = written;
+    lying["status"] = "ok";
+    write_text(folder_ / "lying.json", lying.dump());
+    const auto refused = run_shell(fmt::format("{} report {} --simulation {} -o {}", cli(), quoted(result_),
+                                               quoted(folder_ / "lying.json"), quoted(folder_ / "lying.html")),
+                                   folder_);
+    EXPECT_EQ(refused.exit_code, 2) << refused.err;
+    EXPECT_EQ(count_lines(refused.err), 1) << refused.err;
+}
+
+TEST_F(ReportEndToEnd, PartialAndFailedResultsAreWarnedAbout) {
+    auto document = nlohmann::json::parse(read_text(result_));
+    const auto html_of = [&](const nlohmann::json& result) {
+        return report::result_report_html(result, "result.json");
+    };
+    EXPECT_EQ(html_of(document).find("class=\"warning\""), std::string::npos) << "an ok result has no warning";
+    document["status"] = "partial";
+    document["parameters"]["breakaway_N"] = {{"value", nullptr}, {"stderr", nullptr}};
+    document["parameters"]["stribeck_velocity_m_per_s"] = {{"value", nullptr}, {"stderr", nullptr}};
+    const auto partial = html_of(document);
+    EXPECT_NE(partial.find("class=\"warning\""), std::string::npos);
+    EXPECT_NE(partial.find("Breakaway friction F_B, Stribeck velocity v_s could not be identified"), std::string::npos);
+    document["status"] = "failed";
+    EXPECT_NE(html_of(document).find("The identification failed"), std::string::npos);
 }
 
 // The paper's Fig. 6 from a real run: EMPS identified, simulated in closed loop with the gains identified from the
