@@ -18,6 +18,15 @@ namespace feedid::cli {
 /// What a subcommand runs after parsing; returns the exit code (0 ok, 1 analysis failed, 2 bad input).
 using Action = std::function<int()>;
 
+/// A check of a numeric option at parse time: the value must be a finite number from `low` to `high` (`unit` says in
+/// what). "nan", "inf" and values outside the range are refused before anything is read (exit 2), with a message
+/// that names the option, the value and the allowed range: "--cutoff: 1e-300 is outside the allowed range 0.001 to
+/// 1e+06 Hz". The ranges reach far past what machines have: they refuse what no unit could make sense of.
+CLI::Validator allowed_range(double low, double high, const std::string& unit);
+/// The allowed ranges of --lead [mm] and --gear-ratio (drive.hpp's allowed_lead_m, allowed_gear_ratio).
+CLI::Validator lead_range();
+CLI::Validator gear_ratio_range();
+
 /// `FILE [--channel ROLE=NAME]... [--unit ROLE=UNIT]... [--axis N] [--format F] [--sample-time S] [--skip-rows N]`
 struct TraceArguments {
     std::string file;
@@ -28,7 +37,7 @@ struct TraceArguments {
     std::optional<double> lead_mm;     // shared with DriveArguments when both are present
     std::optional<double> gear_ratio;  // likewise: rpm on a linear axis is a motor speed, geared to the screw
     std::string rated;                 // what 100 % means for % units: "18A", "2.4Nm" (a bare number: A)
-    std::string join;               // FILE[@SHIFT]: a second recording joined onto this one's time base
+    std::string join;                  // FILE[@SHIFT]: a second recording joined onto this one's time base
     std::optional<double> join_max_shift_s;
     std::vector<std::string> tare;  // roles zeroed from the samples at rest before the move
     std::optional<double> sample_time_s;
