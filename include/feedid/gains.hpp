@@ -85,6 +85,9 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
 /// length are in the document).
 nlohmann::json gains_document(const GainResult& result, const GainOptions& options, const Trace& trace);
 
+/// Whether a gains document is of a rotary axis ("rotary": true, or without that key its rotary gain keys).
+[[nodiscard]] bool gains_document_is_rotary(const nlohmann::json& document);
+
 /// Reads a controller from a gains document (as written by gains_document), InputError naming `source` when a
 /// required key is missing.
 ControllerModel controller_from_document(const nlohmann::json& document, const std::string& source);
