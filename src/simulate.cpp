@@ -457,8 +457,7 @@ namespace {
 std::pair<int, int> hold_of(const Trace& trace, Role role) {
     const auto* channel = trace.find(role);
     if (channel == nullptr || trace.samples() < 2) return {1, 0};
-    const auto factor =
-        static_cast<int>(std::lround(native_interval_of(trace, role) / trace.time_base().sample_time_s));
+    const auto factor = static_cast<int>(std::lround(native_interval_of(trace, role) / trace.time_base().sample_time_s));
     if (factor < 2) return {1, 0};
     return {factor, hold_phase(channel->values, factor)};
 }

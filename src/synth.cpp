@@ -75,20 +75,18 @@ double recording_unit_scale(const std::string& unit, Role role, bool rotary) {
 }  // namespace
 
 std::string RecordingModel::validate(bool rotary, double sample_time_s) const {
-    for (const auto& [name, interval] :
-         {std::pair{"position", position_interval_s}, std::pair{"velocity", velocity_interval_s},
-          std::pair{"drive", drive_interval_s}}) {
+    for (const auto& [name, interval] : {std::pair{"position", position_interval_s},
+                                         std::pair{"velocity", velocity_interval_s},
+                                         std::pair{"drive", drive_interval_s}}) {
         if (!(interval >= 0.0 && std::isfinite(interval)))
             return fmt::format("the {} signal's interval must be a time >= 0", name);
         const double samples = interval / sample_time_s;
         if (interval > 0.0 && (samples < 1.0 - 1e-9 || std::abs(samples - std::round(samples)) > 1e-6))
-            return fmt::format(
-                "the {} signal's interval ({:.6g} ms) must be a whole multiple of the sample time "
-                "({:.6g} ms)",
-                name, interval * 1e3, sample_time_s * 1e3);
+            return fmt::format("the {} signal's interval ({:.6g} ms) must be a whole multiple of the sample time "
+                               "({:.6g} ms)",
+                               name, interval * 1e3, sample_time_s * 1e3);
     }
-    for (const auto& [role, unit] :
-         {std::pair{Role::position, &position_unit}, std::pair{Role::velocity, &velocity_unit}}) {
+    for (const auto& [role, unit] : {std::pair{Role::position, &position_unit}, std::pair{Role::velocity, &velocity_unit}}) {
         if (unit->empty()) continue;
         try {
             (void)recording_unit_scale(*unit, role, rotary);
@@ -632,8 +630,8 @@ std::vector<double> held_every(std::vector<double> values, double interval_s, do
 }
 
 // A channel as the recorder logs it: held over its interval, which it states.
-void record(Trace& trace, std::string name, Role role, std::string unit, std::vector<double> values, double interval_s,
-            double dt) {
+void record(Trace& trace, std::string name, Role role, std::string unit, std::vector<double> values,
+            double interval_s, double dt) {
     auto& channel = trace.set(std::move(name), role, std::move(unit), held_every(std::move(values), interval_s, dt));
     channel.source_unit = channel.unit;
     channel.native_interval_s = interval_s > 0.0 ? interval_s : dt;
@@ -662,9 +660,9 @@ SensorReadings read_sensors(const SynthSpec& spec, const std::vector<double>& fo
     for (std::size_t k = 0; k < force.size(); ++k) {
         out.time[k] = (whole_rate ? static_cast<double>(k) / rate : static_cast<double>(k) * dt) +
                       (spec.sensors.jitter_s > 0.0 ? spec.sensors.jitter_s * jitter(generator) : 0.0);
-        const double amperes =
-            force[k] / per_ampere +
-            (spec.sensors.current_noise_A > 0.0 ? spec.sensors.current_noise_A * noise(generator) : 0.0);
+        const double amperes = force[k] / per_ampere + (spec.sensors.current_noise_A > 0.0
+                                                            ? spec.sensors.current_noise_A * noise(generator)
+                                                            : 0.0);
         // + 0.0 turns -0 into 0 (a quantised zero prints as 0, not -0).
         const double current = (quantum > 0.0 ? quantum * std::nearbyint(amperes / quantum) : amperes) + 0.0;
         out.drive[k] = spec.recording.log_torque ? current * per_ampere : current;

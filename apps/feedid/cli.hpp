@@ -37,7 +37,7 @@ struct TraceArguments {
     std::optional<double> lead_mm;     // shared with DriveArguments when both are present
     std::optional<double> gear_ratio;  // likewise: rpm on a linear axis is a motor speed, geared to the screw
     std::string rated;                 // what 100 % means for % units: "18A", "2.4Nm" (a bare number: A)
-    std::string join;                  // FILE[@SHIFT]: a second recording joined onto this one's time base
+    std::string join;               // FILE[@SHIFT]: a second recording joined onto this one's time base
     std::optional<double> join_max_shift_s;
     std::vector<std::string> tare;  // roles zeroed from the samples at rest before the move
     std::optional<double> sample_time_s;
