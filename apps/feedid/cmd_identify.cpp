@@ -131,17 +131,16 @@ struct IdentifyCommand {
         const auto optional = [](const auto& value) {
             return value ? nlohmann::json(*value) : nlohmann::json(nullptr);
         };
-        nlohmann::json document{
-            {"drive",
-             {{"kt_Nm_per_A", optional(drive_arguments.kt)},
-              {"lead_mm", optional(drive_arguments.lead_mm)},
-              {"gear_ratio", drive_arguments.gear_ratio},
-              {"force_constant", drive_arguments.force_constant}}},
-            {"channels", trace_arguments.channel_assignments},
-            {"units", trace_arguments.unit_assignments},
-            {"axis", trace_arguments.axis},
-            {"format", trace_arguments.format},
-            {"rated", trace_arguments.rated.empty() ? nlohmann::json(nullptr) : nlohmann::json(trace_arguments.rated)}};
+        nlohmann::json document{{"drive",
+                                 {{"kt_Nm_per_A", optional(drive_arguments.kt)},
+                                  {"lead_mm", optional(drive_arguments.lead_mm)},
+                                  {"gear_ratio", drive_arguments.gear_ratio},
+                                  {"force_constant", drive_arguments.force_constant}}},
+                                {"channels", trace_arguments.channel_assignments},
+                                {"units", trace_arguments.unit_assignments},
+                                {"axis", trace_arguments.axis},
+                                {"format", trace_arguments.format},
+                                {"rated", trace_arguments.rated.empty() ? nlohmann::json(nullptr) : nlohmann::json(trace_arguments.rated)}};
         // a second recording and tares shape the result too; absent when not used (older documents lack them)
         if (!trace_arguments.join.empty()) document["join"] = trace_arguments.join;
         if (!trace_arguments.tare.empty()) document["tare"] = trace_arguments.tare;
@@ -271,9 +270,15 @@ struct IdentifyCommand {
     }
 
     static void print_rls(const RlsReport& rls) {
-        fmt::print("  RLS ({}): settled at {:.3g} s{}\n",
-                   rls.options.variant == RlsVariant::exponential ? "exponential" : "directional", rls.transient_end_s,
-                   rls.settled ? "" : " (did not settle)");
+        const char* variant = rls.options.variant == RlsVariant::exponential ? "exponential" : "directional";
+        if (rls.settled) {
+            fmt::print("  RLS ({}): settled at {:.3g} s\n", variant, rls.transient_end_s);
+        } else {
+            fmt::print(
+                "  RLS ({}): did not settle before the last tenth of the data (within tolerance of the final values "
+                "only from {:.3g} s on); averaged = final\n",
+                variant, rls.transient_end_s);
+        }
         std::vector<std::size_t> order(rls.keys.size());  // by key, as the document lists them
         for (std::size_t c = 0; c < order.size(); ++c) order[c] = c;
         std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return rls.keys[a] < rls.keys[b]; });
