@@ -263,7 +263,9 @@ TEST(TestPlanText, RefusalsNameTheOptionAndTheText) {
     // absurd values are refused with the allowed range, not left to run out of memory
     EXPECT_EQ(parse_message([] { (void)parse_slow_feeds({"10:1000:1e12"}); }),
               "--slow-feeds: '10:1000:1e12' needs 0.001 <= LO <= HI <= 1e+06 mm/min and a whole N from 1 to 100.");
-    EXPECT_EQ(parse_message([] { (void)parse_slow_feeds({"5", "1e300"}); }),
+    EXPECT_EQ(parse_message([] {
+                  (void)parse_slow_feeds({"5", "1e300"});
+              }),
               "--slow-feeds: 1e+300 mm/min is outside the allowed range 0.001 to 1e+06 mm/min.");
     EXPECT_EQ(parse_message([] { (void)feedid::parse_travel("-1e300:400"); }),
               "--travel: '-1e300:400' reaches past the allowed range -1e+06 to 1e+06 mm.");
