@@ -716,9 +716,10 @@ TwinController identified_twin_controller(const Trace& trace, std::span<const do
     controller.status = gains.status;
     if (gains.status == Status::failed) controller.notes.push_back(gains.diagnostics.front());
     controller.notes.push_back(
-        fmt::format("gains identified from the trace: K_v {:.6g} 1/s, K_p {:.6g} N*s/m, K_i {:.6g} N/m",
+        fmt::format("gains identified from the trace: K_v {:.6g} 1/s, K_p {:.6g} {}, K_i {:.6g} {}",
                     controller.model.position_gain_per_s, controller.model.velocity_gain_N_s_per_m,
-                    controller.model.velocity_integral_gain_N_per_m));
+                    ParameterNaming{trace.rotary}.velocity_gain_unit(), controller.model.velocity_integral_gain_N_per_m,
+                    ParameterNaming{trace.rotary}.velocity_integral_gain_unit()));
     return controller;
 }
 
