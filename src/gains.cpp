@@ -685,7 +685,7 @@ void set_velocity_loop_gains(const VelocityLoopFit& loop, bool logged_command, G
 
 // The structure found and the velocity loop's fit figures, with a note on a logged velocity used and one on gains of
 // the wrong sign.
-void set_structure_and_fit(const VelocityLoopFit& loop, bool logged_command, double dt, GainResult& result) {
+void set_structure_and_fit(const VelocityLoopFit& loop, double dt, GainResult& result) {
     const Structure& structure = loop.structure;
     result.velocity_difference_samples = structure.difference == 0 ? 1 : structure.difference;
     if (structure.difference == 0) result.diagnostics.push_back("velocity loop fitted on the logged velocity channel");
@@ -695,13 +695,6 @@ void set_structure_and_fit(const VelocityLoopFit& loop, bool logged_command, dou
     result.relative_error_pct = loop.fit.relative_error_pct;
     result.systematic_error_pct = loop.fit.systematic_error_pct;
     result.samples_used = loop.fit.samples;
-    const double kv = result.position_gain_per_s.value.value_or(0.0);
-    const double kp = loop.fit.estimate(gain_indices(logged_command).velocity_gain);
-    if ((std::isfinite(kv) && kv <= 0.0) || (std::isfinite(kp) && kp <= 0.0)) {
-        result.diagnostics.push_back(
-            "a gain came out negative: the channels' signs or roles may be wrong (is the "
-            "reference mapped to the reference, the drive signal to the current?)");
-    }
 }
 
 // The identified controller, for simulation: the gains (0 where the data did not determine them), the structure
@@ -800,6 +793,36 @@ void gate_finite(const GainSignals& signals, const std::vector<char>& use, GainR
                     names, largest_force(signals, use).magnitude, signals.rotary ? "N*m" : "N"));
 }
 
+// A loop gain of the wrong sign is no controller that could run the axis (its loop would be unstable): status failed,
+// with the likely cause and the fix first among the diagnostics. K_p < 0 with K_v > 0 is a drive signal whose sign is
+// the opposite of the motion's (drive and NC count directions differently); K_v < 0 is a reference and position
+// mapped the wrong way round, or of opposite signs.
+void gate_signs(const GainOptions& options, bool rotary, GainResult& result) {
+    const double kv = result.position_gain_per_s.value.value_or(1.0);
+    const double kp = result.velocity_gain_N_s_per_m.value.value_or(1.0);
+    const ParameterNaming naming{rotary};
+    std::string why;
+    if (kv <= 0.0) {
+        why = fmt::format(
+            "the position loop gain came out negative (K_v = {:.4g} 1/s), which no stable controller has: are the "
+            "reference and the position mapped to their roles (--channel reference_position=NAME, --channel "
+            "position=NAME), with the same sign?",
+            kv);
+    } else if (kp <= 0.0) {
+        const std::string fix = options.force_per_signal != 0.0
+                                    ? fmt::format("give the force constant with the other sign, --force-constant {:g}",
+                                                  -options.force_per_signal)
+                                    : std::string("turn the drive signal's sign (a negative --force-constant)");
+        why = fmt::format(
+            "the velocity loop gain came out negative (K_p = {:.4g} {}), which no stable controller has: the drive "
+            "signal's sign is the opposite of the motion's (drive and NC count directions differently); {}",
+            kp, naming.velocity_gain_unit(), fix);
+    }
+    if (why.empty()) return;
+    result.status = Status::failed;
+    result.diagnostics.insert(result.diagnostics.begin(), std::move(why));
+}
+
 }  // namespace
 
 GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options,
@@ -831,10 +854,11 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
     const VelocityLoopFit velocity_loop =
         fit_velocity_loop(regression, search_space(signals, options), options, result.diagnostics);
     set_velocity_loop_gains(velocity_loop, signals.logged_command, result);
-    set_structure_and_fit(velocity_loop, signals.logged_command, signals.dt, result);
+    set_structure_and_fit(velocity_loop, signals.dt, result);
     result.injection_subtracted = !signals.injection.empty();
     gate_finite(signals, use, result);
     if (result.status != Status::failed) gate_fit_quality(result.injection_subtracted, result);
+    gate_signs(options, signals.rotary, result);
     result.controller = identified_controller(result, options, signals.dt, signals.hold_factor);
     return result;
 }

@@ -117,6 +117,30 @@ TEST(FitGates, GainsOnACurrentOf1e300FailsWithTheForceInFigures) {
     EXPECT_TRUE(document["fit"]["relative_error_pct"].is_null()) << "nothing was fitted: no fit figure";
 }
 
+TEST(FitGates, GainsOfTheWrongSignAreNoControllerAndNameTheFix) {
+    // EMPS with the drive signal's sign turned: the fit is as good as ever (0.24 %), K_p = -8555 N*s/m. Before, a note
+    // and exit 0.
+    FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
+    const auto result =
+        run_cli("gains '" + (feedid::testing::shared_data() / "emps/DATA_EMPS.mat").string() +
+                "' --channel time=t --channel position=qm --channel reference_position=qg --channel current=vir "
+                "--force-constant -35.15 "
+                "--unit position=m --unit reference_position=m --unit time=s --unit current=V");
+    EXPECT_EQ(result.exit_code, 1) << result.err;
+    EXPECT_EQ(result.err,
+              "feedid: the velocity loop gain came out negative (K_p = -8555 N*s/m), which no stable controller has: "
+              "the drive signal's sign is the opposite of the motion's (drive and NC count directions differently); "
+              "give the force constant with the other sign, --force-constant 35.15\n");
+    // reference and position the wrong way round: K_v < 0
+    const auto dir = feedid::testing::temp_dir();
+    const auto swapped =
+        run_cli("gains " + quoted(demo_trace(dir)) + drive_options +
+                " --channel time=t --channel position=x_ref --channel reference_position=x --channel "
+                "velocity_command=v_cmd --channel current=i");
+    EXPECT_EQ(swapped.exit_code, 1) << swapped.err;
+    EXPECT_TRUE(contains(swapped.err, "the position loop gain came out negative (K_v = -33.33 1/s)")) << swapped.err;
+}
+
 TEST(FitGates, SimulateWithGainsOf1e300Or1e300thFailsWithoutAnyNan) {
     const auto dir = feedid::testing::temp_dir();
     const auto trace = demo_trace(dir);

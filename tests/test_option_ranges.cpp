@@ -140,7 +140,7 @@ TEST(OptionRanges, AForceConstantOf1e308IsRefusedBeforeItMakesNan) {
     }
     // a negative constant (a drive signal of the other sign) within the range is a constant
     const auto negative = run_cli("gains " + quoted(trace) + " --force-constant -453.6");
-    EXPECT_FALSE(contains(negative.err, "--force-constant")) << negative.err;
+    EXPECT_FALSE(contains(negative.err, "is not allowed")) << negative.err;
 }
 
 TEST(OptionRanges, SavitzkyGolayOrderAtTheWindowIsBadUsageNotAnInternalError) {

@@ -45,7 +45,10 @@ inline constexpr double gain_fit_error_limit_pct = 3.0;
 
 struct GainResult {
     /// ok; failed when the controller model does not explain the drive signal (systematic error above
-    /// gain_fit_error_limit_pct): the gains are then not to be trusted, and the first diagnostic says why.
+    /// gain_fit_error_limit_pct), when the drive force is too large for its squares to be finite numbers (nothing is
+    /// fitted), when a gain or fit figure is not a finite number (it is dropped), or when K_v or K_p came out
+    /// negative (no stable controller; the fix is named): the gains are then not to be trusted, and the first
+    /// diagnostic says why, with the figures.
     Status status{Status::ok};
     ControllerModel controller;               ///< the identified controller (for simulation)
     Estimate position_gain_per_s;             ///< K_v
