@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <exception>
+#include <thread>
 #include <cmath>
 
 #include <fmt/core.h>
@@ -489,6 +492,40 @@ IdentifyResult run_stages(const Trace& trace, std::span<const double> force, con
     return fit_steps(std::move(result), derivatives, regressors, selection, options);
 }
 
+/// The stages over each member of the family, on as many threads as the machine has cores (the runs share nothing
+/// but the trace and the force, both read only); a member the trace cannot take (InputError) is empty.
+std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, std::span<const double> force,
+                                                      const IdentifyOptions& base,
+                                                      const std::vector<PreprocessingVariant>& family) {
+    std::vector<std::optional<IdentifyResult>> runs(family.size());
+    std::vector<std::exception_ptr> errors(family.size());
+    std::atomic<std::size_t> next{0};
+    const auto work = [&] {
+        for (std::size_t v = next++; v < family.size(); v = next++) {
+            IdentifyOptions options = base;
+            options.preprocess = family[v].options;
+            if (family[v].split_velocity) options.selection.split_velocity = family[v].split_velocity;
+            try {
+                runs[v] = run_stages(trace, force, options);
+            } catch (const InputError&) {
+                runs[v].reset();
+            } catch (...) {
+                errors[v] = std::current_exception();  // an internal error: raised again on the calling thread
+            }
+        }
+    };
+    const std::size_t threads =
+        std::min<std::size_t>(family.size(), std::max(1u, std::thread::hardware_concurrency()));
+    std::vector<std::thread> pool;
+    for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(work);
+    work();
+    for (auto& thread : pool) thread.join();
+    for (const auto& error : errors) {
+        if (error) std::rethrow_exception(error);
+    }
+    return runs;
+}
+
 /// The preprocessing family's estimates (systematic.hpp): each parameter's systematic part is the largest deviation
 /// of a variant's estimate from the nominal one (variants that leave it undetermined do not count; with none left it
 /// stays unassessed), said in a finding where it exceeds the multiple of the standard error.
@@ -506,17 +543,13 @@ void assess_systematic(const Trace& trace, std::span<const double> force, const 
     // the moving threshold would test nothing
     const double split =
         result.selection ? std::max(result.selection->split_velocity, result.selection->initial_split) : 0.0;
-    for (const auto& variant : preprocessing_family(options.preprocess, *result.preprocessing, interval, split,
-                                                    naming.display_velocity_scale(), naming.display_velocity_unit())) {
-        variant_options.preprocess = variant.options;
-        variant_options.selection.split_velocity =
-            variant.split_velocity ? variant.split_velocity : options.selection.split_velocity;
-        IdentifyResult other;
-        try {
-            other = run_stages(trace, force, variant_options);
-        } catch (const InputError&) {
-            continue;  // a variant this trace cannot take (a window longer than the trace)
-        }
+    const auto family = preprocessing_family(options.preprocess, *result.preprocessing, interval, split,
+                                             naming.display_velocity_scale(), naming.display_velocity_unit());
+    const auto runs = run_family(trace, force, variant_options, family);
+    for (std::size_t v = 0; v < family.size(); ++v) {
+        if (!runs[v]) continue;  // a variant this trace cannot take (a window longer than the trace)
+        const auto& variant = family[v];
+        const IdentifyResult& other = *runs[v];
         SystematicVariant record{variant.label, other.status, {}, {}};
         for (std::size_t i = 0; i < result.parameters.size(); ++i) {
             const Parameter& nominal = result.parameters[i];

@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <utility>
-#include <vector>
 
 #include <Eigen/Dense>
 
@@ -52,22 +50,14 @@ Eigen::MatrixXd long_run_covariance(const Eigen::MatrixXd& phi, const Eigen::Vec
                                     std::span<const std::size_t> index, std::size_t block) {
     const auto n = phi.rows();
     const auto p = phi.cols();
-    // rows by block: sample index / block (rows come in time order per sample set, the sets one after another)
-    std::vector<std::pair<std::size_t, Eigen::Index>> order(static_cast<std::size_t>(n));
-    for (Eigen::Index t = 0; t < n; ++t)
-        order[static_cast<std::size_t>(t)] = {index[static_cast<std::size_t>(t)] / block, t};
-    if (!std::is_sorted(order.begin(), order.end())) std::sort(order.begin(), order.end());
-    Eigen::MatrixXd s = Eigen::MatrixXd::Zero(p, p);
-    Eigen::VectorXd sum = Eigen::VectorXd::Zero(p);
-    for (std::size_t i = 0; i < order.size(); ++i) {
-        if (i > 0 && order[i].first != order[i - 1].first) {
-            s.selfadjointView<Eigen::Lower>().rankUpdate(sum);
-            sum.setZero();
-        }
-        sum += phi.row(order[i].second).transpose() * residual(order[i].second);
+    // g_b summed per block of sample indices, in one pass (the rows need not be in order)
+    const std::size_t blocks = index.empty() ? 0 : *std::max_element(index.begin(), index.end()) / block + 1;
+    Eigen::MatrixXd sums = Eigen::MatrixXd::Zero(p, static_cast<Eigen::Index>(blocks));
+    for (Eigen::Index t = 0; t < n; ++t) {
+        sums.col(static_cast<Eigen::Index>(index[static_cast<std::size_t>(t)] / block)) +=
+            phi.row(t).transpose() * residual(t);
     }
-    if (n > 0) s.selfadjointView<Eigen::Lower>().rankUpdate(sum);
-    s = s.selfadjointView<Eigen::Lower>();
+    Eigen::MatrixXd s = sums * sums.transpose();
     return n > p ? Eigen::MatrixXd(s * (static_cast<double>(n) / static_cast<double>(n - p))) : s;
 }
 
