@@ -359,6 +359,10 @@ void append_segment(std::span<const double> x, std::span<const double> force, st
     const std::vector<double> commanded =
         reference.values.empty() ? std::vector<double>{} : reference_velocity(reference, segment, d, options);
     d.segment_starts.push_back(d.time.size());
+    const std::size_t room = d.time.size() + length - 2 * edge;
+    for (auto* column : {&d.time, &d.velocity, &d.acceleration, &d.force}) column->reserve(room);
+    window_index.reserve(room);
+    if (!commanded.empty()) d.reference_velocity.reserve(room);
     for (std::size_t k = edge; k < length - edge; ++k) {
         d.time.push_back(time[segment.first + k]);
         d.velocity.push_back(derivatives.velocity[k]);
@@ -401,8 +405,11 @@ void decimate_columns(Derivatives& d, int factor, std::vector<std::size_t>& wind
 /// levels next to it.
 std::vector<char> clipped_samples(std::span<const double> force, Derivatives& d) {
     if (force.size() < 10) return {};
-    const double quantum = std::max(position_quantum(force), 1e-12);
     const auto [low, high] = std::minmax_element(force.begin(), force.end());
+    // a clipped signal repeats its extreme exactly; most signals reach it once (cheap test before the quantum's sort)
+    const auto at_extremes = std::count_if(force.begin(), force.end(), [&](double f) { return f == *low || f == *high; });
+    if (at_extremes < 5) return {};
+    const double quantum = std::max(position_quantum(force), 1e-12);
     std::vector<char> clipped(force.size(), 0);
     std::size_t count = 0;
     for (const double extreme : {*low, *high}) {
