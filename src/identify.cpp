@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cmath>
 #include <exception>
 #include <thread>
-#include <cmath>
 
 #include <fmt/core.h>
 #include <fmt/ranges.h>
@@ -514,8 +514,7 @@ std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, std::s
             }
         }
     };
-    const std::size_t threads =
-        std::min<std::size_t>(family.size(), std::max(1u, std::thread::hardware_concurrency()));
+    const std::size_t threads = std::min<std::size_t>(family.size(), std::max(1u, std::thread::hardware_concurrency()));
     std::vector<std::thread> pool;
     for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(work);
     work();
