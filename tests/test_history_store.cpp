@@ -6,6 +6,7 @@
 #include <sqlite3.h>
 
 #include <csignal>
+#include <map>
 #include <set>
 
 #include <fmt/core.h>
@@ -199,7 +200,7 @@ TEST(HistoryStore, MigrationGivesEarlierRunsTheirAxisKind) {
         store->add_run(rotary);
     }
     auto store = history::open_sqlite_store(path);
-    EXPECT_EQ(store->schema_version(), 4);
+    EXPECT_EQ(store->schema_version(), history::sqlite_schema_version);
     const auto runs = store->runs();
     ASSERT_EQ(runs.size(), 2u);
     EXPECT_EQ(runs[0].axis_kind, "linear");
@@ -208,22 +209,42 @@ TEST(HistoryStore, MigrationGivesEarlierRunsTheirAxisKind) {
     EXPECT_EQ(integrity(path), "ok");
 }
 
+/// small_result() of a rotary axis: the same figures under the rotary keys, "rotary": true.
+nlohmann::json small_rotary_result(const std::filesystem::path& trace) {
+    auto document = small_result(trace, 2.36);
+    nlohmann::json parameters;
+    const std::map<std::string, std::string> rotary_keys{{"mass_kg", "inertia_kgm2"},
+                                                         {"viscous_Ns_per_m", "viscous_Nms_per_rad"},
+                                                         {"coulomb_N", "coulomb_Nm"},
+                                                         {"breakaway_N", "breakaway_Nm"},
+                                                         {"stribeck_velocity_m_per_s", "stribeck_velocity_rad_per_s"}};
+    for (const auto& [key, entry] : document["parameters"].items()) parameters[rotary_keys.at(key)] = entry;
+    document["parameters"] = parameters;
+    document["rotary"] = true;
+    return document;
+}
+
 TEST(HistoryStore, TheAxisKindComesFromTheResult) {
     auto document = small_result("x.csv", 742.0);
     EXPECT_EQ(history::run_from_result(document, "r.json").axis_kind, "linear");
+    auto rotary = small_rotary_result("x.csv");
+    EXPECT_EQ(history::run_from_result(rotary, "r.json").axis_kind, "rotary");
+    rotary.erase("rotary");  // older documents: the keys say it
+    EXPECT_EQ(history::run_from_result(rotary, "r.json").axis_kind, "rotary");
+    // "rotary": true over linear keys is no document feedid writes (nor reads back): refused, naming the key
     document["rotary"] = true;
-    EXPECT_EQ(history::run_from_result(document, "r.json").axis_kind, "rotary");
-    document.erase("rotary");
-    document["parameters"].erase("mass_kg");
-    document["parameters"]["inertia_kgm2"] = {{"value", 0.0007}, {"stderr", 1e-6}};
-    EXPECT_EQ(history::run_from_result(document, "r.json").axis_kind, "rotary");
+    try {
+        (void)history::run_from_result(document, "r.json");
+        ADD_FAILURE() << "a rotary document with linear keys was taken";
+    } catch (const feedid::InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("r.json: parameter \"breakaway_N\""), std::string::npos) << e.what();
+    }
 }
 
 TEST(HistoryCli, ARotaryRunOnALinearAxisIsExitTwo) {
     const auto folder = temp_dir();
     const auto results = write_small_results(folder, "run", 2);
-    auto rotary = nlohmann::json::parse(read_text(results[1]));
-    rotary["rotary"] = true;
+    auto rotary = small_rotary_result(folder / "run-2.csv");
     write_text(results[1], rotary.dump());
     const auto database = folder / "h.db";
     const auto command = [&](const std::filesystem::path& result) {
@@ -241,7 +262,14 @@ TEST(HistoryCli, ARotaryRunOnALinearAxisIsExitTwo) {
 
 TEST(HistoryStore, ResultDocumentIsStoredWithoutTheRlsHistory) {
     auto document = small_result("x.csv", 742.0);
-    document["rls"] = {{"final", {{"coulomb_N", 742.0}}}, {"history", {{"time_s", {0.0, 0.1}}}}};
+    document["rls"] = {{"variant", "directional"},
+                       {"forgetting_factor", 0.99995},
+                       {"initial_covariance", 1e6},
+                       {"final", {{"coulomb_N", 742.0}}},
+                       {"averaged", {{"coulomb_N", 741.0}}},
+                       {"settled", true},
+                       {"transient_end_s", 0.5},
+                       {"history", {{"time_s", {0.0, 0.1}}, {"coulomb_N", {700.0, 742.0}}}}};
     const auto run = history::run_from_result(document, "r.json");
     EXPECT_TRUE(run.result["rls"].contains("final"));
     EXPECT_FALSE(run.result["rls"].contains("history"));
@@ -261,8 +289,8 @@ void record_all(const std::filesystem::path& folder, const std::filesystem::path
 }
 
 // A process killed between any two statements of --record (FEEDID_TEST_ABORT_AFTER_STATEMENT=N aborts right after
-// the N-th write statement: BEGIN, the run, each parameter, COMMIT) leaves a file that opens, holds every earlier run
-// whole, and holds the interrupted run whole (aborted after COMMIT) or not at all.
+// the N-th write statement: BEGIN, the run, its documents, each parameter, COMMIT) leaves a file that opens, holds
+// every earlier run whole, and holds the interrupted run whole (aborted after COMMIT) or not at all.
 TEST(HistoryDurability, AbortBetweenStatementsLeavesEveryEarlierRunAndTheNewOneWholeOrAbsent) {
     const auto folder = temp_dir();
     const auto results = write_small_results(folder, "run", 4);
@@ -304,8 +332,9 @@ TEST(HistoryDurability, AbortBetweenStatementsLeavesEveryEarlierRunAndTheNewOneW
         const auto after = run_shell(fmt::format("{} history {} --json -", cli(), quoted(database)), folder);
         EXPECT_EQ(nlohmann::json::parse(after.out)["runs"].size(), 4u) << "n = " << n;
     }
-    // BEGIN, the run's row, five parameters and COMMIT: 8 places to die; only the abort after COMMIT keeps the run.
-    EXPECT_EQ(aborted, 8);
+    // BEGIN, the run's row, its documents' row, five parameters and COMMIT: 9 places to die; only the abort after
+    // COMMIT keeps the run.
+    EXPECT_EQ(aborted, 9);
     EXPECT_EQ(whole, 1);
 }
 
