@@ -8,6 +8,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <span>
 
 #include <fmt/core.h>
 
@@ -15,6 +16,7 @@
 #include "feedid/report.hpp"
 
 #include "feedid/parameters.hpp"
+#include "feedid/signal.hpp"
 #include "feedid/version.hpp"
 
 namespace feedid::report {
@@ -29,6 +31,40 @@ constexpr const char* grey = "#555555";
 // Plots of RLS histories hold at most this many points: enough for the shape of a transient, small enough for a
 // browser to draw dozens of plots at once.
 constexpr std::size_t max_plot_points = 800;
+
+// Plots of a history hold at most this many points per series (a plot is 760 px wide): a long history is thinned to
+// the runs where a value is smallest or largest within each stretch of runs, as simulate thins its errors, so that no
+// outlier and no alarm is lost. The report of 10,000 runs stays a few MB.
+constexpr std::size_t max_history_points = 400;
+
+/// Keeps the points `keep` (ascending) of a series: x, y, band and tooltips alike.
+void keep_points(Series& series, const std::vector<std::size_t>& keep) {
+    const auto pick = [&](auto& column) {
+        if (column.size() != series.x.size() || column.empty()) return;
+        std::remove_reference_t<decltype(column)> kept;
+        kept.reserve(keep.size());
+        for (const auto i : keep) kept.push_back(std::move(column[i]));
+        column = std::move(kept);
+    };
+    pick(series.y);
+    pick(series.band);
+    pick(series.tooltips);
+    pick(series.x);  // last: the others are checked against its length
+}
+
+/// Thins series that share their x (the same runs) to at most max_history_points by min/max per bucket of their
+/// y; highlights whose run is thinned away go too.
+void thin_history_series(std::vector<Series*> together, std::vector<Highlight>& highlights) {
+    const std::size_t n = together.front()->x.size();
+    if (n <= max_history_points) return;
+    std::vector<std::span<const double>> columns;
+    for (const auto* series : together) columns.emplace_back(series->y);
+    const auto keep = extreme_preserving_indices(columns, n, max_history_points);
+    std::set<double> kept_x;
+    for (const auto i : keep) kept_x.insert(together.front()->x[i]);
+    for (auto* series : together) keep_points(*series, keep);
+    std::erase_if(highlights, [&](const Highlight& h) { return !kept_x.count(h.x); });
+}
 
 std::string slug(const std::string& text) {
     std::string out;
@@ -367,6 +403,11 @@ Plot trend_plot(const history::ParameterTrend& parameter, const AxisRuns& axis, 
             values.highlights.push_back(
                 {x, *point.value, fmt::format("drift alarm at run #{} ({})", point.run_id, point.recorded_at)});
     }
+    thin_history_series({&series}, values.highlights);
+    if (upper.x.size() > max_history_points) {
+        std::vector<Highlight> none;
+        thin_history_series({&upper, &lower}, none);
+    }
     values.series.push_back(std::move(series));
     if (!upper.x.empty()) {
         values.series.push_back(std::move(upper));
@@ -406,6 +447,7 @@ std::optional<Plot> cusum_plot(const history::ParameterTrend& parameter, const A
                 {x, std::max(point.cusum_up, point.cusum_down), fmt::format("drift alarm at run #{}", point.run_id)});
     }
     if (up.x.empty()) return std::nullopt;
+    thin_history_series({&up, &down}, cusum.highlights);
     cusum.series.push_back(std::move(up));
     cusum.series.push_back(std::move(down));
     cusum.horizontal.push_back(
@@ -595,6 +637,65 @@ std::string result_report_html(const nlohmann::json& result, const std::string& 
                 body);
 }
 
+namespace {
+
+// The table of runs lists every run of a short history; of a long one the baseline runs, the runs where an alarm
+// fired and the latest runs, with a row saying how many are left out between them.
+constexpr std::size_t table_latest_runs = 100;
+
+std::vector<bool> listed_in_table(const history::SeriesTrend& trend,
+                                  const std::vector<const history::RunRecord*>& series_runs) {
+    const std::size_t n = series_runs.size();
+    std::vector<bool> listed(n, n <= table_latest_runs + trend.baseline_run_ids.size());
+    std::set<std::int64_t> named(trend.baseline_run_ids.begin(), trend.baseline_run_ids.end());
+    for (const auto& alarm : trend.alarms) named.insert(alarm.run_id);
+    for (std::size_t i = 0; i < n; ++i)
+        if (i + table_latest_runs >= n || named.count(series_runs[i]->id)) listed[i] = true;
+    return listed;
+}
+
+std::string runs_table(const history::SeriesTrend& trend, const std::vector<const history::RunRecord*>& series_runs,
+                       const std::set<std::string>& keys) {
+    std::map<std::string, std::set<std::int64_t>> in_alarm;
+    for (const auto& parameter : trend.parameters)
+        for (const auto& point : parameter.points)
+            if (point.alarm) in_alarm[parameter.key].insert(point.run_id);
+    const auto listed = listed_in_table(trend, series_runs);
+    std::string body = "<table>\n<tr><th>run</th><th class=\"text\">recorded at</th><th class=\"text\">location</th>";
+    for (const auto& key : keys) body += fmt::format("<th>{}</th>", escape_xml(with_unit(parameter_label(key))));
+    body += "</tr>\n";
+    for (std::size_t i = 0; i < series_runs.size(); ++i) {
+        if (!listed[i]) {
+            std::size_t end = i;
+            while (end < series_runs.size() && !listed[end]) ++end;
+            body += fmt::format(
+                "<tr><td class=\"text note\" colspan=\"{}\">… {} run(s) not listed here (feedid history DB --csv - "
+                "lists every run)</td></tr>\n",
+                keys.size() + 3, end - i);
+            i = end - 1;
+            continue;
+        }
+        const auto* run = series_runs[i];
+        body += fmt::format("<tr><td>#{}</td><td class=\"text\">{}</td><td class=\"text\">{}</td>", run->id,
+                            escape_xml(run->recorded_at), escape_xml(run->location));
+        for (const auto& key : keys) {
+            const auto found = run->parameters.find(key);
+            std::string cell = "—";
+            if (found != run->parameters.end() && found->second.value)
+                cell = found->second.standard_error
+                           ? fmt::format("{:.5g} ± {:.2g}", *found->second.value, *found->second.standard_error)
+                           : fmt::format("{:.5g}", *found->second.value);
+            const bool alarm = in_alarm.count(key) && in_alarm.at(key).count(run->id);
+            body += alarm ? fmt::format("<td class=\"alarm\">{} !</td>", escape_xml(cell))
+                          : fmt::format("<td>{}</td>", escape_xml(cell));
+        }
+        body += "</tr>\n";
+    }
+    return body + "</table>\n";
+}
+
+}  // namespace
+
 std::string history_report_html(const std::vector<history::RunRecord>& runs,
                                 const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options,
                                 const std::string& source) {
@@ -625,29 +726,7 @@ std::string history_report_html(const std::vector<history::RunRecord>& runs,
                 series_runs.push_back(&run);
                 for (const auto& [key, estimate] : run.parameters) keys.insert(key);
             }
-        body += "<table>\n<tr><th>run</th><th class=\"text\">recorded at</th><th class=\"text\">location</th>";
-        for (const auto& key : keys) body += fmt::format("<th>{}</th>", escape_xml(with_unit(parameter_label(key))));
-        body += "</tr>\n";
-        for (const auto* run : series_runs) {
-            body += fmt::format("<tr><td>#{}</td><td class=\"text\">{}</td><td class=\"text\">{}</td>", run->id,
-                                escape_xml(run->recorded_at), escape_xml(run->location));
-            for (const auto& key : keys) {
-                const auto found = run->parameters.find(key);
-                std::string cell = "—";
-                if (found != run->parameters.end() && found->second.value)
-                    cell = found->second.standard_error
-                               ? fmt::format("{:.5g} ± {:.2g}", *found->second.value, *found->second.standard_error)
-                               : fmt::format("{:.5g}", *found->second.value);
-                bool in_alarm = false;
-                for (const auto& parameter : trend.parameters)
-                    if (parameter.key == key)
-                        for (const auto& point : parameter.points) in_alarm |= point.run_id == run->id && point.alarm;
-                body += in_alarm ? fmt::format("<td class=\"alarm\">{} !</td>", escape_xml(cell))
-                                 : fmt::format("<td>{}</td>", escape_xml(cell));
-            }
-            body += "</tr>\n";
-        }
-        body += "</table>\n";
+        body += runs_table(trend, series_runs, keys);
         for (const auto& plot : history_plots(runs, {trend}, options)) {
             std::string caption;
             if (plot.id.rfind("trend-", 0) == 0)
