@@ -46,8 +46,9 @@ int run_report(const ReportArguments& arguments) {
         throw InputError(
             fmt::format("{}: no such file (give an identify result document or a history database)", arguments.input));
     // A history database is guarded with its -wal and -shm files; a result document alone.
+    const bool database = history::looks_like_sqlite(arguments.input);
     require_separate_outputs({{"-o", arguments.out_path}},
-                             {{"the input", arguments.input, history::looks_like_sqlite(arguments.input)},
+                             {{database ? "the history database" : "the result document", arguments.input, database},
                               {"the --simulation document", arguments.simulation_path}});
     std::string html;
     if (history::looks_like_sqlite(arguments.input)) {
