@@ -235,7 +235,7 @@ Status read_status(const JsonField& j) {
     const std::string text = j.text();
     const Status status = nlohmann::json(text).get<Status>();
     if (text != to_string(status))
-        throw InputError(fmt::format("{}: \"{}\" is not a status (ok, partial, failed)", j.path(), text));
+        throw InputError(fmt::format("{}: must be \"ok\", \"partial\" or \"failed\", not \"{}\"", j.path(), text));
     return status;
 }
 

@@ -9,6 +9,7 @@
 #include "feedid/error.hpp"
 #include "feedid/history/store.hpp"
 #include "feedid/history/trend.hpp"
+#include "feedid/io/json_input.hpp"
 #include "feedid/report.hpp"
 
 namespace feedid::cli {
@@ -74,7 +75,7 @@ int run_report(const ReportArguments& arguments) {
         nlohmann::json document;
         try {
             document = read_json(arguments.input);
-        } catch (const InputError&) {
+        } catch (const JsonSyntaxError&) {
             throw InputError(
                 fmt::format("{}: neither an identify result document (JSON) nor a history database "
                             "(SQLite)",

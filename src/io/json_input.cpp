@@ -52,21 +52,25 @@ public:
         if (error.id == 406)
             throw InputError(fmt::format("{}: the number at {} is out of range (byte {}; the largest is about 1.8e308)",
                                          source_, where_next(), position));
-        throw InputError(fmt::format("{}: not a JSON document (byte {})", source_, position));
+        throw JsonSyntaxError(fmt::format("{}: not a JSON document (byte {})", source_, position));
     }
 
 private:
     struct Frame {
         Json* container{nullptr};
         std::string key;       // of the element being read, in an object
-        std::size_t index{0};  // of the next element, in an array
+        std::size_t index{0};  // elements placed so far, in an array
     };
 
-    /// The key path of the value about to be read.
+    /// The key path of the value about to be read: in each enclosing array the element that is open, in the
+    /// innermost one the next.
     std::string where_next() const {
         std::vector<std::string> keys;
-        for (const auto& frame : frames_)
-            keys.push_back(frame.container->is_array() ? fmt::format("[{}]", frame.index) : frame.key);
+        for (std::size_t f = 0; f < frames_.size(); ++f) {
+            const Frame& frame = frames_[f];
+            const std::size_t index = f + 1 == frames_.size() ? frame.index : frame.index - 1;
+            keys.push_back(frame.container->is_array() ? fmt::format("[{}]", index) : frame.key);
+        }
         return keys.empty() ? std::string("the top level") : json_key_path(keys);
     }
 
@@ -129,7 +133,7 @@ std::string json_key_path(const std::vector<std::string>& keys) {
     constexpr std::size_t head = 4;
     constexpr std::size_t tail = 2;
     if (keys.size() <= head + tail + 1) return join(0, keys.size());
-    return fmt::format("{}. … ({} levels) … .{}", join(0, head), keys.size(), join(keys.size() - tail, keys.size()));
+    return fmt::format("{} … ({} levels) … {}", join(0, head), keys.size(), join(keys.size() - tail, keys.size()));
 }
 
 Json parse_json(std::string_view text, const std::string& source, const JsonLimits& limits) {

@@ -13,14 +13,22 @@
 
 #include <nlohmann/json.hpp>
 
+#include "feedid/error.hpp"
+
 namespace feedid {
+
+/// The text is not JSON at all (as opposed to a JSON document beyond a limit or of the wrong shape).
+class JsonSyntaxError : public InputError {
+public:
+    using InputError::InputError;
+};
 
 struct JsonLimits {
     std::size_t max_depth{64};                 ///< objects and arrays nested in each other, the outermost counting 1
     std::size_t max_bytes{64u * 1024 * 1024};  ///< the document's size [bytes]
 };
 
-/// Parses `text` as one JSON document. InputError "SOURCE: not a JSON document (byte N)" on a syntax error, and
+/// Parses `text` as one JSON document. JsonSyntaxError "SOURCE: not a JSON document (byte N)" on a syntax error, and
 /// naming the key on a document nested too deep, too large, or with a number outside the range of a double (1e400,
 /// an integer of 5,000 digits).
 nlohmann::json parse_json(std::string_view text, const std::string& source, const JsonLimits& limits = {});
