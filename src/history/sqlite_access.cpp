@@ -113,7 +113,7 @@ std::string describe_sqlite_error(int code, sqlite3* db) {
     if (primary == SQLITE_CORRUPT || primary == SQLITE_NOTADB) return "the file is corrupt or not a SQLite database";
     if (code == SQLITE_READONLY_DIRECTORY) return "the folder is not writable (SQLite keeps DB-wal and DB-shm there)";
     if (primary == SQLITE_READONLY) return "the file (or its -wal or -shm file) is read-only" + os;
-    if (primary == SQLITE_FULL) return "the disk is full";
+    if (primary == SQLITE_FULL || os_error == ENOSPC || os_error == EDQUOT) return "the disk is full";
     if (primary == SQLITE_BUSY || primary == SQLITE_LOCKED) return "another process holds the database locked";
     if (primary == SQLITE_CANTOPEN) return "the file cannot be opened" + os;
     if (primary == SQLITE_IOERR) return "an input/output error of the file system" + os;
