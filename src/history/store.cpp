@@ -123,6 +123,17 @@ Columns columns_of(int version) {
 const char* const filter_clause =
     " WHERE (?1 = '' OR r.machine = ?1) AND (?2 = '' OR r.axis = ?2) AND (?3 = '' OR r.location = ?3)";
 
+/// The fit's figures of a run: as given, or (a record made by hand) from its "fit" object.
+FitFigures fit_figures_of(const RunRecord& run) {
+    const FitFigures& given = run.fit_figures;
+    if (given.relative_error_pct || given.condition_number || given.samples_used) return given;
+    const auto number = [&](const char* key) -> std::optional<double> {
+        if (run.fit.is_object() && run.fit.contains(key) && run.fit[key].is_number()) return run.fit[key].get<double>();
+        return std::nullopt;
+    };
+    return {number("relative_error_pct"), number("condition_number"), number("samples_used")};
+}
+
 /// Numbers each distinct options text of one listing: runs with equal options get equal groups.
 class OptionsGroups {
 public:
@@ -332,8 +343,9 @@ private:
         if (schema_version_ >= 3 && schema_version_ < 5) insert.bind(next++, text.result_json);
         if (schema_version_ >= 4) insert.bind(next++, axis_kind);
         if (schema_version_ >= 5) {
-            insert.bind(next, run.fit_figures.relative_error_pct).bind(next + 1, run.fit_figures.condition_number);
-            insert.bind(next + 2, run.fit_figures.samples_used);
+            const FitFigures figures = fit_figures_of(run);
+            insert.bind(next, figures.relative_error_pct).bind(next + 1, figures.condition_number);
+            insert.bind(next + 2, figures.samples_used);
         }
         insert.step();
         count_write_statement();
