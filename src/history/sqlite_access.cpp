@@ -79,7 +79,8 @@ std::string writer_problem(const std::filesystem::path& path, bool exists) {
         const std::filesystem::path companion = path.string() + suffix;
         struct stat status {};
         if (::stat(companion.c_str(), &status) != 0) continue;
-        if (access_error(companion, R_OK | W_OK) != 0)
+        // (a companion that vanished meanwhile was removed by the last process that closed the database: fine)
+        if (const int error = access_error(companion, R_OK | W_OK); error == EACCES || error == EPERM)
             return fmt::format(
                 "{} belongs to user {} and this user may not write it (left by another program or an "
                 "older feedid reading the database; remove it when no process has the database open)",
