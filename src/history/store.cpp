@@ -302,19 +302,20 @@ private:
         std::string stored_at;
     };
 
-    /// One axis holds runs of one kind: a rotary run on an axis of linear runs (or the reverse) is refused.
+    /// One axis holds runs of one kind: a rotary run on an axis of linear runs (or the reverse) is refused. Since
+    /// every run of an axis is of its kind, one run (the first the index gives) tells it: a search for a run of the
+    /// other kind would read every run of the axis, each time a run is recorded.
     void require_same_axis_kind(const RunRecord& run, const std::string& axis_kind) const {
         if (schema_version_ < 4) return;
-        Statement other(db_,
-                        "SELECT id, axis_kind FROM runs WHERE machine = ?1 AND axis = ?2 AND axis_kind != ?3 AND "
-                        "axis_kind != '' ORDER BY id LIMIT 1",
-                        path_);
-        other.bind(1, run.machine).bind(2, run.axis).bind(3, axis_kind);
-        if (!other.step()) return;
+        Statement any(db_,
+                      "SELECT id, axis_kind FROM runs WHERE machine = ?1 AND axis = ?2 AND axis_kind != '' LIMIT 1",
+                      path_);
+        any.bind(1, run.machine).bind(2, run.axis);
+        if (!any.step() || any.view(1) == axis_kind) return;
         throw InputError(
             fmt::format("{}: machine '{}' axis '{}' is a {} axis (run #{}), this run is of a {} axis: "
                         "record it under another machine or axis name",
-                        path_, run.machine, run.axis, other.text(1), other.integer(0), axis_kind));
+                        path_, run.machine, run.axis, any.text(1), any.integer(0), axis_kind));
     }
 
     void insert_run(const RunRecord& run, const std::string& axis_kind, const StoredText& text) {
