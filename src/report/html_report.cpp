@@ -53,13 +53,23 @@ void keep_points(Series& series, const std::vector<std::size_t>& keep) {
 }
 
 /// Thins series that share their x (the same runs) to at most max_history_points by min/max per bucket of their
-/// y; highlights whose run is thinned away go too.
+/// y, keeping the run where the alarm fired (the first highlighted); later highlights whose run is thinned away go.
 void thin_history_series(std::vector<Series*> together, std::vector<Highlight>& highlights) {
     const std::size_t n = together.front()->x.size();
     if (n <= max_history_points) return;
     std::vector<std::span<const double>> columns;
     for (const auto* series : together) columns.emplace_back(series->y);
-    const auto keep = extreme_preserving_indices(columns, n, max_history_points);
+    auto keep = extreme_preserving_indices(columns, n, max_history_points - 1);
+    if (!highlights.empty()) {
+        const auto first = std::min_element(highlights.begin(), highlights.end(),
+                                            [](const Highlight& a, const Highlight& b) { return a.x < b.x; });
+        const auto& x = together.front()->x;
+        if (const auto at = std::find(x.begin(), x.end(), first->x); at != x.end()) {
+            const auto index = static_cast<std::size_t>(at - x.begin());
+            keep.insert(std::lower_bound(keep.begin(), keep.end(), index), index);
+            keep.erase(std::unique(keep.begin(), keep.end()), keep.end());
+        }
+    }
     std::set<double> kept_x;
     for (const auto i : keep) kept_x.insert(together.front()->x[i]);
     for (auto* series : together) keep_points(*series, keep);
