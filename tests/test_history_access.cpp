@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <sqlite3.h>
+
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -25,6 +27,18 @@ std::set<std::string> listing(const fs::path& folder) {
     std::set<std::string> names;
     for (const auto& entry : fs::directory_iterator(folder)) names.insert(entry.path().filename().string());
     return names;
+}
+
+/// Executes SQL on a file through SQLite itself (to damage a history as a disk or another program might).
+void execute(const fs::path& path, const std::string& sql) {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+    char* message = nullptr;
+    const int code = sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &message);
+    const std::string text = message ? message : "";
+    sqlite3_free(message);
+    sqlite3_close(db);
+    ASSERT_EQ(code, SQLITE_OK) << text;
 }
 
 /// Skips the test unless it runs as root with setpriv: the permission tests act as user 65534 (nobody), and only
@@ -209,21 +223,14 @@ TEST_F(HistoryAccess, VerifyAndWritersFindABrokenIndex) {
     const auto good = shell(fmt::format("{} history {} --verify", cli(), quoted(database_)));
     EXPECT_EQ(good.exit_code, 0) << good.err;
     EXPECT_NE(good.out.find(": ok"), std::string::npos) << good.out;
-    const auto broken = shell(fmt::format(R"(/usr/bin/python3 - <<'EOF'
-import sqlite3
-c = sqlite3.connect({}, isolation_level=None)
-c.executescript("""
-DROP INDEX runs_by_axis;
-CREATE INDEX runs_by_axis ON runs (machine, axis, recorded_at) WHERE 0;
-PRAGMA writable_schema = ON;
-UPDATE sqlite_master SET sql = 'CREATE INDEX runs_by_axis ON runs (machine, axis, recorded_at)'
-  WHERE name = 'runs_by_axis';
-PRAGMA writable_schema = OFF;
-""")
-EOF
-)",
-                                          quoted(database_)));
-    ASSERT_EQ(broken.exit_code, 0) << broken.err;
+    // the index emptied (made as a partial index of no row), then declared whole again
+    execute(database_,
+            "DROP INDEX runs_by_axis;"
+            "CREATE INDEX runs_by_axis ON runs (machine, axis, recorded_at) WHERE 0;"
+            "PRAGMA writable_schema = ON;"
+            "UPDATE sqlite_master SET sql = 'CREATE INDEX runs_by_axis ON runs (machine, axis, recorded_at)' "
+            "WHERE name = 'runs_by_axis';"
+            "PRAGMA writable_schema = OFF;");
     const std::string bytes = read_text(database_);
     const auto verify = shell(fmt::format("{} history {} --verify", cli(), quoted(database_)));
     EXPECT_EQ(verify.exit_code, 2);

@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <sqlite3.h>
+
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
@@ -133,6 +135,18 @@ TEST(ResultSchema, AValueOfTheWrongTypeIsRefusedNamingItsKey) {
     EXPECT_EQ(schema_refusal(extended), "");
 }
 
+/// Executes SQL on a file through SQLite itself (to damage a history as a disk or another program might).
+void execute(const fs::path& path, const std::string& sql) {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+    char* message = nullptr;
+    const int code = sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &message);
+    const std::string text = message ? message : "";
+    sqlite3_free(message);
+    sqlite3_close(db);
+    ASSERT_EQ(code, SQLITE_OK) << text;
+}
+
 /// Runs a command that must be refused with exit 2 and one line naming `says`, leaving `untouched` as it was and
 /// creating none of `not_created`.
 void expect_refused(const std::string& arguments, const std::string& says, const fs::path& untouched,
@@ -210,12 +224,7 @@ TEST(ResultSchemaCli, ADamagedStoredDocumentIsNamedWhereItIsNeeded) {
                             folder)
                       .exit_code,
                   0);
-    const auto damaged =
-        run_shell(fmt::format("/usr/bin/python3 -c \"import sqlite3; c = sqlite3.connect('{}'); "
-                              "c.execute(\\\"UPDATE runs SET fit_json = '{{broken' WHERE id = 1\\\"); c.commit()\"",
-                              database.string()),
-                  folder);
-    ASSERT_EQ(damaged.exit_code, 0) << damaged.err;
+    execute(database, "UPDATE runs SET fit_json = '{broken' WHERE id = 1");
     for (const std::string& arguments :
          {fmt::format("history {}", quoted(database)), fmt::format("history {} --check", quoted(database)),
           fmt::format("history {} --csv -", quoted(database))}) {
