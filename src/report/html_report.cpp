@@ -32,10 +32,18 @@ constexpr const char* grey = "#555555";
 // browser to draw dozens of plots at once.
 constexpr std::size_t max_plot_points = 800;
 
-// Plots of a history hold at most this many points per series (a plot is 760 px wide): a long history is thinned to
-// the runs where a value is smallest or largest within each stretch of runs, as simulate thins its errors, so that no
-// outlier and no alarm is lost. The report of 10,000 runs stays a few MB.
+// Plots of a long history are thinned to the runs where a value is smallest or largest within each stretch of runs,
+// as simulate thins its errors, so that no outlier is lost; and the run where an alarm fired is kept. A series keeps
+// at most 400 points (a plot is 760 px wide), and all the history plots of a page together about 12,000, at least 100
+// per series: a report of 10,000 runs on a dozen axes stays a few MB.
 constexpr std::size_t max_history_points = 400;
+constexpr std::size_t min_history_points = 100;
+constexpr std::size_t page_history_points = 12000;
+
+/// The points each series of `plots` history plots may keep.
+std::size_t history_points_per_series(std::size_t plots) {
+    return std::clamp(page_history_points / std::max<std::size_t>(plots, 1), min_history_points, max_history_points);
+}
 
 /// Keeps the points `keep` (ascending) of a series: x, y, band and tooltips alike.
 void keep_points(Series& series, const std::vector<std::size_t>& keep) {
@@ -52,28 +60,44 @@ void keep_points(Series& series, const std::vector<std::size_t>& keep) {
     pick(series.x);  // last: the others are checked against its length
 }
 
-/// Thins series that share their x (the same runs) to at most max_history_points by min/max per bucket of their
-/// y, keeping the run where the alarm fired (the first highlighted); later highlights whose run is thinned away go.
-void thin_history_series(std::vector<Series*> together, std::vector<Highlight>& highlights) {
-    const std::size_t n = together.front()->x.size();
-    if (n <= max_history_points) return;
-    std::vector<std::span<const double>> columns;
-    for (const auto* series : together) columns.emplace_back(series->y);
-    auto keep = extreme_preserving_indices(columns, n, max_history_points - 1);
-    if (!highlights.empty()) {
-        const auto first = std::min_element(highlights.begin(), highlights.end(),
-                                            [](const Highlight& a, const Highlight& b) { return a.x < b.x; });
-        const auto& x = together.front()->x;
-        if (const auto at = std::find(x.begin(), x.end(), first->x); at != x.end()) {
-            const auto index = static_cast<std::size_t>(at - x.begin());
-            keep.insert(std::lower_bound(keep.begin(), keep.end(), index), index);
-            keep.erase(std::unique(keep.begin(), keep.end()), keep.end());
-        }
-    }
+/// Thins a history plot's series to `points` each by min/max per bucket of their y; series of one style drawn over the
+/// same runs (the CUSUM's S+ and S-, the two alarm limits) are thinned together. The run where the alarm fired (the
+/// first highlighted) stays; later highlights go with their runs.
+void thin_history_plot(Plot& plot, std::size_t points) {
+    const auto first_alarm = std::min_element(plot.highlights.begin(), plot.highlights.end(),
+                                              [](const Highlight& a, const Highlight& b) { return a.x < b.x; });
+    const std::optional<double> fired =
+        first_alarm == plot.highlights.end() ? std::nullopt : std::optional<double>(first_alarm->x);
     std::set<double> kept_x;
-    for (const auto i : keep) kept_x.insert(together.front()->x[i]);
-    for (auto* series : together) keep_points(*series, keep);
-    std::erase_if(highlights, [&](const Highlight& h) { return !kept_x.count(h.x); });
+    std::vector<bool> done(plot.series.size(), false);
+    for (std::size_t s = 0; s < plot.series.size(); ++s) {
+        if (done[s]) continue;
+        std::vector<Series*> together;
+        std::vector<std::span<const double>> columns;
+        for (std::size_t t = s; t < plot.series.size(); ++t)
+            if (!done[t] && plot.series[t].style == plot.series[s].style && plot.series[t].x == plot.series[s].x) {
+                done[t] = true;
+                together.push_back(&plot.series[t]);
+                columns.emplace_back(plot.series[t].y);
+            }
+        const auto& x = plot.series[s].x;
+        if (x.size() > points) {
+            auto keep = extreme_preserving_indices(columns, x.size(), points - 1);
+            if (const auto at = fired ? std::find(x.begin(), x.end(), *fired) : x.end(); at != x.end()) {
+                keep.push_back(static_cast<std::size_t>(at - x.begin()));
+                std::sort(keep.begin(), keep.end());
+                keep.erase(std::unique(keep.begin(), keep.end()), keep.end());
+            }
+            for (auto* series : together) keep_points(*series, keep);
+        }
+        kept_x.insert(plot.series[s].x.begin(), plot.series[s].x.end());
+    }
+    std::erase_if(plot.highlights, [&](const Highlight& h) { return !kept_x.count(h.x) && h.x != fired; });
+}
+
+/// Whether a plot of the history is one of the per-run plots that thinning applies to.
+bool per_run_plot(const Plot& plot) {
+    return plot.id.starts_with("trend-") || plot.id.starts_with("cusum-");
 }
 
 std::string slug(const std::string& text) {
@@ -413,11 +437,6 @@ Plot trend_plot(const history::ParameterTrend& parameter, const AxisRuns& axis, 
             values.highlights.push_back(
                 {x, *point.value, fmt::format("drift alarm at run #{} ({})", point.run_id, point.recorded_at)});
     }
-    thin_history_series({&series}, values.highlights);
-    if (upper.x.size() > max_history_points) {
-        std::vector<Highlight> none;
-        thin_history_series({&upper, &lower}, none);
-    }
     values.series.push_back(std::move(series));
     if (!upper.x.empty()) {
         values.series.push_back(std::move(upper));
@@ -457,7 +476,6 @@ std::optional<Plot> cusum_plot(const history::ParameterTrend& parameter, const A
                 {x, std::max(point.cusum_up, point.cusum_down), fmt::format("drift alarm at run #{}", point.run_id)});
     }
     if (up.x.empty()) return std::nullopt;
-    thin_history_series({&up, &down}, cusum.highlights);
     cusum.series.push_back(std::move(up));
     cusum.series.push_back(std::move(down));
     cusum.horizontal.push_back(
@@ -478,8 +496,11 @@ std::optional<Plot> latest_friction_plot(const AxisRuns& axis) {
 
 }  // namespace
 
-std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
-                                const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options) {
+namespace {
+
+std::vector<Plot> unthinned_history_plots(const std::vector<history::RunRecord>& runs,
+                                          const std::vector<history::SeriesTrend>& trends,
+                                          const history::TrendOptions& options) {
     std::vector<Plot> plots;
     for (const auto& trend : trends) {
         const AxisRuns axis = axis_runs(runs, trend);
@@ -490,6 +511,22 @@ std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
         }
         if (auto curve = latest_friction_plot(axis)) plots.push_back(std::move(*curve));
     }
+    return plots;
+}
+
+/// Thins the per-run plots among `plots` to the points a page of `page_plots` such plots allows each series.
+void thin_history_plots(std::vector<Plot>& plots, std::size_t page_plots) {
+    const std::size_t points = history_points_per_series(page_plots);
+    for (auto& plot : plots)
+        if (per_run_plot(plot)) thin_history_plot(plot, points);
+}
+
+}  // namespace
+
+std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
+                                const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options) {
+    auto plots = unthinned_history_plots(runs, trends, options);
+    thin_history_plots(plots, static_cast<std::size_t>(std::count_if(plots.begin(), plots.end(), per_run_plot)));
     return plots;
 }
 
@@ -719,7 +756,17 @@ std::string history_report_html(const std::vector<history::RunRecord>& runs,
         escape_xml(source), runs.size(), trends.size(), options.baseline_runs, options.cusum_k, options.cusum_h);
     body += alarm_count == 0 ? std::string("<p>No drift alarm.</p>\n")
                              : fmt::format("<p class=\"alarm\">{} drift alarm(s).</p>\n", alarm_count);
+    // Every axis's plots first: how many the page holds decides how far each is thinned.
+    std::vector<std::vector<Plot>> axis_plots;
+    std::size_t page_plots = 0;
     for (const auto& trend : trends) {
+        axis_plots.push_back(unthinned_history_plots(runs, {trend}, options));
+        page_plots +=
+            static_cast<std::size_t>(std::count_if(axis_plots.back().begin(), axis_plots.back().end(), per_run_plot));
+    }
+    for (auto& plots : axis_plots) thin_history_plots(plots, page_plots);
+    for (std::size_t t = 0; t < trends.size(); ++t) {
+        const auto& trend = trends[t];
         body += fmt::format("<h2>Machine {} — axis {}</h2>\n", escape_xml(trend.machine), escape_xml(trend.axis));
         if (!trend.alarms.empty()) {
             body += "<ul>\n";
@@ -737,7 +784,7 @@ std::string history_report_html(const std::vector<history::RunRecord>& runs,
                 for (const auto& [key, estimate] : run.parameters) keys.insert(key);
             }
         body += runs_table(trend, series_runs, keys);
-        for (const auto& plot : history_plots(runs, {trend}, options)) {
+        for (const auto& plot : axis_plots[t]) {
             std::string caption;
             if (plot.id.rfind("trend-", 0) == 0)
                 caption =
