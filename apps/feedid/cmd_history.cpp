@@ -263,7 +263,10 @@ int run_history(HistoryArguments& arguments) {
 
     const auto detail = arguments.json_path.empty() ? history::RunDetail::summary : history::RunDetail::documents;
     const auto runs = store->runs(arguments.filter, detail);
-    const auto trends = history::analyse_trends(runs, store->pins(), arguments.trend);
+    // a CSV listing needs no trend
+    const bool trended = !arguments.json_path.empty() || arguments.check || listing;
+    const auto trends = trended ? history::analyse_trends(runs, store->pins(), arguments.trend)
+                                : std::vector<history::SeriesTrend>{};
     std::size_t alarms = 0;
     for (const auto& series : trends) alarms += series.alarms.size();
     if (!arguments.json_path.empty())
