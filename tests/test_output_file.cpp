@@ -187,6 +187,12 @@ TEST(OutputFileCli, AWriteThatFailsHalfWayLeavesTheOldFileWhole) {
     EXPECT_EQ(r.exit_code, 2) << r.err;
     EXPECT_NE(r.err.find(report.string() + ": cannot write the file: File too large"), std::string::npos) << r.err;
     EXPECT_EQ(read_text(report), "the old report\n");
+    // a new file that cannot be written whole is not made at all (it was left empty)
+    const auto fresh = folder / "new.html";
+    const auto r2 = run_shell(
+        fmt::format("trap '' XFSZ; ulimit -f 1; {} report {} -o {}", cli(), quoted(results[0]), quoted(fresh)), folder);
+    EXPECT_EQ(r2.exit_code, 2) << r2.err;
+    EXPECT_FALSE(fs::exists(fresh));
     EXPECT_TRUE(temporaries_in(folder).empty());
 }
 
@@ -194,6 +200,12 @@ TEST(OutputFileCli, AWriteThatFailsHalfWayLeavesTheOldFileWhole) {
 TEST(OutputFileCli, AFullDiskLeavesTheOldFileWhole) {
     const auto folder = temp_dir();
     const auto results = write_small_results(folder, "run", 1);
+    const auto database = folder / "shop.db";
+    ASSERT_EQ(run_shell(fmt::format("{} history {} --record {} --machine M --axis X", cli(), quoted(database),
+                                    quoted(results[0])),
+                        folder)
+                  .exit_code,
+              0);
     const auto script = folder / "full-disk.sh";
     write_text(script, fmt::format(R"(set -e
 disk={0}/disk
@@ -204,17 +216,45 @@ head -c 262144 /dev/zero > "$disk/filler" 2>/dev/null || true
 set +e
 {1} report {2} -o "$disk/report.html"
 echo "exit $?"
+{1} history {3} --csv "$disk/new.csv"
+echo "csv exit $?"
 cat "$disk/report.html"
 ls -a "$disk"
 )",
-                                   folder.string(), cli(), quoted(results[0])));
+                                   folder.string(), cli(), quoted(results[0]), quoted(database)));
     const auto r = run_shell(fmt::format("unshare -m sh {}", quoted(script)), folder);
     if (r.exit_code == 77 || r.out.find("exit") == std::string::npos)
         GTEST_SKIP() << "cannot mount a tmpfs here (needs CAP_SYS_ADMIN): " << r.err;
     EXPECT_NE(r.out.find("exit 2"), std::string::npos) << r.out << r.err;
     EXPECT_NE(r.err.find("report.html: cannot write the file: No space left on device"), std::string::npos) << r.err;
     EXPECT_NE(r.out.find("the old report\n"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("csv exit 2"), std::string::npos) << r.out << r.err;
+    EXPECT_EQ(r.out.find("new.csv"), std::string::npos) << "an empty file was left: " << r.out;
     EXPECT_EQ(r.out.find(".feedid-"), std::string::npos) << "a temporary was left: " << r.out;
+}
+
+// A file the user may write in a folder they may not: it is not overwritten in place (that would not be atomic);
+// the message says which folder.
+TEST(OutputFileCli, AFolderThatIsNotWritableIsNamed) {
+    if (::geteuid() != 0 || !fs::exists("/usr/bin/setpriv"))
+        GTEST_SKIP() << "needs root and setpriv to run feedid as another user (uid 65534)";
+    const auto folder = temp_dir();
+    const auto results = write_small_results(folder, "run", 1);
+    const auto locked = folder / "locked";
+    fs::create_directories(locked);
+    const auto report = locked / "report.html";
+    write_text(report, "the old report\n");
+    fs::permissions(report, fs::perms::all);  // anyone may write the file, only root the folder
+    fs::permissions(folder, fs::perms::all);  // the captured output lands here
+    const auto r =
+        run_shell(fmt::format("/usr/bin/setpriv --reuid=65534 --regid=65534 --clear-groups {} report {} -o {}", cli(),
+                              quoted(results[0]), quoted(report)),
+                  folder);
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_NE(r.err.find("cannot write the file: the folder " + locked.string() + " is not writable"),
+              std::string::npos)
+        << r.err;
+    EXPECT_EQ(read_text(report), "the old report\n");
 }
 
 /// Starts the feedid binary with `arguments` (stdout and stderr to /dev/null); its pid.

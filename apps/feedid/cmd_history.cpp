@@ -344,7 +344,8 @@ Action add_history_command(CLI::App& app) {
         "  feedid history shop.db --add result.json --machine DMU50 --axis X --recorded-at 2026-11-23T09:00:00Z\n"
         "  feedid history shop.db --machine DMU50 --axis X\n"
         "  feedid history shop.db --check          # nightly: exit 1 and name machine, axis, parameter, run on drift\n"
-        "  feedid history shop.db --pin 42        # after maintenance: baseline starts again at run 42");
+        "  feedid history shop.db --pin 42        # after maintenance: baseline starts again at run 42\n"
+        "  feedid history shop.db --verify        # the whole file: SQLite's integrity check, every stored document");
     return [arguments, json, csv] {
         if (json->count() > 0 && arguments->json_path.empty()) arguments->json_path = "-";
         if (csv->count() > 0 && arguments->csv_path.empty()) arguments->csv_path = "-";

@@ -28,6 +28,17 @@ std::string reason(int error) {
     throw InputError(fmt::format("{}: cannot write the file: {}", path.string(), reason(error)));
 }
 
+/// A temporary that cannot be made: a folder the user may not write is said as such (the file itself may be
+/// writable, but it is replaced, never written in place).
+[[noreturn]] void fail_in_folder(const fs::path& target, const fs::path& folder, int error) {
+    if (error == EACCES || error == EPERM)
+        throw InputError(
+            fmt::format("{}: cannot write the file: the folder {} is not writable (feedid writes a new "
+                        "file beside the old one and renames it over)",
+                        target.string(), folder.string()));
+    fail(target, error);
+}
+
 /// Writes all of `text`; the errno of the first failed write, 0 when everything was written.
 int write_all(int fd, std::string_view text) {
     while (!text.empty()) {
@@ -150,9 +161,9 @@ void replace_regular_file(const fs::path& target, std::string_view text, const s
     int fd = ::open(folder.c_str(), O_TMPFILE | O_WRONLY | O_CLOEXEC, 0666);
     const bool anonymous = fd >= 0;
     if (!anonymous) {
-        if (errno != EOPNOTSUPP && errno != EISDIR && errno != EINVAL) fail(target, errno);
+        if (errno != EOPNOTSUPP && errno != EISDIR && errno != EINVAL) fail_in_folder(target, folder, errno);
         fd = ::open(temporary.c_str(), O_CREAT | O_EXCL | O_WRONLY | O_CLOEXEC, 0666);
-        if (fd < 0) fail(target, errno);
+        if (fd < 0) fail_in_folder(target, folder, errno);
     }
     bool named = !anonymous;
     const auto give_up = [&](int error) {
