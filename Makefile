@@ -25,6 +25,7 @@ test: SETUP_FLAGS = --extra
 test: build
 	@cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 
+bench: SETUP_FLAGS = --extra
 bench: build
 	@for b in $(BUILD)/bench/bench_*; do [ -x "$$b" ] && "$$b"; done
 

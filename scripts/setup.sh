@@ -2,13 +2,14 @@
 # Installs what feedid needs to build and test, from Debian's packages. Run as root it installs what is missing;
 # otherwise it prints the one apt command to run and fails.
 #   scripts/setup.sh          build and test dependencies
-#   scripts/setup.sh --extra  also the optional test tools (LinuxCNC's interpreter, Chromium) where installable
+#   scripts/setup.sh --extra  also the optional test tools (LinuxCNC's interpreter, Chromium) where installable, and
+#                             pandas for the Python side of bench_history
 set -euo pipefail
 
 packages=(cmake g++ make pkg-config libeigen3-dev libcli11-dev libfmt-dev nlohmann-json3-dev libfast-float-dev
           libmatio-dev zlib1g-dev libpugixml-dev libsqlite3-dev libssl-dev libgtest-dev libgmock-dev libbenchmark-dev
           libtomlplusplus-dev)
-extra=(linuxcnc-uspace chromium clang libclang-rt-14-dev universal-ctags)
+extra=(linuxcnc-uspace chromium clang libclang-rt-14-dev universal-ctags python3-pandas)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -112,17 +112,21 @@ bool gains_document_is_rotary(const nlohmann::json& document) {
 }
 
 ControllerModel controller_from_document(const nlohmann::json& document, const std::string& source) {
+    // A number, or {"value": number}; absent or null is nothing, anything else is refused naming the key.
     const auto value_of = [&](const nlohmann::json& parent, const char* key) -> std::optional<double> {
         if (!parent.is_object() || !parent.contains(key)) return std::nullopt;
         const auto& entry = parent[key];
         const auto& value = entry.is_object() ? entry.value("value", nlohmann::json()) : entry;
         if (value.is_number()) return value.get<double>();
+        if (!value.is_null()) throw InputError(fmt::format("{}: {}: must be a number or null", source, key));
         return std::nullopt;
     };
     if (!document.is_object() || !document.contains("gains")) {
         throw InputError(fmt::format("{}: not a gains document (no \"gains\" object)", source));
     }
     const auto& gains = document["gains"];
+    if (document.contains("rotary") && !document["rotary"].is_boolean())
+        throw InputError(fmt::format("{}: rotary: must be true or false", source));
     const ParameterNaming naming{gains_document_is_rotary(document)};
     ControllerModel model;
     const auto kv = value_of(gains, "position_gain_per_s");

@@ -8,6 +8,7 @@
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
+#include "feedid/io/json_input.hpp"
 
 namespace feedid {
 
@@ -73,12 +74,6 @@ void to_json(Json& j, const NonlinearFitReport& n) {
 namespace {
 
 constexpr std::array<const char*, 2> kDirections{"forward", "reverse"};
-
-/// A number that may have been written as null (NaN and infinities are).
-double number(const Json& j, const char* key) {
-    if (!j.contains(key)) return std::numeric_limits<double>::quiet_NaN();
-    return j.at(key).get<std::optional<double>>().value_or(std::numeric_limits<double>::quiet_NaN());
-}
 
 template <class T>
 Json keyed(const std::vector<std::string>& keys, const std::vector<T>& values) {
@@ -190,191 +185,236 @@ void to_json(Json& document, const IdentifyResult& result) {
     if (!result.options.is_null()) document["options"] = result.options;
 }
 
-// ---- reading a document back
-
-void from_json(const Json& j, TraceSummary& t) {
-    t.path = j.value("path", std::string());
-    t.format = j.value("format", std::string());
-    t.samples = j.value("samples", std::size_t{0});
-    t.sample_time_s = number(j, "sample_time_s");
-    t.duration_s = number(j, "duration_s");
-}
-
-void from_json(const Json& j, PreprocessReport& p) {
-    p.differentiation = j.at("differentiation").get<std::string>();
-    p.filter_order = j.at("filter_order").get<int>();
-    p.cutoff_hz = number(j, "cutoff_hz");
-    p.decimation = j.at("decimation").get<int>();
-    p.edge_samples = j.at("edge_samples").get<std::size_t>();
-    p.velocity_source = j.value("velocity_source", std::string("position"));  // documents before it existed
-    p.savitzky_golay_window = j.value("savitzky_golay_window", 0);
-    p.savitzky_golay_order = j.value("savitzky_golay_order", 0);
-}
-
-void from_json(const Json& j, SelectionReport& s) {
-    s.total = j.at("total").get<std::size_t>();
-    s.window = j.at("window").get<std::size_t>();
-    s.moving = j.at("moving").get<std::size_t>();
-    s.step1 = j.at("step1").get<std::size_t>();
-    s.step2 = j.at("step2").get<std::size_t>();
-    s.moving_threshold = number(j, "moving_threshold");
-    s.split_velocity = number(j, "split_velocity");
-    s.initial_split = j.contains("initial_split_velocity") ? number(j, "initial_split_velocity") : s.split_velocity;
-    // documents before stick-slip detection and clip detection hold none of these
-    s.passes = j.value("passes", std::size_t{0});
-    s.stick_slip_passes = j.value("stick_slip_passes", std::size_t{0});
-    s.stick_slip_samples = j.value("stick_slip_samples", std::size_t{0});
-    s.clipped = j.value("clipped", std::size_t{0});
-    s.near_rest = j.value("near_rest", std::size_t{0});
-    s.notes = j.at("notes").get<std::vector<std::string>>();
-}
-
-void from_json(const Json& j, LogLinearStribeck& l) {
-    l.breakaway = j.at("breakaway").get<std::optional<double>>();
-    l.stribeck_velocity = j.at("stribeck_velocity").get<std::optional<double>>();
-    l.used = j.at("samples_used").get<std::size_t>();
-    l.wrong_sign = j.at("excluded_wrong_sign").get<std::size_t>();
-    l.below_noise = j.at("excluded_below_noise").get<std::size_t>();
-}
-
-void from_json(const Json& j, NonlinearFitReport& n) {
-    n.method = j.at("method").get<std::string>();
-    n.converged = j.at("converged").get<bool>();
-    n.relative_error_pct = number(j, "relative_error_pct");
-    n.residual_std = number(j, "residual_std");
-    n.samples_used = j.at("samples_used").get<std::size_t>();
-    n.function_evaluations = j.at("function_evaluations").get<int>();
-}
+// ---- reading a document back: every value's type checked (JsonField), an error naming the key
 
 namespace {
 
+/// A member that may be absent: NaN then, as for null (non-finite numbers are written as null).
+double number_or_nan(const JsonField& record, const char* key) {
+    const auto member = record.find(key);
+    return member ? member->number() : std::numeric_limits<double>::quiet_NaN();
+}
+
+/// {"value": v|null, "stderr": s|null}; "stderr", "systematic" and "uncertainty" may be absent. Every one present
+/// must be a number or null; other keys are left for later versions.
+Estimate read_estimate(const JsonField& entry) {
+    entry.object();
+    Estimate estimate;
+    estimate.value = entry.at("value").optional_number();
+    if (const auto error = entry.find("stderr")) estimate.standard_error = error->optional_number();
+    if (const auto member = entry.find("systematic")) estimate.systematic = member->optional_number();
+    if (const auto member = entry.find("uncertainty")) estimate.uncertainty = member->optional_number();
+    return estimate;
+}
+
+TraceSummary read_trace_summary(const JsonField& j) {
+    j.object();
+    TraceSummary t;
+    if (const auto v = j.find("path")) t.path = v->text();
+    if (const auto v = j.find("format")) t.format = v->text();
+    if (const auto v = j.find("samples")) t.samples = v->count();
+    t.sample_time_s = number_or_nan(j, "sample_time_s");
+    t.duration_s = number_or_nan(j, "duration_s");
+    return t;
+}
+
+PreprocessReport read_preprocess(const JsonField& j) {
+    PreprocessReport p;
+    p.differentiation = j.at("differentiation").text();
+    p.filter_order = j.at("filter_order").integer();
+    p.cutoff_hz = number_or_nan(j, "cutoff_hz");
+    p.decimation = j.at("decimation").integer();
+    p.edge_samples = j.at("edge_samples").count();
+    // documents before it existed
+    p.velocity_source = j.has("velocity_source") ? j.at("velocity_source").text() : std::string("position");
+    if (const auto v = j.find("savitzky_golay_window")) p.savitzky_golay_window = v->integer();
+    if (const auto v = j.find("savitzky_golay_order")) p.savitzky_golay_order = v->integer();
+    return p;
+}
+
+SelectionReport read_selection(const JsonField& j) {
+    SelectionReport s;
+    s.total = j.at("total").count();
+    s.window = j.at("window").count();
+    s.moving = j.at("moving").count();
+    s.step1 = j.at("step1").count();
+    s.step2 = j.at("step2").count();
+    s.moving_threshold = number_or_nan(j, "moving_threshold");
+    s.split_velocity = number_or_nan(j, "split_velocity");
+    s.initial_split = j.has("initial_split_velocity") ? number_or_nan(j, "initial_split_velocity") : s.split_velocity;
+    // documents before stick-slip and clip detection hold none of these
+    const auto count = [&](const char* key) { return j.has(key) ? j.at(key).count() : std::size_t{0}; };
+    s.passes = count("passes");
+    s.stick_slip_passes = count("stick_slip_passes");
+    s.stick_slip_samples = count("stick_slip_samples");
+    s.clipped = count("clipped");
+    s.near_rest = count("near_rest");
+    s.notes = j.at("notes").texts();
+    return s;
+}
+
+LogLinearStribeck read_log_linear(const JsonField& j) {
+    LogLinearStribeck l;
+    l.breakaway = j.at("breakaway").optional_number();
+    l.stribeck_velocity = j.at("stribeck_velocity").optional_number();
+    l.used = j.at("samples_used").count();
+    l.wrong_sign = j.at("excluded_wrong_sign").count();
+    l.below_noise = j.at("excluded_below_noise").count();
+    return l;
+}
+
+NonlinearFitReport read_nonlinear(const JsonField& j) {
+    NonlinearFitReport n;
+    n.method = j.at("method").text();
+    n.converged = j.at("converged").boolean();
+    n.relative_error_pct = number_or_nan(j, "relative_error_pct");
+    n.residual_std = number_or_nan(j, "residual_std");
+    n.samples_used = j.at("samples_used").count();
+    n.function_evaluations = j.at("function_evaluations").integer();
+    return n;
+}
+
+/// "ok", "partial" or "failed" (or a status a later version of the enum adds): the text must read back as itself.
+Status read_status(const JsonField& j) {
+    const std::string text = j.text();
+    const Status status = nlohmann::json(text).get<Status>();
+    if (text != to_string(status))
+        throw InputError(fmt::format("{}: must be \"ok\", \"partial\" or \"failed\", not \"{}\"", j.path(), text));
+    return status;
+}
+
 /// The parameters of the document, in feedid's order, with the model they imply.
-void read_parameters(const Json& j, IdentifyResult& r) {
-    const Json& parameters = j.at("parameters");
-    bool asymmetric = j.value("model", std::string()) == "asymmetric", offset = false, rotary_keys = false;
-    for (const auto& [key, entry] : parameters.items()) {
+void read_parameters(const JsonField& j, IdentifyResult& r) {
+    const JsonField parameters = j.at("parameters").object();
+    bool asymmetric = j.has("model") && j.at("model").text() == "asymmetric";
+    bool offset = false;
+    bool rotary_keys = false;
+    for (const auto& [key, entry] : parameters.members()) {
         const auto meaning = parse_parameter_key(key);
         if (!meaning) throw InputError(fmt::format("parameter \"{}\" is not one of feedid's model", key));
         asymmetric = asymmetric || (meaning->direction != Direction::both && meaning->term != Term::mass);
         offset = offset || meaning->term == Term::offset;
         rotary_keys = rotary_keys || meaning->rotary;
     }
-    r.rotary = j.contains("rotary") ? j.at("rotary").get<bool>() : rotary_keys;
+    r.rotary = j.has("rotary") ? j.at("rotary").boolean() : rotary_keys;
     r.model = asymmetric ? FrictionModelKind::asymmetric : FrictionModelKind::symmetric;
     r.offset = offset;
     r.parameters = model_parameters(r.model, r.offset, r.rotary);
-    for (const auto& [key, entry] : parameters.items()) {
+    for (const auto& [key, entry] : parameters.members()) {
         auto it =
             std::find_if(r.parameters.begin(), r.parameters.end(), [&](const Parameter& p) { return p.key == key; });
         if (it == r.parameters.end()) {
             throw InputError(fmt::format("parameter \"{}\" does not belong to a {} {} model", key, r.model_name(),
                                          r.rotary ? "rotary" : "linear"));
         }
-        it->estimate = entry.get<Estimate>();
+        it->estimate = read_estimate(entry);
     }
     r.axis = axis_from_parameters(r.parameters, r.model, r.rotary);
 }
 
-Step1Report read_step1(const Json& fit, const Json& step1) {
+Step1Report read_step1(const JsonField& fit, const JsonField& step1) {
     Step1Report s;
-    s.relative_error_pct = number(fit, "relative_error_pct");
-    s.condition_number = number(fit, "condition_number");
-    s.samples_used = fit.at("samples_used").get<std::size_t>();
-    s.residual_std = number(fit, "residual_std");
-    for (const auto& value : fit.at("r_diagonal"))
-        s.r_diagonal.push_back(value.get<std::optional<double>>().value_or(NAN));
-    for (const auto& [key, entry] : step1.at("batch").items()) {
+    s.relative_error_pct = number_or_nan(fit, "relative_error_pct");
+    s.condition_number = number_or_nan(fit, "condition_number");
+    s.samples_used = fit.at("samples_used").count();
+    s.residual_std = number_or_nan(fit, "residual_std");
+    s.r_diagonal = fit.at("r_diagonal").numbers();
+    const auto white = step1.find("white_noise_stderr");
+    for (const auto& [key, entry] : step1.at("batch").members()) {
         s.keys.push_back(key);
-        s.batch.push_back(entry.get<Estimate>());
-        if (step1.contains("white_noise_stderr"))
-            s.white_noise_standard_error.push_back(number(step1.at("white_noise_stderr"), key.c_str()));
+        s.batch.push_back(read_estimate(entry));
+        if (white) s.white_noise_standard_error.push_back(number_or_nan(white->object(), key.c_str()));
     }
-    if (fit.contains("correlations")) {
-        const Json& correlations = fit.at("correlations");
+    if (const auto correlations = fit.find("correlations")) {
+        correlations->object();
         s.correlation.assign(s.keys.size(), std::vector<double>(s.keys.size(), 1.0));
         for (std::size_t i = 0; i < s.keys.size(); ++i) {
-            for (std::size_t j = 0; j < s.keys.size(); ++j) {
-                if (i != j) s.correlation[i][j] = number(correlations.at(s.keys[i]), s.keys[j].c_str());
+            const JsonField row = correlations->at(s.keys[i]).object();
+            for (std::size_t k = 0; k < s.keys.size(); ++k) {
+                if (i != k) s.correlation[i][k] = number_or_nan(row, s.keys[k].c_str());
             }
         }
     }
     return s;
 }
 
-SystematicReport read_systematic(const Json& j) {
+SystematicReport read_systematic(const JsonField& j) {
     SystematicReport report;
-    for (const auto& v : j.at("variants")) {
-        SystematicVariant variant{v.at("preprocessing").get<std::string>(), v.at("status").get<Status>(), {}, {}};
-        for (const auto& [key, value] : v.at("parameters").items()) {
+    for (const auto& v : j.object().at("variants").elements()) {
+        SystematicVariant variant{v.at("preprocessing").text(), read_status(v.at("status")), {}, {}};
+        for (const auto& [key, value] : v.at("parameters").object().members()) {
             variant.keys.push_back(key);
-            variant.values.push_back(value.get<std::optional<double>>());
+            variant.values.push_back(value.optional_number());
         }
         report.variants.push_back(std::move(variant));
     }
     return report;
 }
 
-RlsReport read_rls(const Json& j) {
+RlsReport read_rls(const JsonField& j) {
     RlsReport r;
-    r.options.variant =
-        j.at("variant").get<std::string>() == "exponential" ? RlsVariant::exponential : RlsVariant::directional;
-    r.options.forgetting_factor = number(j, "forgetting_factor");
-    r.options.initial_covariance = number(j, "initial_covariance");
-    r.settled = j.at("settled").get<bool>();
-    r.transient_end_s = number(j, "transient_end_s");
+    const std::string variant = j.at("variant").text();
+    if (variant != "exponential" && variant != "directional")
+        throw InputError(fmt::format("{}.variant: \"{}\" is not exponential or directional", j.path(), variant));
+    r.options.variant = variant == "exponential" ? RlsVariant::exponential : RlsVariant::directional;
+    r.options.forgetting_factor = number_or_nan(j, "forgetting_factor");
+    r.options.initial_covariance = number_or_nan(j, "initial_covariance");
+    r.settled = j.at("settled").boolean();
+    r.transient_end_s = number_or_nan(j, "transient_end_s");
     // the history store keeps results without the RLS history (it is bulky): then it reads back empty
-    const Json history = j.value("history", Json::object());
-    r.history_time = history.value("time_s", std::vector<double>{});
-    for (const auto& [key, value] : j.at("final").items()) {
+    const auto history = j.find("history");
+    if (history) {
+        history->object();
+        if (const auto time = history->find("time_s")) r.history_time = time->numbers();
+    }
+    const JsonField averaged = j.at("averaged").object();
+    for (const auto& [key, value] : j.at("final").members()) {
         r.keys.push_back(key);
-        r.final_estimate.push_back(value.get<std::optional<double>>().value_or(NAN));
-        r.averaged.push_back(number(j.at("averaged"), key.c_str()));
-        std::vector<double> series;
-        if (history.contains(key)) {
-            for (const auto& v : history.at(key)) series.push_back(v.get<std::optional<double>>().value_or(NAN));
-        }
-        r.history.push_back(std::move(series));
+        r.final_estimate.push_back(value.number());
+        r.averaged.push_back(number_or_nan(averaged, key.c_str()));
+        const auto series = history ? history->find(key) : std::nullopt;
+        r.history.push_back(series ? series->numbers() : std::vector<double>{});
     }
     return r;
 }
 
-StribeckReport read_stribeck(const Json& j) {
+StribeckReport read_stribeck(const JsonField& j) {
     StribeckReport s;
     for (std::size_t g = 0; g < 2; ++g) {
-        if (j.contains(kDirections[g]))
-            s.log_linear[g] = j.at(kDirections[g]).at("log_linear").get<LogLinearStribeck>();
+        if (const auto side = j.object().find(kDirections[g]))
+            s.log_linear[g] = read_log_linear(side->at("log_linear"));
     }
-    if (j.contains("nonlinear")) s.nonlinear = j.at("nonlinear").get<NonlinearFitReport>();
+    if (const auto nonlinear = j.find("nonlinear")) s.nonlinear = read_nonlinear(*nonlinear);
     return s;
 }
 
-FrictionCurveReport read_friction_curve(const Json& j, const ParameterNaming& naming) {
+FrictionCurveReport read_friction_curve(const JsonField& j, const ParameterNaming& naming) {
     FrictionCurveReport c;
     const std::array<std::optional<FrictionCurvePoints>*, 2> sides{&c.forward, &c.reverse};
     for (std::size_t g = 0; g < 2; ++g) {
-        if (!j.contains(kDirections[g])) continue;
-        const Json& side = j.at(kDirections[g]);
-        *sides[g] = FrictionCurvePoints{side.at(naming.curve_velocity_key()).get<std::vector<double>>(),
-                                        side.at(naming.curve_force_key()).get<std::vector<double>>(),
-                                        side.at("fitted_" + naming.curve_force_key()).get<std::vector<double>>()};
+        const auto side = j.object().find(kDirections[g]);
+        if (!side) continue;
+        *sides[g] = FrictionCurvePoints{side->at(naming.curve_velocity_key()).numbers(),
+                                        side->at(naming.curve_force_key()).numbers(),
+                                        side->at("fitted_" + naming.curve_force_key()).numbers()};
     }
     return c;
 }
 
-void read_records(const Json& j, IdentifyResult& r) {
-    if (j.contains("preprocessing")) r.preprocessing = j.at("preprocessing").get<PreprocessReport>();
-    if (j.contains("selection")) r.selection = j.at("selection").get<SelectionReport>();
-    if (j.contains("fit") && j.contains("step1")) r.step1 = read_step1(j.at("fit"), j.at("step1"));
-    if (j.contains("rls")) r.rls = read_rls(j.at("rls"));
-    if (j.contains("stribeck")) r.stribeck = read_stribeck(j.at("stribeck"));
-    if (j.contains("friction_only")) {
-        const Json& f = j.at("friction_only");
-        r.friction_only = FrictionOnlyReport{f.at("reason").get<std::string>(), f.at("samples_used").get<std::size_t>(),
-                                             number(f, "relative_error_pct"), number(f, "residual_std")};
+void read_records(const JsonField& j, IdentifyResult& r) {
+    if (const auto v = j.find("preprocessing")) r.preprocessing = read_preprocess(v->object());
+    if (const auto v = j.find("selection")) r.selection = read_selection(v->object());
+    if (j.has("fit") && j.has("step1")) r.step1 = read_step1(j.at("fit").object(), j.at("step1").object());
+    if (const auto v = j.find("rls")) r.rls = read_rls(v->object());
+    if (const auto v = j.find("stribeck")) r.stribeck = read_stribeck(*v);
+    if (const auto v = j.find("friction_only")) {
+        v->object();
+        r.friction_only =
+            FrictionOnlyReport{v->at("reason").text(), v->at("samples_used").count(),
+                               number_or_nan(*v, "relative_error_pct"), number_or_nan(*v, "residual_std")};
     }
-    if (j.contains("friction_curve"))
-        r.friction_curve = read_friction_curve(j.at("friction_curve"), ParameterNaming{r.rotary});
-    if (j.contains("systematic")) r.systematic = read_systematic(j.at("systematic"));
+    if (const auto v = j.find("friction_curve")) r.friction_curve = read_friction_curve(*v, ParameterNaming{r.rotary});
+    if (const auto v = j.find("systematic")) r.systematic = read_systematic(*v);
 }
 
 }  // namespace
@@ -383,24 +423,21 @@ void from_json(const Json& document, IdentifyResult& result) {
     if (!document.is_object() || !document.contains("parameters") || !document.at("parameters").is_object()) {
         throw InputError("not an identify result (no \"parameters\" object)");
     }
+    const JsonField j(document, "");
     IdentifyResult r;
-    try {
-        read_parameters(document, r);
-        r.feedid_version = document.value("feedid_version", std::string());
-        if (document.contains("trace")) r.trace = document.at("trace").get<TraceSummary>();
-        r.diagnostics = document.value("diagnostics", std::vector<std::string>{});
-        if (document.contains("status")) {
-            r.status = document.at("status").get<Status>();
-        } else {
-            const bool any_null = std::any_of(r.parameters.begin(), r.parameters.end(),
-                                              [](const Parameter& p) { return !p.estimate.value; });
-            r.status = any_null ? Status::partial : Status::ok;
-        }
-        read_records(document, r);
-        if (document.contains("options")) r.options = document.at("options");
-    } catch (const Json::exception& e) {
-        throw InputError(fmt::format("not a readable identify result: {}", e.what()));
+    read_parameters(j, r);
+    if (const auto v = j.find("feedid_version")) r.feedid_version = v->text();
+    if (const auto v = j.find("trace")) r.trace = read_trace_summary(*v);
+    if (const auto v = j.find("diagnostics")) r.diagnostics = v->texts();
+    if (const auto v = j.find("status")) {
+        r.status = read_status(*v);
+    } else {
+        const bool any_null =
+            std::any_of(r.parameters.begin(), r.parameters.end(), [](const Parameter& p) { return !p.estimate.value; });
+        r.status = any_null ? Status::partial : Status::ok;
     }
+    read_records(j, r);
+    if (const auto v = j.find("options")) r.options = v->object().json();
     result = std::move(r);
 }
 

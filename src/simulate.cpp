@@ -330,13 +330,15 @@ void simulate(const AxisModel& axis, const ControllerModel& model, const Simulat
 
 namespace {
 
-// A number from `parent[key]`, either {"value": x} or x; nullopt when absent or null.
+// A number from `parent[key]`, either {"value": x} or x; nullopt when absent or null. InputError naming the key when
+// it is something else (a text, a list).
 std::optional<double> number_at(const nlohmann::json& parent, const std::string& key) {
     if (!parent.is_object()) return std::nullopt;
     const auto found = parent.find(key);
     if (found == parent.end()) return std::nullopt;
     const nlohmann::json& entry = found->is_object() ? found->value("value", nlohmann::json()) : *found;
     if (entry.is_number()) return entry.get<double>();
+    if (!entry.is_null()) throw InputError(fmt::format("{}: must be a number or null", key));
     return std::nullopt;
 }
 
@@ -385,15 +387,15 @@ AxisModel axis_from_result(const nlohmann::json& document, const std::string& so
     return axis;
 }
 
-}  // namespace
-
-AxisModel axis_from_document(const nlohmann::json& document, const std::string& source) {
-    if (!document.is_object()) throw InputError(fmt::format("{}: not a JSON object", source));
-    if (document.contains("parameters")) return axis_from_result(document, source);
+/// The axis of a drive file (feedid synth --drive): the values under "axis" or at the top.
+AxisModel axis_from_drive_file(const nlohmann::json& document, const std::string& source) {
     // A drive file (feedid synth) gives the values under "axis" or at the top, as numbers or {value} objects.
     const nlohmann::json& parameters = document.contains("axis") ? document["axis"] : document;
     AxisModel axis;
-    axis.rotary = present(parameters, "inertia_kgm2") || (document.is_object() && document.value("rotary", false));
+    if (document.contains("rotary") && !document["rotary"].is_boolean())
+        throw InputError(fmt::format("{}: rotary: must be true or false", source));
+    axis.rotary =
+        present(parameters, "inertia_kgm2") || (document.contains("rotary") && document["rotary"].get<bool>());
     const std::string mass_key = axis.rotary ? "inertia_kgm2" : "mass_kg";
     const std::string viscous_unit = axis.rotary ? "Nms_per_rad" : "Ns_per_m";
     const std::string force_unit = axis.rotary ? "Nm" : "N";
@@ -435,6 +437,20 @@ AxisModel axis_from_document(const nlohmann::json& document, const std::string& 
         throw InputError(fmt::format("{}: {}", source, problem));
     }
     return axis;
+}
+
+}  // namespace
+
+AxisModel axis_from_document(const nlohmann::json& document, const std::string& source) {
+    if (!document.is_object()) throw InputError(fmt::format("{}: not a JSON object", source));
+    if (document.contains("parameters")) return axis_from_result(document, source);
+    try {
+        return axis_from_drive_file(document, source);
+    } catch (const InputError& e) {
+        const std::string message = e.what();
+        if (message.starts_with(source + ":")) throw;
+        throw InputError(fmt::format("{}: {}", source, message));
+    }
 }
 
 namespace {

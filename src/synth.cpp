@@ -13,6 +13,7 @@
 
 #include "feedid/error.hpp"
 #include "feedid/io/import.hpp"
+#include "feedid/io/json_input.hpp"
 #include "feedid/units.hpp"
 
 namespace feedid {
@@ -461,11 +462,7 @@ SynthSpec spec_from_toml(std::string_view text, const std::string& source) {
 SynthSpec read_spec(const std::filesystem::path& path) {
     const std::string text = read_file_bytes(path);
     if (path.extension() == ".toml") return spec_from_toml(text, path.string());
-    try {
-        return spec_from_json(nlohmann::json::parse(text), path.string());
-    } catch (const nlohmann::json::parse_error& e) {
-        throw InputError(fmt::format("{}: not a JSON document (byte {})", path.string(), e.byte));
-    }
+    return spec_from_json(parse_json(text, path.string()), path.string());
 }
 
 namespace {

@@ -6,6 +6,7 @@
 #include <sqlite3.h>
 
 #include <csignal>
+#include <map>
 #include <set>
 
 #include <fmt/core.h>
@@ -14,6 +15,7 @@
 #include "feedid/error.hpp"
 #include "feedid/history/sha256.hpp"
 #include "feedid/history/store.hpp"
+#include "feedid/history/trend.hpp"
 #include "history_testing.hpp"
 #include "testing.hpp"
 
@@ -147,6 +149,93 @@ TEST(HistoryStore, MigratesAnOlderFileAndKeepsItsRuns) {
     EXPECT_EQ(integrity(path), "ok");
 }
 
+// Schema 5 moves the documents out of the runs table and gives the fit's figures and each parameter's systematic
+// error and uncertainty typed columns; runs stored before keep everything, their figures taken from fit_json.
+TEST(HistoryStore, MigrationToSchemaFiveKeepsEveryDocumentAndTypesTheFit) {
+    const auto folder = temp_dir();
+    const auto path = folder / "h.db";
+    {
+        history::SqliteOpenOptions old;
+        old.target_schema_version = 4;
+        auto store = history::open_sqlite_store(path, old);
+        auto run = sample_run("aa", 742.0);
+        run.fit = {{"relative_error_pct", 1.7}, {"condition_number", 26.0}, {"samples_used", 2066}};
+        store->add_run(run);
+    }
+    {
+        history::SqliteOpenOptions read_only;
+        read_only.read_only = true;
+        const auto store = history::open_sqlite_store(path, read_only);  // reading does not migrate
+        EXPECT_EQ(store->schema_version(), 4);
+        const auto summary = store->runs({}, history::RunDetail::summary);
+        EXPECT_EQ(summary[0].fit_figures.condition_number, 26.0);  // from fit_json, in SQL
+    }
+    auto store = history::open_sqlite_store(path);
+    EXPECT_EQ(store->schema_version(), 5);
+    auto second = sample_run("bb", 743.0);
+    second.parameters["coulomb_N"] = {743.0, 0.4, 1.5, 1.6};
+    store->add_run(second);
+    const auto runs = store->runs();
+    ASSERT_EQ(runs.size(), 2u);
+    EXPECT_EQ(runs[0].fit_figures.relative_error_pct, 1.7);
+    EXPECT_EQ(runs[0].fit_figures.condition_number, 26.0);
+    EXPECT_EQ(runs[0].fit_figures.samples_used, 2066.0);
+    EXPECT_EQ(runs[0].fit["condition_number"], 26.0);
+    EXPECT_EQ(runs[0].diagnostics, std::vector<std::string>{"Stribeck: no slow passes"});
+    EXPECT_EQ(runs[0].result["friction_curve"]["forward"]["force_N"][1], 752.0);
+    EXPECT_EQ(store->result_document(runs[0].id), runs[0].result);
+    EXPECT_FALSE(runs[0].parameters.at("coulomb_N").systematic);
+    EXPECT_EQ(runs[1].parameters.at("coulomb_N").systematic, 1.5);
+    EXPECT_EQ(runs[1].parameters.at("coulomb_N").uncertainty, 1.6);
+    EXPECT_EQ(runs[1].fit_figures.relative_error_pct, 1.7);  // a record made by hand: from its fit object
+    EXPECT_TRUE(store->verify().empty());
+    EXPECT_EQ(integrity(path), "ok");
+}
+
+// The compact series the trend reads hold what the full listing holds, and give the same trend.
+TEST(HistoryStore, SeriesHoldWhatTheListingHolds) {
+    const auto folder = temp_dir();
+    auto store = history::open_sqlite_store(folder / "h.db");
+    for (int i = 0; i < 30; ++i) {
+        auto run = sample_run(fmt::format("sha-{}", i), 742.0 + (i >= 20 ? 5.0 : 0.1 * (i % 3)));
+        run.machine = i % 3 == 0 ? "B" : "A";
+        run.axis = i % 2 == 0 ? "X" : "Y";
+        run.recorded_at = fmt::format("2026-03-{:02}T06:00:00.000Z", 1 + (i * 7) % 28);  // not in insertion order
+        if (i % 5 == 0) run.parameters.erase("mass_kg");
+        if (i == 7) run.options = {{"model", "asymmetric"}};
+        store->add_run(run);
+    }
+    const auto series = store->series();
+    const auto from_runs = history::series_of(store->runs({}, history::RunDetail::summary));
+    ASSERT_EQ(series.size(), 4u);
+    ASSERT_EQ(series.size(), from_runs.size());
+    for (std::size_t s = 0; s < series.size(); ++s) {
+        SCOPED_TRACE(series[s].machine + " " + series[s].axis);
+        EXPECT_EQ(series[s].machine, from_runs[s].machine);
+        EXPECT_EQ(series[s].axis, from_runs[s].axis);
+        EXPECT_EQ(series[s].run_ids, from_runs[s].run_ids);
+        EXPECT_EQ(series[s].recorded_at, from_runs[s].recorded_at);
+        EXPECT_EQ(series[s].keys, from_runs[s].keys);
+        for (std::size_t k = 0; k < series[s].keys.size(); ++k)
+            for (std::size_t i = 0; i < series[s].size(); ++i)
+                EXPECT_EQ(series[s].estimates[k][i].value, from_runs[s].estimates[k][i].value);
+    }
+    history::TrendOptions options;
+    options.baseline_runs = 4;
+    const auto a = history::analyse_trends(series, store->pins(), options);
+    const auto b = history::analyse_trends(from_runs, store->pins(), options);
+    options.keep_points = false;
+    const auto c = history::analyse_trends(series, store->pins(), options);
+    std::size_t alarms = 0;
+    for (std::size_t s = 0; s < a.size(); ++s) {
+        EXPECT_EQ(history::to_json(a[s]), history::to_json(b[s]));
+        EXPECT_EQ(history::to_json(a[s])["alarms"], history::to_json(c[s])["alarms"]);
+        EXPECT_EQ(history::to_json(a[s])["notes"], history::to_json(c[s])["notes"]);
+        alarms += a[s].alarms.size();
+    }
+    EXPECT_GT(alarms, 0u);  // the step at run 20 is found
+}
+
 /// sample_run as a rotary table's run: its parameters under the rotary keys.
 history::RunRecord rotary_run(const std::string& sha) {
     auto run = sample_run(sha, 0.0);
@@ -199,7 +288,7 @@ TEST(HistoryStore, MigrationGivesEarlierRunsTheirAxisKind) {
         store->add_run(rotary);
     }
     auto store = history::open_sqlite_store(path);
-    EXPECT_EQ(store->schema_version(), 4);
+    EXPECT_EQ(store->schema_version(), history::sqlite_schema_version);
     const auto runs = store->runs();
     ASSERT_EQ(runs.size(), 2u);
     EXPECT_EQ(runs[0].axis_kind, "linear");
@@ -208,22 +297,42 @@ TEST(HistoryStore, MigrationGivesEarlierRunsTheirAxisKind) {
     EXPECT_EQ(integrity(path), "ok");
 }
 
+/// small_result() of a rotary axis: the same figures under the rotary keys, "rotary": true.
+nlohmann::json small_rotary_result(const std::filesystem::path& trace) {
+    auto document = small_result(trace, 2.36);
+    nlohmann::json parameters;
+    const std::map<std::string, std::string> rotary_keys{{"mass_kg", "inertia_kgm2"},
+                                                         {"viscous_Ns_per_m", "viscous_Nms_per_rad"},
+                                                         {"coulomb_N", "coulomb_Nm"},
+                                                         {"breakaway_N", "breakaway_Nm"},
+                                                         {"stribeck_velocity_m_per_s", "stribeck_velocity_rad_per_s"}};
+    for (const auto& [key, entry] : document["parameters"].items()) parameters[rotary_keys.at(key)] = entry;
+    document["parameters"] = parameters;
+    document["rotary"] = true;
+    return document;
+}
+
 TEST(HistoryStore, TheAxisKindComesFromTheResult) {
     auto document = small_result("x.csv", 742.0);
     EXPECT_EQ(history::run_from_result(document, "r.json").axis_kind, "linear");
+    auto rotary = small_rotary_result("x.csv");
+    EXPECT_EQ(history::run_from_result(rotary, "r.json").axis_kind, "rotary");
+    rotary.erase("rotary");  // older documents: the keys say it
+    EXPECT_EQ(history::run_from_result(rotary, "r.json").axis_kind, "rotary");
+    // "rotary": true over linear keys is no document feedid writes (nor reads back): refused, naming the key
     document["rotary"] = true;
-    EXPECT_EQ(history::run_from_result(document, "r.json").axis_kind, "rotary");
-    document.erase("rotary");
-    document["parameters"].erase("mass_kg");
-    document["parameters"]["inertia_kgm2"] = {{"value", 0.0007}, {"stderr", 1e-6}};
-    EXPECT_EQ(history::run_from_result(document, "r.json").axis_kind, "rotary");
+    try {
+        (void)history::run_from_result(document, "r.json");
+        ADD_FAILURE() << "a rotary document with linear keys was taken";
+    } catch (const feedid::InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("r.json: parameter \"breakaway_N\""), std::string::npos) << e.what();
+    }
 }
 
 TEST(HistoryCli, ARotaryRunOnALinearAxisIsExitTwo) {
     const auto folder = temp_dir();
     const auto results = write_small_results(folder, "run", 2);
-    auto rotary = nlohmann::json::parse(read_text(results[1]));
-    rotary["rotary"] = true;
+    auto rotary = small_rotary_result(folder / "run-2.csv");
     write_text(results[1], rotary.dump());
     const auto database = folder / "h.db";
     const auto command = [&](const std::filesystem::path& result) {
@@ -241,7 +350,14 @@ TEST(HistoryCli, ARotaryRunOnALinearAxisIsExitTwo) {
 
 TEST(HistoryStore, ResultDocumentIsStoredWithoutTheRlsHistory) {
     auto document = small_result("x.csv", 742.0);
-    document["rls"] = {{"final", {{"coulomb_N", 742.0}}}, {"history", {{"time_s", {0.0, 0.1}}}}};
+    document["rls"] = {{"variant", "directional"},
+                       {"forgetting_factor", 0.99995},
+                       {"initial_covariance", 1e6},
+                       {"final", {{"coulomb_N", 742.0}}},
+                       {"averaged", {{"coulomb_N", 741.0}}},
+                       {"settled", true},
+                       {"transient_end_s", 0.5},
+                       {"history", {{"time_s", {0.0, 0.1}}, {"coulomb_N", {700.0, 742.0}}}}};
     const auto run = history::run_from_result(document, "r.json");
     EXPECT_TRUE(run.result["rls"].contains("final"));
     EXPECT_FALSE(run.result["rls"].contains("history"));
@@ -261,8 +377,8 @@ void record_all(const std::filesystem::path& folder, const std::filesystem::path
 }
 
 // A process killed between any two statements of --record (FEEDID_TEST_ABORT_AFTER_STATEMENT=N aborts right after
-// the N-th write statement: BEGIN, the run, each parameter, COMMIT) leaves a file that opens, holds every earlier run
-// whole, and holds the interrupted run whole (aborted after COMMIT) or not at all.
+// the N-th write statement: BEGIN, the run, its documents, each parameter, COMMIT) leaves a file that opens, holds
+// every earlier run whole, and holds the interrupted run whole (aborted after COMMIT) or not at all.
 TEST(HistoryDurability, AbortBetweenStatementsLeavesEveryEarlierRunAndTheNewOneWholeOrAbsent) {
     const auto folder = temp_dir();
     const auto results = write_small_results(folder, "run", 4);
@@ -304,8 +420,9 @@ TEST(HistoryDurability, AbortBetweenStatementsLeavesEveryEarlierRunAndTheNewOneW
         const auto after = run_shell(fmt::format("{} history {} --json -", cli(), quoted(database)), folder);
         EXPECT_EQ(nlohmann::json::parse(after.out)["runs"].size(), 4u) << "n = " << n;
     }
-    // BEGIN, the run's row, five parameters and COMMIT: 8 places to die; only the abort after COMMIT keeps the run.
-    EXPECT_EQ(aborted, 8);
+    // BEGIN, the run's row, its documents' row, five parameters and COMMIT: 9 places to die; only the abort after
+    // COMMIT keeps the run.
+    EXPECT_EQ(aborted, 9);
     EXPECT_EQ(whole, 1);
 }
 

@@ -747,6 +747,67 @@ TEST_F(ReportEndToEnd, HistoryReportHasTrendsAlarmsAndTheLatestFrictionCurve) {
     expect_rendered(render_in_chromium(chromium, page, folder_), svgs);
 }
 
+// A long history: the plots keep at most 400 points per series, among them every spike and the run where the alarm
+// fired; the table keeps the baseline, the alarm runs and the latest 100 runs, and says how many it leaves out.
+TEST_F(ReportEndToEnd, ALongHistoryIsThinnedWithoutLosingSpikesOrAlarms) {
+    const auto document = nlohmann::json::parse(read_text(result_));
+    const auto database = folder_ / "long.db";
+    {
+        auto store = history::open_sqlite_store(database);
+        const auto recorded = history::run_from_result(document, result_.string());
+        for (int i = 1; i <= 2000; ++i) {
+            auto run = recorded;
+            run.machine = "M1";
+            run.axis = "X";
+            run.recorded_at = fmt::format("{:04}-01-01T06:00:00Z", 2000 + i);  // one a year: a long history
+            run.trace_sha256 = fmt::format("{:064}", i);
+            for (auto& [key, estimate] : run.parameters)
+                if (estimate.value && estimate.standard_error)
+                    *estimate.value += 0.3 * *estimate.standard_error * std::sin(1.7 * i);
+            if (i == 777) *run.parameters.at("mass_kg").value *= 1.5;  // one spike
+            if (i > 1900) *run.parameters.at("coulomb_N").value *= 1.0 + 0.01 * (i - 1900);
+            store->add_run(run);
+        }
+    }
+    const auto check = run_shell(fmt::format("{} history {} --check", cli(), quoted(database)), folder_);
+    EXPECT_EQ(check.exit_code, 1) << check.out << check.err;
+    const std::regex fired(R"(parameter coulomb_N at run #(\d+))");
+    std::smatch match;
+    ASSERT_TRUE(std::regex_search(check.out, match, fired)) << check.out;
+    const std::string alarm_run = match[1];
+
+    const auto page = folder_ / "long.html";
+    const auto r = run_shell(fmt::format("{} report {} -o {}", cli(), quoted(database), quoted(page)), folder_);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto html = read_text(page);
+    EXPECT_LT(html.size(), 1'500'000u);
+    const auto count = [](const std::string& text, const std::string& what) {
+        std::size_t n = 0;
+        for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+        return n;
+    };
+    for (const auto& svg : svgs_of(html)) {
+        parse_svg(svg);
+        if (svg.find("id=\"trend-m1-x-") == std::string::npos) continue;
+        const std::size_t points = count(svg, "<title>run #");  // the markers, each with its run in a tooltip
+        EXPECT_LE(points, 400u) << svg.substr(0, 120);
+        EXPECT_GE(points, 200u) << svg.substr(0, 120);
+        if (svg.find("id=\"trend-m1-x-mass-kg\"") != std::string::npos) {
+            EXPECT_NE(svg.find("run #777 recorded"), std::string::npos) << "the spike was thinned away";
+        }
+        if (svg.find("id=\"trend-m1-x-coulomb-n\"") != std::string::npos) {
+            EXPECT_NE(svg.find("drift alarm at run #" + alarm_run + " "), std::string::npos)
+                << "the run where the alarm fired was thinned away";
+        }
+    }
+    // the table: 8 baseline runs, the runs where an alarm fired, the latest 100, and a row for each gap
+    const std::size_t rows = count(html, "<tr><td>#");
+    EXPECT_GE(rows, 108u);
+    EXPECT_LE(rows, 120u);
+    EXPECT_NE(html.find("run(s) not listed here (feedid history DB --csv - lists every run)"), std::string::npos);
+    EXPECT_NE(html.find("<tr><td>#" + alarm_run + "</td>"), std::string::npos);
+}
+
 TEST_F(ReportEndToEnd, ResultReportHasRlsHistoriesAndTheFrictionCurve) {
     const auto page = folder_ / "result.html";
     const auto r = run_shell(fmt::format("{} report {} -o {}", cli(), quoted(result_), quoted(page)), folder_);

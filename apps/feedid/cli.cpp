@@ -10,6 +10,9 @@
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
+#include "feedid/io/json_input.hpp"
+#include "feedid/io/output_file.hpp"
+#include "feedid/terminal_text.hpp"
 
 namespace feedid::cli {
 
@@ -148,9 +151,15 @@ ImportOptions TraceArguments::import_options() const {
 Trace TraceArguments::read(bool print_findings) const {
     Trace trace = read_trace(file, import_options());
     if (print_findings) {
-        for (const auto& finding : trace.findings) fmt::print(stderr, "feedid: {}\n", finding);
+        for (const auto& finding : trace.findings) fmt::print(stderr, "feedid: {}\n", terminal_message(finding));
     }
     return trace;
+}
+
+std::vector<GuardedFile> TraceArguments::inputs() const {
+    std::vector<GuardedFile> files{{"the trace", file}};
+    if (!join.empty()) files.push_back({"the --join trace", parse_join_spec(join).path});
+    return files;
 }
 
 void DriveArguments::add_to(CLI::App& app) {
@@ -182,35 +191,17 @@ DriveConstants DriveArguments::constants() const {
             constants.force_constant_name = force_constant;
     }
     if (const auto problem = constants.validate(); !problem.empty()) throw InputError(problem);
-    for (const auto& warning : constants.warnings()) fmt::print(stderr, "feedid: warning: {}\n", warning);
+    for (const auto& warning : constants.warnings())
+        fmt::print(stderr, "feedid: warning: {}\n", terminal_message(warning));
     return constants;
 }
 
 void write_json(const nlohmann::json& document, const std::string& path) {
-    const std::string text = document.dump(2) + "\n";
-    if (path == "-") {
-        std::fwrite(text.data(), 1, text.size(), stdout);
-        std::fflush(stdout);
-        return;
-    }
-    std::ofstream out(path, std::ios::binary);
-    if (!out) throw InputError(fmt::format("{}: cannot write the file", path));
-    out << text;
-    if (!out) throw InputError(fmt::format("{}: cannot write the file", path));
+    write_output(path, document.dump(2) + "\n");
 }
 
 nlohmann::json read_json(const std::string& path) {
-    std::string text;
-    if (path == "-") {
-        text.assign(std::istreambuf_iterator<char>(std::cin), {});
-    } else {
-        text = read_file_bytes(path);
-    }
-    try {
-        return nlohmann::json::parse(text);
-    } catch (const nlohmann::json::parse_error& e) {
-        throw InputError(fmt::format("{}: not a JSON document (byte {})", path, e.byte));
-    }
+    return read_json_file(path);
 }
 
 Trace read_trace_for_drive(const TraceArguments& trace, const DriveArguments& drive) {

@@ -12,6 +12,7 @@
 
 #include "feedid/drive.hpp"
 #include "feedid/io/import.hpp"
+#include "feedid/io/output_file.hpp"
 
 namespace feedid::cli {
 
@@ -37,7 +38,7 @@ struct TraceArguments {
     std::optional<double> lead_mm;     // shared with DriveArguments when both are present
     std::optional<double> gear_ratio;  // likewise: rpm on a linear axis is a motor speed, geared to the screw
     std::string rated;                 // what 100 % means for % units: "18A", "2.4Nm" (a bare number: A)
-    std::string join;               // FILE[@SHIFT]: a second recording joined onto this one's time base
+    std::string join;                  // FILE[@SHIFT]: a second recording joined onto this one's time base
     std::optional<double> join_max_shift_s;
     std::vector<std::string> tare;  // roles zeroed from the samples at rest before the move
     std::vector<std::string> invert;  // roles whose sign is flipped (a drive counting the other way)
@@ -48,6 +49,8 @@ struct TraceArguments {
     [[nodiscard]] ImportOptions import_options() const;
     /// Reads and prepares the trace; prints the import findings (guessed roles, assumed units) to stderr.
     [[nodiscard]] Trace read(bool print_findings = true) const;
+    /// The files this reads (the trace, a --join file), which no output may overwrite.
+    [[nodiscard]] std::vector<GuardedFile> inputs() const;
 };
 
 struct DriveArguments;
@@ -65,9 +68,9 @@ struct DriveArguments {
     [[nodiscard]] DriveConstants constants() const;
 };
 
-/// Writes a JSON document to a path, or stdout for "-".
+/// Writes a JSON document to a path (atomically, io/output_file.hpp), or stdout for "-".
 void write_json(const nlohmann::json& document, const std::string& path);
-/// Reads a JSON document; InputError naming the file on failure.
+/// Reads a JSON document with the input limits of io/json_input.hpp; InputError naming the file on failure.
 nlohmann::json read_json(const std::string& path);
 
 Action add_info_command(CLI::App& app);

@@ -8,6 +8,7 @@
 #include "feedid/error.hpp"
 #include "feedid/gains.hpp"
 #include "feedid/parameters.hpp"
+#include "feedid/terminal_text.hpp"
 #include "gain_arguments.hpp"
 
 namespace feedid::cli {
@@ -39,6 +40,7 @@ struct GainsCommand {
     std::string json_path;
 
     int run() const {
+        require_separate_outputs({{"--json", json_path}}, trace_arguments.inputs());
         const Trace trace = read_trace_for_drive(trace_arguments, drive_arguments);
         const DriveConstants drive = drive_arguments.constants();
         const std::vector<double> force = drive_force(trace, drive);
@@ -49,7 +51,7 @@ struct GainsCommand {
         if (!json_path.empty()) write_json(gains_document(result, options, trace), json_path);
         if (json_path != "-") print(trace, result, options);
         if (result.status == Status::failed) {
-            fmt::print(stderr, "feedid: {}\n", result.diagnostics.front());
+            fmt::print(stderr, "feedid: {}\n", terminal_message(result.diagnostics.front()));
             return 1;
         }
         return 0;

@@ -1,7 +1,9 @@
 // feedid history: list the recorded runs, their trends against the baseline, and check for drift (nightly job).
+#include <algorithm>
 #include <cstdio>
-#include <fstream>
+#include <map>
 #include <set>
+#include <unordered_set>
 
 #include <fmt/core.h>
 
@@ -11,6 +13,7 @@
 #include "feedid/history/store.hpp"
 #include "feedid/history/trend.hpp"
 #include "feedid/progress.hpp"
+#include "feedid/terminal_text.hpp"
 
 namespace feedid::cli {
 namespace {
@@ -21,6 +24,7 @@ struct HistoryArguments {
     std::string json_path;
     std::string csv_path;
     bool check{false};
+    bool verify{false};
     std::vector<std::string> add;
     std::string trace;
     std::string recorded_at;
@@ -45,17 +49,6 @@ std::string csv_field(const std::string& text) {
     return quoted + "\"";
 }
 
-void write_text(const std::string& text, const std::string& path) {
-    if (path == "-") {
-        std::fwrite(text.data(), 1, text.size(), stdout);
-        std::fflush(stdout);
-        return;
-    }
-    std::ofstream out(path, std::ios::binary);
-    out << text;
-    if (!out) throw InputError(fmt::format("{}: cannot write the file", path));
-}
-
 /// Wide CSV: one row per run, two columns (value, stderr) per parameter key found in any listed run.
 std::string runs_csv(const std::vector<history::RunRecord>& runs) {
     std::set<std::string> keys;
@@ -66,10 +59,6 @@ std::string runs_csv(const std::vector<history::RunRecord>& runs) {
     text += ",relative_error_pct,condition_number,samples_used\n";
     const auto number = [](const std::optional<double>& value) {
         return value ? fmt::format("{:.10g}", *value) : std::string();
-    };
-    const auto fit_value = [](const nlohmann::json& fit, const char* key) {
-        return fit.contains(key) && fit[key].is_number() ? fmt::format("{:.10g}", fit[key].get<double>())
-                                                         : std::string();
     };
     for (const auto& run : runs) {
         text += fmt::format("{},{},{},{},{},{},{},{},{},{}", run.id, run.recorded_at, csv_field(run.machine),
@@ -82,21 +71,31 @@ std::string runs_csv(const std::vector<history::RunRecord>& runs) {
             else
                 text += fmt::format(",{},{}", number(found->second.value), number(found->second.standard_error));
         }
-        text += fmt::format(",{},{},{}\n", fit_value(run.fit, "relative_error_pct"),
-                            fit_value(run.fit, "condition_number"), fit_value(run.fit, "samples_used"));
+        text += fmt::format(",{},{},{}\n", number(run.fit_figures.relative_error_pct),
+                            number(run.fit_figures.condition_number), number(run.fit_figures.samples_used));
     }
     return text;
 }
 
+/// The runs of one series in alarm, per parameter key.
+std::map<std::string, std::unordered_set<std::int64_t>> runs_in_alarm(const history::SeriesTrend& series) {
+    std::map<std::string, std::unordered_set<std::int64_t>> in_alarm;
+    for (const auto& parameter : series.parameters)
+        for (const auto& point : parameter.points)
+            if (point.alarm) in_alarm[parameter.key].insert(point.run_id);
+    return in_alarm;
+}
+
 void print_table(const std::vector<history::RunRecord>& runs, const std::vector<history::SeriesTrend>& trends) {
+    std::map<std::pair<std::string, std::string>, std::vector<const history::RunRecord*>> by_series;
+    for (const auto& run : runs) by_series[{run.machine, run.axis}].push_back(&run);
     for (const auto& series : trends) {
-        std::vector<const history::RunRecord*> series_runs;
-        for (const auto& run : runs)
-            if (run.machine == series.machine && run.axis == series.axis) series_runs.push_back(&run);
+        const auto& series_runs = by_series[{series.machine, series.axis}];
         std::set<std::string> keys;
         for (const auto* run : series_runs)
             for (const auto& [key, estimate] : run->parameters) keys.insert(key);
-        fmt::print("machine '{}' axis '{}': {} run(s); baseline: ", series.machine, series.axis, series_runs.size());
+        fmt::print("machine '{}' axis '{}': {} run(s); baseline: ", terminal_text(series.machine),
+                   terminal_text(series.axis), series_runs.size());
         if (series.baseline_run_ids.empty())
             fmt::print("none\n");
         else
@@ -105,22 +104,22 @@ void print_table(const std::vector<history::RunRecord>& runs, const std::vector<
         fmt::print("{:>5}  {:<24} {:<10}", "run", "recorded_at", "model");
         for (const auto& key : keys) fmt::print("  {:>24}", key);
         fmt::print("\n");
+        const auto in_alarm = runs_in_alarm(series);
         for (const auto* run : series_runs) {
-            fmt::print("{:>5}  {:<24} {:<10}", fmt::format("#{}", run->id), run->recorded_at, run->model);
+            fmt::print("{:>5}  {:<24} {:<10}", fmt::format("#{}", run->id), terminal_text(run->recorded_at),
+                       terminal_text(run->model));
             for (const auto& key : keys) {
                 const auto found = run->parameters.find(key);
                 std::string cell = found == run->parameters.end() ? "-" : format_estimate(found->second);
                 // Mark values in alarm with '!' so that a glance finds them.
-                for (const auto& parameter : series.parameters)
-                    if (parameter.key == key)
-                        for (const auto& point : parameter.points)
-                            if (point.run_id == run->id && point.alarm) cell += " !";
-                fmt::print("  {:>24}", cell);
+                if (const auto alarms = in_alarm.find(key); alarms != in_alarm.end() && alarms->second.count(run->id))
+                    cell += " !";
+                fmt::print("  {:>24}", terminal_text(cell));
             }
             fmt::print("\n");
         }
-        for (const auto& note : series.notes) fmt::print("note: {}\n", note);
-        for (const auto& alarm : series.alarms) fmt::print("{}\n", alarm.message());
+        for (const auto& note : series.notes) fmt::print("note: {}\n", terminal_message(note));
+        for (const auto& alarm : series.alarms) fmt::print("{}\n", terminal_text(alarm.message()));
         fmt::print("\n");
     }
 }
@@ -145,6 +144,8 @@ std::vector<history::RunRecord> prepare_runs(const HistoryArguments& arguments) 
         context.recorded_at = arguments.recorded_at;
         if (result.contains("options") && result["options"].is_object()) context.options = result["options"];
         prepared.push_back(history::prepare_run(result, path, context));
+        for (const auto& finding : prepared.back().recording_findings)
+            fmt::print(stderr, "feedid: warning: {}: {}\n", terminal_text(path), terminal_message(finding));
         progress.update(i + 1);
     }
     return prepared;
@@ -156,22 +157,23 @@ void record_runs(history::HistoryStore& store, const std::vector<history::RunRec
     for (std::size_t i = 0; i < prepared.size(); ++i) {
         const auto outcome = store.add_run(prepared[i]);
         if (outcome.inserted)
-            fmt::print(stderr, "feedid: recorded {} as run #{}\n", arguments.add[i], outcome.id);
+            fmt::print(stderr, "feedid: recorded {} as run #{}\n", terminal_text(arguments.add[i]), outcome.id);
         else
             fmt::print(stderr, "feedid: {} is already recorded as run #{} (same trace, same options); not added\n",
-                       arguments.add[i], outcome.id);
+                       terminal_text(arguments.add[i]), outcome.id);
         progress.update(i + 1);
     }
 }
 
 void pin_baseline(history::HistoryStore& store, const HistoryArguments& arguments) {
-    const auto all = store.runs({});
-    const auto found = std::find_if(all.begin(), all.end(), [&](const auto& run) { return run.id == *arguments.pin; });
-    if (found == all.end())
-        throw InputError(fmt::format("{}: there is no run #{}", arguments.database, *arguments.pin));
-    store.pin_baseline(found->machine, found->axis, found->id);
-    fmt::print(stderr, "feedid: the baseline of machine '{}' axis '{}' now starts at run #{}\n", found->machine,
-               found->axis, found->id);
+    for (const auto& series : store.series({})) {
+        if (std::find(series.run_ids.begin(), series.run_ids.end(), *arguments.pin) == series.run_ids.end()) continue;
+        store.pin_baseline(series.machine, series.axis, *arguments.pin);
+        fmt::print(stderr, "feedid: the baseline of machine '{}' axis '{}' now starts at run #{}\n",
+                   terminal_text(series.machine), terminal_text(series.axis), *arguments.pin);
+        return;
+    }
+    throw InputError(fmt::format("{}: there is no run #{}", arguments.database, *arguments.pin));
 }
 
 nlohmann::json history_document(const history::HistoryStore& store, const std::vector<history::RunRecord>& runs,
@@ -194,67 +196,117 @@ nlohmann::json history_document(const history::HistoryStore& store, const std::v
 // What --check checked when no alarm fired: the runs compared with a complete baseline (as the listing marks them),
 // and the axes whose baseline is still forming, where nothing is checked yet.
 std::string check_summary(const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options) {
-    std::set<std::int64_t> checked_runs;
-    std::size_t checked_axes = 0;
+    std::size_t checked_runs = 0, checked_axes = 0;
     std::string forming;
     for (const auto& series : trends) {
         if (!series.baseline_complete) {
             forming += fmt::format("{}machine '{}' axis '{}': {} of {} runs", forming.empty() ? "" : ", ",
-                                   series.machine, series.axis, series.baseline_run_ids.size(), options.baseline_runs);
+                                   terminal_text(series.machine), terminal_text(series.axis),
+                                   series.baseline_run_ids.size(), options.baseline_runs);
             continue;
         }
-        const std::size_t before = checked_runs.size();
-        for (const auto& parameter : series.parameters)
-            for (const auto& point : parameter.points)
-                if (point.role == history::RunRole::checked && point.z) checked_runs.insert(point.run_id);
-        if (checked_runs.size() > before) ++checked_axes;
+        checked_runs += series.checked_runs;
+        if (series.checked_runs > 0) ++checked_axes;
     }
     if (trends.empty()) return "no drift alarm, but nothing checked: no runs recorded";
-    if (checked_runs.empty()) {
+    if (checked_runs == 0) {
         return forming.empty()
                    ? std::string("no drift alarm, but nothing checked yet: no run after the baseline")
                    : "no drift alarm, but nothing checked yet: the baseline is still forming (" + forming + ")";
     }
     std::string summary = fmt::format("no drift alarm: {} run(s) of {} axis/axes checked against their baseline",
-                                      checked_runs.size(), checked_axes);
+                                      checked_runs, checked_axes);
     if (!forming.empty()) summary += "; not checked yet, the baseline still forming: " + forming;
     return summary;
 }
 
-int run_history(HistoryArguments& arguments) {
+/// --verify: SQLite's full integrity check and every stored document; exit 0 when sound, 2 with the problems.
+int verify(const HistoryArguments& arguments) {
+    history::SqliteOpenOptions read_only;
+    read_only.read_only = true;
+    const auto problems = history::open_sqlite_store(arguments.database, read_only)->verify();
+    if (problems.empty()) {
+        fmt::print("{}: ok (SQLite's integrity check, every stored document readable)\n",
+                   terminal_text(arguments.database));
+        return 0;
+    }
+    for (const auto& problem : problems) fmt::print("{}\n", terminal_text(problem));
+    fmt::print(stderr, "feedid: {}: the history database is damaged ({} problem(s), listed on stdout)\n",
+               terminal_text(arguments.database), problems.size());
+    return 2;
+}
+
+/// --check alone: the trend from the compact series, alarms only.
+int check_only(const history::HistoryStore& store, const HistoryArguments& arguments) {
+    history::TrendOptions options = arguments.trend;
+    options.keep_points = false;
+    const auto series = store.series(arguments.filter);
+    const auto trends = history::analyse_trends(series, store.pins(), options);
+    std::size_t alarms = 0;
+    for (const auto& trend : trends)
+        for (const auto& alarm : trend.alarms) {
+            fmt::print("{}\n", terminal_text(alarm.message()));
+            ++alarms;
+        }
+    if (alarms == 0) fmt::print("{}\n", check_summary(trends, arguments.trend));
+    return alarms > 0 ? 1 : 0;
+}
+
+void check_arguments(const HistoryArguments& arguments) {
     if (const auto problem = arguments.trend.validate(); !problem.empty()) throw InputError(problem);
-    if (arguments.baseline_from) arguments.trend.pinned_run = arguments.baseline_from;
-    const bool writes = !arguments.add.empty() || arguments.pin;
     if (!arguments.trace.empty() && arguments.add.size() != 1)
         throw InputError("--trace goes with exactly one --add RESULT.json");
     if (!arguments.recorded_at.empty() && arguments.add.size() != 1)
         throw InputError("--recorded-at goes with exactly one --add RESULT.json");
+    if (arguments.verify && (!arguments.add.empty() || arguments.pin || arguments.check ||
+                             !arguments.json_path.empty() || !arguments.csv_path.empty()))
+        throw InputError("--verify goes alone: feedid history DB --verify");
+    std::vector<GuardedFile> inputs{{"the history database", arguments.database, true},
+                                    {"the --trace file", arguments.trace}};
+    for (const auto& path : arguments.add) inputs.push_back({"a --record document", path});
+    require_separate_outputs({{"--json", arguments.json_path}, {"--csv", arguments.csv_path}}, inputs);
+}
+
+int run_history(HistoryArguments& arguments) {
+    check_arguments(arguments);
+    if (arguments.baseline_from) arguments.trend.pinned_run = arguments.baseline_from;
+    if (arguments.verify) return verify(arguments);
+    const bool writes = !arguments.add.empty() || arguments.pin;
     const std::vector<history::RunRecord> prepared = prepare_runs(arguments);
 
     history::SqliteOpenOptions open_options;
     open_options.read_only = !writes;
+    open_options.create = !arguments.add.empty();  // --pin names a run: a missing file has none, and is not made
     auto store = history::open_sqlite_store(arguments.database, open_options);
     record_runs(*store, prepared, arguments);
     if (arguments.pin) pin_baseline(*store, arguments);
+    const bool listing = arguments.json_path.empty() && arguments.csv_path.empty() && !writes;
+    // What was recorded is committed: reading the history afterwards is only for outputs asked for.
+    if (!listing && !arguments.check && arguments.json_path.empty() && arguments.csv_path.empty()) return 0;
+    if (arguments.check && arguments.json_path.empty() && arguments.csv_path.empty())
+        return check_only(*store, arguments);
 
-    const auto runs = store->runs(arguments.filter);
-    const auto trends = history::analyse_trends(runs, store->pins(), arguments.trend);
+    const auto detail = arguments.json_path.empty() ? history::RunDetail::summary : history::RunDetail::documents;
+    const auto runs = store->runs(arguments.filter, detail);
+    // a CSV listing needs no trend
+    const bool trended = !arguments.json_path.empty() || arguments.check || listing;
+    const auto trends = trended ? history::analyse_trends(runs, store->pins(), arguments.trend)
+                                : std::vector<history::SeriesTrend>{};
     std::size_t alarms = 0;
     for (const auto& series : trends) alarms += series.alarms.size();
-    if (!arguments.json_path.empty()) {
+    if (!arguments.json_path.empty())
         write_json(history_document(*store, runs, trends, alarms, arguments), arguments.json_path);
-    }
-    if (!arguments.csv_path.empty()) write_text(runs_csv(runs), arguments.csv_path);
+    if (!arguments.csv_path.empty()) write_output(arguments.csv_path, runs_csv(runs));
 
     if (arguments.check) {
         if (arguments.json_path != "-" && arguments.csv_path != "-") {
             for (const auto& series : trends)
-                for (const auto& alarm : series.alarms) fmt::print("{}\n", alarm.message());
+                for (const auto& alarm : series.alarms) fmt::print("{}\n", terminal_text(alarm.message()));
             if (alarms == 0) fmt::print("{}\n", check_summary(trends, arguments.trend));
         }
         return alarms > 0 ? 1 : 0;
     }
-    if (arguments.json_path.empty() && arguments.csv_path.empty() && !writes) {
+    if (listing) {
         if (runs.empty())
             fmt::print("no runs recorded{}\n", arguments.filter.machine.empty() && arguments.filter.axis.empty()
                                                    ? ""
@@ -285,6 +337,9 @@ Action add_history_command(CLI::App& app) {
     sub->add_flag("--check", arguments->check,
                   "Check for drift: print every alarm (machine, axis, parameter, run) and exit 1 when there is one, 0 "
                   "otherwise");
+    sub->add_flag("--verify", arguments->verify,
+                  "Check the whole file: SQLite's full integrity check (every index against its table) and every "
+                  "stored document; exit 0 when sound, 2 listing the problems");
     sub->add_option("--add,--record", arguments->add,
                     "Record identify result documents (feedid identify --json) as runs, each in one transaction; needs "
                     "--machine and --axis")
@@ -317,7 +372,8 @@ Action add_history_command(CLI::App& app) {
         "  feedid history shop.db --add result.json --machine DMU50 --axis X --recorded-at 2026-11-23T09:00:00Z\n"
         "  feedid history shop.db --machine DMU50 --axis X\n"
         "  feedid history shop.db --check          # nightly: exit 1 and name machine, axis, parameter, run on drift\n"
-        "  feedid history shop.db --pin 42        # after maintenance: baseline starts again at run 42");
+        "  feedid history shop.db --pin 42        # after maintenance: baseline starts again at run 42\n"
+        "  feedid history shop.db --verify        # the whole file: SQLite's integrity check, every stored document");
     return [arguments, json, csv] {
         if (json->count() > 0 && arguments->json_path.empty()) arguments->json_path = "-";
         if (csv->count() > 0 && arguments->csv_path.empty()) arguments->csv_path = "-";

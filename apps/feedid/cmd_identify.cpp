@@ -12,6 +12,7 @@
 #include "feedid/identify.hpp"
 #include "feedid/parameters.hpp"
 #include "feedid/result_document.hpp"
+#include "feedid/terminal_text.hpp"
 #include "record_arguments.hpp"
 
 namespace feedid::cli {
@@ -159,6 +160,9 @@ struct IdentifyCommand {
         if (const auto problem = o.validate(); !problem.empty()) throw InputError(problem);
         if (!centers_mm.empty() && !by_location) throw InputError("--centers needs --by-location");
         if (by_location && record.enabled()) throw InputError("--record takes one result; not with --by-location");
+        std::vector<GuardedFile> inputs = trace_arguments.inputs();
+        inputs.push_back({"the --record history database", record.database, true});
+        require_separate_outputs({{"--json", json_path}}, inputs);
         record.check(trace_arguments.axis);
         const Trace trace = read_trace_for_drive(trace_arguments, drive_arguments);
         if (by_location) return run_by_location(trace, o);
@@ -170,12 +174,12 @@ struct IdentifyCommand {
         if (!json_path.empty()) write_json(document, json_path);
         if (json_path != "-") print_table(result);
         if (result.status == Status::failed) {
-            for (const auto& d : result.diagnostics) fmt::print(stderr, "feedid: {}\n", d);
+            for (const auto& d : result.diagnostics) fmt::print(stderr, "feedid: {}\n", terminal_message(d));
             return 1;
         }
         if (record.enabled()) record.record(document, trace_arguments.file, trace_arguments.axis, document["options"]);
         if (json_path == "-") {
-            for (const auto& d : result.diagnostics) fmt::print(stderr, "feedid: {}\n", d);
+            for (const auto& d : result.diagnostics) fmt::print(stderr, "feedid: {}\n", terminal_message(d));
         }
         return 0;
     }
@@ -201,7 +205,7 @@ struct IdentifyCommand {
                                    location.center * naming.display_position_scale(), naming.display_position_unit(),
                                    reason);
             }
-            fmt::print(stderr, "feedid: no location could be identified ({})\n", why);
+            fmt::print(stderr, "feedid: no location could be identified ({})\n", terminal_message(why));
             return 1;
         }
         return 0;
@@ -250,7 +254,8 @@ struct IdentifyCommand {
     }
 
     static void print_table(const IdentifyResult& result) {
-        fmt::print("{} ({} samples, {:.6g} s)\n", result.trace.path, result.trace.samples, result.trace.duration_s);
+        fmt::print("{} ({} samples, {:.6g} s)\n", terminal_text(result.trace.path), result.trace.samples,
+                   result.trace.duration_s);
         fmt::print("model: {}{}\n\n", result.model_name(), result.offset ? " with offset" : "");
         // the standard error (statistical) and the combined uncertainty (with the preprocessing's systematic part)
         fmt::print("  {:<6} {:>14}   {:<12} {:<12} {:<10}\n", "", "value", "std. error", "uncertainty", "unit");
@@ -271,11 +276,11 @@ struct IdentifyCommand {
         if (result.rls) print_rls(*result.rls);
         if (result.selection) {
             fmt::print("  data:\n");
-            for (const auto& note : result.selection->notes) fmt::print("    - {}\n", note);
+            for (const auto& note : result.selection->notes) fmt::print("    - {}\n", terminal_message(note));
         }
         if (!result.diagnostics.empty() && result.status != Status::failed) {
             fmt::print("  diagnostics:\n");
-            for (const auto& d : result.diagnostics) fmt::print("    - {}\n", d);
+            for (const auto& d : result.diagnostics) fmt::print("    - {}\n", terminal_message(d));
         }
     }
 

@@ -10,6 +10,7 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
+#include "feedid/terminal_text.hpp"
 
 namespace feedid::cli {
 
@@ -38,6 +39,7 @@ struct InfoCommand {
     std::string json_path;
 
     int run() const {
+        require_separate_outputs({{"--json", json_path}}, trace_arguments.inputs());
         Trace trace = trace_arguments.read(false);
         const TimeBase base = trace.time_base();
         nlohmann::json document;
@@ -66,7 +68,7 @@ struct InfoCommand {
             write_json(document, json_path);
             return 0;
         }
-        fmt::print("{}\n", trace.source_path);
+        fmt::print("{}\n", terminal_text(trace.source_path));
         fmt::print("  format       {}\n", trace.format);
         fmt::print("  samples      {}\n", trace.samples());
         fmt::print("  sample time  {:.6g} s ({:.6g} Hz){}\n", base.sample_time_s,
@@ -78,19 +80,20 @@ struct InfoCommand {
                    "native interval");
         for (const auto& channel : trace.channels) {
             const auto range = finite_range(channel.values);
-            fmt::print("    {:<28} {:<20} {:<8} {:<10} {:>14} {:>14}  {}\n", channel.name, role_name(channel.role),
-                       channel.unit.empty() ? "-" : channel.unit,
-                       channel.source_unit.empty() ? "-" : channel.source_unit,
+            fmt::print("    {:<28} {:<20} {:<8} {:<10} {:>14} {:>14}  {}\n", terminal_text(channel.name),
+                       role_name(channel.role), channel.unit.empty() ? "-" : channel.unit,
+                       channel.source_unit.empty() ? "-" : terminal_text(channel.source_unit),
                        range ? fmt::format("{:.6g}", range->first) : "-",
                        range ? fmt::format("{:.6g}", range->second) : "-", native_interval_text(channel));
         }
         if (!trace.constants.empty()) {
             fmt::print("  constants\n");
-            for (const auto& [name, value] : trace.constants) fmt::print("    {:<28} {:.10g}\n", name, value);
+            for (const auto& [name, value] : trace.constants)
+                fmt::print("    {:<28} {:.10g}\n", terminal_text(name), value);
         }
         if (!trace.findings.empty()) {
             fmt::print("  findings\n");
-            for (const auto& finding : trace.findings) fmt::print("    - {}\n", finding);
+            for (const auto& finding : trace.findings) fmt::print("    - {}\n", terminal_message(finding));
         }
         return 0;
     }

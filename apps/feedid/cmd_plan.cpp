@@ -2,7 +2,6 @@
 // data will identify.
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <memory>
 #include <string>
 #include <tuple>
@@ -63,17 +62,6 @@ void print_summary(std::FILE* out, const TestPlan& plan, const IdentifiabilityPr
     }
     for (const auto& note : plan.notes) fmt::print(out, "note: {}\n", note);
     for (const auto& diagnostic : prediction.diagnostics) fmt::print(out, "diagnostic: {}\n", diagnostic);
-}
-
-void write_text_file(const std::string& path, const std::string& text) {
-    if (path == "-") {
-        std::fwrite(text.data(), 1, text.size(), stdout);
-        return;
-    }
-    std::ofstream out(path, std::ios::binary);
-    if (!out) throw InputError(fmt::format("cannot write '{}'.", path));
-    out << text;
-    if (!out) throw InputError(fmt::format("cannot write '{}'.", path));
 }
 
 }  // namespace
@@ -217,12 +205,13 @@ struct PlanArguments {
     }
 
     [[nodiscard]] int run() const {
+        require_separate_outputs({{"-o", output}, {"--reference", reference}, {"--json", json}}, {});
         const TestPlan plan = make_test_plan(plan_options());
         const PredictionOptions nominal = prediction_options();
         const auto prediction = predict_identifiability(plan, nominal);
         const auto part_program_dialect = parse_dialect(dialect).value_or(Dialect::iso);
-        if (!output.empty()) write_text_file(output, emit_part_program(plan, part_program_dialect));
-        if (!reference.empty()) write_text_file(reference, write_csv(reference_trajectory(plan)));
+        if (!output.empty()) write_output(output, emit_part_program(plan, part_program_dialect));
+        if (!reference.empty()) write_output(reference, write_csv(reference_trajectory(plan)));
         if (!json.empty()) write_json(plan_document(plan, prediction), json);
         const bool stdout_taken = output == "-" || reference == "-" || json == "-";
         print_summary(stdout_taken ? stderr : stdout, plan, prediction, nominal);

@@ -1,6 +1,7 @@
 // feedid report RESULT.json|DB -o report.html: one self-contained HTML file with the plots people look at.
+#include <algorithm>
 #include <cstdio>
-#include <fstream>
+#include <map>
 
 #include <fmt/core.h>
 
@@ -8,6 +9,7 @@
 #include "feedid/error.hpp"
 #include "feedid/history/store.hpp"
 #include "feedid/history/trend.hpp"
+#include "feedid/io/json_input.hpp"
 #include "feedid/report.hpp"
 
 namespace feedid::cli {
@@ -21,11 +23,34 @@ struct ReportArguments {
     history::TrendOptions trend;
 };
 
+/// The stored result documents the report's friction curves come from: per axis the latest run's, or the latest of
+/// the last `latest_runs` runs whose result holds a friction curve.
+void attach_latest_results(const history::HistoryStore& store, std::vector<history::RunRecord>& runs) {
+    constexpr std::size_t latest_runs = 20;
+    std::map<std::pair<std::string, std::string>, std::vector<history::RunRecord*>> by_axis;
+    for (auto& run : runs) by_axis[{run.machine, run.axis}].push_back(&run);
+    for (auto& [axis, members] : by_axis) {
+        std::stable_sort(members.begin(), members.end(), [](const auto* a, const auto* b) {
+            return a->recorded_at != b->recorded_at ? a->recorded_at < b->recorded_at : a->id < b->id;
+        });
+        for (std::size_t n = 0; n < latest_runs && n < members.size(); ++n) {
+            auto* run = members[members.size() - 1 - n];
+            run->result = store.result_document(run->id);
+            if (run->result.contains("friction_curve")) break;
+        }
+    }
+}
+
 int run_report(const ReportArguments& arguments) {
     if (const auto problem = arguments.trend.validate(); !problem.empty()) throw InputError(problem);
     if (!std::filesystem::is_regular_file(arguments.input))
         throw InputError(
             fmt::format("{}: no such file (give an identify result document or a history database)", arguments.input));
+    // A history database is guarded with its -wal and -shm files; a result document alone.
+    const bool database = history::looks_like_sqlite(arguments.input);
+    require_separate_outputs({{"-o", arguments.out_path}},
+                             {{database ? "the history database" : "the result document", arguments.input, database},
+                              {"the --simulation document", arguments.simulation_path}});
     std::string html;
     if (history::looks_like_sqlite(arguments.input)) {
         // A simulation validates one run; a history holds many.
@@ -37,7 +62,9 @@ int run_report(const ReportArguments& arguments) {
         history::SqliteOpenOptions options;
         options.read_only = true;
         const auto store = history::open_sqlite_store(arguments.input, options);
-        const auto runs = store->runs(arguments.filter);
+        // The typed columns of every run; of the stored documents only those the friction curves need.
+        auto runs = store->runs(arguments.filter, history::RunDetail::summary);
+        attach_latest_results(*store, runs);
         if (runs.empty())
             throw InputError(fmt::format(
                 "{}: no runs recorded{}", arguments.input,
@@ -48,7 +75,7 @@ int run_report(const ReportArguments& arguments) {
         nlohmann::json document;
         try {
             document = read_json(arguments.input);
-        } catch (const InputError&) {
+        } catch (const JsonSyntaxError&) {
             throw InputError(
                 fmt::format("{}: neither an identify result document (JSON) nor a history database "
                             "(SQLite)",
@@ -59,15 +86,8 @@ int run_report(const ReportArguments& arguments) {
             simulation = report::SimulationDocument{read_json(arguments.simulation_path), arguments.simulation_path};
         html = report::result_report_html(document, arguments.input, simulation);
     }
-    if (arguments.out_path == "-") {
-        std::fwrite(html.data(), 1, html.size(), stdout);
-        std::fflush(stdout);
-    } else {
-        std::ofstream out(arguments.out_path, std::ios::binary);
-        out << html;
-        if (!out) throw InputError(fmt::format("{}: cannot write the report", arguments.out_path));
-        fmt::print(stderr, "feedid: wrote {}\n", arguments.out_path);
-    }
+    write_output(arguments.out_path, html);
+    if (arguments.out_path != "-") fmt::print(stderr, "feedid: wrote {}\n", arguments.out_path);
     return 0;
 }
 

@@ -3,7 +3,6 @@
 // errors of position, velocity, acceleration and force.
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 
 #include <fmt/core.h>
 
@@ -12,6 +11,7 @@
 #include "feedid/io/csv.hpp"
 #include "feedid/parameters.hpp"
 #include "feedid/simulate.hpp"
+#include "feedid/terminal_text.hpp"
 #include "gain_arguments.hpp"
 
 namespace feedid::cli {
@@ -34,6 +34,10 @@ struct SimulateCommand {
     int substeps{8};
 
     int run() const {
+        std::vector<GuardedFile> inputs = trace_arguments.inputs();
+        inputs.push_back({"the --result document", result_path});
+        inputs.push_back({"the --gains document", gains_path});
+        require_separate_outputs({{"--out", out_path}, {"--json", json_path}}, inputs);
         // The documents first: a wrong path fails before the trace is read.
         const AxisModel axis = axis_from_document(read_json(result_path), result_path);
         const std::optional<nlohmann::json> gains_document =
@@ -59,18 +63,14 @@ struct SimulateCommand {
         options.substeps = substeps;
         const TraceSimulation simulation = simulate_trace(trace, force, axis, controller.model, options, injection);
 
-        if (!out_path.empty()) {
-            std::ofstream out(out_path, std::ios::binary);
-            const std::string text = write_csv(simulation_trace(simulation.output, trace.rotary));
-            out << text;
-            if (!out) throw InputError(fmt::format("{}: cannot write the file", out_path));
-        }
+        if (!out_path.empty()) write_output(out_path, write_csv(simulation_trace(simulation.output, trace.rotary)));
         if (!json_path.empty()) write_json(simulation_document(trace, controller, simulation), json_path);
         if (json_path != "-") print(trace, controller, simulation);
         // A twin with untrusted gains, or one that diverged, validates nothing.
         if (controller.status == Status::failed || simulation.status == Status::failed) {
             fmt::print(stderr, "feedid: {}\n",
-                       simulation.status == Status::failed ? simulation.diagnostics.front() : controller.notes.front());
+                       terminal_message(simulation.status == Status::failed ? simulation.diagnostics.front()
+                                                                            : controller.notes.front()));
             return 1;
         }
         return 0;

@@ -2,7 +2,6 @@
 #include <algorithm>
 #include <charconv>
 #include <cstdio>
-#include <fstream>
 
 #include <fmt/core.h>
 
@@ -75,6 +74,8 @@ struct SynthCommand {
     std::string preset;
 
     int run() const {
+        require_separate_outputs({{"--out", out_path}},
+                                 {{"the --drive file", drive_path}, {"the --reference file", reference_path}});
         SynthSpec spec = rotary ? rotary_demo_spec() : demo_spec();
         if (!drive_path.empty()) spec = read_spec(drive_path);
         if (rotary && !spec.axis.rotary) {
@@ -98,9 +99,7 @@ struct SynthCommand {
         if (!reference_path.empty()) reference = read_reference(reference_path, spec.sensors.sample_time_s);
         Trace trace = synthesize(spec, reference);
         const std::string text = write_csv(in_recording_units(trace, spec.recording));
-        std::ofstream out(out_path, std::ios::binary);
-        out << text;
-        if (!out) throw InputError(fmt::format("{}: cannot write the file", out_path));
+        write_output(out_path, text);
         const auto base = trace.time_base();
         fmt::print(stderr, "feedid: wrote {} ({} samples, {:.4g} s at {:.4g} ms; seed {})\n", out_path, trace.samples(),
                    base.duration_s, base.sample_time_s * 1e3, spec.seed);

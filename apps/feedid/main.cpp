@@ -1,12 +1,14 @@
 // feedid: the command line. A thin main over the library; each subcommand lives in its own file.
 #include <cstdio>
 #include <exception>
+#include <filesystem>
 #include <map>
 
 #include <fmt/core.h>
 
 #include "cli.hpp"
 #include "feedid/error.hpp"
+#include "feedid/terminal_text.hpp"
 #include "feedid/version.hpp"
 
 int main(int argc, char** argv) {
@@ -42,7 +44,7 @@ int main(int argc, char** argv) {
     } catch (const CLI::CallForVersion& e) {
         return app.exit(e);
     } catch (const CLI::ParseError& e) {
-        fmt::print(stderr, "feedid: {}\n", e.what());
+        fmt::print(stderr, "feedid: {}\n", feedid::terminal_message(e.what()));
         return 2;
     }
 
@@ -52,16 +54,21 @@ int main(int argc, char** argv) {
         }
         return 2;
     } catch (const feedid::InputError& e) {
-        fmt::print(stderr, "feedid: {}\n", e.what());
+        fmt::print(stderr, "feedid: {}\n", feedid::terminal_message(e.what()));
         return 2;
     } catch (const feedid::AnalysisError& e) {
-        fmt::print(stderr, "feedid: {}\n", e.what());
+        fmt::print(stderr, "feedid: {}\n", feedid::terminal_message(e.what()));
         return 1;
+    } catch (const std::filesystem::filesystem_error& e) {
+        // a path that cannot be looked at (a folder without search permission, a loop of symbolic links): bad input
+        fmt::print(stderr, "feedid: {}: {}\n", feedid::terminal_text(e.path1().string()),
+                   feedid::terminal_text(e.code().message()));
+        return 2;
     } catch (const std::bad_alloc&) {
         fmt::print(stderr, "feedid: out of memory\n");
         return 2;
     } catch (const std::exception& e) {
-        fmt::print(stderr, "feedid: internal error: {}\n", e.what());
+        fmt::print(stderr, "feedid: internal error: {}\n", feedid::terminal_message(e.what()));
         return 1;
     }
 }

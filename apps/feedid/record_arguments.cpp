@@ -7,6 +7,7 @@
 #include "feedid/error.hpp"
 #include "feedid/history/record.hpp"
 #include "feedid/history/store.hpp"
+#include "feedid/terminal_text.hpp"
 
 namespace feedid::cli {
 
@@ -53,11 +54,11 @@ void RecordArguments::record(const nlohmann::json& result, const std::string& tr
     const auto run = history::prepare_run(result, trace, context);
     const auto outcome = history::open_sqlite_store(database)->add_run(run);
     if (outcome.inserted)
-        fmt::print(stderr, "feedid: recorded as run #{} of machine '{}' axis '{}' in {}\n", outcome.id, machine, axis,
-                   database);
+        fmt::print(stderr, "feedid: recorded as run #{} of machine '{}' axis '{}' in {}\n", outcome.id,
+                   terminal_text(machine), terminal_text(axis), terminal_text(database));
     else
         fmt::print(stderr, "feedid: already recorded as run #{} in {} (same trace, same options); not added\n",
-                   outcome.id, database);
+                   outcome.id, terminal_text(database));
 }
 
 }  // namespace feedid::cli

@@ -8,6 +8,7 @@
 #include "feedid/error.hpp"
 #include "feedid/history/sha256.hpp"
 #include "feedid/version.hpp"
+#include "sqlite_access.hpp"
 
 namespace feedid::history {
 
@@ -57,14 +58,19 @@ std::filesystem::path trace_of_result(const nlohmann::json& result, const std::s
 }
 
 void check_recordable(const std::filesystem::path& database) {
-    if (!std::filesystem::exists(database)) return;
+    // Where a writer may not write (permission, a read-only mount, the folder), say so now, not after identifying.
+    const OpenPlan plan = plan_open(database, SqliteOpenOptions{});
+    (void)plan;
+    std::error_code error;
+    if (!std::filesystem::exists(database, error)) return;
     SqliteOpenOptions read_only;
     read_only.read_only = true;
     try {
         (void)open_sqlite_store(database, read_only);
     } catch (const InputError&) {
         // An existing but empty file is fine: the store creates its tables.
-        if (std::filesystem::is_regular_file(database) && std::filesystem::file_size(database) == 0) return;
+        if (std::filesystem::is_regular_file(database, error) && std::filesystem::file_size(database, error) == 0)
+            return;
         throw;
     }
 }

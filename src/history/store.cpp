@@ -1,4 +1,4 @@
-// The history store (store.hpp): its SQLite implementation, the run records it keeps, and their time stamps.
+// The history store (store.hpp): its SQLite implementation.
 //
 // Durability: the file runs in WAL journal mode; a run is written inside one BEGIN IMMEDIATE ... COMMIT, so a process
 // killed anywhere leaves either the whole run or none of it (SQLite's atomic commit: the commit frame in the WAL is
@@ -6,30 +6,41 @@
 // front, so two writers never deadlock on a lock upgrade; a writer that finds the lock taken waits (busy timeout) and,
 // should SQLite still report SQLITE_BUSY, retries the whole transaction.
 //
-// Safety of foreign files: before anything is written the file is checked (header, quick_check, application_id,
-// schema version). A file that fails a check is closed untouched, so a failed command never modifies it.
+// Safety of foreign files: before anything is written the file is checked (header, integrity_check for a writer,
+// quick_check for a reader, application_id, schema version). A file that fails a check is closed untouched, so a
+// failed command never modifies it.
+//
+// Layout (schema 5): `runs` holds one narrow row per run with typed columns (names, times, status, options, the fit's
+// figures); `parameters` one row per run and key (value, stderr, systematic, uncertainty); `documents` the bulky
+// result document and diagnostics, read only for the run that needs them. Listings and the trend never touch it.
 
 #include "feedid/history/store.hpp"
 
-#include <sqlite3.h>
-
+#include <algorithm>
+#include <array>
 #include <chrono>
-#include <cmath>
 #include <cstdlib>
-#include <ctime>
-#include <fstream>
 #include <thread>
+#include <unordered_map>
 
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
-#include "feedid/parameters.hpp"
+#include "feedid/io/json_input.hpp"
+#include "sqlite_access.hpp"
+#include "sqlite_statement.hpp"
 
 namespace feedid::history {
 namespace {
 
 // "FEID": marks the file as a feedid history (PRAGMA application_id, bytes 68-71 of the header).
 constexpr int application_id = 0x46454944;
+
+// A number of the fit object of schema < 5 (the JSON text of fit_json), NULL where it is not one.
+#define FEEDID_FIT_NUMBER(column, key)                                              \
+    "CASE WHEN json_valid(" column ") THEN CASE WHEN json_type(" column ", '$." key \
+    "') IN ('real', 'integer') "                                                    \
+    "THEN json_extract(" column ", '$." key "') END END"
 
 // One migration per schema version: migrations[v - 1] takes the file from version v - 1 to v.
 const char* const migrations[] = {
@@ -56,6 +67,22 @@ const char* const migrations[] = {
     "ALTER TABLE runs ADD COLUMN axis_kind TEXT NOT NULL DEFAULT '';"
     "UPDATE runs SET axis_kind = CASE WHEN EXISTS (SELECT 1 FROM parameters p WHERE p.run_id = runs.id AND "
     "p.key = 'inertia_kgm2') THEN 'rotary' ELSE 'linear' END;",
+    // 5: the bulky documents move out of the runs table (a listing reads narrow rows); the fit's figures become
+    // typed columns; each parameter gets its systematic error and combined uncertainty
+    "CREATE TABLE documents ("
+    "  run_id INTEGER PRIMARY KEY REFERENCES runs (id) ON DELETE CASCADE,"
+    "  result_json TEXT NOT NULL, diagnostics_json TEXT NOT NULL);"
+    "INSERT INTO documents (run_id, result_json, diagnostics_json) SELECT id, result_json, diagnostics_json FROM runs;"
+    "ALTER TABLE runs DROP COLUMN result_json;"
+    "ALTER TABLE runs DROP COLUMN diagnostics_json;"
+    "ALTER TABLE runs ADD COLUMN relative_error_pct REAL;"
+    "ALTER TABLE runs ADD COLUMN condition_number REAL;"
+    "ALTER TABLE runs ADD COLUMN samples_used INTEGER;"
+    "UPDATE runs SET relative_error_pct = " FEEDID_FIT_NUMBER("fit_json", "relative_error_pct") ","
+    " condition_number = " FEEDID_FIT_NUMBER("fit_json", "condition_number") ","
+    " samples_used = " FEEDID_FIT_NUMBER("fit_json", "samples_used") ";"
+    "ALTER TABLE parameters ADD COLUMN systematic REAL;"
+    "ALTER TABLE parameters ADD COLUMN uncertainty REAL;",
 };
 static_assert(std::size(migrations) == sqlite_schema_version);
 
@@ -69,111 +96,67 @@ void count_write_statement() {
     if (abort_after > 0 && ++executed == abort_after) std::abort();
 }
 
-class Statement {
-public:
-    Statement(sqlite3* db, const char* sql, const std::string& path) : db_(db), path_(path) {
-        if (sqlite3_prepare_v2(db, sql, -1, &statement_, nullptr) != SQLITE_OK) fail("cannot prepare a statement");
-    }
-    Statement(const Statement&) = delete;
-    Statement& operator=(const Statement&) = delete;
-    ~Statement() { sqlite3_finalize(statement_); }
-
-    Statement& bind(int index, const std::string& text) {
-        sqlite3_bind_text(statement_, index, text.c_str(), static_cast<int>(text.size()), SQLITE_TRANSIENT);
-        return *this;
-    }
-    Statement& bind(int index, std::int64_t value) {
-        sqlite3_bind_int64(statement_, index, value);
-        return *this;
-    }
-    Statement& bind(int index, const std::optional<double>& value) {
-        if (value && std::isfinite(*value))
-            sqlite3_bind_double(statement_, index, *value);
-        else
-            sqlite3_bind_null(statement_, index);
-        return *this;
-    }
-    /// True while a row is available.
-    bool step() {
-        const int code = sqlite3_step(statement_);
-        if (code == SQLITE_ROW) return true;
-        if (code == SQLITE_DONE) return false;
-        fail("cannot read or write the database");
-    }
-    void reset() {
-        sqlite3_reset(statement_);
-        sqlite3_clear_bindings(statement_);
-    }
-    [[nodiscard]] std::string text(int column) const {
-        const auto* p = sqlite3_column_text(statement_, column);
-        return p ? std::string(reinterpret_cast<const char*>(p),
-                               static_cast<std::size_t>(sqlite3_column_bytes(statement_, column)))
-                 : std::string();
-    }
-    [[nodiscard]] std::int64_t integer(int column) const { return sqlite3_column_int64(statement_, column); }
-    [[nodiscard]] std::optional<double> real(int column) const {
-        if (sqlite3_column_type(statement_, column) == SQLITE_NULL) return std::nullopt;
-        return sqlite3_column_double(statement_, column);
-    }
-    [[noreturn]] void fail(const char* what) const;
-
-private:
-    sqlite3* db_;
-    sqlite3_stmt* statement_{nullptr};
-    const std::string& path_;
+/// The columns that differ between schema versions, as SQL expressions over `runs r` (and `documents d`).
+struct Columns {
+    std::string axis_kind;
+    std::string fit_figures;  // three columns
+    std::string diagnostics;
+    std::string result;
+    std::string documents_join;
+    std::string parameter_errors;  // systematic, uncertainty of `parameters p`
 };
 
-class SqliteError : public InputError {
+Columns columns_of(int version) {
+    Columns c;
+    c.axis_kind = version >= 4 ? "r.axis_kind" : "''";
+    c.fit_figures = version >= 5
+                        ? "r.relative_error_pct, r.condition_number, r.samples_used"
+                        : FEEDID_FIT_NUMBER("r.fit_json", "relative_error_pct") ", " FEEDID_FIT_NUMBER(
+                              "r.fit_json", "condition_number") ", " FEEDID_FIT_NUMBER("r.fit_json", "samples_used");
+    c.diagnostics = version >= 5 ? "d.diagnostics_json" : "r.diagnostics_json";
+    c.result = version >= 5 ? "d.result_json" : version >= 3 ? "r.result_json" : "'{}'";
+    c.documents_join = version >= 5 ? " LEFT JOIN documents d ON d.run_id = r.id" : "";
+    c.parameter_errors = version >= 5 ? "p.systematic, p.uncertainty" : "NULL, NULL";
+    return c;
+}
+
+const char* const filter_clause =
+    " WHERE (?1 = '' OR r.machine = ?1) AND (?2 = '' OR r.axis = ?2) AND (?3 = '' OR r.location = ?3)";
+
+/// The fit's figures of a run: as given, or (a record made by hand) from its "fit" object.
+FitFigures fit_figures_of(const RunRecord& run) {
+    const FitFigures& given = run.fit_figures;
+    if (given.relative_error_pct || given.condition_number || given.samples_used) return given;
+    const auto number = [&](const char* key) -> std::optional<double> {
+        if (run.fit.is_object() && run.fit.contains(key) && run.fit[key].is_number()) return run.fit[key].get<double>();
+        return std::nullopt;
+    };
+    return {number("relative_error_pct"), number("condition_number"), number("samples_used")};
+}
+
+/// Numbers each distinct options text of one listing: runs with equal options get equal groups.
+class OptionsGroups {
 public:
-    SqliteError(const std::string& message, int code) : InputError(message), code_(code) {}
-    [[nodiscard]] int code() const { return code_; }
+    std::int64_t of(std::string_view text) {
+        const auto found = groups_.find(std::string(text));
+        if (found != groups_.end()) return found->second;
+        const auto group = static_cast<std::int64_t>(groups_.size()) + 1;
+        groups_.emplace(std::string(text), group);
+        return group;
+    }
 
 private:
-    int code_;
+    std::unordered_map<std::string, std::int64_t> groups_;
 };
-
-std::string describe(int code, sqlite3* db) {
-    const int primary = code & 0xff;
-    if (primary == SQLITE_CORRUPT || primary == SQLITE_NOTADB) return "the file is corrupt or not a SQLite database";
-    if (primary == SQLITE_READONLY) return "the file is read-only";
-    if (primary == SQLITE_FULL) return "the disk is full";
-    if (primary == SQLITE_BUSY || primary == SQLITE_LOCKED) return "another process holds the database locked";
-    return db ? sqlite3_errmsg(db) : sqlite3_errstr(code);
-}
-
-void Statement::fail(const char* what) const {
-    const int code = sqlite3_extended_errcode(db_);
-    throw SqliteError(fmt::format("{}: {}: {}", path_, what, describe(code, db_)), code);
-}
-
-// The axis kind a run's parameter keys name: "rotary" for inertia_kgm2, viscous_Nms_per_rad, ...
-std::string axis_kind_of(const std::map<std::string, StoredEstimate>& parameters) {
-    for (const auto& [key, estimate] : parameters) {
-        if (const auto parsed = parse_parameter_key(key); parsed && parsed->rotary) return "rotary";
-    }
-    return "linear";
-}
 
 class SqliteStore final : public HistoryStore {
 public:
     SqliteStore(const std::filesystem::path& path, const SqliteOpenOptions& options)
         : path_(path.string()), read_only_(options.read_only) {
-        const bool exists = std::filesystem::exists(path);
-        if (!exists && (options.read_only || !options.create))
-            throw InputError(fmt::format("{}: no such history database", path_));
-        if (exists && std::filesystem::is_directory(path))
-            throw InputError(fmt::format("{}: is a folder, not a history database", path_));
-        if (exists && std::filesystem::file_size(path) > 0 && !looks_like_sqlite(path))
-            throw InputError(fmt::format("{}: not a feedid history database (not a SQLite file)", path_));
-
-        // A reader opens read-write too (query_only below keeps it from writing): in WAL mode a connection opened
-        // with SQLITE_OPEN_READONLY creates the -wal and -shm files beside the database but may not delete them when
-        // it closes, so read-only commands left two stray files behind. A read-write connection that closes last
-        // deletes them, as a writer does. SQLite falls back to reading only where the file is write-protected.
-        const int flags = SQLITE_OPEN_READWRITE | (exists || options.read_only ? 0 : SQLITE_OPEN_CREATE);
-        const int code = sqlite3_open_v2(path_.c_str(), &db_, flags | SQLITE_OPEN_NOMUTEX, nullptr);
+        const OpenPlan plan = plan_open(path, options);
+        const int code = sqlite3_open_v2(plan.name.c_str(), &db_, plan.flags | SQLITE_OPEN_NOMUTEX, nullptr);
         if (code != SQLITE_OK) {
-            const std::string message = describe(code, db_);
+            const std::string message = describe_sqlite_error(code, db_);
             sqlite3_close(db_);
             db_ = nullptr;
             throw InputError(fmt::format("{}: cannot open the history database: {}", path_, message));
@@ -194,11 +177,15 @@ public:
 
     AddOutcome add_run(const RunRecord& run) override {
         require_writable();
+        const StoredTextLimits limits;
         const std::string options_json = run.options.dump();
-        const std::string fit_json = run.fit.dump();
-        const std::string diagnostics_json = nlohmann::json(run.diagnostics).dump();
         const std::string result_json = run.result.is_object() ? run.result.dump() : std::string("{}");
-        const std::string stored_at = run.stored_at.empty() ? now_utc() : run.stored_at;
+        if (result_json.size() > limits.document_bytes || options_json.size() > limits.options_bytes)
+            throw InputError(
+                fmt::format("{}: the run's result document or options are larger than a run may store", path_));
+        const StoredText text{options_json, run.fit.is_object() ? run.fit.dump() : std::string("{}"),
+                              nlohmann::json(run.diagnostics).dump(), result_json,
+                              run.stored_at.empty() ? now_utc() : run.stored_at};
         return write_transaction([&] {
             Statement existing(db_, "SELECT id FROM runs WHERE trace_sha256 = ?1 AND options_json = ?2", path_);
             existing.bind(1, run.trace_sha256).bind(2, options_json);
@@ -206,75 +193,24 @@ public:
 
             const std::string axis_kind = run.axis_kind.empty() ? axis_kind_of(run.parameters) : run.axis_kind;
             require_same_axis_kind(run, axis_kind);
-            insert_run(run, axis_kind, {options_json, fit_json, diagnostics_json, result_json, stored_at});
+            insert_run(run, axis_kind, text);
             const std::int64_t id = sqlite3_last_insert_rowid(db_);
-
-            Statement parameter(db_, "INSERT INTO parameters (run_id, key, value, stderr) VALUES (?1, ?2, ?3, ?4)",
-                                path_);
-            for (const auto& [key, estimate] : run.parameters) {
-                parameter.reset();
-                parameter.bind(1, id).bind(2, key).bind(3, estimate.value).bind(4, estimate.standard_error);
-                parameter.step();
-                count_write_statement();
-            }
+            if (schema_version_ >= 5) insert_documents(id, text);
+            insert_parameters(id, run);
             return AddOutcome{id, true};
         });
     }
 
-    std::vector<RunRecord> runs(const RunFilter& filter) const override {
+    std::vector<RunRecord> runs(const RunFilter& filter, RunDetail detail) const override {
         std::vector<RunRecord> result;
         exec("BEGIN");  // one snapshot for both queries
         try {
-            const char* where =
-                " WHERE (?1 = '' OR r.machine = ?1) AND (?2 = '' OR r.axis = ?2) "
-                "AND (?3 = '' OR r.location = ?3)";
-            Statement select(
-                db_,
-                (std::string("SELECT r.id, r.machine, r.axis, r.location, r.recorded_at, r.trace_path, "
-                             "r.trace_sha256, r.feedid_version, r.model, r.status, r.options_json, "
-                             "r.fit_json, r.diagnostics_json, r.stored_at, ") +
-                 (schema_version_ >= 3 ? "r.result_json" : "'{}'") + (schema_version_ >= 4 ? ", r.axis_kind" : ", ''") +
-                 " FROM runs r" + where + " ORDER BY r.recorded_at, r.id")
-                    .c_str(),
-                path_);
-            select.bind(1, filter.machine).bind(2, filter.axis).bind(3, filter.location);
-            std::map<std::int64_t, std::size_t> index;
-            while (select.step()) {
-                RunRecord run;
-                run.id = select.integer(0);
-                run.machine = select.text(1);
-                run.axis = select.text(2);
-                run.location = select.text(3);
-                run.recorded_at = select.text(4);
-                run.trace_path = select.text(5);
-                run.trace_sha256 = select.text(6);
-                run.feedid_version = select.text(7);
-                run.model = select.text(8);
-                run.status = select.text(9);
-                run.options = parse_stored_json(select.text(10), run.id);
-                run.fit = parse_stored_json(select.text(11), run.id);
-                const auto diagnostics = parse_stored_json(select.text(12), run.id);
-                if (diagnostics.is_array())
-                    for (const auto& line : diagnostics)
-                        if (line.is_string()) run.diagnostics.push_back(line.get<std::string>());
-                run.stored_at = select.text(13);
-                run.result = parse_stored_json(select.text(14), run.id);
-                run.axis_kind = select.text(15);
-                index[run.id] = result.size();
-                result.push_back(std::move(run));
-            }
-            Statement parameters(db_,
-                                 (std::string("SELECT p.run_id, p.key, p.value, p.stderr FROM parameters p "
-                                              "JOIN runs r ON r.id = p.run_id") +
-                                  where)
-                                     .c_str(),
-                                 path_);
-            parameters.bind(1, filter.machine).bind(2, filter.axis).bind(3, filter.location);
-            while (parameters.step()) {
-                const auto found = index.find(parameters.integer(0));
-                if (found == index.end()) continue;
-                result[found->second].parameters[parameters.text(1)] = {parameters.real(2), parameters.real(3)};
-            }
+            std::unordered_map<std::int64_t, std::size_t> index;
+            read_run_rows(filter, detail, result, index);
+            read_parameters(filter, [&](std::int64_t id, std::string_view key, const StoredEstimate& estimate) {
+                if (const auto found = index.find(id); found != index.end())
+                    result[found->second].parameters.emplace(std::string(key), estimate);
+            });
             exec("COMMIT");
         } catch (...) {
             sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
@@ -282,6 +218,48 @@ public:
         }
         return result;
     }
+
+    std::vector<SeriesRuns> series(const RunFilter& filter) const override {
+        std::vector<SeriesRuns> result;
+        exec("BEGIN");  // one snapshot for both queries
+        try {
+            // where each run lives: (series, position)
+            std::unordered_map<std::int64_t, std::pair<std::uint32_t, std::uint32_t>> where;
+            read_series_rows(filter, result, where);
+            std::vector<std::unordered_map<std::string, std::size_t>> key_index(result.size());
+            read_parameters(filter, [&](std::int64_t id, std::string_view key, const StoredEstimate& estimate) {
+                const auto found = where.find(id);
+                if (found == where.end()) return;
+                auto& series = result[found->second.first];
+                auto& keys = key_index[found->second.first];
+                auto slot = keys.find(std::string(key));
+                if (slot == keys.end()) {
+                    slot = keys.emplace(std::string(key), series.keys.size()).first;
+                    series.keys.emplace_back(key);
+                    series.estimates.emplace_back(series.size());
+                }
+                series.estimates[slot->second][found->second.second] = estimate;
+            });
+            exec("COMMIT");
+        } catch (...) {
+            sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+            throw;
+        }
+        for (auto& series : result) sort_keys(series);
+        return result;
+    }
+
+    nlohmann::json result_document(std::int64_t run_id) const override {
+        const Columns c = columns_of(schema_version_);
+        Statement select(db_, fmt::format("SELECT {} FROM runs r{} WHERE r.id = ?1", c.result, c.documents_join),
+                         path_);
+        select.bind(1, run_id);
+        if (!select.step()) throw InputError(fmt::format("{}: there is no run #{}", path_, run_id));
+        const auto text = select.view(0);
+        return text.empty() ? nlohmann::json::object() : parse_stored_json(text, run_id, "result document");
+    }
+
+    std::vector<std::string> verify() const override;
 
     void pin_baseline(const std::string& machine, const std::string& axis, std::int64_t run_id) override {
         require_writable();
@@ -315,51 +293,189 @@ public:
     int schema_version() const override { return schema_version_; }
 
 private:
-    /// One axis holds runs of one kind: a rotary run on an axis of linear runs (or the reverse) is refused.
+    /// A run's JSON columns and its storage time, as written.
+    struct StoredText {
+        std::string options_json;
+        std::string fit_json;
+        std::string diagnostics_json;
+        std::string result_json;
+        std::string stored_at;
+    };
+
+    /// One axis holds runs of one kind: a rotary run on an axis of linear runs (or the reverse) is refused. Since
+    /// every run of an axis is of its kind, one run (the first the index gives) tells it: a search for a run of the
+    /// other kind would read every run of the axis, each time a run is recorded.
     void require_same_axis_kind(const RunRecord& run, const std::string& axis_kind) const {
         if (schema_version_ < 4) return;
-        Statement other(db_,
-                        "SELECT id, axis_kind FROM runs WHERE machine = ?1 AND axis = ?2 AND axis_kind != ?3 AND "
-                        "axis_kind != '' ORDER BY id LIMIT 1",
-                        path_);
-        other.bind(1, run.machine).bind(2, run.axis).bind(3, axis_kind);
-        if (!other.step()) return;
+        Statement any(db_,
+                      "SELECT id, axis_kind FROM runs WHERE machine = ?1 AND axis = ?2 AND axis_kind != '' LIMIT 1",
+                      path_);
+        any.bind(1, run.machine).bind(2, run.axis);
+        if (!any.step() || any.view(1) == axis_kind) return;
         throw InputError(
             fmt::format("{}: machine '{}' axis '{}' is a {} axis (run #{}), this run is of a {} axis: "
                         "record it under another machine or axis name",
-                        path_, run.machine, run.axis, other.text(1), other.integer(0), axis_kind));
+                        path_, run.machine, run.axis, any.text(1), any.integer(0), axis_kind));
     }
 
-    /// A run's JSON columns and its storage time, as written.
-    struct StoredText {
-        const std::string& options_json;
-        const std::string& fit_json;
-        const std::string& diagnostics_json;
-        const std::string& result_json;
-        const std::string& stored_at;
-    };
-
     void insert_run(const RunRecord& run, const std::string& axis_kind, const StoredText& text) {
-        // A file kept at an older schema (tests of the migrations) lacks the later columns.
-        std::string columns =
-            "machine, axis, location, recorded_at, trace_path, trace_sha256, feedid_version, model, status, "
-            "options_json, fit_json, diagnostics_json, stored_at";
-        int count = 13;
-        if (schema_version_ >= 3) columns += ", result_json";
-        if (schema_version_ >= 3) ++count;
-        if (schema_version_ >= 4) columns += ", axis_kind";
-        if (schema_version_ >= 4) ++count;
+        // A file kept at an older schema (tests of the migrations) has the columns of its version.
+        std::vector<std::string> columns{"machine",      "axis",         "location",       "recorded_at",
+                                         "trace_path",   "trace_sha256", "model",          "status",
+                                         "options_json", "fit_json",     "feedid_version", "stored_at"};
+        if (schema_version_ < 5) columns.push_back("diagnostics_json");
+        if (schema_version_ >= 3 && schema_version_ < 5) columns.push_back("result_json");
+        if (schema_version_ >= 4) columns.push_back("axis_kind");
+        if (schema_version_ >= 5)
+            for (const char* c : {"relative_error_pct", "condition_number", "samples_used"}) columns.push_back(c);
+        std::string names;
         std::string placeholders;
-        for (int i = 1; i <= count; ++i) placeholders += fmt::format("{}?{}", i == 1 ? "" : ", ", i);
-        Statement insert(db_, fmt::format("INSERT INTO runs ({}) VALUES ({})", columns, placeholders).c_str(), path_);
+        for (std::size_t i = 0; i < columns.size(); ++i) {
+            names += (i == 0 ? "" : ", ") + columns[i];
+            placeholders += fmt::format("{}?{}", i == 0 ? "" : ", ", i + 1);
+        }
+        Statement insert(db_, fmt::format("INSERT INTO runs ({}) VALUES ({})", names, placeholders), path_);
         insert.bind(1, run.machine).bind(2, run.axis).bind(3, run.location).bind(4, run.recorded_at);
-        insert.bind(5, run.trace_path).bind(6, run.trace_sha256).bind(7, run.feedid_version).bind(8, run.model);
-        insert.bind(9, run.status).bind(10, text.options_json).bind(11, text.fit_json);
-        insert.bind(12, text.diagnostics_json).bind(13, text.stored_at);
-        if (schema_version_ >= 3) insert.bind(14, text.result_json);
-        if (schema_version_ >= 4) insert.bind(15, axis_kind);
+        insert.bind(5, run.trace_path).bind(6, run.trace_sha256).bind(7, run.model).bind(8, run.status);
+        insert.bind(9, text.options_json).bind(10, text.fit_json).bind(11, run.feedid_version);
+        insert.bind(12, text.stored_at);
+        int next = 13;
+        if (schema_version_ < 5) insert.bind(next++, text.diagnostics_json);
+        if (schema_version_ >= 3 && schema_version_ < 5) insert.bind(next++, text.result_json);
+        if (schema_version_ >= 4) insert.bind(next++, axis_kind);
+        if (schema_version_ >= 5) {
+            const FitFigures figures = fit_figures_of(run);
+            insert.bind(next, figures.relative_error_pct).bind(next + 1, figures.condition_number);
+            insert.bind(next + 2, figures.samples_used);
+        }
         insert.step();
         count_write_statement();
+    }
+
+    void insert_documents(std::int64_t id, const StoredText& text) {
+        Statement insert(db_, "INSERT INTO documents (run_id, result_json, diagnostics_json) VALUES (?1, ?2, ?3)",
+                         path_);
+        insert.bind(1, id).bind(2, text.result_json).bind(3, text.diagnostics_json);
+        insert.step();
+        count_write_statement();
+    }
+
+    void insert_parameters(std::int64_t id, const RunRecord& run) {
+        Statement parameter(db_,
+                            schema_version_ >= 5
+                                ? "INSERT INTO parameters (run_id, key, value, stderr, systematic, uncertainty) "
+                                  "VALUES (?1, ?2, ?3, ?4, ?5, ?6)"
+                                : "INSERT INTO parameters (run_id, key, value, stderr) VALUES (?1, ?2, ?3, ?4)",
+                            path_);
+        for (const auto& [key, estimate] : run.parameters) {
+            parameter.reset();
+            parameter.bind(1, id).bind(2, key).bind(3, estimate.value).bind(4, estimate.standard_error);
+            if (schema_version_ >= 5) parameter.bind(5, estimate.systematic).bind(6, estimate.uncertainty);
+            parameter.step();
+            count_write_statement();
+        }
+    }
+
+    void read_run_rows(const RunFilter& filter, RunDetail detail, std::vector<RunRecord>& result,
+                       std::unordered_map<std::int64_t, std::size_t>& index) const {
+        const Columns c = columns_of(schema_version_);
+        const bool documents = detail == RunDetail::documents;
+        Statement select(db_,
+                         fmt::format("SELECT r.id, r.machine, r.axis, r.location, r.recorded_at, r.trace_path, "
+                                     "r.trace_sha256, r.feedid_version, r.model, r.status, r.options_json, "
+                                     "r.stored_at, {}, {}, {}, {}, {} FROM runs r{}{} ORDER BY r.recorded_at, r.id",
+                                     c.axis_kind, c.fit_figures, documents ? "r.fit_json" : "NULL",
+                                     documents ? c.diagnostics : "NULL", documents ? c.result : "NULL",
+                                     documents ? c.documents_join : "", filter_clause),
+                         path_);
+        select.bind(1, filter.machine).bind(2, filter.axis).bind(3, filter.location);
+        OptionsGroups groups;
+        while (select.step()) {
+            RunRecord run;
+            run.id = select.integer(0);
+            run.machine = select.text(1);
+            run.axis = select.text(2);
+            run.location = select.text(3);
+            run.recorded_at = select.text(4);
+            run.trace_path = select.text(5);
+            run.trace_sha256 = select.text(6);
+            run.feedid_version = select.text(7);
+            run.model = select.text(8);
+            run.status = select.text(9);
+            run.options_group = groups.of(select.view(10));
+            run.stored_at = select.text(11);
+            run.axis_kind = select.text(12);
+            run.fit_figures = {select.real(13), select.real(14), select.real(15)};
+            if (documents) {
+                run.options = parse_stored_json(select.view(10), run.id, "options");
+                run.fit = parse_stored_json(select.view(16), run.id, "fit");
+                for (const auto& line : parse_stored_json(select.view(17), run.id, "diagnostics"))
+                    if (line.is_string()) run.diagnostics.push_back(line.get<std::string>());
+                run.result = parse_stored_json(select.view(18), run.id, "result document");
+            } else {
+                run.options = nullptr;
+                run.fit = nullptr;
+                run.result = nullptr;
+            }
+            index[run.id] = result.size();
+            result.push_back(std::move(run));
+        }
+    }
+
+    void read_series_rows(const RunFilter& filter, std::vector<SeriesRuns>& result,
+                          std::unordered_map<std::int64_t, std::pair<std::uint32_t, std::uint32_t>>& where) const {
+        Statement select(db_,
+                         fmt::format("SELECT r.id, r.machine, r.axis, r.recorded_at, r.options_json FROM runs r{} "
+                                     "ORDER BY r.machine, r.axis, r.recorded_at, r.id",
+                                     filter_clause),
+                         path_);
+        select.bind(1, filter.machine).bind(2, filter.axis).bind(3, filter.location);
+        OptionsGroups groups;
+        while (select.step()) {
+            if (result.empty() || result.back().machine != select.view(1) || result.back().axis != select.view(2)) {
+                result.emplace_back();
+                result.back().machine = select.text(1);
+                result.back().axis = select.text(2);
+            }
+            auto& series = result.back();
+            const std::int64_t id = select.integer(0);
+            where[id] = {static_cast<std::uint32_t>(result.size() - 1), static_cast<std::uint32_t>(series.size())};
+            series.run_ids.push_back(id);
+            series.recorded_at.push_back(select.text(3));
+            series.options_groups.push_back(groups.of(select.view(4)));
+        }
+    }
+
+    /// Calls `take(run id, key, estimate)` for every parameter row of the runs matching the filter.
+    template <class Take>
+    void read_parameters(const RunFilter& filter, Take&& take) const {
+        const Columns c = columns_of(schema_version_);
+        const bool all = filter.machine.empty() && filter.axis.empty() && filter.location.empty();
+        Statement select(
+            db_,
+            all ? fmt::format("SELECT p.run_id, p.key, p.value, p.stderr, {} FROM parameters p", c.parameter_errors)
+                : fmt::format("SELECT p.run_id, p.key, p.value, p.stderr, {} FROM parameters p "
+                              "JOIN runs r ON r.id = p.run_id{}",
+                              c.parameter_errors, filter_clause),
+            path_);
+        if (!all) select.bind(1, filter.machine).bind(2, filter.axis).bind(3, filter.location);
+        while (select.step())
+            take(select.integer(0), select.view(1),
+                 StoredEstimate{select.real(2), select.real(3), select.real(4), select.real(5)});
+    }
+
+    static void sort_keys(SeriesRuns& series) {
+        std::vector<std::size_t> order(series.keys.size());
+        for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+        std::sort(order.begin(), order.end(), [&](auto a, auto b) { return series.keys[a] < series.keys[b]; });
+        std::vector<std::string> keys;
+        std::vector<std::vector<StoredEstimate>> estimates;
+        for (const auto k : order) {
+            keys.push_back(std::move(series.keys[k]));
+            estimates.push_back(std::move(series.estimates[k]));
+        }
+        series.keys = std::move(keys);
+        series.estimates = std::move(estimates);
     }
 
     void exec(const char* sql) const {
@@ -368,8 +484,9 @@ private:
         if (code != SQLITE_OK) {
             sqlite3_free(message);
             const int extended = sqlite3_extended_errcode(db_);
-            throw SqliteError(fmt::format("{}: cannot read or write the database: {}", path_, describe(extended, db_)),
-                              extended);
+            throw SqliteError(
+                fmt::format("{}: cannot read or write the database: {}", path_, describe_sqlite_error(extended, db_)),
+                extended);
         }
     }
 
@@ -382,11 +499,12 @@ private:
         if (read_only_) throw InputError(fmt::format("{}: opened read-only", path_));
     }
 
-    nlohmann::json parse_stored_json(const std::string& text, std::int64_t id) const {
+    nlohmann::json parse_stored_json(std::string_view text, std::int64_t id, const char* what) const {
         try {
-            return nlohmann::json::parse(text);
-        } catch (const nlohmann::json::parse_error&) {
-            throw InputError(fmt::format("{}: run #{} holds malformed JSON (the file is corrupt)", path_, id));
+            return parse_json(text, fmt::format("{}: run #{}'s {}", path_, id, what));
+        } catch (const InputError& e) {
+            throw InputError(
+                fmt::format("{} (the file is damaged; feedid history {} --verify checks it)", e.what(), path_));
         }
     }
 
@@ -419,63 +537,42 @@ private:
         }
     }
 
-    void check_and_migrate(int target_version) {
-        // Read-only checks first: nothing below writes until the file is known to be a feedid history (or empty).
-        std::string check;
+    /// Runs `step` (statements that read the file), turning SQLite's word for a damaged file into "corrupt".
+    template <class Step>
+    auto reading_the_file(Step&& step) const -> decltype(step()) {
         try {
-            Statement quick_check(db_, "PRAGMA quick_check", path_);
-            if (quick_check.step()) check = quick_check.text(0);
-        } catch (const SqliteError&) {
-            throw InputError(fmt::format("{}: the history database is corrupt (not a readable SQLite file)", path_));
+            return step();
+        } catch (const SqliteError& e) {
+            const int primary = e.code() & 0xff;
+            if (primary == SQLITE_CORRUPT || primary == SQLITE_NOTADB)
+                throw InputError(
+                    fmt::format("{}: the history database is corrupt (not a readable SQLite file)", path_));
+            throw;  // not the file's fault: a lock, the disk, a permission, named as such
         }
-        if (check != "ok") {
-            // One line: SQLite lists its findings on several.
-            for (auto& c : check)
-                if (c == '\n') c = ' ';
-            if (check.size() > 200) check = check.substr(0, 200) + "...";
-            throw InputError(fmt::format("{}: the history database is corrupt (SQLite's check: {})", path_, check));
-        }
-        const int found_application = pragma_integer("PRAGMA application_id");
-        schema_version_ = pragma_integer("PRAGMA user_version");
-        const int tables = pragma_integer("SELECT count(*) FROM sqlite_master");
-        const bool empty = found_application == 0 && schema_version_ == 0 && tables == 0;
-        if (!empty && found_application != application_id)
-            throw InputError(
-                fmt::format("{}: not a feedid history database (a SQLite file of another application)", path_));
-        if (schema_version_ > sqlite_schema_version)
-            throw InputError(
-                fmt::format("{}: the history database has schema version {}, newer than this feedid "
-                            "understands ({}); use a newer feedid",
-                            path_, schema_version_, sqlite_schema_version));
-        if (read_only_) {
-            if (empty) throw InputError(fmt::format("{}: the history database is empty (no run recorded yet)", path_));
-            return;
-        }
-        // WAL lets readers go on while one process writes; the mode is stored in the file. Switching needs a moment
-        // of exclusive access, so it is retried while another process is busy with the file.
-        for (int attempt = 1;; ++attempt) {
-            try {
-                exec("PRAGMA journal_mode = WAL");
-                break;
-            } catch (const SqliteError& e) {
-                const int primary = e.code() & 0xff;
-                if ((primary != SQLITE_BUSY && primary != SQLITE_LOCKED) || attempt >= 20) throw;
-                std::this_thread::sleep_for(std::chrono::milliseconds(50 * attempt));
+    }
+
+    /// SQLite's check of the tables the listings and the trend read, and of their indexes (quick_check for a reader;
+    /// integrity_check for a writer: only the full check compares every index with its table). The bulky documents
+    /// table is left to --verify: checking it reads every stored document, hundreds of MB in a large history, and
+    /// a damaged page there is reported as corrupt when it is read. The first finding; "ok" when there is none.
+    std::string check_tables(const char* pragma) const {
+        return reading_the_file([&] {
+            Statement tables(db_,
+                             "SELECT name FROM sqlite_master WHERE type = 'table' AND name IN ('runs', 'parameters', "
+                             "'baselines') ORDER BY name",
+                             path_);
+            std::vector<std::string> names;
+            while (tables.step()) names.push_back(tables.text(0));
+            if (names.empty()) names.emplace_back();  // a file without them: the whole (small) file
+            for (const auto& name : names) {
+                Statement check(db_, name.empty() ? std::string(pragma) : fmt::format("{}({})", pragma, name), path_);
+                if (check.step() && check.view(0) != "ok") return check.text(0);
             }
-        }
-        if (schema_version_ >= target_version) return;
-        write_transaction([&] {
-            // Re-read inside the write lock: another process may have migrated meanwhile.
-            int version = pragma_integer("PRAGMA user_version");
-            if (version == 0) exec(fmt::format("PRAGMA application_id = {}", application_id).c_str());
-            for (; version < target_version; ++version) {
-                exec(migrations[version]);
-                exec(fmt::format("PRAGMA user_version = {}", version + 1).c_str());
-            }
-            schema_version_ = version;
-            return 0;
+            return std::string("ok");
         });
     }
+
+    void check_and_migrate(int target_version);
 
     std::string path_;
     bool read_only_;
@@ -483,101 +580,98 @@ private:
     int schema_version_{0};
 };
 
+void SqliteStore::check_and_migrate(int target_version) {
+    // Read-only checks first: nothing below writes until the file is known to be a feedid history (or empty).
+    // One snapshot for the three: another process may be creating the tables right now.
+    const auto [found_application, version, tables] = reading_the_file([&] {
+        exec("BEGIN");
+        try {
+            const std::array<int, 3> header{pragma_integer("PRAGMA application_id"),
+                                            pragma_integer("PRAGMA user_version"),
+                                            pragma_integer("SELECT count(*) FROM sqlite_master")};
+            exec("COMMIT");
+            return header;
+        } catch (...) {
+            sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+            throw;
+        }
+    });
+    schema_version_ = version;
+    std::string check = check_tables(read_only_ ? "PRAGMA quick_check" : "PRAGMA integrity_check");
+    if (check != "ok") {
+        // One line: SQLite lists its findings on several.
+        for (auto& c : check)
+            if (c == '\n') c = ' ';
+        if (check.size() > 200) check = check.substr(0, 200) + "...";
+        throw InputError(fmt::format("{}: the history database is corrupt (SQLite's check: {})", path_, check));
+    }
+    const bool empty = found_application == 0 && schema_version_ == 0 && tables == 0;
+    if (!empty && found_application != application_id)
+        throw InputError(
+            fmt::format("{}: not a feedid history database (a SQLite file of another application)", path_));
+    if (schema_version_ > sqlite_schema_version)
+        throw InputError(
+            fmt::format("{}: the history database has schema version {}, newer than this feedid "
+                        "understands ({}); use a newer feedid",
+                        path_, schema_version_, sqlite_schema_version));
+    if (read_only_) {
+        if (empty) throw InputError(fmt::format("{}: the history database is empty (no run recorded yet)", path_));
+        return;
+    }
+    // WAL lets readers go on while one process writes; the mode is stored in the file. Switching needs a moment
+    // of exclusive access, so it is retried while another process is busy with the file.
+    for (int attempt = 1;; ++attempt) {
+        try {
+            exec("PRAGMA journal_mode = WAL");
+            break;
+        } catch (const SqliteError& e) {
+            const int primary = e.code() & 0xff;
+            if ((primary != SQLITE_BUSY && primary != SQLITE_LOCKED) || attempt >= 20) throw;
+            std::this_thread::sleep_for(std::chrono::milliseconds(50 * attempt));
+        }
+    }
+    if (schema_version_ >= target_version) return;
+    write_transaction([&] {
+        // Re-read inside the write lock: another process may have migrated meanwhile.
+        int version = pragma_integer("PRAGMA user_version");
+        if (version == 0) exec(fmt::format("PRAGMA application_id = {}", application_id).c_str());
+        for (; version < target_version; ++version) {
+            exec(migrations[version]);
+            exec(fmt::format("PRAGMA user_version = {}", version + 1).c_str());
+        }
+        schema_version_ = version;
+        return 0;
+    });
+}
+
+std::vector<std::string> SqliteStore::verify() const {
+    std::vector<std::string> problems;
+    {
+        Statement check(db_, "PRAGMA integrity_check", path_);
+        while (check.step())
+            if (check.view(0) != "ok") problems.push_back("SQLite's integrity check: " + check.text(0));
+    }
+    if (!problems.empty()) return problems;  // the tables are not to be trusted for the next check
+    const Columns c = columns_of(schema_version_);
+    Statement documents(db_,
+                        fmt::format("SELECT r.id, json_valid(r.options_json), json_valid(r.fit_json), "
+                                    "json_valid(COALESCE({}, '[]')), json_valid(COALESCE({}, '{{}}')) FROM runs r{} "
+                                    "ORDER BY r.id",
+                                    c.diagnostics, c.result, c.documents_join),
+                        path_);
+    const std::array<const char*, 4> names{"options", "fit", "diagnostics", "result document"};
+    while (documents.step())
+        for (int k = 0; k < 4; ++k)
+            if (documents.integer(k + 1) == 0)
+                problems.push_back(fmt::format("run #{}: its {} is not readable JSON", documents.integer(0),
+                                               names[static_cast<std::size_t>(k)]));
+    return problems;
+}
+
 }  // namespace
 
 std::unique_ptr<HistoryStore> open_sqlite_store(const std::filesystem::path& path, const SqliteOpenOptions& options) {
     return std::make_unique<SqliteStore>(path, options);
-}
-
-bool looks_like_sqlite(const std::filesystem::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    char header[16] = {};
-    in.read(header, sizeof header);
-    return in.gcount() == sizeof header &&
-           std::string_view(header, sizeof header) == std::string_view("SQLite format 3\0", 16);
-}
-
-std::string file_modification_time_utc(const std::filesystem::path& path) {
-    std::error_code error;
-    const auto file_time = std::filesystem::last_write_time(path, error);
-    if (error) throw InputError(fmt::format("{}: cannot read the file's modification time", path.string()));
-    const auto system_time = std::chrono::file_clock::to_sys(file_time);
-    const auto milliseconds =
-        std::chrono::duration_cast<std::chrono::milliseconds>(system_time.time_since_epoch()).count();
-    const std::time_t seconds = static_cast<std::time_t>(milliseconds / 1000);
-    std::tm utc{};
-    gmtime_r(&seconds, &utc);
-    return fmt::format("{:04}-{:02}-{:02}T{:02}:{:02}:{:02}.{:03}Z", utc.tm_year + 1900, utc.tm_mon + 1, utc.tm_mday,
-                       utc.tm_hour, utc.tm_min, utc.tm_sec, static_cast<int>(milliseconds % 1000));
-}
-
-std::string now_utc() {
-    const auto milliseconds =
-        std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::system_clock::now().time_since_epoch())
-            .count();
-    const std::time_t seconds = static_cast<std::time_t>(milliseconds / 1000);
-    std::tm utc{};
-    gmtime_r(&seconds, &utc);
-    return fmt::format("{:04}-{:02}-{:02}T{:02}:{:02}:{:02}.{:03}Z", utc.tm_year + 1900, utc.tm_mon + 1, utc.tm_mday,
-                       utc.tm_hour, utc.tm_min, utc.tm_sec, static_cast<int>(milliseconds % 1000));
-}
-
-RunRecord run_from_result(const nlohmann::json& result, const std::string& source) {
-    const auto not_a_result = [&](const std::string& why) {
-        return InputError(fmt::format("{}: not a feedid identify result document ({})", source, why));
-    };
-    if (!result.is_object()) throw not_a_result("it is not a JSON object");
-    if (!result.contains("parameters") || !result["parameters"].is_object())
-        throw not_a_result("it has no \"parameters\" object");
-    if (!result.contains("model") || !result["model"].is_string()) throw not_a_result("it has no \"model\"");
-    RunRecord run;
-    run.model = result["model"].get<std::string>();
-
-    for (const auto& [key, entry] : result["parameters"].items()) {
-        if (!entry.is_object() || !entry.contains("value"))
-            throw not_a_result(fmt::format("parameter \"{}\" has no \"value\"", key));
-        try {
-            run.parameters[key] = entry.get<Estimate>();
-        } catch (const nlohmann::json::exception&) {
-            throw not_a_result(fmt::format("parameter \"{}\" is not a number or null", key));
-        }
-    }
-    if (result.contains("feedid_version") && result["feedid_version"].is_string())
-        run.feedid_version = result["feedid_version"].get<std::string>();
-    if (result.contains("status") && result["status"].is_string()) run.status = result["status"].get<std::string>();
-    if (result.contains("trace") && result["trace"].is_object() && result["trace"].contains("path") &&
-        result["trace"]["path"].is_string())
-        run.trace_path = result["trace"]["path"].get<std::string>();
-    if (result.contains("fit") && result["fit"].is_object()) run.fit = result["fit"];
-    if (result.contains("diagnostics") && result["diagnostics"].is_array())
-        for (const auto& line : result["diagnostics"])
-            if (line.is_string()) run.diagnostics.push_back(line.get<std::string>());
-    // The axis kind as the result states it; older results without "rotary" by their keys.
-    run.axis_kind = result.contains("rotary") && result["rotary"].is_boolean()
-                        ? ParameterNaming{result["rotary"].get<bool>()}.axis_kind()
-                        : axis_kind_of(run.parameters);
-    run.result = result;
-    if (run.result.contains("rls") && run.result["rls"].is_object()) run.result["rls"].erase("history");
-    return run;
-}
-
-nlohmann::json to_json(const RunRecord& run) {
-    const nlohmann::json parameters(run.parameters);
-    return {{"id", run.id},
-            {"machine", run.machine},
-            {"axis", run.axis},
-            {"location", run.location},
-            {"recorded_at", run.recorded_at},
-            {"trace", {{"path", run.trace_path}, {"sha256", run.trace_sha256}}},
-            {"feedid_version", run.feedid_version},
-            {"model", run.model},
-            {"axis_kind", run.axis_kind},
-            {"status", run.status},
-            {"options", run.options},
-            {"parameters", parameters},
-            {"fit", run.fit},
-            {"diagnostics", run.diagnostics},
-            {"stored_at", run.stored_at}};
 }
 
 }  // namespace feedid::history

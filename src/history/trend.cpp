@@ -53,11 +53,10 @@ struct BaselineWindow {
 };
 
 // Where the baseline starts: the first run, or the pinned one.
-std::size_t baseline_start(const std::vector<RunRecord>& runs, const TrendOptions& options, SeriesTrend& series) {
+std::size_t baseline_start(const SeriesRuns& runs, const TrendOptions& options, SeriesTrend& series) {
     if (!options.pinned_run) return 0;
-    const auto pinned =
-        std::find_if(runs.begin(), runs.end(), [&](const RunRecord& run) { return run.id == *options.pinned_run; });
-    if (pinned == runs.end()) {
+    const auto pinned = std::find(runs.run_ids.begin(), runs.run_ids.end(), *options.pinned_run);
+    if (pinned == runs.run_ids.end()) {
         series.notes.push_back(
             fmt::format("pinned run #{} is not among this axis's runs; the baseline starts at "
                         "the first run",
@@ -65,14 +64,14 @@ std::size_t baseline_start(const std::vector<RunRecord>& runs, const TrendOption
         series.pinned_run.reset();
         return 0;
     }
-    return static_cast<std::size_t>(pinned - runs.begin());
+    return static_cast<std::size_t>(pinned - runs.run_ids.begin());
 }
 
-BaselineWindow baseline_window(const std::vector<RunRecord>& runs, const TrendOptions& options, SeriesTrend& series) {
+BaselineWindow baseline_window(const SeriesRuns& runs, const TrendOptions& options, SeriesTrend& series) {
     BaselineWindow window;
     window.start = baseline_start(runs, options, series);
     window.end = std::min(runs.size(), window.start + static_cast<std::size_t>(options.baseline_runs));
-    for (std::size_t i = window.start; i < window.end; ++i) series.baseline_run_ids.push_back(runs[i].id);
+    for (std::size_t i = window.start; i < window.end; ++i) series.baseline_run_ids.push_back(runs.run_ids[i]);
     series.baseline_complete = window.end - window.start == static_cast<std::size_t>(options.baseline_runs);
     if (!series.baseline_complete)
         series.notes.push_back(fmt::format("the baseline is still forming ({} of {} runs); nothing is checked yet",
@@ -81,19 +80,14 @@ BaselineWindow baseline_window(const std::vector<RunRecord>& runs, const TrendOp
 }
 
 // Options differing between runs make values incomparable; say so rather than guess.
-void note_differing_options(const std::vector<RunRecord>& runs, std::size_t start, SeriesTrend& series) {
-    std::set<std::string> option_sets;
-    for (std::size_t i = start; i < runs.size(); ++i) option_sets.insert(runs[i].options.dump());
-    if (option_sets.size() > 1)
-        series.notes.push_back("the runs were identified with different options; their values may not be comparable");
-}
-
-std::set<std::string> parameter_keys(const std::vector<RunRecord>& runs) {
-    std::set<std::string> keys;
-    for (const auto& run : runs)
-        for (const auto& [key, estimate] : run.parameters)
-            if (estimate.value) keys.insert(key);
-    return keys;
+void note_differing_options(const SeriesRuns& runs, std::size_t start, SeriesTrend& series) {
+    for (std::size_t i = start + 1; i < runs.size(); ++i) {
+        if (runs.options_groups[i] != runs.options_groups[start]) {
+            series.notes.push_back(
+                "the runs were identified with different options; their values may not be comparable");
+            return;
+        }
+    }
 }
 
 // What a change of one parameter is measured against (see trend.hpp).
@@ -104,15 +98,16 @@ struct Baseline {
     double sigma_mean{0.0};     // sigma_mu
 };
 
-// The baseline of the parameter `trend.key`, kept in `trend` too; a note there when no change can be judged.
-Baseline baseline_of(const std::vector<RunRecord>& runs, const BaselineWindow& window, ParameterTrend& trend) {
+// The baseline of the parameter `trend.key` (its estimates per run), kept in `trend` too; a note there when no change
+// can be judged.
+Baseline baseline_of(const std::vector<StoredEstimate>& estimates, const BaselineWindow& window,
+                     ParameterTrend& trend) {
     std::vector<double> values;
     std::vector<double> errors;
     for (std::size_t i = window.start; i < window.end; ++i) {
-        const auto found = runs[i].parameters.find(trend.key);
-        if (found == runs[i].parameters.end() || !found->second.value) continue;
-        values.push_back(*found->second.value);
-        if (found->second.standard_error) errors.push_back(*found->second.standard_error);
+        if (!estimates[i].value) continue;
+        values.push_back(*estimates[i].value);
+        if (estimates[i].standard_error) errors.push_back(*estimates[i].standard_error);
     }
     const std::size_t n = values.size();
     Baseline baseline;
@@ -143,12 +138,12 @@ Baseline baseline_of(const std::vector<RunRecord>& runs, const BaselineWindow& w
     return baseline;
 }
 
-// A run's value with its change from the baseline in combined standard errors (when a change can be judged).
-TrendPoint point_of(const RunRecord& run, const StoredEstimate& estimate, RunRole role, const ParameterTrend& trend,
-                    const Baseline& baseline) {
+// Run i's value with its change from the baseline in combined standard errors (when a change can be judged).
+TrendPoint point_of(const SeriesRuns& runs, std::size_t i, const StoredEstimate& estimate, RunRole role,
+                    const ParameterTrend& trend, const Baseline& baseline) {
     TrendPoint point;
-    point.run_id = run.id;
-    point.recorded_at = run.recorded_at;
+    point.run_id = runs.run_ids[i];
+    point.recorded_at = runs.recorded_at[i];
     point.role = role;
     point.value = estimate.value;
     point.standard_error = estimate.standard_error;
@@ -201,22 +196,24 @@ Alarm alarm_at(const SeriesTrend& series, const std::string& key, const TrendPoi
     return fired;
 }
 
-// One parameter over the runs: its baseline, a point per run that has it, and the alarms (into `series`) of the
-// runs checked after a complete baseline.
-ParameterTrend parameter_trend(const std::string& key, const std::vector<RunRecord>& runs, const BaselineWindow& window,
-                               const TrendOptions& options, SeriesTrend& series) {
+// One parameter (keys[k]) over the runs: its baseline, a point per run that has it (when kept), and the alarms (into
+// `series`) of the runs checked after a complete baseline.
+ParameterTrend parameter_trend(std::size_t k, const SeriesRuns& runs, const BaselineWindow& window,
+                               const TrendOptions& options, SeriesTrend& series, std::vector<char>& checked) {
     ParameterTrend trend;
-    trend.key = key;
-    const Baseline baseline = baseline_of(runs, window, trend);
+    trend.key = runs.keys[k];
+    const auto& estimates = runs.estimates[k];
+    const Baseline baseline = baseline_of(estimates, window, trend);
     Cusum cusum;
     for (std::size_t i = 0; i < runs.size(); ++i) {
-        const auto found = runs[i].parameters.find(key);
-        if (found == runs[i].parameters.end() || !found->second.value) continue;
-        TrendPoint point = point_of(runs[i], found->second, window.role_of(i), trend, baseline);
-        if (point.role == RunRole::checked && series.baseline_complete && point.z && advance(cusum, point, options)) {
-            series.alarms.push_back(alarm_at(series, key, point, cusum, baseline.mean, options));
+        if (!estimates[i].value) continue;
+        TrendPoint point = point_of(runs, i, estimates[i], window.role_of(i), trend, baseline);
+        const bool compared = point.role == RunRole::checked && series.baseline_complete && point.z;
+        if (compared) checked[i] = 1;
+        if (compared && advance(cusum, point, options)) {
+            series.alarms.push_back(alarm_at(series, trend.key, point, cusum, baseline.mean, options));
         }
-        trend.points.push_back(point);
+        if (options.keep_points) trend.points.push_back(std::move(point));
     }
     return trend;
 }
@@ -240,43 +237,82 @@ std::string Alarm::message() const {
         cusum);
 }
 
-SeriesTrend analyse_series(const std::string& machine, const std::string& axis, const std::vector<RunRecord>& runs,
-                           const TrendOptions& options) {
+SeriesTrend analyse_series(const SeriesRuns& runs, const TrendOptions& options) {
     SeriesTrend series;
-    series.machine = machine;
-    series.axis = axis;
+    series.machine = runs.machine;
+    series.axis = runs.axis;
     series.pinned_run = options.pinned_run;
     const BaselineWindow window = baseline_window(runs, options, series);
     note_differing_options(runs, window.start, series);
-    for (const auto& key : parameter_keys(runs)) {
-        series.parameters.push_back(parameter_trend(key, runs, window, options, series));
+    std::vector<char> checked(runs.size(), 0);
+    for (std::size_t k = 0; k < runs.keys.size(); ++k) {
+        const auto& estimates = runs.estimates[k];
+        const bool any = std::any_of(estimates.begin(), estimates.end(), [](const auto& e) { return e.value; });
+        if (any) series.parameters.push_back(parameter_trend(k, runs, window, options, series, checked));
     }
+    series.checked_runs = static_cast<std::size_t>(std::count(checked.begin(), checked.end(), 1));
     std::stable_sort(series.alarms.begin(), series.alarms.end(),
                      [&](const Alarm& a, const Alarm& b) { return a.run_id < b.run_id; });
     return series;
 }
 
-std::vector<SeriesTrend> analyse_trends(const std::vector<RunRecord>& runs, const std::vector<BaselinePin>& pins,
+std::vector<SeriesTrend> analyse_trends(const std::vector<SeriesRuns>& series, const std::vector<BaselinePin>& pins,
                                         const TrendOptions& options) {
-    std::map<std::pair<std::string, std::string>, std::vector<RunRecord>> groups;
-    for (const auto& run : runs) groups[{run.machine, run.axis}].push_back(run);
     std::vector<SeriesTrend> result;
-    for (auto& [key, series_runs] : groups) {
-        std::stable_sort(series_runs.begin(), series_runs.end(), [](const RunRecord& a, const RunRecord& b) {
-            return a.recorded_at != b.recorded_at ? a.recorded_at < b.recorded_at : a.id < b.id;
-        });
+    for (const auto& runs : series) {
         TrendOptions series_options = options;
         if (options.pinned_run) {
-            const bool holds = std::any_of(series_runs.begin(), series_runs.end(),
-                                           [&](const RunRecord& run) { return run.id == *options.pinned_run; });
+            const bool holds =
+                std::find(runs.run_ids.begin(), runs.run_ids.end(), *options.pinned_run) != runs.run_ids.end();
             if (!holds) series_options.pinned_run.reset();
         } else {
             for (const auto& pin : pins)
-                if (pin.machine == key.first && pin.axis == key.second) series_options.pinned_run = pin.run_id;
+                if (pin.machine == runs.machine && pin.axis == runs.axis) series_options.pinned_run = pin.run_id;
         }
-        result.push_back(analyse_series(key.first, key.second, series_runs, series_options));
+        result.push_back(analyse_series(runs, series_options));
     }
     return result;
+}
+
+std::vector<SeriesRuns> series_of(const std::vector<RunRecord>& runs) {
+    std::map<std::pair<std::string, std::string>, std::vector<const RunRecord*>> groups;
+    for (const auto& run : runs) groups[{run.machine, run.axis}].push_back(&run);
+    std::map<std::string, std::int64_t> options_texts;  // for records without an options group
+    std::vector<SeriesRuns> result;
+    for (auto& [name, members] : groups) {
+        std::stable_sort(members.begin(), members.end(), [](const RunRecord* a, const RunRecord* b) {
+            return a->recorded_at != b->recorded_at ? a->recorded_at < b->recorded_at : a->id < b->id;
+        });
+        SeriesRuns series;
+        series.machine = name.first;
+        series.axis = name.second;
+        std::set<std::string> keys;
+        for (const auto* run : members)
+            for (const auto& [key, estimate] : run->parameters) keys.insert(key);
+        series.keys.assign(keys.begin(), keys.end());
+        series.estimates.assign(keys.size(), std::vector<StoredEstimate>(members.size()));
+        for (std::size_t i = 0; i < members.size(); ++i) {
+            const RunRecord& run = *members[i];
+            series.run_ids.push_back(run.id);
+            series.recorded_at.push_back(run.recorded_at);
+            if (run.options_group != 0) {
+                series.options_groups.push_back(run.options_group);
+            } else {
+                const auto text = options_texts.emplace(run.options.dump(), -1 - std::ssize(options_texts)).first;
+                series.options_groups.push_back(text->second);
+            }
+            for (std::size_t k = 0; k < series.keys.size(); ++k)
+                if (const auto found = run.parameters.find(series.keys[k]); found != run.parameters.end())
+                    series.estimates[k][i] = found->second;
+        }
+        result.push_back(std::move(series));
+    }
+    return result;
+}
+
+std::vector<SeriesTrend> analyse_trends(const std::vector<RunRecord>& runs, const std::vector<BaselinePin>& pins,
+                                        const TrendOptions& options) {
+    return analyse_trends(series_of(runs), pins, options);
 }
 
 nlohmann::json to_json(const SeriesTrend& trend) {

@@ -8,6 +8,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <span>
 
 #include <fmt/core.h>
 
@@ -16,6 +17,7 @@
 
 #include "feedid/friction.hpp"
 #include "feedid/parameters.hpp"
+#include "feedid/signal.hpp"
 #include "feedid/version.hpp"
 
 namespace feedid::report {
@@ -30,6 +32,74 @@ constexpr const char* grey = "#555555";
 // Plots of RLS histories hold at most this many points: enough for the shape of a transient, small enough for a
 // browser to draw dozens of plots at once.
 constexpr std::size_t max_plot_points = 800;
+
+// Plots of a long history are thinned to the runs where a value is smallest or largest within each stretch of runs,
+// as simulate thins its errors, so that no outlier is lost; and the run where an alarm fired is kept. A series keeps
+// at most 400 points (a plot is 760 px wide), and all the history plots of a page together about 12,000, at least 100
+// per series: a report of 10,000 runs on a dozen axes stays a few MB.
+constexpr std::size_t max_history_points = 400;
+constexpr std::size_t min_history_points = 100;
+constexpr std::size_t page_history_points = 12000;
+
+/// The points each series of `plots` history plots may keep.
+std::size_t history_points_per_series(std::size_t plots) {
+    return std::clamp(page_history_points / std::max<std::size_t>(plots, 1), min_history_points, max_history_points);
+}
+
+/// Keeps the points `keep` (ascending) of a series: x, y, band and tooltips alike.
+void keep_points(Series& series, const std::vector<std::size_t>& keep) {
+    const auto pick = [&](auto& column) {
+        if (column.size() != series.x.size() || column.empty()) return;
+        std::remove_reference_t<decltype(column)> kept;
+        kept.reserve(keep.size());
+        for (const auto i : keep) kept.push_back(std::move(column[i]));
+        column = std::move(kept);
+    };
+    pick(series.y);
+    pick(series.band);
+    pick(series.tooltips);
+    pick(series.x);  // last: the others are checked against its length
+}
+
+/// Thins a history plot's series to `points` each by min/max per bucket of their y; series of one style drawn over the
+/// same runs (the CUSUM's S+ and S-, the two alarm limits) are thinned together. The run where the alarm fired (the
+/// first highlighted) stays; later highlights go with their runs.
+void thin_history_plot(Plot& plot, std::size_t points) {
+    const auto first_alarm = std::min_element(plot.highlights.begin(), plot.highlights.end(),
+                                              [](const Highlight& a, const Highlight& b) { return a.x < b.x; });
+    const std::optional<double> fired =
+        first_alarm == plot.highlights.end() ? std::nullopt : std::optional<double>(first_alarm->x);
+    std::set<double> kept_x;
+    std::vector<bool> done(plot.series.size(), false);
+    for (std::size_t s = 0; s < plot.series.size(); ++s) {
+        if (done[s]) continue;
+        std::vector<Series*> together;
+        std::vector<std::span<const double>> columns;
+        for (std::size_t t = s; t < plot.series.size(); ++t)
+            if (!done[t] && plot.series[t].style == plot.series[s].style && plot.series[t].x == plot.series[s].x) {
+                done[t] = true;
+                together.push_back(&plot.series[t]);
+                columns.emplace_back(plot.series[t].y);
+            }
+        const auto& x = plot.series[s].x;
+        if (x.size() > points) {
+            auto keep = extreme_preserving_indices(columns, x.size(), points - 1);
+            if (const auto at = fired ? std::find(x.begin(), x.end(), *fired) : x.end(); at != x.end()) {
+                keep.push_back(static_cast<std::size_t>(at - x.begin()));
+                std::sort(keep.begin(), keep.end());
+                keep.erase(std::unique(keep.begin(), keep.end()), keep.end());
+            }
+            for (auto* series : together) keep_points(*series, keep);
+        }
+        kept_x.insert(plot.series[s].x.begin(), plot.series[s].x.end());
+    }
+    std::erase_if(plot.highlights, [&](const Highlight& h) { return !kept_x.count(h.x) && h.x != fired; });
+}
+
+/// Whether a plot of the history is one of the per-run plots that thinning applies to.
+bool per_run_plot(const Plot& plot) {
+    return plot.id.starts_with("trend-") || plot.id.starts_with("cusum-");
+}
 
 std::string slug(const std::string& text) {
     std::string out;
@@ -585,8 +655,11 @@ std::optional<Plot> latest_friction_plot(const AxisRuns& axis) {
 
 }  // namespace
 
-std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
-                                const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options) {
+namespace {
+
+std::vector<Plot> unthinned_history_plots(const std::vector<history::RunRecord>& runs,
+                                          const std::vector<history::SeriesTrend>& trends,
+                                          const history::TrendOptions& options) {
     std::vector<Plot> plots;
     for (const auto& trend : trends) {
         const AxisRuns axis = axis_runs(runs, trend);
@@ -597,6 +670,22 @@ std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
         }
         if (auto curve = latest_friction_plot(axis)) plots.push_back(std::move(*curve));
     }
+    return plots;
+}
+
+/// Thins the per-run plots among `plots` to the points a page of `page_plots` such plots allows each series.
+void thin_history_plots(std::vector<Plot>& plots, std::size_t page_plots) {
+    const std::size_t points = history_points_per_series(page_plots);
+    for (auto& plot : plots)
+        if (per_run_plot(plot)) thin_history_plot(plot, points);
+}
+
+}  // namespace
+
+std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
+                                const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options) {
+    auto plots = unthinned_history_plots(runs, trends, options);
+    thin_history_plots(plots, static_cast<std::size_t>(std::count_if(plots.begin(), plots.end(), per_run_plot)));
     return plots;
 }
 
@@ -830,6 +919,70 @@ std::string result_report_html(const nlohmann::json& result, const std::string& 
                 body);
 }
 
+namespace {
+
+// The table of runs lists every run of a short history; of a long one the baseline runs, the runs where an alarm
+// fired and the latest runs, with a row saying how many are left out between them.
+constexpr std::size_t table_latest_runs = 100;
+
+std::vector<bool> listed_in_table(const history::SeriesTrend& trend,
+                                  const std::vector<const history::RunRecord*>& series_runs) {
+    const std::size_t n = series_runs.size();
+    std::vector<bool> listed(n, n <= table_latest_runs + trend.baseline_run_ids.size());
+    std::set<std::int64_t> named(trend.baseline_run_ids.begin(), trend.baseline_run_ids.end());
+    for (const auto& alarm : trend.alarms) named.insert(alarm.run_id);
+    for (std::size_t i = 0; i < n; ++i)
+        if (i + table_latest_runs >= n || named.count(series_runs[i]->id)) listed[i] = true;
+    return listed;
+}
+
+std::string runs_table(const history::SeriesTrend& trend, const std::vector<const history::RunRecord*>& series_runs,
+                       const std::set<std::string>& keys) {
+    std::map<std::string, std::set<std::int64_t>> in_alarm;
+    for (const auto& parameter : trend.parameters)
+        for (const auto& point : parameter.points)
+            if (point.alarm) in_alarm[parameter.key].insert(point.run_id);
+    const auto listed = listed_in_table(trend, series_runs);
+    std::string body =
+        "<table>\n<tr><th>run</th><th class=\"text\">recorded at</th><th class=\"text\">location</th>"
+        "<th class=\"text\">status</th>";
+    for (const auto& key : keys) body += fmt::format("<th>{}</th>", escape_xml(with_unit(parameter_label(key))));
+    body += "</tr>\n";
+    for (std::size_t i = 0; i < series_runs.size(); ++i) {
+        if (!listed[i]) {
+            std::size_t end = i;
+            while (end < series_runs.size() && !listed[end]) ++end;
+            body += fmt::format(
+                "<tr><td class=\"text note\" colspan=\"{}\">… {} run(s) not listed here (feedid history DB --csv - "
+                "lists every run)</td></tr>\n",
+                keys.size() + 4, end - i);
+            i = end - 1;
+            continue;
+        }
+        const auto* run = series_runs[i];
+        const bool ok = run->status.empty() || run->status == "ok";
+        body += fmt::format(
+            "<tr><td>#{}</td><td class=\"text\">{}</td><td class=\"text\">{}</td><td class=\"text{}\">{}</td>",
+            run->id, escape_xml(run->recorded_at), escape_xml(run->location), ok ? "" : " alarm",
+            escape_xml(run->status.empty() ? std::string("—") : run->status));
+        for (const auto& key : keys) {
+            const auto found = run->parameters.find(key);
+            std::string cell = "—";
+            if (found != run->parameters.end() && found->second.value)
+                cell = found->second.standard_error
+                           ? fmt::format("{:.5g} ± {:.2g}", *found->second.value, *found->second.standard_error)
+                           : fmt::format("{:.5g}", *found->second.value);
+            const bool alarm = in_alarm.count(key) && in_alarm.at(key).count(run->id);
+            body += alarm ? fmt::format("<td class=\"alarm\">{} !</td>", escape_xml(cell))
+                          : fmt::format("<td>{}</td>", escape_xml(cell));
+        }
+        body += "</tr>\n";
+    }
+    return body + "</table>\n";
+}
+
+}  // namespace
+
 std::string history_report_html(const std::vector<history::RunRecord>& runs,
                                 const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options,
                                 const std::string& source) {
@@ -843,7 +996,17 @@ std::string history_report_html(const std::vector<history::RunRecord>& runs,
         escape_xml(source), runs.size(), trends.size(), options.baseline_runs, options.cusum_k, options.cusum_h);
     body += alarm_count == 0 ? std::string("<p>No drift alarm.</p>\n")
                              : fmt::format("<p class=\"alarm\">{} drift alarm(s).</p>\n", alarm_count);
+    // Every axis's plots first: how many the page holds decides how far each is thinned.
+    std::vector<std::vector<Plot>> axis_plots;
+    std::size_t page_plots = 0;
     for (const auto& trend : trends) {
+        axis_plots.push_back(unthinned_history_plots(runs, {trend}, options));
+        page_plots +=
+            static_cast<std::size_t>(std::count_if(axis_plots.back().begin(), axis_plots.back().end(), per_run_plot));
+    }
+    for (auto& plots : axis_plots) thin_history_plots(plots, page_plots);
+    for (std::size_t t = 0; t < trends.size(); ++t) {
+        const auto& trend = trends[t];
         body += fmt::format("<h2>Machine {} — axis {}</h2>\n", escape_xml(trend.machine), escape_xml(trend.axis));
         if (!trend.alarms.empty()) {
             body += "<ul>\n";
@@ -860,36 +1023,8 @@ std::string history_report_html(const std::vector<history::RunRecord>& runs,
                 series_runs.push_back(&run);
                 for (const auto& [key, estimate] : run.parameters) keys.insert(key);
             }
-        body +=
-            "<table>\n<tr><th>run</th><th class=\"text\">recorded at</th><th class=\"text\">location</th>"
-            "<th class=\"text\">status</th>";
-        for (const auto& key : keys) body += fmt::format("<th>{}</th>", escape_xml(with_unit(parameter_label(key))));
-        body += "</tr>\n";
-        for (const auto* run : series_runs) {
-            const bool ok = run->status.empty() || run->status == "ok";
-            body += fmt::format(
-                "<tr><td>#{}</td><td class=\"text\">{}</td><td class=\"text\">{}</td>"
-                "<td class=\"text{}\">{}</td>",
-                run->id, escape_xml(run->recorded_at), escape_xml(run->location), ok ? "" : " alarm",
-                escape_xml(run->status.empty() ? std::string("—") : run->status));
-            for (const auto& key : keys) {
-                const auto found = run->parameters.find(key);
-                std::string cell = "—";
-                if (found != run->parameters.end() && found->second.value)
-                    cell = found->second.standard_error
-                               ? fmt::format("{:.5g} ± {:.2g}", *found->second.value, *found->second.standard_error)
-                               : fmt::format("{:.5g}", *found->second.value);
-                bool in_alarm = false;
-                for (const auto& parameter : trend.parameters)
-                    if (parameter.key == key)
-                        for (const auto& point : parameter.points) in_alarm |= point.run_id == run->id && point.alarm;
-                body += in_alarm ? fmt::format("<td class=\"alarm\">{} !</td>", escape_xml(cell))
-                                 : fmt::format("<td>{}</td>", escape_xml(cell));
-            }
-            body += "</tr>\n";
-        }
-        body += "</table>\n";
-        for (const auto& plot : history_plots(runs, {trend}, options)) {
+        body += runs_table(trend, series_runs, keys);
+        for (const auto& plot : axis_plots[t]) {
             std::string caption;
             if (plot.id.rfind("trend-", 0) == 0)
                 caption =

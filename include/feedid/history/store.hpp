@@ -9,7 +9,14 @@
 //   - re-recording the same trace with the same options (same SHA-256 of the trace file, same options) adds nothing;
 //   - two processes writing at once lose nothing (WAL journal, busy timeout, BEGIN IMMEDIATE with retry);
 //   - a file that is not a feedid history (corrupt, another application's SQLite file, a newer schema) is rejected
-//     with an InputError before anything is written: a failed command never modifies the file.
+//     with an InputError before anything is written: a failed command never modifies the file;
+//   - reading never writes: a reader that may write the file and its folder opens it as a writer does (so that the
+//     last one to close removes DB-wal and DB-shm) but with query_only; one that may not opens it read-only
+//     (mode=ro, or immutable when no DB-wal is there) and creates no file; permission and read-only mounts are
+//     named as such;
+//   - listings and the trend read typed columns (names, times, each parameter's value, standard error, systematic
+//     error and uncertainty, the fit's figures); the stored JSON documents are parsed only for the run they are
+//     needed for (history --json, the report's friction curve).
 
 #include <cstdint>
 #include <filesystem>
@@ -25,9 +32,26 @@
 
 namespace feedid::history {
 
-/// A value with its standard error, in the SI unit its key names; both absent when the data could not determine it.
-/// A stored parameter: the result document's {value, stderr}.
-using StoredEstimate = Estimate;
+/// A stored parameter: the result document's {value, stderr, systematic, uncertainty}, in the SI unit its key
+/// names; absent (null) where the data could not determine it or the document did not give it.
+struct StoredEstimate {
+    StoredEstimate() = default;
+    StoredEstimate(std::optional<double> value_, std::optional<double> standard_error_,
+                   std::optional<double> systematic_ = {}, std::optional<double> uncertainty_ = {})
+        : value(value_), standard_error(standard_error_), systematic(systematic_), uncertainty(uncertainty_) {}
+
+    std::optional<double> value;
+    std::optional<double> standard_error;
+    std::optional<double> systematic;   ///< bound of the systematic error, when the result gives one
+    std::optional<double> uncertainty;  ///< combined uncertainty, when the result gives one
+};
+
+/// The fit's figures of a run ("fit" of the result document) as typed columns.
+struct FitFigures {
+    std::optional<double> relative_error_pct;
+    std::optional<double> condition_number;
+    std::optional<double> samples_used;
+};
 
 /// One test run of one axis.
 struct RunRecord {
@@ -44,14 +68,41 @@ struct RunRecord {
     /// One axis of one machine holds runs of one kind: add_run refuses the other with an InputError.
     std::string axis_kind;
     std::string status;  ///< the result's status ("ok", "partial", ...), "" when it had none
-    nlohmann::json options = nlohmann::json::object();  ///< identification options used (canonical key order)
-    std::map<std::string, StoredEstimate> parameters;   ///< keys as in the result document ("coulomb_N", ...)
-    nlohmann::json fit = nlohmann::json::object();      ///< {relative_error_pct, condition_number, samples_used}
-    std::vector<std::string> diagnostics;
-    std::string stored_at;  ///< when the store wrote it, ISO 8601 UTC
+    /// Identification options used (canonical key order); null in a RunDetail::summary listing.
+    nlohmann::json options = nlohmann::json::object();
+    /// Equal for runs identified with equal options within one answer of the store (0: compare `options`).
+    std::int64_t options_group{0};
+    std::map<std::string, StoredEstimate> parameters;  ///< keys as in the result document ("coulomb_N", ...)
+    FitFigures fit_figures;                            ///< from "fit", in every listing
+    /// The result's "fit" object as recorded; null in a RunDetail::summary listing.
+    nlohmann::json fit = nlohmann::json::object();
+    std::vector<std::string> diagnostics;  ///< empty in a RunDetail::summary listing
+    std::string stored_at;                 ///< when the store wrote it, ISO 8601 UTC
     /// The result document as recorded, without the bulky RLS history (keeps the friction curve, selection and
-    /// Stribeck fit for the report); an empty object for runs stored before schema version 3.
+    /// Stribeck fit for the report); an empty object for runs stored before schema version 3, null in a summary.
     nlohmann::json result = nlohmann::json::object();
+    /// What recording changed (text cut to the store's limits): for the recording command to print, not stored.
+    std::vector<std::string> recording_findings;
+};
+
+/// How much of each run a listing reads.
+enum class RunDetail {
+    summary,    ///< the typed columns only: names, times, status, parameters, fit figures, options_group
+    documents,  ///< also the stored documents, parsed: options, fit, diagnostics, result
+};
+
+/// One axis's runs in recording order as the trend reads them: compact columns, no documents.
+struct SeriesRuns {
+    std::string machine;
+    std::string axis;
+    std::vector<std::int64_t> run_ids;
+    std::vector<std::string> recorded_at;
+    std::vector<std::int64_t> options_groups;  ///< equal for runs identified with equal options
+    std::vector<std::string> keys;             ///< every parameter key of these runs, sorted
+    /// estimates[k][i]: parameter keys[k] of run i (all null where the run lacks it).
+    std::vector<std::vector<StoredEstimate>> estimates;
+
+    [[nodiscard]] std::size_t size() const { return run_ids.size(); }
 };
 
 /// Which runs to list; empty fields match everything.
@@ -82,7 +133,17 @@ public:
     /// InputError naming machine, axis and both kinds when the axis holds runs of the other axis kind.
     virtual AddOutcome add_run(const RunRecord& run) = 0;
     /// Runs matching the filter, ordered by recording time, then id.
-    [[nodiscard]] virtual std::vector<RunRecord> runs(const RunFilter& filter = {}) const = 0;
+    [[nodiscard]] virtual std::vector<RunRecord> runs(const RunFilter& filter = {},
+                                                      RunDetail detail = RunDetail::documents) const = 0;
+    /// The runs matching the filter as the trend reads them, one series per (machine, axis), ordered by machine,
+    /// then axis; each in recording order (time, then id).
+    [[nodiscard]] virtual std::vector<SeriesRuns> series(const RunFilter& filter = {}) const = 0;
+    /// The stored result document of a run (without its RLS history); an empty object when none was stored.
+    /// InputError when there is no such run or its document is not readable JSON.
+    [[nodiscard]] virtual nlohmann::json result_document(std::int64_t run_id) const = 0;
+    /// A full check of the file: every page, every index against its table (SQLite's integrity_check), and every
+    /// stored document readable as JSON. The problems found, in words; empty when there are none.
+    [[nodiscard]] virtual std::vector<std::string> verify() const = 0;
     /// Pins the baseline of (machine, axis) to a run (replacing an earlier pin). InputError if the run does not exist
     /// or belongs to another machine or axis.
     virtual void pin_baseline(const std::string& machine, const std::string& axis, std::int64_t run_id) = 0;
@@ -93,7 +154,15 @@ public:
 };
 
 /// The newest schema this build writes (PRAGMA user_version of the SQLite file).
-inline constexpr int sqlite_schema_version = 4;
+inline constexpr int sqlite_schema_version = 5;
+
+/// Limits of the text a run stores; longer text is cut (at a character boundary, with a mark) and a finding says so.
+struct StoredTextLimits {
+    std::size_t line_bytes{4096};         ///< one diagnostic, note or other string of the stored documents
+    std::size_t diagnostics{200};         ///< diagnostics kept (the first ones)
+    std::size_t document_bytes{1 << 20};  ///< the stored result document; larger is refused (InputError)
+    std::size_t options_bytes{1 << 16};   ///< the identification options; larger are refused (InputError)
+};
 
 struct SqliteOpenOptions {
     bool read_only{false};  ///< open for reading only; the file must exist and is never written
@@ -104,7 +173,9 @@ struct SqliteOpenOptions {
 };
 
 /// Opens (or creates) a SQLite history file. InputError, naming the file, when it is not a feedid history, is
-/// corrupt, or has a newer schema than this build understands; the file is not modified in those cases.
+/// corrupt, has a newer schema than this build understands, or cannot be opened as asked (permission, a read-only
+/// file system, a folder where a writer must create DB-wal, not a regular file); the file is not modified in those
+/// cases. A file that is missing is created only when `create` is set and `read_only` is not.
 ///
 /// Test hook: when the environment variable FEEDID_TEST_ABORT_AFTER_STATEMENT=N is set, the store calls std::abort()
 /// right after executing its N-th write statement of the process (counting from 1), to test that an interrupted
@@ -121,10 +192,15 @@ std::string file_modification_time_utc(const std::filesystem::path& path);
 std::string now_utc();
 
 /// Builds a run record from an identify result document (DESIGN.md, "result document"), copying every parameter key
-/// it holds. InputError naming `source` when the document is not an identify result (no "parameters" object, no
-/// "model"). Machine, axis, location, recorded_at, trace hash and options are left for the caller to fill in
-/// (prepare_run in record.hpp does it).
-RunRecord run_from_result(const nlohmann::json& result, const std::string& source);
+/// it holds. InputError naming `source` and the key when the document is not an identify result: every value is
+/// checked against the result document's schema (result_document.hpp's from_json), so a document that could not be
+/// read back later is never stored. Text beyond `limits` is cut, with a finding in recording_findings and in the
+/// stored diagnostics. Machine, axis, location, recorded_at, trace hash and options are left for the caller to fill
+/// in (prepare_run in record.hpp does it).
+RunRecord run_from_result(const nlohmann::json& result, const std::string& source, const StoredTextLimits& limits = {});
+
+/// "rotary" when a parameter key is of a rotary axis (inertia_kgm2, viscous_Nms_per_rad, ...), else "linear".
+std::string axis_kind_of(const std::map<std::string, StoredEstimate>& parameters);
 
 /// The run as JSON (the `feedid history --json` element).
 nlohmann::json to_json(const RunRecord& run);

@@ -37,6 +37,9 @@ struct TrendOptions {
     double cusum_k{1.0};                     ///< CUSUM allowance [combined standard errors]
     double cusum_h{6.0};                     ///< CUSUM decision interval [combined standard errors]
     std::optional<std::int64_t> pinned_run;  ///< overrides a pin stored in the history
+    /// Keep every run's point in ParameterTrend::points (plots, listings); without, only the alarms are found and the
+    /// memory stays that of the runs (history --check on a large history).
+    bool keep_points{true};
 
     /// What is wrong ("" when nothing).
     [[nodiscard]] std::string validate() const;
@@ -90,6 +93,9 @@ struct SeriesTrend {
     std::string axis;
     std::vector<std::int64_t> baseline_run_ids;
     bool baseline_complete{false};  ///< as many baseline runs as asked for
+    /// Runs compared with the complete baseline (a change and its z for at least one parameter), as the listing
+    /// marks them; counted with or without keep_points.
+    std::size_t checked_runs{0};
     std::optional<std::int64_t> pinned_run;
     std::vector<ParameterTrend> parameters;
     std::vector<Alarm> alarms;
@@ -97,11 +103,18 @@ struct SeriesTrend {
 };
 
 /// The trend of one axis; `runs` are that axis's runs in recording order.
-SeriesTrend analyse_series(const std::string& machine, const std::string& axis, const std::vector<RunRecord>& runs,
-                           const TrendOptions& options);
+SeriesTrend analyse_series(const SeriesRuns& runs, const TrendOptions& options);
 
-/// Groups runs by (machine, axis), applies stored pins (unless options.pinned_run is set, which applies to every
-/// series holding that run), and analyses each series. Ordered by machine, then axis.
+/// Applies stored pins (unless options.pinned_run is set, which applies to every series holding that run) and
+/// analyses each series, in the order given (HistoryStore::series orders them by machine, then axis).
+std::vector<SeriesTrend> analyse_trends(const std::vector<SeriesRuns>& series, const std::vector<BaselinePin>& pins,
+                                        const TrendOptions& options);
+
+/// Run records as the trend reads them: grouped by (machine, axis), ordered by machine, then axis, each in
+/// recording order (time, then id).
+std::vector<SeriesRuns> series_of(const std::vector<RunRecord>& runs);
+
+/// analyse_trends(series_of(runs), pins, options).
 std::vector<SeriesTrend> analyse_trends(const std::vector<RunRecord>& runs, const std::vector<BaselinePin>& pins,
                                         const TrendOptions& options);
 
