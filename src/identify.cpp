@@ -570,9 +570,9 @@ void assess_systematic(const Trace& trace, std::span<const double> force, const 
         const double statistical = p.estimate.standard_error.value_or(0.0);
         if (*spread[i] > options.systematic_finding_multiple * statistical) {
             result.diagnostics.push_back(fmt::format(
-                "{} = {:.4g} {}: the preprocessing moves it by up to {:.2g} (with {}), more than {:g} times its "
-                "standard error {:.2g}: how the position is filtered decides this value; its uncertainty {:.2g} "
-                "includes that",
+                "{} = {:.4g} {}: other reasonable preprocessing moves it by up to {:.2g} (most with {}), more than "
+                "{:g} times its standard error {:.2g}: the choice of filter and split decides this value as much as "
+                "the noise does; its uncertainty {:.2g} includes that",
                 p.symbol, *p.estimate.value, p.unit, *spread[i], widest[i], options.systematic_finding_multiple,
                 statistical, *p.estimate.uncertainty));
         }
