@@ -61,7 +61,7 @@ from . import _pandas
 
 __all__ = [
     "__version__", "InputError", "IdentificationError", "ROLES", "Trace", "read_trace", "Estimate", "Result",
-    "identify", "Gains", "gains", "Simulation", "simulate", "synth", "Plan", "plan", "Rls", "History",
+    "identify", "Gains", "gains", "Simulation", "simulate", "synth", "demo_drive", "Plan", "plan", "Rls", "History",
 ]
 
 #: The roles a channel can have (``channels={"position": "qm"}``; ``Trace.from_arrays(position=...)``).
@@ -326,8 +326,8 @@ def synth(drive: Union[Mapping[str, Any], PathLike, None] = None, *, rotary: boo
     """The trace an NC would record for a known drive, controller and test: ``feedid synth``.
 
     Args:
-        drive: the drive file's keys as a dict (``{"axis": {"mass_kg": 120.0}, "seed": 3}``; missing keys keep the
-            demo drive's values) or the path of a drive file (JSON or TOML); None: the demo drive (M 69.1 kg,
+        drive: the drive file as a dict (:func:`demo_drive` gives one to edit; sections left out keep the demo
+            drive's values) or the path of a drive file (JSON or TOML); None: the demo drive (M 69.1 kg,
             B 54.2 N*s/m, F_C 742.8 N, F_B 946.2 N, v_s 5 mm/s; K_v 2 (m/min)/mm, K_p 40000 N*s/m, T_n 20 ms; 1 kHz).
         rotary: the rotary demo drive (or check that ``drive`` is rotary).
         preset: ``"sinumerik"``: record as a SINUMERIK servo trace (2 ms time base, position every 4 ms).
@@ -343,11 +343,26 @@ def synth(drive: Union[Mapping[str, Any], PathLike, None] = None, *, rotary: boo
 
     Example::
 
-        >>> trace = feedid.synth(drive={"axis": {"mass_kg": 120.0}}, slow_passes=False, seed=3)
+        >>> drive = feedid.demo_drive()
+        >>> drive["axis"]["mass_kg"] = 120.0
+        >>> trace = feedid.synth(drive, slow_passes=False, seed=3)
         >>> trace.constants["true_mass_kg"], trace.roles["current"]
         (120.0, 'i')
     """
     return _native.synth(_options(locals()))
+
+
+def demo_drive(rotary: bool = False) -> dict:
+    """The demo drive as a drive file (every key, with its value), to edit and give to :func:`synth`: what
+    ``feedid synth --print-drive`` prints. Linear: ``axis.mass_kg`` [kg], ``axis.coulomb_forward_N`` [N], ...;
+    ``controller``, ``drive`` (``kt_Nm_per_A``, ``lead_mm``), ``sensors``, ``recording``, ``test``, ``seed``.
+
+    Example::
+
+        >>> feedid.demo_drive()["axis"]["mass_kg"], feedid.demo_drive(rotary=True)["axis"]["inertia_kgm2"]
+        (69.1, 2.0)
+    """
+    return _native.demo_drive(rotary)
 
 
 def plan(*, travel_mm: Union[Tuple[float, float], str], centers_mm: Sequence[float], axis: str = "X",

@@ -22,8 +22,8 @@ def trace_from_pandas(frame: "pandas.DataFrame", channels: Optional[Mapping[str,
     guessed from the names (``t``, ``x``, ``i``, ``X1_ActualPosition``, ...), each guess in ``trace.findings``. A named
     index (``df.set_index("t")``) is a column too. Columns that do not hold numbers (text, dates, categories) are left
     out with a finding, unless ``channels`` names them (then :class:`feedid.InputError`). A DataFrame made by
-    :meth:`Trace.to_pandas` carries its roles and units in ``frame.attrs``, which are used where ``channels`` and
-    ``units`` say nothing. Values are copied as :meth:`Trace.from_arrays` copies them.
+    :meth:`Trace.to_pandas` carries its roles, units and constants in ``frame.attrs``, which are used where
+    ``channels``, ``units`` and ``constants`` say nothing. Values are copied as :meth:`Trace.from_arrays` copies them.
 
     Args:
         frame: the DataFrame.
@@ -53,6 +53,8 @@ def trace_from_pandas(frame: "pandas.DataFrame", channels: Optional[Mapping[str,
     stated_units = {role: unit for role, unit in dict(attributes.get("feedid_units", {})).items()
                     if role in roles and roles[role] is not None}
     stated_units.update(units or {})
+    if constants is None:
+        constants = attributes.get("feedid_constants")
     columns, left_out = [], []
     for name in frame.columns:
         column = frame[name]

@@ -490,6 +490,9 @@ void bind_trace(py::module_& m) {
         py::arg("path"), py::arg("options"));
     m.def("trace_from_columns", &from_columns, py::arg("columns"), py::arg("options"));
     m.def("synth", &synth, py::arg("options"));
+    m.def(
+        "demo_drive", [](bool rotary) { return to_python(spec_to_json(rotary ? rotary_demo_spec() : demo_spec())); },
+        py::arg("rotary") = false);
     m.def("plan", &plan, py::arg("options"));
 }
 
