@@ -152,10 +152,15 @@ std::vector<std::pair<std::string, std::string>> OptionReader::text_map(const ch
     if (!py::isinstance<py::dict>(value) && !py::hasattr(value, "items")) wrong_type(name, value, "a dict of str");
     for (const auto& item : value.attr("items")()) {
         const auto pair = item.cast<py::tuple>();
-        const auto key = as_path(pair[0]);  // str only (a path-like key would be odd, but harmless)
-        if (!py::isinstance<py::str>(pair[0]) || !py::isinstance<py::str>(pair[1]) || !key)
-            wrong_type(name, value, "a dict of str to str");
-        out.emplace_back(*key, pair[1].cast<std::string>());
+        if (!py::isinstance<py::str>(pair[0]))
+            throw InputError(
+                fmt::format("{}: a key that is not a str ({})", name, py::repr(pair[0]).cast<std::string>()));
+        const auto key = pair[0].cast<std::string>();
+        if (!py::isinstance<py::str>(pair[1])) {
+            throw InputError(fmt::format("{}['{}']={}: expected a str, not {}", name, key,
+                                         py::repr(pair[1]).cast<std::string>(), type_name(pair[1])));
+        }
+        out.emplace_back(key, pair[1].cast<std::string>());
     }
     return out;
 }
