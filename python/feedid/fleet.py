@@ -116,7 +116,8 @@ def identify_many(paths: Iterable[Union[str, "os.PathLike[str]"]], client: Any =
 
     Returns:
         A pandas DataFrame, a row per file as :func:`identify_file` makes it, and with ``history`` a column
-        ``run_id`` (None where not recorded; the reason is added to ``reason``).
+        ``run_id`` (missing, ``pandas.NA``, where not recorded; then ``reason`` says why). ``samples_used`` and ``run_id``
+        are nullable integers (``Int64``).
 
     Raises:
         TypeError: an option :func:`feedid.identify` does not have.
@@ -146,7 +147,11 @@ def identify_many(paths: Iterable[Union[str, "os.PathLike[str]"]], client: Any =
     ordered = list(LEADING_COLUMNS) + parameters + list(TRAILING_COLUMNS)
     if history is not None:
         ordered.append("run_id")
-    return frame.reindex(columns=ordered)
+    frame = frame.reindex(columns=ordered)
+    for column in ("samples_used", "run_id"):  # whole numbers, missing where there is none
+        if column in frame.columns:
+            frame[column] = frame[column].astype("Int64")
+    return frame
 
 
 def _run(paths: List[str], machines: List[Optional[str]], axes: List[Optional[str]], client: Any,
@@ -158,7 +163,7 @@ def _run(paths: List[str], machines: List[Optional[str]], axes: List[Optional[st
         from dask.distributed import Client, LocalCluster
 
         cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+                               dashboard_address=":0")
         client = Client(cluster)
     try:
         futures = client.map(_identify_on_worker, paths, machines, axes, pure=False, documents=documents,
