@@ -18,7 +18,7 @@ class InputError(ValueError):
         ...     feedid.identify("no-such-file.csv", force_constant=1.0)
         ... except feedid.InputError as error:
         ...     print(error)
-        no-such-file.csv: cannot open the file (No such file or directory)
+        no-such-file.csv: no such file
     """
 
 
@@ -29,6 +29,19 @@ class IdentificationError(RuntimeError):
     ``str(error)`` is what the command line prints before it exits with code 1 (one line per diagnostic, most often
     one); ``diagnostics`` lists every diagnostic and ``result`` holds the failed result (a Result, Gains or
     Simulation; None where there is none, e.g. too few samples for the controller's gains).
+
+    Example::
+
+        >>> import numpy as np, feedid
+        >>> t = np.arange(0, 1, 0.001)
+        >>> standing = feedid.Trace.from_arrays(time=t, position=np.zeros_like(t), current=np.zeros_like(t))
+        >>> try:
+        ...     feedid.identify(standing, force_constant=100.0)
+        ... except feedid.IdentificationError as error:
+        ...     print(error)
+        ...     print(error.result.status)
+        trace: the position never changes in the analysis window: the axis did not move, so nothing can be identified
+        failed
     """
 
     def __init__(self, message: str, diagnostics: Optional[Iterable[str]] = None, result: Any = None) -> None:

@@ -146,20 +146,27 @@ std::string result_failure(const IdentifyResult& r) {
 }
 
 void bind_records(py::module_& m) {
-    py::class_<TraceSummary>(m, "TraceSummary", "The trace a result came from")
+    py::class_<TraceSummary>(m, "TraceSummary",
+                             "The trace a result came from: path, format, samples, sample_time_s [s], duration_s [s]")
         .def_readonly("path", &TraceSummary::path)
         .def_readonly("format", &TraceSummary::format)
         .def_readonly("samples", &TraceSummary::samples)
         .def_readonly("sample_time_s", &TraceSummary::sample_time_s)
         .def_readonly("duration_s", &TraceSummary::duration_s);
-    py::class_<PreprocessReport>(m, "PreprocessReport", "What preprocessing used (defaults resolved)")
+    py::class_<PreprocessReport>(
+        m, "PreprocessReport",
+        "What preprocessing used (defaults resolved): differentiation, filter_order, cutoff_hz [Hz], decimation, "
+        "edge_samples [samples], velocity_source ('position' or 'velocity')")
         .def_readonly("differentiation", &PreprocessReport::differentiation)
         .def_readonly("filter_order", &PreprocessReport::filter_order)
         .def_readonly("cutoff_hz", &PreprocessReport::cutoff_hz)
         .def_readonly("decimation", &PreprocessReport::decimation)
         .def_readonly("edge_samples", &PreprocessReport::edge_samples)
         .def_readonly("velocity_source", &PreprocessReport::velocity_source);
-    py::class_<SelectionReport>(m, "SelectionReport", "The samples each step used, and why others were dropped")
+    py::class_<SelectionReport>(
+        m, "SelectionReport",
+        "The samples each step used [counts: total, window, moving, step1, step2], moving_threshold and split_velocity "
+        "[m/s or rad/s], and notes saying why samples were dropped")
         .def_readonly("total", &SelectionReport::total)
         .def_readonly("window", &SelectionReport::window)
         .def_readonly("moving", &SelectionReport::moving)
@@ -168,7 +175,9 @@ void bind_records(py::module_& m) {
         .def_readonly("moving_threshold", &SelectionReport::moving_threshold)
         .def_readonly("split_velocity", &SelectionReport::split_velocity)
         .def_readonly("notes", &SelectionReport::notes);
-    py::class_<Step1Report>(m, "Step1Report", "Step 1's batch QR fit")
+    py::class_<Step1Report>(m, "Step1Report",
+                            "Step 1's batch QR fit: batch (key -> Estimate [SI]), relative_error_pct [%], "
+                            "condition_number, samples_used, residual_std [N or N*m], r_diagonal (|diag R|)")
         .def_property_readonly("batch",
                                [](const Step1Report& s) {
                                    py::dict out;
@@ -180,7 +189,10 @@ void bind_records(py::module_& m) {
         .def_readonly("samples_used", &Step1Report::samples_used)
         .def_readonly("residual_std", &Step1Report::residual_std)
         .def_property_readonly("r_diagonal", [](const Step1Report& s) { return copy(s.r_diagonal); });
-    py::class_<RlsReport>(m, "RlsReport", "Step 1's recursive least squares")
+    py::class_<RlsReport>(
+        m, "RlsReport",
+        "Step 1's RLS: variant, forgetting_factor, initial_covariance; final and averaged estimates (key -> value "
+        "[SI]); settled, transient_end_s [s]; history_time_s [s] and history (key -> array [SI]) for plots")
         .def_property_readonly("variant",
                                [](const RlsReport& r) {
                                    return r.options.variant == RlsVariant::exponential ? "exponential" : "directional";
@@ -200,20 +212,27 @@ void bind_records(py::module_& m) {
                 out[py::str(r.keys[c])] = view(r.history[c], self);
             return out;
         });
-    py::class_<LogLinearStribeck>(m, "LogLinearStribeck", "Step 2's log-linear RLS of one direction (eq. 12-14)")
+    py::class_<LogLinearStribeck>(m, "LogLinearStribeck",
+                                  "Step 2's log-linear RLS of one direction (eq. 12-14): breakaway [N or N*m], "
+                                  "stribeck_velocity [m/s or rad/s], samples used and excluded")
         .def_readonly("breakaway", &LogLinearStribeck::breakaway)
         .def_readonly("stribeck_velocity", &LogLinearStribeck::stribeck_velocity)
         .def_readonly("samples_used", &LogLinearStribeck::used)
         .def_readonly("excluded_wrong_sign", &LogLinearStribeck::wrong_sign)
         .def_readonly("excluded_below_noise", &LogLinearStribeck::below_noise);
-    py::class_<NonlinearFitReport>(m, "NonlinearFitReport", "Step 2's Levenberg-Marquardt fit of the friction curve")
+    py::class_<NonlinearFitReport>(
+        m, "NonlinearFitReport",
+        "Step 2's Levenberg-Marquardt fit of the friction curve: method, converged, relative_error_pct [%], "
+        "residual_std [N or N*m], samples_used, function_evaluations")
         .def_readonly("method", &NonlinearFitReport::method)
         .def_readonly("converged", &NonlinearFitReport::converged)
         .def_readonly("relative_error_pct", &NonlinearFitReport::relative_error_pct)
         .def_readonly("residual_std", &NonlinearFitReport::residual_std)
         .def_readonly("samples_used", &NonlinearFitReport::samples_used)
         .def_readonly("function_evaluations", &NonlinearFitReport::function_evaluations);
-    py::class_<StribeckReport>(m, "StribeckReport", "Step 2")
+    py::class_<StribeckReport>(m, "StribeckReport",
+                               "Step 2: forward and reverse (LogLinearStribeck: F_B [N], v_s [m/s]; or None), "
+                               "nonlinear (NonlinearFitReport or None)")
         .def_property_readonly("forward",
                                [](py::object self) {
                                    const auto& s = self.cast<const StribeckReport&>();
@@ -231,20 +250,24 @@ void bind_records(py::module_& m) {
         .def_property_readonly("nonlinear",
                                [](py::object self) { return optional_record(self, &StribeckReport::nonlinear); });
     py::class_<FrictionCurvePoints>(m, "FrictionCurvePoints",
-                                    "Quasi-static friction binned by speed, with the fitted curve")
+                                    "Quasi-static friction binned by speed: speed [m/s or rad/s], force (friction "
+                                    "magnitude) [N or N*m], fitted (the identified curve at speed)")
         .def_property_readonly(
             "speed", [](py::object self) { return view(self.cast<const FrictionCurvePoints&>().speed, self); })
         .def_property_readonly(
             "force", [](py::object self) { return view(self.cast<const FrictionCurvePoints&>().force, self); })
         .def_property_readonly(
             "fitted", [](py::object self) { return view(self.cast<const FrictionCurvePoints&>().fitted, self); });
-    py::class_<FrictionCurveReport>(m, "FrictionCurveReport", "The friction curve per direction")
+    py::class_<FrictionCurveReport>(
+        m, "FrictionCurveReport",
+        "The friction curve per direction: forward, reverse (FrictionCurvePoints: speed [m/s], force [N]; or None)")
         .def_property_readonly("forward",
                                [](py::object self) { return optional_record(self, &FrictionCurveReport::forward); })
         .def_property_readonly("reverse",
                                [](py::object self) { return optional_record(self, &FrictionCurveReport::reverse); });
     py::class_<FrictionOnlyReport>(m, "FrictionOnlyReport",
-                                   "Why the mass could not be identified, and the friction fit")
+                                   "Why the mass could not be identified (reason, in figures) and the steady-speed "
+                                   "friction fit: samples_used, relative_error_pct [%], residual_std [N or N*m]")
         .def_readonly("reason", &FrictionOnlyReport::reason)
         .def_readonly("samples_used", &FrictionOnlyReport::samples_used)
         .def_readonly("relative_error_pct", &FrictionOnlyReport::relative_error_pct)
@@ -252,52 +275,103 @@ void bind_records(py::module_& m) {
 }
 
 void bind_result(py::module_& m) {
-    py::class_<IdentifyResult> cls(m, "Result", "An identification result (see feedid.identify)");
-    cls.def_property_readonly("status", [](const IdentifyResult& r) { return to_string(r.status); });
-    cls.def_property_readonly("model", &IdentifyResult::model_name);
-    cls.def_readonly("offset", &IdentifyResult::offset);
-    cls.def_readonly("rotary", &IdentifyResult::rotary);
-    cls.def_readonly("feedid_version", &IdentifyResult::feedid_version);
-    cls.def_readonly("diagnostics", &IdentifyResult::diagnostics);
-    cls.def_property_readonly("trace", [](py::object self) {
-        return py::cast(&self.cast<const IdentifyResult&>().trace, py::return_value_policy::reference_internal, self);
-    });
-    cls.def_property_readonly("parameters", [](const IdentifyResult& r) {
-        py::dict out;
-        for (const auto& p : r.parameters) out[py::str(p.key)] = p.estimate;
-        return out;
-    });
-    cls.def_property_readonly("units", [](const IdentifyResult& r) {
-        py::dict out;
-        for (const auto& p : r.parameters) out[py::str(p.key)] = p.unit;
-        return out;
-    });
-    cls.def_property_readonly("symbols", [](const IdentifyResult& r) {
-        py::dict out;
-        for (const auto& p : r.parameters) out[py::str(p.key)] = p.symbol;
-        return out;
-    });
-    cls.def_property_readonly("preprocessing",
-                              [](py::object self) { return optional_record(self, &IdentifyResult::preprocessing); });
-    cls.def_property_readonly("selection",
-                              [](py::object self) { return optional_record(self, &IdentifyResult::selection); });
-    cls.def_property_readonly("step1", [](py::object self) { return optional_record(self, &IdentifyResult::step1); });
-    cls.def_property_readonly("rls", [](py::object self) { return optional_record(self, &IdentifyResult::rls); });
-    cls.def_property_readonly("stribeck",
-                              [](py::object self) { return optional_record(self, &IdentifyResult::stribeck); });
-    cls.def_property_readonly("friction_curve",
-                              [](py::object self) { return optional_record(self, &IdentifyResult::friction_curve); });
-    cls.def_property_readonly("friction_only",
-                              [](py::object self) { return optional_record(self, &IdentifyResult::friction_only); });
-    cls.def_property_readonly("options", [](const IdentifyResult& r) { return to_python(r.options); });
-    cls.def_property_readonly("failure", [](const IdentifyResult& r) -> py::object {
-        if (r.status != Status::failed) return py::none();
-        return py::str(result_failure(r));
-    });
-    cls.def("to_dict", [](const IdentifyResult& r) { return to_python(nlohmann::json(r)); });
+    py::class_<IdentifyResult> cls(m, "Result",
+                                   R"doc(An identification (:func:`feedid.identify`): the parameters, each an
+:class:`Estimate` in the SI unit its key names (``mass_kg`` [kg], ``viscous_Ns_per_m`` [N*s/m], ``coulomb_N`` [N],
+``breakaway_N`` [N], ``stribeck_velocity_m_per_s`` [m/s], ``offset_N`` [N]; per direction ``coulomb_forward_N``, ...;
+rotary ``inertia_kgm2``, ``coulomb_Nm``, ...), the pipeline's stage records (``preprocessing``, ``selection``,
+``step1``, ``rls``, ``stribeck``, ``friction_curve``, ``friction_only``; None where the pipeline did not get there)
+and the diagnostics. ``to_dict()`` is the document ``feedid identify --json`` writes, key for key.
+
+Example::
+
+    >>> result = feedid.identify(EMPS, channels={"position": "qm", "current": "vir"}, force_constant="gtau",
+    ...                          offset=True)
+    >>> result.status, result.symbols["viscous_Ns_per_m"], result.units["viscous_Ns_per_m"]
+    ('partial', 'B', 'N*s/m')
+    >>> result.parameters["breakaway_N"].value is None      # EMPS has no slow passes; a diagnostic says so
+    True
+    >>> round(result.step1.condition_number, 1), round(result.preprocessing.cutoff_hz, 6)
+    (26.0, 100.0)
+    >>> sorted(result.to_dict()["parameters"]) == sorted(result.parameters)
+    True
+)doc");
+    cls.def_property_readonly(
+        "status", [](const IdentifyResult& r) { return to_string(r.status); },
+        "'ok'; 'partial' when some parameters are None (each with a diagnostic); 'failed'");
+    cls.def_property_readonly("model", &IdentifyResult::model_name, "'symmetric' or 'asymmetric'");
+    cls.def_readonly("offset", &IdentifyResult::offset, "Whether a force offset F_0 was estimated");
+    cls.def_readonly("rotary", &IdentifyResult::rotary, "A rotary axis (inertia, torques)");
+    cls.def_readonly("feedid_version", &IdentifyResult::feedid_version, "The version that identified it");
+    cls.def_readonly("diagnostics", &IdentifyResult::diagnostics, "What the data could not tell, and why");
+    cls.def_property_readonly(
+        "trace",
+        [](py::object self) {
+            return py::cast(&self.cast<const IdentifyResult&>().trace, py::return_value_policy::reference_internal,
+                            self);
+        },
+        "The trace it came from: path, format, samples, sample_time_s [s], duration_s [s]");
+    cls.def_property_readonly(
+        "parameters",
+        [](const IdentifyResult& r) {
+            py::dict out;
+            for (const auto& p : r.parameters) out[py::str(p.key)] = p.estimate;
+            return out;
+        },
+        "Key -> Estimate, in the model's order (M; B, F_C per direction; F_0; F_B, v_s per direction)");
+    cls.def_property_readonly(
+        "units",
+        [](const IdentifyResult& r) {
+            py::dict out;
+            for (const auto& p : r.parameters) out[py::str(p.key)] = p.unit;
+            return out;
+        },
+        "Key -> unit ('kg', 'N*s/m', ...)");
+    cls.def_property_readonly(
+        "symbols",
+        [](const IdentifyResult& r) {
+            py::dict out;
+            for (const auto& p : r.parameters) out[py::str(p.key)] = p.symbol;
+            return out;
+        },
+        "Key -> symbol ('M', 'B', 'F_C+', ...)");
+    cls.def_property_readonly(
+        "preprocessing", [](py::object self) { return optional_record(self, &IdentifyResult::preprocessing); },
+        "PreprocessReport: the differentiation, cut-off [Hz], decimation and edge trim used");
+    cls.def_property_readonly(
+        "selection", [](py::object self) { return optional_record(self, &IdentifyResult::selection); },
+        "SelectionReport: the samples each step used [counts], thresholds [m/s], notes");
+    cls.def_property_readonly(
+        "step1", [](py::object self) { return optional_record(self, &IdentifyResult::step1); },
+        "Step1Report: the batch QR fit (estimates, relative error [%], condition number)");
+    cls.def_property_readonly(
+        "rls", [](py::object self) { return optional_record(self, &IdentifyResult::rls); },
+        "RlsReport: the RLS run (final and averaged estimates, transient, history over time)");
+    cls.def_property_readonly(
+        "stribeck", [](py::object self) { return optional_record(self, &IdentifyResult::stribeck); },
+        "StribeckReport: step 2 (log-linear RLS per direction, the nonlinear curve fit)");
+    cls.def_property_readonly(
+        "friction_curve", [](py::object self) { return optional_record(self, &IdentifyResult::friction_curve); },
+        "FrictionCurveReport: quasi-static friction per direction, binned by speed, with the fitted curve");
+    cls.def_property_readonly(
+        "friction_only", [](py::object self) { return optional_record(self, &IdentifyResult::friction_only); },
+        "FrictionOnlyReport: why the mass could not be identified (None when it could)");
+    cls.def_property_readonly(
+        "options", [](const IdentifyResult& r) { return to_python(r.options); },
+        "The options that shaped the result, as the command line records them");
+    cls.def_property_readonly(
+        "failure",
+        [](const IdentifyResult& r) -> py::object {
+            if (r.status != Status::failed) return py::none();
+            return py::str(result_failure(r));
+        },
+        "For a failed result, what the command line prints (its diagnostics, one per line); None otherwise");
+    cls.def(
+        "to_dict", [](const IdentifyResult& r) { return to_python(nlohmann::json(r)); },
+        "The result document of feedid identify --json (plain dicts, lists, floats; None for null)");
     cls.def(
         "to_json", [](const IdentifyResult& r, int indent) { return nlohmann::json(r).dump(indent) + "\n"; },
-        py::arg("indent") = 2);
+        py::arg("indent") = 2, "The result document as feedid identify --json writes it");
     cls.def_static(
         "from_dict",
         [](py::handle document) {
@@ -305,7 +379,7 @@ void bind_result(py::module_& m) {
             from_json(to_json_value(document, "result"), r);
             return r;
         },
-        py::arg("document"));
+        py::arg("document"), "A result read back from its document (what feedid identify --json wrote)");
     cls.def("__repr__", [](const IdentifyResult& r) {
         std::string values;
         for (const auto& p : r.parameters) {
@@ -360,7 +434,17 @@ PyGains gains(py::handle trace_argument_object, const py::dict& kwargs) {
 }
 
 void bind_gains(py::module_& m) {
-    py::class_<PyGains> cls(m, "Gains", "Identified controller gains (see feedid.gains)");
+    py::class_<PyGains> cls(m, "Gains",
+                            R"doc(The controller's gains (:func:`feedid.gains`): position loop K_v [1/s], velocity loop
+K_p [N*s/m; N*m*s/rad on a rotary axis] and K_i [N/m; N*m/rad], each an :class:`Estimate`, with the loop structure
+found. ``to_dict()`` is the document ``feedid gains --json`` writes (with the gains per drive-signal unit).
+
+Example::
+
+    >>> g = feedid.gains(feedid.synth(seed=1, slow_passes=False), force_constant="force_constant_N_per_A")
+    >>> round(g.position_gain_per_s.value, 2), g.status                    # the demo drive: 2 (m/min)/mm
+    (33.33, 'ok')
+)doc");
     cls.def_property_readonly("status", [](const PyGains& g) { return to_string(g.result.status); });
     cls.def_property_readonly("position_gain_per_s", [](const PyGains& g) { return g.result.position_gain_per_s; });
     cls.def_property_readonly("velocity_gain", [](const PyGains& g) { return g.result.velocity_gain_N_s_per_m; });
@@ -449,7 +533,10 @@ PySimulation simulate(py::handle trace_argument_object, py::handle result, py::h
 }
 
 void bind_simulation(py::module_& m) {
-    py::class_<ValidationMetrics>(m, "ValidationMetrics", "How the simulated axis compares with the machine")
+    py::class_<ValidationMetrics>(m, "ValidationMetrics",
+                                  "How the simulated axis compares with the machine: relative errors [%] of position, "
+                                  "velocity, acceleration and force; tracking and modelling errors [m, or rad on a "
+                                  "rotary axis], mean absolute and largest")
         .def_readonly("position_relative_error_pct", &ValidationMetrics::position_relative_error_pct)
         .def_readonly("velocity_relative_error_pct", &ValidationMetrics::velocity_relative_error_pct)
         .def_readonly("acceleration_relative_error_pct", &ValidationMetrics::acceleration_relative_error_pct)
@@ -460,7 +547,18 @@ void bind_simulation(py::module_& m) {
         .def_readonly("tracking_error_max_model", &ValidationMetrics::tracking_error_max_model_m)
         .def_readonly("tracking_error_max_machine", &ValidationMetrics::tracking_error_max_machine_m)
         .def_readonly("modelling_error_max", &ValidationMetrics::modelling_error_max_m);
-    py::class_<PySimulation> cls(m, "Simulation", "The identified axis simulated in closed loop (see feedid.simulate)");
+    py::class_<PySimulation> cls(m, "Simulation", R"doc(The identified axis simulated in closed loop on the trace's
+reference (:func:`feedid.simulate`): ``metrics`` (ValidationMetrics), ``signals`` (numpy arrays [SI] at the sample
+instants), ``to_pandas()``, and ``to_dict()``, the document ``feedid simulate --json`` writes.
+
+Example::
+
+    >>> trace = feedid.synth(seed=1, slow_passes=False)
+    >>> result = feedid.identify(trace, force_constant="force_constant_N_per_A")
+    >>> sim = feedid.simulate(trace, result, force_constant="force_constant_N_per_A")
+    >>> sim.metrics.position_relative_error_pct < 0.1, sorted(sim.signals)[:3]
+    (True, ['acceleration', 'force', 'force_command'])
+)doc");
     cls.def_property_readonly("status", [](const PySimulation& s) {
         return to_string(s.controller.status == Status::failed ? Status::failed : s.simulation.status);
     });

@@ -125,12 +125,35 @@ history::TrendOptions trend_options(int baseline_runs, double cusum_k, double cu
 
 void bind_history(py::module_& m) {
     const history::TrendOptions defaults;
-    py::class_<PyHistory>(m, "History", "The parameter history of machines and axes (see feedid.History)")
-        .def(py::init<const py::object&, bool>(), py::arg("path"), py::kw_only(), py::arg("read_only") = false)
+    py::class_<PyHistory>(m, "History", R"doc(The parameter history of machines and axes: one SQLite file, as
+``feedid identify --record`` and ``feedid history`` use it. A run is recorded whole or not at all; the same trace
+with the same options is recorded once; several processes may write at once. Parameters are stored in the SI unit
+their keys name.
+
+``check()`` gives the drift alarms ``feedid history --check`` prints (baseline: the first ``baseline_runs`` runs of an
+axis, or from a pinned run; a two-sided CUSUM of each parameter's change in combined standard errors, allowance
+``cusum_k``, decision interval ``cusum_h``); ``trends()`` the figures behind them.
+
+Example::
+
+    >>> result = feedid.identify(EMPS, channels={"position": "qm", "current": "vir"}, force_constant="gtau")
+    >>> with feedid.History(DATABASE) as history:
+    ...     run_id, added = history.record(result, machine="EMPS", axis="X", recorded_at="2019-01-01")
+    ...     runs = history.runs(machine="EMPS")
+    >>> added, runs[0]["parameters"]["mass_kg"] == result.parameters["mass_kg"].to_dict()
+    (True, True)
+)doc")
+        .def(py::init<const py::object&, bool>(), py::arg("path"), py::kw_only(), py::arg("read_only") = false,
+             "Opens (or creates) the history file; InputError when it is not a feedid history")
         .def("record", &PyHistory::record, py::arg("result"), py::kw_only(), py::arg("machine"), py::arg("axis"),
-             py::arg("trace") = py::none(), py::arg("location") = "", py::arg("recorded_at") = py::none())
+             py::arg("trace") = py::none(), py::arg("location") = "", py::arg("recorded_at") = py::none(),
+             "Records an identify result (a Result, its dict, or the path of its JSON) as a run of machine and axis; "
+             "trace: the trace file (hashed; default: the result's trace path); recorded_at: ISO 8601 UTC (default: "
+             "the trace file's modification time). Returns (run id, added): added is False when the same trace with "
+             "the same options is recorded already")
         .def("runs", &PyHistory::runs, py::kw_only(), py::arg("machine") = "", py::arg("axis") = "",
-             py::arg("location") = "")
+             py::arg("location") = "",
+             "The runs (as feedid history --json lists them), by recording time; empty filters match everything")
         .def(
             "trends",
             [](const PyHistory& h, const std::string& machine, const std::string& axis, int baseline_runs,
@@ -139,7 +162,9 @@ void bind_history(py::module_& m) {
             },
             py::kw_only(), py::arg("machine") = "", py::arg("axis") = "",
             py::arg("baseline_runs") = defaults.baseline_runs, py::arg("cusum_k") = defaults.cusum_k,
-            py::arg("cusum_h") = defaults.cusum_h, py::arg("baseline_from") = py::none())
+            py::arg("cusum_h") = defaults.cusum_h, py::arg("baseline_from") = py::none(),
+            "Each axis's trend per parameter (as feedid history --json's 'trends'); cusum_k and cusum_h in combined "
+            "standard errors")
         .def(
             "check",
             [](const PyHistory& h, const std::string& machine, const std::string& axis, int baseline_runs,
@@ -148,12 +173,14 @@ void bind_history(py::module_& m) {
             },
             py::kw_only(), py::arg("machine") = "", py::arg("axis") = "",
             py::arg("baseline_runs") = defaults.baseline_runs, py::arg("cusum_k") = defaults.cusum_k,
-            py::arg("cusum_h") = defaults.cusum_h, py::arg("baseline_from") = py::none())
-        .def("pin", &PyHistory::pin, py::arg("run_id"))
-        .def_property_readonly("schema_version", &PyHistory::schema_version)
-        .def_property_readonly("path", &PyHistory::path)
-        .def_property_readonly("closed", &PyHistory::closed)
-        .def("close", &PyHistory::close)
+            py::arg("cusum_h") = defaults.cusum_h, py::arg("baseline_from") = py::none(),
+            "The drift alarms, one line each as feedid history --check prints them (empty: no alarm)")
+        .def("pin", &PyHistory::pin, py::arg("run_id"),
+             "After maintenance: the baseline of the run's machine and axis starts again at this run")
+        .def_property_readonly("schema_version", &PyHistory::schema_version, "The store's schema version")
+        .def_property_readonly("path", &PyHistory::path, "The history file")
+        .def_property_readonly("closed", &PyHistory::closed, "Whether close() was called")
+        .def("close", &PyHistory::close, "Closes the file (a with block does it)")
         .def("__enter__", [](py::object self) { return self; })
         .def("__exit__", [](PyHistory& h, const py::args&) { h.close(); })
         .def("__repr__", [](const PyHistory& h) {

@@ -238,7 +238,7 @@ void bind_estimate(py::module_& m) {
 
 Both are None where the data cannot determine the parameter (the result's diagnostics say why). The fields are
 those of the C++ ``feedid::Estimate``; ``Estimate._fields`` lists them and ``to_dict()`` gives the result document's
-``{"value": ..., "stderr": ...}``.
+``{"stderr": ..., "value": ...}`` entry.
 
 Example::
 
@@ -247,7 +247,7 @@ Example::
     >>> m.value, m.standard_error
     (95.11, 0.12)
     >>> m.to_dict()
-    {'value': 95.11, 'stderr': 0.12}
+    {'stderr': 0.12, 'value': 95.11}
 )doc");
     estimate.def(py::init(&make_estimate),
                  "Estimate(value=None, standard_error=None): the fields in order, or by name");

@@ -201,28 +201,63 @@ private:
 }  // namespace
 
 void bind_rls(py::module_& m) {
-    py::class_<PyRls>(m, "Rls", "Recursive least squares with forgetting (see feedid.Rls in the package)")
+    py::class_<PyRls>(m, "Rls",
+                      R"doc(Recursive least squares for 1 to 8 parameters, y = phi' * theta + noise: the fixed-size,
+allocation-free estimator of feedid's step 1 (rls.hpp).
+
+``variant="exponential"`` (or ``"paper"``) is the paper's eq. (7)-(9): L = P*phi/(lambda + phi'*P*phi),
+theta += L*(y - phi'*theta), P = (I - L*phi')*P/lambda; with lambda < 1 and data that do not excite every direction
+its covariance winds up (``wound_up``). ``"directional"`` (the default) forgets only along the regressor (Kulhavy
+1987) and stays bounded. Units are those of phi and y (theta in y per phi).
+
+``update(phi, y)`` takes one sample; ``update_many(Phi, Y)`` takes m samples at once (Phi: m x n, Y: m) and runs the
+loop in C++ without the GIL (other Python threads run meanwhile); Phi and Y are converted to C-ordered float64 first
+when they are not. A sample with a value that is not finite is skipped (``"non_finite"``); one with no excitation
+changes nothing (``"no_excitation"``); ``last_counts`` counts them for the last ``update_many``.
+
+Example::
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(1)
+    >>> Phi = np.column_stack([rng.normal(size=10000), np.sign(rng.normal(size=10000))])    # a [m/s^2], sgn v
+    >>> Y = Phi @ [69.1, 742.8] + rng.normal(scale=5.0, size=10000)                      # force [N]
+    >>> rls = feedid.Rls(2, forgetting_factor=1.0)
+    >>> rls.update_many(Phi, Y)
+    >>> np.round(rls.estimate, 1)                                                        # M [kg], F_C [N]
+    array([ 69.1, 742.8])
+)doc")
         .def(py::init<int, double, double, const std::string&, const py::object&>(), py::arg("n"),
              py::arg("forgetting_factor") = RlsOptions{}.forgetting_factor,
              py::arg("initial_covariance") = RlsOptions{}.initial_covariance, py::arg("variant") = "directional",
-             py::arg("initial_estimate") = py::none())
-        .def_property_readonly("n", &PyRls::n)
-        .def("update", &PyRls::update, py::arg("phi"), py::arg("y"))
+             py::arg("initial_estimate") = py::none(),
+             "n parameters (1 to 8); lambda in (0, 1]; P(0) = initial_covariance * I; theta(0) = initial_estimate "
+             "(zeros)")
+        .def_property_readonly("n", &PyRls::n, "Number of parameters")
+        .def("update", &PyRls::update, py::arg("phi"), py::arg("y"),
+             "One sample (phi: n numbers, y: a number); returns 'updated', 'no_excitation' or 'non_finite'")
         .def("update_many", &PyRls::update_many, py::arg("Phi"), py::arg("Y"), py::kw_only(),
-             py::arg("history") = false)
-        .def_property_readonly("estimate", &PyRls::estimate)
-        .def_property_readonly("covariance", &PyRls::covariance)
-        .def_property_readonly("updates", &PyRls::updates)
-        .def_property_readonly("wound_up", &PyRls::wound_up)
-        .def_property_readonly("forgetting_factor", [](const PyRls& r) { return r.options().forgetting_factor; })
-        .def_property_readonly("initial_covariance", [](const PyRls& r) { return r.options().initial_covariance; })
-        .def_property_readonly("variant",
-                               [](const PyRls& r) {
-                                   return r.options().variant == RlsVariant::exponential ? "exponential"
-                                                                                         : "directional";
-                               })
-        .def_property_readonly("last_counts", &PyRls::last_counts)
-        .def("reset", &PyRls::reset, py::arg("initial_estimate") = py::none())
+             py::arg("history") = false,
+             "m samples in order (Phi: m x n, Y: m), the loop in C++ without the GIL; with history=True returns the "
+             "estimate after each sample (m x n), else None")
+        .def_property_readonly("estimate", &PyRls::estimate, "theta (a copy, n numbers)")
+        .def_property_readonly("covariance", &PyRls::covariance, "P (a copy, n x n)")
+        .def_property_readonly("updates", &PyRls::updates, "Samples that updated the estimate since the start or reset")
+        .def_property_readonly("wound_up", &PyRls::wound_up,
+                               "The exponential variant's covariance grew past 1e150 or overflowed")
+        .def_property_readonly(
+            "forgetting_factor", [](const PyRls& r) { return r.options().forgetting_factor; }, "lambda")
+        .def_property_readonly(
+            "initial_covariance", [](const PyRls& r) { return r.options().initial_covariance; }, "P(0) / I")
+        .def_property_readonly(
+            "variant",
+            [](const PyRls& r) {
+                return r.options().variant == RlsVariant::exponential ? "exponential" : "directional";
+            },
+            "'directional' or 'exponential'")
+        .def_property_readonly("last_counts", &PyRls::last_counts,
+                               "The last update_many's samples: {'updated', 'no_excitation', 'non_finite'}")
+        .def("reset", &PyRls::reset, py::arg("initial_estimate") = py::none(),
+             "Starts again: theta = initial_estimate (zeros), P = P(0)")
         .def("__repr__", [](const PyRls& r) {
             return fmt::format("<feedid.Rls n={}, {} forgetting {}, {} updates>", r.n(),
                                r.options().variant == RlsVariant::exponential ? "exponential" : "directional",

@@ -196,53 +196,96 @@ std::string trace_repr(const Trace& trace) {
 }
 
 void bind_trace_class(py::module_& m) {
-    py::class_<PyTrace> cls(m, "Trace", "A recording in SI units (see feedid.Trace in the package for the API)");
-    cls.def_property_readonly("path", [](const PyTrace& t) { return t.trace.source_path; });
-    cls.def_property_readonly("format", [](const PyTrace& t) { return t.trace.format; });
-    cls.def_property_readonly("samples", [](const PyTrace& t) { return t.trace.samples(); });
+    py::class_<PyTrace> cls(m, "Trace", R"doc(A recording in SI units: named channels with roles, constants, findings.
+
+Made by :func:`feedid.read_trace`, :meth:`Trace.from_arrays`, :meth:`Trace.from_pandas`, :func:`feedid.synth`.
+Values are SI (m, s, m/s, A, N; rad, rad/s, N*m on a rotary axis); ``units`` names each channel's SI unit,
+``source_units`` what the source stated. ``trace[name]`` and ``trace.role(role)`` are read-only float64 numpy views
+of the trace's own columns (no copy; a view keeps the trace alive). The trace itself cannot be changed: copy a column
+(``numpy.array(trace["x"])``) to work on it.
+
+Example::
+
+    >>> trace = feedid.read_trace(EMPS, channels={"position": "qm", "current": "vir"})
+    >>> trace.roles["current"], trace.units["vir"], round(trace.constants["gtau"], 4)
+    ('vir', 'A', 35.1507)
+    >>> x = trace.role("position")
+    >>> x.flags.writeable, x.dtype, len(x) == trace.samples
+    (False, dtype('float64'), True)
+)doc");
+    cls.def_property_readonly(
+        "path", [](const PyTrace& t) { return t.trace.source_path; }, "The file it came from ('' when made in memory)");
+    cls.def_property_readonly(
+        "format", [](const PyTrace& t) { return t.trace.format; },
+        "'csv', 'mat', 'sinumerik-trace', ..., 'synthetic', 'arrays', 'pandas'");
+    cls.def_property_readonly(
+        "samples", [](const PyTrace& t) { return t.trace.samples(); }, "Number of samples");
     cls.def("__len__", [](const PyTrace& t) { return t.trace.samples(); });
-    cls.def_property_readonly("rotary", [](const PyTrace& t) { return t.trace.rotary; });
-    cls.def_property_readonly("findings", [](const PyTrace& t) { return t.trace.findings; });
-    cls.def_property_readonly("constants", [](const PyTrace& t) { return constants_of(t.trace); });
+    cls.def_property_readonly(
+        "rotary", [](const PyTrace& t) { return t.trace.rotary; }, "A rotary axis (positions in rad)");
+    cls.def_property_readonly(
+        "findings", [](const PyTrace& t) { return t.trace.findings; },
+        "What the import noticed: guessed roles, assumed units, conversions, jitter");
+    cls.def_property_readonly(
+        "constants", [](const PyTrace& t) { return constants_of(t.trace); },
+        "Scalars of the source (EMPS's gtau; synth's force_constant_N_per_A and true values)");
     cls.def_property_readonly("sample_time_s", [](const PyTrace& t) {
         return t.trace.samples() >= 2 ? t.trace.time_base().sample_time_s : 0.0;
     });
     cls.def_property_readonly(
         "duration_s", [](const PyTrace& t) { return t.trace.samples() >= 2 ? t.trace.time_base().duration_s : 0.0; });
-    cls.def_property_readonly("channel_names", [](const PyTrace& t) {
-        std::vector<std::string> names;
-        for (const auto& c : t.trace.channels) names.push_back(c.name);
-        return names;
-    });
-    cls.def_property_readonly("roles", [](const PyTrace& t) {
-        py::dict roles;
-        for (const auto& c : t.trace.channels)
-            if (c.role != Role::other) roles[py::str(std::string(role_name(c.role)))] = c.name;
-        return roles;
-    });
-    cls.def_property_readonly("units", [](const PyTrace& t) {
-        py::dict units;
-        for (const auto& c : t.trace.channels) units[py::str(c.name)] = c.unit;
-        return units;
-    });
-    cls.def_property_readonly("source_units", [](const PyTrace& t) {
-        py::dict units;
-        for (const auto& c : t.trace.channels) units[py::str(c.name)] = c.source_unit;
-        return units;
-    });
-    cls.def_property_readonly("native_intervals_s", [](const PyTrace& t) {
-        py::dict intervals;
-        for (const auto& c : t.trace.channels) intervals[py::str(c.name)] = c.native_interval_s;
-        return intervals;
-    });
+    cls.def_property_readonly(
+        "channel_names",
+        [](const PyTrace& t) {
+            std::vector<std::string> names;
+            for (const auto& c : t.trace.channels) names.push_back(c.name);
+            return names;
+        },
+        "The channels' names, in the source's order");
+    cls.def_property_readonly(
+        "roles",
+        [](const PyTrace& t) {
+            py::dict roles;
+            for (const auto& c : t.trace.channels)
+                if (c.role != Role::other) roles[py::str(std::string(role_name(c.role)))] = c.name;
+            return roles;
+        },
+        "Role -> channel name, for the channels that have a role");
+    cls.def_property_readonly(
+        "units",
+        [](const PyTrace& t) {
+            py::dict units;
+            for (const auto& c : t.trace.channels) units[py::str(c.name)] = c.unit;
+            return units;
+        },
+        "Channel name -> SI unit of its values ('' where the source gave none for a channel without a role)");
+    cls.def_property_readonly(
+        "source_units",
+        [](const PyTrace& t) {
+            py::dict units;
+            for (const auto& c : t.trace.channels) units[py::str(c.name)] = c.source_unit;
+            return units;
+        },
+        "Channel name -> the unit the source stated");
+    cls.def_property_readonly(
+        "native_intervals_s",
+        [](const PyTrace& t) {
+            py::dict intervals;
+            for (const auto& c : t.trace.channels) intervals[py::str(c.name)] = c.native_interval_s;
+            return intervals;
+        },
+        "Channel name -> the interval its signal was sampled at [s] (a held, slower signal: a multiple of the "
+        "sample time)");
     cls.def(
         "__getitem__",
         [](py::object self, const std::string& name) {
             return view(channel_named(self.cast<const PyTrace&>().trace, name).values, self);
         },
+        py::arg("name"), "The channel of that name: a read-only float64 view [SI]; KeyError when there is none");
+    cls.def(
+        "__contains__",
+        [](const PyTrace& t, const std::string& name) { return t.trace.find(std::string_view(name)) != nullptr; },
         py::arg("name"));
-    cls.def("__contains__",
-            [](const PyTrace& t, const std::string& name) { return t.trace.find(std::string_view(name)) != nullptr; });
     cls.def(
         "role",
         [](py::object self, const std::string& name) {
@@ -252,7 +295,9 @@ void bind_trace_class(py::module_& m) {
             if (channel == nullptr) (void)trace.column(role);  // the library's InputError naming the role
             return view(channel->values, self);
         },
-        py::arg("role"));
+        py::arg("role"),
+        "The channel with that role ('time', 'position', 'current', ...): a read-only float64 view [SI]; InputError "
+        "when the trace has none");
     cls.def(
         "to_csv",
         [](const PyTrace& t, py::object path) {
@@ -262,7 +307,9 @@ void bind_trace_class(py::module_& m) {
             out << write_csv(t.trace);
             if (!out) throw InputError(fmt::format("{}: cannot write the file", *target));
         },
-        py::arg("path"));
+        py::arg("path"),
+        "Writes the trace as CSV as feedid writes traces: '# name = value' constants, 'name [unit]' headers (SI), "
+        "values that read back exactly");
     cls.def_property_readonly("_read_options", [](const PyTrace& t) { return to_python(t.read_options); });
     cls.def("__repr__", [](const PyTrace& t) { return trace_repr(t.trace); });
 }
@@ -432,12 +479,29 @@ PyPlan plan(const py::dict& kwargs) {
 }
 
 void bind_plan_class(py::module_& m) {
-    py::class_<PyPlan> cls(m, "Plan", "A designed axis test (see feedid.plan)");
-    cls.def_property_readonly("duration_s", [](const PyPlan& p) { return p.plan.duration; });
-    cls.def_property_readonly("blocks", [](const PyPlan& p) { return p.plan.moves.size(); });
-    cls.def_property_readonly("notes", [](const PyPlan& p) { return p.plan.notes; });
-    cls.def_property_readonly("passes", [](const PyPlan& p) { return to_python(p.document.at("passes")); });
-    cls.def_property_readonly("prediction", [](const PyPlan& p) { return to_python(p.document.at("prediction")); });
+    py::class_<PyPlan> cls(m, "Plan", R"doc(A designed axis test and what its data will identify (:func:`feedid.plan`).
+
+Example::
+
+    >>> p = feedid.plan(travel_mm=(-400, 400), centers_mm=[0], slow_feeds_mm_per_min=None)
+    >>> p.blocks > 0, p.prediction["parameters"]["breakaway_N"]["identifiable"]
+    (True, False)
+    >>> reference = p.reference()                 # the commanded position, 1 ms samples [m]
+    >>> reference.roles["reference_position"]
+    'x_ref'
+)doc");
+    cls.def_property_readonly(
+        "duration_s", [](const PyPlan& p) { return p.plan.duration; }, "Predicted duration of the test [s]");
+    cls.def_property_readonly(
+        "blocks", [](const PyPlan& p) { return p.plan.moves.size(); }, "Blocks of the part program");
+    cls.def_property_readonly(
+        "notes", [](const PyPlan& p) { return p.plan.notes; }, "What the design changed or warns about");
+    cls.def_property_readonly(
+        "passes", [](const PyPlan& p) { return to_python(p.document.at("passes")); },
+        "Every pass: centre, feed [m/s and mm/min], stroke [m], durations [s]");
+    cls.def_property_readonly(
+        "prediction", [](const PyPlan& p) { return to_python(p.document.at("prediction")); },
+        "Each parameter's nominal value, predicted standard error and identifiability");
     cls.def(
         "part_program",
         [](const PyPlan& p, const std::string& dialect) {
@@ -446,11 +510,15 @@ void bind_plan_class(py::module_& m) {
                 throw InputError(fmt::format("dialect='{}': the dialects are 'iso', 'sinumerik', 'linuxcnc'", dialect));
             return emit_part_program(p.plan, *parsed);
         },
-        py::arg("dialect") = "iso");
-    cls.def("reference", [](const PyPlan& p) {
-        return PyTrace{reference_trajectory(p.plan), nlohmann::json::object()};
-    });
-    cls.def("to_dict", [](const PyPlan& p) { return to_python(p.document); });
+        py::arg("dialect") = "iso", "The part program: dialect 'iso', 'sinumerik' or 'linuxcnc'");
+    cls.def(
+        "reference",
+        [](const PyPlan& p) {
+            return PyTrace{reference_trajectory(p.plan), nlohmann::json::object()};
+        },
+        "What an ideal NC commands: a Trace of t [s] and x_ref [m] at the plan's sample time");
+    cls.def(
+        "to_dict", [](const PyPlan& p) { return to_python(p.document); }, "The document of feedid plan --json");
     cls.def("__repr__", [](const PyPlan& p) {
         return fmt::format("<feedid.Plan axis {}, {} passes, {} blocks, {:.1f} s>", p.plan.options.axis,
                            p.plan.passes.size(), p.plan.moves.size(), p.plan.duration);
