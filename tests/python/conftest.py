@@ -5,15 +5,16 @@ import json
 import math
 import os
 import pathlib
+import shutil
 import subprocess
 
 import pytest
 
-SOURCE_DIR = pathlib.Path(os.environ.get("FEEDID_SOURCE_DIR", pathlib.Path(__file__).resolve().parents[2]))
-BUILD_DIR = pathlib.Path(os.environ.get("FEEDID_BUILD_DIR", SOURCE_DIR / "build"))
-CLI = os.environ.get("FEEDID_CLI", str(BUILD_DIR / "feedid"))
-SHARED_DATA = pathlib.Path(os.environ.get("FEEDID_SHARED_DATA", SOURCE_DIR.parent / "shared" / "data"))
-TEST_TMP = pathlib.Path(os.environ.get("FEEDID_TEST_TMP", BUILD_DIR / "test-files" / "python"))
+SOURCE_DIR = pathlib.Path(os.environ.get("FEEDID_SOURCE_DIR", pathlib.Path(__file__).resolve().parents[2])).resolve()
+BUILD_DIR = pathlib.Path(os.environ.get("FEEDID_BUILD_DIR", SOURCE_DIR / "build")).resolve()
+CLI = str(pathlib.Path(os.environ.get("FEEDID_CLI", BUILD_DIR / "feedid")).resolve())
+SHARED_DATA = pathlib.Path(os.environ.get("FEEDID_SHARED_DATA", SOURCE_DIR.parent / "shared" / "data")).resolve()
+TEST_TMP = pathlib.Path(os.environ.get("FEEDID_TEST_TMP", BUILD_DIR / "test-files" / "python")).resolve()
 
 EMPS = SHARED_DATA / "emps" / "DATA_EMPS.mat"
 SINUMERIK = SHARED_DATA / "sinumerik-trace" / "X_BK300_1.xml"
@@ -40,10 +41,8 @@ def sinumerik() -> str:
 def folder(request) -> pathlib.Path:
     """A folder of this test's own inside the build tree (ctest runs test files in parallel processes)."""
     path = TEST_TMP / request.node.module.__name__ / request.node.name
-    path.mkdir(parents=True, exist_ok=True)
-    for child in path.iterdir():
-        if child.is_file():
-            child.unlink()
+    shutil.rmtree(path, ignore_errors=True)
+    path.mkdir(parents=True)
     return path
 
 

@@ -27,10 +27,12 @@ def test_pip_install_into_a_fresh_venv_offline(folder):
     venv = folder / "venv"
     subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", "--clear", str(venv)], check=True)
     python = venv / "bin" / "python"
-    environment = {key: value for key, value in os.environ.items() if key != "PYTHONPATH"}
-    environment.update(FEEDID_CMAKE_BUILD_DIR=str(BUILD_DIR), PIP_NO_INDEX="1", PIP_DISABLE_PIP_VERSION_CHECK="1",
-                       PIP_NO_CACHE_DIR="1", CMAKE_BUILD_PARALLEL_LEVEL="1")
-    installed = subprocess.run([str(python), "-m", "pip", "install", "--no-build-isolation", "--no-index", "."],
+    # nothing from outside: no PYTHONPATH (the build tree), no pip configuration of this machine (extra indexes, links)
+    environment = {key: value for key, value in os.environ.items()
+                   if key != "PYTHONPATH" and not key.startswith("PIP_")}
+    environment.update(FEEDID_CMAKE_BUILD_DIR=str(BUILD_DIR), CMAKE_BUILD_PARALLEL_LEVEL="1")
+    installed = subprocess.run([str(python), "-m", "pip", "--isolated", "install", "--no-build-isolation", "--no-index",
+                                "--no-cache-dir", "."],
                                cwd=source, env=environment, capture_output=True, text=True)
     assert installed.returncode == 0, installed.stdout + installed.stderr
     check = ("import feedid, pathlib; print(feedid.__version__); print(pathlib.Path(feedid.__file__).parent); "
