@@ -55,8 +55,8 @@ feedid::Trace trace_from_columns() {
     trace.set("position", feedid::Role::other, "", columns().position);
     trace.set("current", feedid::Role::other, "", columns().current);
     feedid::ImportOptions options;
-    options.channels = {{feedid::Role::time, "time"}, {feedid::Role::position, "position"},
-                        {feedid::Role::current, "current"}};
+    options.channels = {
+        {feedid::Role::time, "time"}, {feedid::Role::position, "position"}, {feedid::Role::current, "current"}};
     feedid::prepare_trace(trace, options);
     return trace;
 }

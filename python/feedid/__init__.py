@@ -60,9 +60,9 @@ from ._feedid import (  # noqa: F401  (re-exported)
 from . import _pandas
 
 # The native classes are feedid's: named so in repr, help and pickles.
-for _class in (Estimate, FrictionCurvePoints, FrictionCurveReport, FrictionOnlyReport, Gains, History, LogLinearStribeck,
-               NonlinearFitReport, Plan, PreprocessReport, Result, Rls, RlsReport, SelectionReport, Simulation,
-               Step1Report, StribeckReport, Trace, TraceSummary, ValidationMetrics):
+for _class in (Estimate, FrictionCurvePoints, FrictionCurveReport, FrictionOnlyReport, Gains, History,
+               LogLinearStribeck, NonlinearFitReport, Plan, PreprocessReport, Result, Rls, RlsReport, SelectionReport,
+               Simulation, Step1Report, StribeckReport, Trace, TraceSummary, ValidationMetrics):
     _class.__module__ = __name__
 del _class
 

@@ -116,8 +116,8 @@ def identify_many(paths: Iterable[Union[str, "os.PathLike[str]"]], client: Any =
 
     Returns:
         A pandas DataFrame, a row per file as :func:`identify_file` makes it, and with ``history`` a column
-        ``run_id`` (missing, ``pandas.NA``, where not recorded; then ``reason`` says why). ``samples_used`` and ``run_id``
-        are nullable integers (``Int64``).
+        ``run_id`` (missing, ``pandas.NA``, where not recorded; then ``reason`` says why). ``samples_used`` and
+        ``run_id`` are nullable integers (``Int64``).
 
     Raises:
         TypeError: an option :func:`feedid.identify` does not have.
