@@ -27,7 +27,8 @@ public:
 
     /// Records an identify result (a Result, its dict, or the path of its JSON document) as one run.
     py::tuple record(const py::object& result, const std::string& machine, const std::string& axis,
-                     const py::object& trace, const std::string& location, const py::object& recorded_at) {
+                     const py::object& trace, const std::string& location,
+                     const std::optional<std::string>& recorded_at) {
         std::string source = "result";
         nlohmann::json document;
         if (py::isinstance<IdentifyResult>(result)) {
@@ -48,7 +49,7 @@ public:
         context.machine = machine;
         context.axis = axis;
         context.location = location;
-        if (!recorded_at.is_none()) context.recorded_at = recorded_at.cast<std::string>();
+        if (recorded_at) context.recorded_at = *recorded_at;
         if (const auto problem = context.validate("History.record"); !problem.empty()) throw InputError(problem);
         if (trace.is_none()) {
             context.trace = history::trace_of_result(document, source);

@@ -348,10 +348,13 @@ SynthSpec synth_spec(const OptionReader& o) {
     if (!o.flag("slow_passes").value_or(true)) spec.test.slow_passes = false;
     if (o.given("injection")) {
         const py::object injection = o.object("injection");
-        if (!py::isinstance<py::sequence>(injection) || py::len(injection) != 2)
-            throw InputError("injection: expected (amplitude_N, frequency_Hz), e.g. (300.0, 1.0)");
-        spec.injection =
-            SquareWaveInjection{injection[py::int_(0)].cast<double>(), injection[py::int_(1)].cast<double>()};
+        const std::string expected = "injection: expected (amplitude_N, frequency_Hz), e.g. (300.0, 1.0)";
+        if (!py::isinstance<py::sequence>(injection) || py::isinstance<py::str>(injection) || py::len(injection) != 2)
+            throw InputError(expected);
+        const py::object amplitude = injection[py::int_(0)], frequency = injection[py::int_(1)];
+        for (const auto& value : {amplitude, frequency})
+            if (py::isinstance<py::bool_>(value) || !py::hasattr(value, "__float__")) throw InputError(expected);
+        spec.injection = SquareWaveInjection{amplitude.cast<double>(), frequency.cast<double>()};
     }
     if (const auto problem = spec.validate(); !problem.empty())
         throw InputError(o.given("injection") ? "injection: " + problem : problem);

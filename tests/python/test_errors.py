@@ -161,6 +161,7 @@ def test_synth_and_plan_refuse(folder):
     cases = [
         (dict(preset="fanuc"), "preset='fanuc': the presets are 'sinumerik'"),
         (dict(injection=(300.0,)), "injection: expected (amplitude_N, frequency_Hz), e.g. (300.0, 1.0)"),
+        (dict(injection=("300N", "1Hz")), "injection: expected (amplitude_N, frequency_Hz), e.g. (300.0, 1.0)"),
         (dict(drive=42), "drive: expected a dict of the drive file's keys or the path of a drive file"),
         (dict(seed=-1), "seed=-1: must be 0 or more"),
         (dict(reference=[0.0, np.nan, 1.0]), "reference: a value that is not finite"),
