@@ -9,15 +9,39 @@
 
 namespace feedid {
 
+namespace {
+
+bool within(double value, DriveConstantRange range) {
+    return std::isfinite(value) && value >= range.low && value <= range.high;
+}
+
+// "a force constant of either sign with a magnitude from 1e-09 to 1e+09 N per signal unit"
+std::string force_constant_range() {
+    return fmt::format(
+        "a finite number of either sign with a magnitude from {:g} to {:g} N (N*m on a rotary axis) "
+        "per unit of the drive signal",
+        allowed_force_constant.low, allowed_force_constant.high);
+}
+
+}  // namespace
+
 std::string DriveConstants::validate() const {
-    if (force_constant && force_constant_name.empty() && !(std::isfinite(*force_constant) && *force_constant != 0.0)) {
-        return "--force-constant must be a finite, non-zero number";
+    if (force_constant && force_constant_name.empty() && !within(std::abs(*force_constant), allowed_force_constant)) {
+        return fmt::format("--force-constant {:g} is not allowed: a force constant is {}", *force_constant,
+                           force_constant_range());
     }
-    if (torque_constant_Nm_per_A && !(*torque_constant_Nm_per_A > 0.0 && std::isfinite(*torque_constant_Nm_per_A))) {
-        return "--kt must be a positive number [N*m/A]";
+    if (torque_constant_Nm_per_A && !within(*torque_constant_Nm_per_A, allowed_torque_constant_Nm_per_A)) {
+        return fmt::format("--kt {:g} is outside the allowed range {:g} to {:g} N*m/A", *torque_constant_Nm_per_A,
+                           allowed_torque_constant_Nm_per_A.low, allowed_torque_constant_Nm_per_A.high);
     }
-    if (lead_m && !(*lead_m > 0.0 && std::isfinite(*lead_m))) return "--lead must be a positive length";
-    if (!(gear_ratio > 0.0 && std::isfinite(gear_ratio))) return "--gear-ratio must be a positive number";
+    if (lead_m && !within(*lead_m, allowed_lead_m)) {
+        return fmt::format("--lead {:g} mm is outside the allowed range {:g} to {:g} mm", *lead_m * 1e3,
+                           allowed_lead_m.low * 1e3, allowed_lead_m.high * 1e3);
+    }
+    if (!within(gear_ratio, allowed_gear_ratio)) {
+        return fmt::format("--gear-ratio {:g} is outside the allowed range {:g} to {:g}", gear_ratio,
+                           allowed_gear_ratio.low, allowed_gear_ratio.high);
+    }
     if ((force_constant || !force_constant_name.empty()) && torque_constant_Nm_per_A) {
         return "give either --force-constant or --kt (with --lead), not both";
     }
@@ -54,6 +78,12 @@ std::optional<double> DriveConstants::force_per_signal(const Trace& trace) const
             throw InputError(fmt::format(
                 "--force-constant {}: the file has no scalar named '{}'{}", force_constant_name, force_constant_name,
                 names.empty() ? std::string(" (it has no scalars)") : " (it has: " + names + ")"));
+        }
+        if (!within(std::abs(found->second), allowed_force_constant)) {
+            throw InputError(
+                fmt::format("--force-constant {}: the file's constant '{}' is {:g}, which is not a force "
+                            "constant: a force constant is {}; give the number with --force-constant K",
+                            force_constant_name, force_constant_name, found->second, force_constant_range()));
         }
         return found->second;
     }

@@ -36,7 +36,7 @@ std::string GainOptions::validate() const {
     if (current_lag_s && !(*current_lag_s >= 0.0 && std::isfinite(*current_lag_s))) {
         return "--current-lag must be a time >= 0";
     }
-    if (saturation_N && !(*saturation_N > 0.0)) return "--saturation must be positive";
+    if (saturation_N && !(*saturation_N > 0.0 && std::isfinite(*saturation_N))) return "--saturation must be positive";
     if (!(rls.forgetting_factor > 0.0 && rls.forgetting_factor <= 1.0))
         return "the forgetting factor must be in (0, 1]";
     return {};
@@ -618,27 +618,50 @@ struct VelocityLoopFit {
     bool integral{false};
 };
 
-// The velocity loop, PI or P as asked; automatic: PI, and P when the integral gain is not significant (not above
-// three standard errors).
+// Why the PI fit shows no integral action ("" when it does): K_i not significant (not above three standard errors),
+// or significant but with a reset time T_n = K_p/K_i longer than the trace, over which an integrator that slow cannot
+// be told from a drift. "" also when the fit gave numbers that are not finite: gate_finite() fails those.
+std::string integral_action_missing(const Fit& fit, const GainSignals& signals) {
+    const auto [kp_index, ki_index] = gain_indices(signals.logged_command);
+    const std::string unit = ParameterNaming{signals.rotary}.velocity_integral_gain_unit();
+    if (fit.rank_deficient)
+        return fmt::format("significant integral action in the velocity loop (K_i = 0 +- 0 {})", unit);
+    const double ki = fit.estimate(ki_index);
+    const double se = std::sqrt(std::max(0.0, fit.covariance(ki_index, ki_index)));
+    const double reset_time = fit.estimate(kp_index) / ki;
+    if (!std::isfinite(ki) || !std::isfinite(se)) return {};
+    if (!(ki > 3.0 * se)) {
+        return fmt::format("significant integral action in the velocity loop (K_i = {:.4g} +- {:.2g} {})", ki, se,
+                           unit);
+    }
+    const double duration = static_cast<double>(signals.samples) * signals.dt;
+    if (std::isfinite(reset_time) && reset_time > duration) {
+        return fmt::format(
+            "integral action in the velocity loop within the trace: T_n = K_p/K_i = {:.4g} ms is longer than the "
+            "trace ({:.4g} s), so K_i = {:.4g} +- {:.2g} {} cannot be told from a drift",
+            reset_time * 1e3, duration, ki, se, unit);
+    }
+    return {};
+}
+
+// The velocity loop, PI or P as asked; automatic: PI, and P when it shows no integral action
+// (integral_action_missing()).
 VelocityLoopFit fit_velocity_loop(const VelocityLoopRegression& regression, const SearchSpace& space,
                                   const GainOptions& options, std::vector<std::string>& diagnostics) {
     VelocityLoopFit loop;
     loop.integral = options.velocity_loop != VelocityLoopStructure::p;
     loop.structure = search_structure(regression, space, options, loop.integral);
     loop.fit = fit(regression.problem(loop.structure, loop.integral), options.rls);
-    if (loop.integral && options.velocity_loop == VelocityLoopStructure::automatic) {
-        const Eigen::Index index = gain_indices(regression.signals.logged_command).integral_gain;
-        const double ki = loop.fit.estimate(index);
-        const double se = std::sqrt(std::max(0.0, loop.fit.covariance(index, index)));
-        if (loop.fit.rank_deficient || !(ki > 3.0 * se)) {
-            diagnostics.push_back(
-                fmt::format("no significant integral action in the velocity loop (K_i = {:.4g} +- {:.2g} {}): "
-                            "identified as P only",
-                            loop.fit.rank_deficient ? 0.0 : ki, loop.fit.rank_deficient ? 0.0 : se,
-                            ParameterNaming{regression.signals.rotary}.velocity_integral_gain_unit()));
+    if (loop.integral) {
+        const std::string why_not = integral_action_missing(loop.fit, regression.signals);
+        if (!why_not.empty() && options.velocity_loop == VelocityLoopStructure::automatic) {
+            diagnostics.push_back(fmt::format("no {}: identified as P only", why_not));
             loop.integral = false;
             loop.structure = search_structure(regression, space, options, false);
             loop.fit = fit(regression.problem(loop.structure, false), options.rls);
+        } else if (!why_not.empty()) {
+            diagnostics.push_back(
+                fmt::format("no {}: K_i and T_n, fitted as --velocity-loop pi asks, are not to be trusted", why_not));
         }
     }
     if (loop.fit.rank_deficient) {
@@ -677,21 +700,16 @@ void set_velocity_loop_gains(const VelocityLoopFit& loop, bool logged_command, G
 
 // The structure found and the velocity loop's fit figures, with a note on a logged velocity used and one on gains of
 // the wrong sign.
-void set_structure_and_fit(const VelocityLoopFit& loop, bool logged_command, GainResult& result) {
+void set_structure_and_fit(const VelocityLoopFit& loop, double dt, GainResult& result) {
     const Structure& structure = loop.structure;
     result.velocity_difference_samples = structure.difference == 0 ? 1 : structure.difference;
     if (structure.difference == 0) result.diagnostics.push_back("velocity loop fitted on the logged velocity channel");
-    result.current_lag_s = structure.lag_s;
+    // A lag below a thousandth of a sample is no lag: only the search's steps, added and taken away, leave it.
+    result.current_lag_s = structure.lag_s < 1e-3 * dt ? 0.0 : structure.lag_s;
     result.drive_delay_samples = structure.mu > 0.5 ? 1 : 0;
     result.relative_error_pct = loop.fit.relative_error_pct;
     result.systematic_error_pct = loop.fit.systematic_error_pct;
     result.samples_used = loop.fit.samples;
-    if (!(result.position_gain_per_s.value.value_or(0.0) > 0.0) ||
-        !(loop.fit.estimate(gain_indices(logged_command).velocity_gain) > 0.0)) {
-        result.diagnostics.push_back(
-            "a gain came out negative: the channels' signs or roles may be wrong (is the "
-            "reference mapped to the reference, the drive signal to the current?)");
-    }
 }
 
 // The identified controller, for simulation: the gains (0 where the data did not determine them), the structure
@@ -731,6 +749,95 @@ void gate_fit_quality(bool injection_given, GainResult& result) {
                     result.systematic_error_pct, result.relative_error_pct, gain_fit_error_limit_pct, injection));
 }
 
+// The largest |F| over the velocity loop's rows, and where it is.
+struct LargestForce {
+    double magnitude{0.0};
+    std::size_t sample{0};
+};
+
+LargestForce largest_force(const GainSignals& signals, const std::vector<char>& use) {
+    LargestForce largest;
+    for (std::size_t k = 0; k < signals.force.size(); ++k) {
+        if (use[k] && std::abs(signals.force[k]) > largest.magnitude) largest = {std::abs(signals.force[k]), k};
+    }
+    return largest;
+}
+
+// A drive force whose squares over the rows are not finite numbers (a current of 1e300 A, a force constant far off)
+// cannot be fitted: the reason, with the figures; none when it can.
+std::optional<std::string> force_beyond_arithmetic(const GainSignals& signals, const std::vector<char>& use) {
+    double squares = 0.0;
+    for (std::size_t k = 0; k < signals.force.size(); ++k) {
+        if (use[k]) squares += signals.force[k] * signals.force[k];
+    }
+    if (std::isfinite(squares)) return std::nullopt;
+    const LargestForce largest = largest_force(signals, use);
+    return fmt::format(
+        "the drive force reaches {:.4g} {} (at t = {:.6g} s): so large that its squares are not finite numbers, and "
+        "no gains can be fitted to it; is the drive signal's unit or the force constant right?",
+        largest.magnitude, signals.rotary ? "N*m" : "N", static_cast<double>(largest.sample) * signals.dt);
+}
+
+// Gains or fit figures that are not finite numbers are no gains: status failed, with a diagnostic first that names
+// them and gives the largest drive force; the values are dropped (null in the document, "—" in print).
+void gate_finite(const GainSignals& signals, const std::vector<char>& use, GainResult& result) {
+    std::string names;
+    const auto check = [&](Estimate& estimate, const char* symbol) {
+        if (estimate.value && !std::isfinite(*estimate.value)) {
+            names += fmt::format("{}{}", names.empty() ? "" : ", ", symbol);
+            estimate = Estimate{};
+        }
+    };
+    check(result.position_gain_per_s, "K_v");
+    check(result.velocity_gain_N_s_per_m, "K_p");
+    check(result.velocity_integral_gain_N_per_m, "K_i");
+    check(result.velocity_feedforward, "k_ff");
+    check(result.reset_time_s, "T_n");
+    for (const auto& [value, name] :
+         {std::pair{result.relative_error_pct, "the relative error"},
+          std::pair{result.systematic_error_pct, "the systematic error"},
+          std::pair{result.position_loop_relative_error_pct, "the position loop's error"}}) {
+        if (!std::isfinite(value)) names += fmt::format("{}{}", names.empty() ? "" : ", ", name);
+    }
+    if (names.empty()) return;
+    result.status = Status::failed;
+    result.diagnostics.insert(
+        result.diagnostics.begin(),
+        fmt::format("the controller fit gave numbers that are not finite ({}): no gains (the drive force reaches "
+                    "{:.4g} {}); are the channels' units and the force constant right?",
+                    names, largest_force(signals, use).magnitude, signals.rotary ? "N*m" : "N"));
+}
+
+// A loop gain of the wrong sign is no controller that could run the axis (its loop would be unstable): status failed,
+// with the likely cause and the fix first among the diagnostics. K_p < 0 with K_v > 0 is a drive signal whose sign is
+// the opposite of the motion's (drive and NC count directions differently); K_v < 0 is a reference and position
+// mapped the wrong way round, or of opposite signs.
+void gate_signs(const GainOptions& options, bool rotary, GainResult& result) {
+    const double kv = result.position_gain_per_s.value.value_or(1.0);
+    const double kp = result.velocity_gain_N_s_per_m.value.value_or(1.0);
+    const ParameterNaming naming{rotary};
+    std::string why;
+    if (kv <= 0.0) {
+        why = fmt::format(
+            "the position loop gain came out negative (K_v = {:.4g} 1/s), which no stable controller has: are the "
+            "reference and the position mapped to their roles (--channel reference_position=NAME, --channel "
+            "position=NAME), with the same sign?",
+            kv);
+    } else if (kp <= 0.0) {
+        const std::string fix = options.force_per_signal != 0.0
+                                    ? fmt::format("give the force constant with the other sign, --force-constant {:g}",
+                                                  -options.force_per_signal)
+                                    : std::string("turn the drive signal's sign (a negative --force-constant)");
+        why = fmt::format(
+            "the velocity loop gain came out negative (K_p = {:.4g} {}), which no stable controller has: the drive "
+            "signal's sign is the opposite of the motion's (drive and NC count directions differently); {}",
+            kp, naming.velocity_gain_unit(), fix);
+    }
+    if (why.empty()) return;
+    result.status = Status::failed;
+    result.diagnostics.insert(result.diagnostics.begin(), std::move(why));
+}
+
 }  // namespace
 
 GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options,
@@ -742,6 +849,15 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
     result.method = signals.logged_command ? "velocity_command" : "structure";
     std::vector<char> use = velocity_loop_rows(signals, options.saturation_N, result.diagnostics);
     keep_fresh_rows(signals, use);
+    if (auto beyond = force_beyond_arithmetic(signals, use)) {
+        result.status = Status::failed;
+        result.diagnostics.insert(result.diagnostics.begin(), std::move(*beyond));
+        // nothing fitted: no fit figures (null in the document), a controller without gains
+        result.relative_error_pct = result.systematic_error_pct = result.position_loop_relative_error_pct =
+            std::numeric_limits<double>::quiet_NaN();
+        result.controller = identified_controller(result, options, signals.dt, signals.hold_factor);
+        return result;
+    }
     if (signals.hold_factor > 1) {
         result.diagnostics.push_back(fmt::format(
             "the position holds each value over {} samples: fitted on the samples where it is new, the position "
@@ -753,10 +869,12 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
     const VelocityLoopFit velocity_loop =
         fit_velocity_loop(regression, search_space(signals, options), options, result.diagnostics);
     set_velocity_loop_gains(velocity_loop, signals.logged_command, result);
-    set_structure_and_fit(velocity_loop, signals.logged_command, result);
-    result.controller = identified_controller(result, options, signals.dt, signals.hold_factor);
+    set_structure_and_fit(velocity_loop, signals.dt, result);
     result.injection_subtracted = !signals.injection.empty();
-    gate_fit_quality(result.injection_subtracted, result);
+    gate_finite(signals, use, result);
+    if (result.status != Status::failed) gate_fit_quality(result.injection_subtracted, result);
+    gate_signs(options, signals.rotary, result);
+    result.controller = identified_controller(result, options, signals.dt, signals.hold_factor);
     return result;
 }
 

@@ -8,6 +8,7 @@
 
 #include "feedid/error.hpp"
 #include "feedid/gains.hpp"
+#include "feedid/null_reasons.hpp"
 #include "feedid/parameters.hpp"
 
 namespace feedid {
@@ -20,6 +21,32 @@ Estimate scaled(const Estimate& estimate, double factor) {
     if (estimate.value) out.value = *estimate.value * factor;
     if (estimate.standard_error) out.standard_error = *estimate.standard_error * std::abs(factor);
     return out;
+}
+
+bool starts_with(std::string_view text, std::string_view prefix) {
+    return text.substr(0, prefix.size()) == prefix;
+}
+
+// Why a gains document holds a null at `path` (null_reasons.hpp).
+std::string gains_null_reason(std::string_view path, const GainResult& result, const GainOptions& options,
+                              const ParameterNaming& naming) {
+    const bool failed = result.status == Status::failed;
+    const bool integral = path.find("integral") != std::string_view::npos || starts_with(path, "nc_units.tn_ms");
+    const bool feedforward = path.find("feedforward") != std::string_view::npos;
+    const bool stderr_only = path.ends_with("stderr") && !failed;
+    if (feedforward && !options.feedforward) return "no velocity feed-forward fitted (--feedforward not given)";
+    if (integral && !failed && !result.velocity_integral_gain_N_per_m.value) {
+        return options.velocity_loop == VelocityLoopStructure::p
+                   ? "the velocity loop is fitted as P only (--velocity-loop p): no K_i, no T_n"
+                   : "the velocity loop shows no integral action (see the diagnostic on it): no K_i, no T_n";
+    }
+    if (stderr_only) return "the fit's variance of this gain is not a finite number >= 0, so it has no standard error";
+    if (path == "fit.position_loop_relative_error_pct" && result.method != "velocity_command") {
+        return "the position loop is fitted on its own only from a logged velocity command, which this trace lacks";
+    }
+    if (path == "structure." + naming.saturation_key()) return "no limit of the drive signal given (--saturation)";
+    if (failed) return "the controller fit failed (the first diagnostic says why)";
+    return {};
 }
 
 }  // namespace
@@ -71,7 +98,17 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
                        {"samples_used", result.samples_used}};
     document["diagnostics"] = result.diagnostics;
     document["trace"] = {{"path", trace.source_path}, {"samples", trace.samples()}};
+    explain_nulls(document, [&](std::string_view path) { return gains_null_reason(path, result, options, naming); });
     return document;
+}
+
+bool gains_document_is_rotary(const nlohmann::json& document) {
+    // A rotary axis's document carries the rotary keys (velocity_gain_Nms_per_rad, ...); "rotary" says which, and
+    // without it the keys present do.
+    if (!document.is_object()) return false;
+    if (document.contains("rotary") && document["rotary"].is_boolean()) return document["rotary"].get<bool>();
+    const auto found = document.find("gains");
+    return found != document.end() && found->is_object() && found->contains(ParameterNaming{true}.velocity_gain_key());
 }
 
 ControllerModel controller_from_document(const nlohmann::json& document, const std::string& source) {
@@ -86,12 +123,7 @@ ControllerModel controller_from_document(const nlohmann::json& document, const s
         throw InputError(fmt::format("{}: not a gains document (no \"gains\" object)", source));
     }
     const auto& gains = document["gains"];
-    // A rotary axis's document carries the rotary keys (velocity_gain_Nms_per_rad, ...); "rotary" says which, and
-    // without it the keys present do.
-    const bool rotary = document.contains("rotary") && document["rotary"].is_boolean()
-                            ? document["rotary"].get<bool>()
-                            : gains.is_object() && gains.contains(ParameterNaming{true}.velocity_gain_key());
-    const ParameterNaming naming{rotary};
+    const ParameterNaming naming{gains_document_is_rotary(document)};
     ControllerModel model;
     const auto kv = value_of(gains, "position_gain_per_s");
     const auto kp = value_of(gains, naming.velocity_gain_key().c_str());

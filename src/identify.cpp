@@ -15,18 +15,29 @@ std::string IdentifyOptions::validate() const {
     if (const auto problem = drive.validate(); !problem.empty()) return problem;
     const auto& p = preprocess;
     if (p.filter_order < 1 || p.filter_order > 12) return "--filter-order must be between 1 and 12";
-    if (p.cutoff_hz && !(*p.cutoff_hz > 0.0)) return "--cutoff must be a positive frequency [Hz]";
+    if (p.cutoff_hz && !(*p.cutoff_hz > 0.0 && std::isfinite(*p.cutoff_hz)))
+        return "--cutoff must be a positive frequency [Hz]";
     if (p.decimation < 0 || p.decimation > 1000) return "--decimate must be between 1 and 1000 (0 = automatic)";
     if (p.savitzky_golay_window != 0 && (p.savitzky_golay_window < 5 || p.savitzky_golay_window % 2 == 0)) {
         return "--sg-window must be an odd number of samples >= 5";
     }
     if (p.savitzky_golay_order < 2 || p.savitzky_golay_order > 6) return "--sg-order must be between 2 and 6";
+    if (p.savitzky_golay_window != 0 && p.savitzky_golay_order >= p.savitzky_golay_window) {
+        return fmt::format("--sg-order {} must be below --sg-window {} (a polynomial of that order needs more samples)",
+                           p.savitzky_golay_order, p.savitzky_golay_window);
+    }
+    for (const auto& [bound, name] : {std::pair{p.from_s, "--from"}, std::pair{p.to_s, "--to"}}) {
+        if (bound && !std::isfinite(*bound)) return fmt::format("{} must be a finite time [s]", name);
+    }
     if (p.from_s && p.to_s && !(*p.to_s > *p.from_s)) return "--to must be later than --from";
-    if (selection.split_velocity && !(*selection.split_velocity >= 0.0)) return "--split-velocity must be >= 0";
-    if (selection.moving_threshold && !(*selection.moving_threshold >= 0.0)) return "--moving-threshold must be >= 0";
+    if (selection.split_velocity && !(*selection.split_velocity >= 0.0 && std::isfinite(*selection.split_velocity)))
+        return "--split-velocity must be a finite speed >= 0";
+    if (selection.moving_threshold &&
+        !(*selection.moving_threshold >= 0.0 && std::isfinite(*selection.moving_threshold)))
+        return "--moving-threshold must be a finite speed >= 0";
     const auto& rls = step1.rls;
     if (!(rls.forgetting_factor > 0.0 && rls.forgetting_factor <= 1.0)) return "--lambda must lie in (0, 1]";
-    if (!(rls.initial_covariance > 0.0)) return "--p0 must be positive";
+    if (!(rls.initial_covariance > 0.0 && std::isfinite(rls.initial_covariance))) return "--p0 must be positive";
     return {};
 }
 

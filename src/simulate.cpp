@@ -9,6 +9,7 @@
 
 #include "feedid/error.hpp"
 #include "feedid/native_interval.hpp"
+#include "feedid/null_reasons.hpp"
 #include "feedid/result_document.hpp"
 #include "feedid/signal.hpp"
 
@@ -475,6 +476,39 @@ std::vector<double> held_like(const Trace& trace, Role role, std::span<const dou
 
 }  // namespace
 
+namespace {
+
+struct MeasuredMotion {
+    std::vector<double> velocity;
+    std::vector<double> acceleration;
+};
+
+// Measured velocity and acceleration: the logged velocity, or the position low-passed forwards and backwards
+// (4th-order Butterworth at min(100 Hz, fs/10), the EMPS practice, fs the position signal's native rate) and
+// differenced centrally.
+MeasuredMotion measured_motion(const Trace& trace) {
+    const auto position = trace.column(Role::position);
+    const double dt = trace.time_base().sample_time_s;
+    MeasuredMotion motion;
+    std::vector<double> velocity_for_acceleration;
+    if (const auto* logged = trace.find(Role::velocity)) {
+        motion.velocity = logged->values;
+        // a held velocity between its own samples, for its differences
+        const auto [factor, phase] = hold_of(trace, Role::velocity);
+        if (factor > 1) velocity_for_acceleration = interpolate_held(motion.velocity, factor, phase);
+    } else {
+        const double fs = 1.0 / dt;
+        const double native_rate = 1.0 / native_interval_of(trace, Role::position);
+        const auto filter = butterworth_lowpass(4, std::min(100.0, 0.1 * native_rate), fs);
+        motion.velocity = central_difference(filtfilt(filter, position), dt);
+    }
+    motion.acceleration =
+        central_difference(velocity_for_acceleration.empty() ? motion.velocity : velocity_for_acceleration, dt);
+    return motion;
+}
+
+}  // namespace
+
 ValidationMetrics validate_simulation(const Trace& trace, std::span<const double> measured_force,
                                       const SimulationOutput& simulated) {
     const std::size_t n = simulated.position.size();
@@ -484,24 +518,9 @@ ValidationMetrics validate_simulation(const Trace& trace, std::span<const double
     }
     ValidationMetrics metrics;
     if (n == 0) return metrics;
-    const double dt = trace.time_base().sample_time_s;
-    // Measured velocity and acceleration: the logged velocity, or the position low-passed forwards and backwards
-    // (4th-order Butterworth at min(100 Hz, fs/10), the EMPS practice, fs the position signal's native rate) and
-    // differenced centrally.
-    std::vector<double> velocity, velocity_for_acceleration;
-    if (const auto* logged = trace.find(Role::velocity)) {
-        velocity = logged->values;
-        // a held velocity between its own samples, for its differences
-        const auto [factor, phase] = hold_of(trace, Role::velocity);
-        if (factor > 1) velocity_for_acceleration = interpolate_held(velocity, factor, phase);
-    } else {
-        const double fs = 1.0 / dt;
-        const double native_rate = 1.0 / native_interval_of(trace, Role::position);
-        const auto filter = butterworth_lowpass(4, std::min(100.0, 0.1 * native_rate), fs);
-        velocity = central_difference(filtfilt(filter, position), dt);
-    }
-    const std::vector<double> acceleration =
-        central_difference(velocity_for_acceleration.empty() ? velocity : velocity_for_acceleration, dt);
+    const MeasuredMotion motion = measured_motion(trace);
+    const std::vector<double>& velocity = motion.velocity;
+    const std::vector<double>& acceleration = motion.acceleration;
     const std::vector<double> simulated_position = held_like(trace, Role::position, simulated.position);
     metrics.position_relative_error_pct = relative_error_pct(position, simulated_position);
     metrics.velocity_relative_error_pct =
@@ -525,6 +544,54 @@ ValidationMetrics validate_simulation(const Trace& trace, std::span<const double
     metrics.tracking_error_mae_machine_m = machine / static_cast<double>(n);
     metrics.modelling_error_mae_m = modelling / static_cast<double>(n);
     return metrics;
+}
+
+std::string model_does_not_fit(const AxisModel& axis, const Trace& trace, std::span<const double> drive_force) {
+    const std::size_t n = trace.samples();
+    if (drive_force.size() != n) throw InputError("the drive force and the trace differ in length");
+    if (n < 3 || !trace.has(Role::position)) return {};
+    const MeasuredMotion motion = measured_motion(trace);
+    const auto* external = trace.find(Role::external_force);
+    double fastest = 0.0;
+    for (const double v : motion.velocity) fastest = std::max(fastest, std::isfinite(v) ? std::abs(v) : 0.0);
+    // F_d = M*a + F_f(v) + F_0 - F_ext over the samples that move (at rest friction takes any value up to F_B)
+    double cross = 0.0, predicted = 0.0, measured = 0.0, largest_predicted = 0.0, largest_measured = 0.0;
+    std::size_t used = 0;
+    for (std::size_t k = 1; k + 1 < n; ++k) {
+        if (!(std::abs(motion.velocity[k]) > 0.05 * fastest) || !std::isfinite(drive_force[k])) continue;
+        double model = axis.mass * motion.acceleration[k] + axis.friction.force(motion.velocity[k]) + axis.offset;
+        if (external != nullptr) model -= external->values[k];
+        cross += model * drive_force[k];
+        predicted += model * model;
+        measured += drive_force[k] * drive_force[k];
+        largest_predicted = std::max(largest_predicted, std::abs(model));
+        largest_measured = std::max(largest_measured, std::abs(drive_force[k]));
+        ++used;
+    }
+    const char* unit = trace.rotary ? "N*m" : "N";
+    if (used == 0) return {};
+    if (!std::isfinite(cross + predicted + measured) || !(predicted > 0.0) || !(measured > 0.0)) {
+        return fmt::format(
+            "over {} moving samples, the force the model predicts from the trace's motion (M*a + friction + offset) "
+            "reaches {:.4g} {}, the trace's drive force {:.4g} {}: no factor between them is a finite number other "
+            "than 0; are the model's values and the trace's units right?",
+            used, largest_predicted, unit, largest_measured, unit);
+    }
+    const double factor = cross / predicted;  // F ~ factor * F_hat in least squares
+    if (factor >= 1.0 / model_scale_limit && factor <= model_scale_limit) return {};
+    const std::string figures = fmt::format(
+        "over {} moving samples, the force the model predicts from the trace's motion (M*a + friction + offset) has "
+        "an rms of {:.4g} {}, the trace's drive force {:.4g} {}; the best factor between them is {:.3g}, where the "
+        "axis's own model gives about 1",
+        used, std::sqrt(predicted / static_cast<double>(used)), unit, std::sqrt(measured / static_cast<double>(used)),
+        unit, factor);
+    if (factor < 0.0) {
+        return figures +
+               ": the drive signal's sign is the opposite of the identification's (a negative force constant turns it)";
+    }
+    return figures +
+           ": are the units of position, time and drive signal, and the force constant, the ones the model was "
+           "identified with, and is it this axis's model?";
 }
 
 nlohmann::json validation_document(const ValidationMetrics& m, bool rotary) {
@@ -551,16 +618,25 @@ ValidationSeries validation_series(const Trace& trace, const SimulationOutput& s
     if (max_points < 6) throw InputError("validation series: at least 6 points are needed (two per error)");
     std::vector<double> machine(n), model(n), modelling(n);
     const std::vector<double> simulated_position = held_like(trace, Role::position, simulated.position);
-    // The same differences as validate_simulation(), so the series' extremes equal its largest errors.
+    // The same differences as validate_simulation(), so the series' extremes equal its largest errors; up to the first
+    // sample where one is not a finite number (a diverged simulation's series ends there).
+    std::size_t finite = n;
     for (std::size_t k = 0; k < n; ++k) {
         machine[k] = simulated.reference[k] - position[k];
         model[k] = simulated.reference[k] - simulated_position[k];
         modelling[k] = position[k] - simulated_position[k];
+        if (!(std::isfinite(machine[k]) && std::isfinite(model[k]) && std::isfinite(modelling[k]))) {
+            finite = k;
+            break;
+        }
     }
-    const std::array<std::span<const double>, 3> errors{machine, model, modelling};
+    const std::array<std::span<const double>, 3> errors{std::span<const double>(machine).first(finite),
+                                                        std::span<const double>(model).first(finite),
+                                                        std::span<const double>(modelling).first(finite)};
     ValidationSeries series;
-    series.samples = n;
-    for (const std::size_t k : extreme_preserving_indices(errors, n, max_points)) {
+    series.samples = finite;
+    if (finite == 0) return series;
+    for (const std::size_t k : extreme_preserving_indices(errors, finite, max_points)) {
         series.time.push_back(simulated.time[k]);
         series.tracking_error_machine.push_back(machine[k]);
         series.tracking_error_model.push_back(model[k]);
@@ -613,6 +689,12 @@ ControllerModel with_options(ControllerModel model, const GainOptions& options) 
 
 TwinController documented_twin_controller(const nlohmann::json& gains_document, const std::string& source,
                                           const GainOptions& options, const Trace& trace) {
+    if (gains_document_is_rotary(gains_document) != trace.rotary) {
+        throw InputError(fmt::format("{}: the gains are of a {} axis, the trace {} of a {} axis", source,
+                                     ParameterNaming{!trace.rotary}.axis_kind(),
+                                     trace.source_path.empty() ? std::string("trace") : trace.source_path,
+                                     ParameterNaming{trace.rotary}.axis_kind()));
+    }
     TwinController controller;
     controller.model = with_options(controller_from_document(gains_document, source), options);
     ControllerModel& model = controller.model;
@@ -625,13 +707,19 @@ TwinController identified_twin_controller(const Trace& trace, std::span<const do
                                           const GainOptions& options, std::span<const double> injection) {
     TwinController controller;
     const GainResult gains = identify_gains(trace, drive_force, options, injection);
+    // a fit that gave no gains at all leaves nothing to simulate
+    if (gains.status == Status::failed && !gains.controller.validate().empty()) {
+        throw AnalysisError(
+            fmt::format("no simulation: no gains could be identified from the trace: {}", gains.diagnostics.front()));
+    }
     controller.model = gains.controller;
     controller.status = gains.status;
     if (gains.status == Status::failed) controller.notes.push_back(gains.diagnostics.front());
     controller.notes.push_back(
-        fmt::format("gains identified from the trace: K_v {:.6g} 1/s, K_p {:.6g} N*s/m, K_i {:.6g} N/m",
+        fmt::format("gains identified from the trace: K_v {:.6g} 1/s, K_p {:.6g} {}, K_i {:.6g} {}",
                     controller.model.position_gain_per_s, controller.model.velocity_gain_N_s_per_m,
-                    controller.model.velocity_integral_gain_N_per_m));
+                    ParameterNaming{trace.rotary}.velocity_gain_unit(), controller.model.velocity_integral_gain_N_per_m,
+                    ParameterNaming{trace.rotary}.velocity_integral_gain_unit()));
     return controller;
 }
 
@@ -668,13 +756,23 @@ void check_divergence(const Trace& trace, TraceSimulation& simulation) {
     const auto [position_low, position_high] = std::minmax_element(position.begin(), position.end());
     const double travel = std::max(*reference_high, *position_high) - std::min(*reference_low, *position_low);
     const double away = simulation.metrics.modelling_error_max_m;
+    const char* unit = trace.rotary ? "rad" : "m";
     if (travel > 0.0 && away > travel) {
-        const char* unit = trace.rotary ? "rad" : "m";
         fail(
             fmt::format("the simulation diverged: the simulated axis came {:.4g} {} away from the machine, farther "
                         "than the whole travel of the trace ({:.4g} {}); an unstable loop: are the gains and the "
                         "channels' signs right?",
                         away, unit, travel, unit));
+        return;
+    }
+    // A twin that stood on the reference would be closer to the machine than this one: it reproduces nothing.
+    const ValidationMetrics& m = simulation.metrics;
+    if (m.modelling_error_mae_m > m.tracking_error_mae_machine_m) {
+        fail(fmt::format(
+            "the simulated axis does not follow the machine: its mean distance from the machine, {:.4g} {}, is larger "
+            "than the machine's own mean tracking error, {:.4g} {} (the reference itself is closer to the machine "
+            "than the twin); are the gains those of this machine, and the result this axis's?",
+            m.modelling_error_mae_m, unit, m.tracking_error_mae_machine_m, unit));
     }
 }
 
@@ -719,6 +817,11 @@ nlohmann::json simulation_document(const Trace& trace, const TwinController& con
     std::vector<std::string> diagnostics = simulation.diagnostics;
     diagnostics.insert(diagnostics.end(), controller.notes.begin(), controller.notes.end());
     document["diagnostics"] = diagnostics;
+    explain_nulls(document, [&](std::string_view path) -> std::string {
+        if (path == "controller." + naming.saturation_key()) return "no limit of the drive signal given (--saturation)";
+        if (simulation.status == Status::failed) return "the simulation diverged (the first diagnostic says where)";
+        return {};
+    });
     return document;
 }
 

@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numbers>
 #include <random>
-#include <map>
 #include <set>
 #include <span>
 
@@ -138,12 +138,14 @@ double SquareWaveInjection::at(double time_s) const {
 }
 
 std::string SquareWaveInjection::validate(double sample_time_s) const {
-    if (!(std::isfinite(amplitude_N) && amplitude_N != 0.0))
-        return "the injection's amplitude must be a number != 0 [N]";
-    // At least four samples per half period, so that each half of the wave is seen as a level.
+    // A force (torque) of either sign from 1 uN to 10 MN: past any drive, short of nonsense.
+    if (!(std::abs(amplitude_N) >= 1e-6 && std::abs(amplitude_N) <= 1e7))
+        return "the injection's amplitude must be a number of either sign with a magnitude from 1e-06 to 1e+07 N";
+    // At least four samples per half period, so that each half of the wave is seen as a level; at most a period of
+    // 1000 s (a slower wave is a step).
     const double highest = 1.0 / (8.0 * sample_time_s);
-    if (!(frequency_Hz > 0.0 && frequency_Hz <= highest)) {
-        return fmt::format("the injection's frequency must lie in (0, {:g}] Hz (four samples per half period)",
+    if (!(frequency_Hz >= 1e-3 && frequency_Hz <= highest)) {
+        return fmt::format("the injection's frequency must lie from 0.001 to {:g} Hz (four samples per half period)",
                            highest);
     }
     return {};

@@ -39,6 +39,12 @@ constexpr double same_feed_tolerance = 1e-12;
 // the feedrate limit by a relative 1e-12 (a feedrate equal to the limit in mm/min but computed another way, as the
 // log-spaced feeds are, differs from it by rounding only).
 constexpr double travel_tolerance = 1e-9;
+// What the command line allows (past any machine, short of nonsense): travel limits within +-1 km, feedrates from
+// 0.001 to 1e6 mm/min, at most 100 log-spaced slow feeds.
+constexpr double max_travel_mm = 1e6;
+constexpr double min_feed_mm_per_min = 1e-3;
+constexpr double max_feed_mm_per_min = 1e6;
+constexpr double max_slow_feeds = 100.0;
 constexpr double feed_limit_relative_tolerance = 1e-12;
 
 double to_mm(double metres) {
@@ -136,7 +142,12 @@ std::vector<double> log_spaced_feeds(double lowest, double highest, int count) {
 std::pair<double, double> parse_travel(std::string_view text) {
     const auto limits = split(text, ':');
     if (limits.size() != 2) throw InputError(fmt::format("--travel: '{}' is not MIN:MAX [mm].", text));
-    return {parse_number(limits[0], "--travel") * mm, parse_number(limits[1], "--travel") * mm};
+    const double low = parse_number(limits[0], "--travel");
+    const double high = parse_number(limits[1], "--travel");
+    if (std::max(std::abs(low), std::abs(high)) > max_travel_mm)
+        throw InputError(fmt::format("--travel: '{}' reaches past the allowed range -{:g} to {:g} mm.", text,
+                                     max_travel_mm, max_travel_mm));
+    return {low * mm, high * mm};
 }
 
 std::vector<double> parse_number_list(const std::vector<std::string>& entries, std::string_view option, double scale) {
@@ -155,18 +166,31 @@ std::vector<double> parse_feeds(const std::vector<std::string>& entries) {
 
 std::vector<double> parse_slow_feeds(const std::vector<std::string>& entries) {
     if (is_none(entries)) return {};
-    if (entries.size() != 1 || entries.front().find(':') == std::string::npos)
-        return parse_number_list(entries, "--slow-feeds", mm_per_min);
+    if (entries.size() != 1 || entries.front().find(':') == std::string::npos) {
+        const auto feeds = parse_number_list(entries, "--slow-feeds", mm_per_min);
+        for (const double feed : feeds) {
+            if (!(feed >= min_feed_mm_per_min * mm_per_min && feed <= max_feed_mm_per_min * mm_per_min))
+                throw InputError(
+                    fmt::format("--slow-feeds: {:g} mm/min is outside the allowed range {:g} to {:g} "
+                                "mm/min.",
+                                to_mm_per_min(feed), min_feed_mm_per_min, max_feed_mm_per_min));
+        }
+        return feeds;
+    }
     const std::string_view text = entries.front();
     const auto parts = split(text, ':');
     if (parts.size() < 2 || parts.size() > 3)
         throw InputError(fmt::format("--slow-feeds: '{}' is not LO:HI or LO:HI:N (mm/min).", text));
     const double low = parse_number(parts[0], "--slow-feeds");
     const double high = parse_number(parts[1], "--slow-feeds");
-    const int count = parts.size() == 3 ? static_cast<int>(parse_number(parts[2], "--slow-feeds")) : 7;
-    if (!(low > 0.0) || !(high >= low) || count < 1)
-        throw InputError(fmt::format("--slow-feeds: '{}' needs 0 < LO <= HI and N >= 1.", text));
-    return log_spaced_feeds(low * mm_per_min, high * mm_per_min, count);
+    const double count = parts.size() == 3 ? parse_number(parts[2], "--slow-feeds") : 7.0;
+    if (!(low >= min_feed_mm_per_min) || !(high >= low) || !(high <= max_feed_mm_per_min) || !(count >= 1.0) ||
+        !(count <= max_slow_feeds) || count != std::floor(count))
+        throw InputError(
+            fmt::format("--slow-feeds: '{}' needs {:g} <= LO <= HI <= {:g} mm/min and a whole N from 1 "
+                        "to {:g}.",
+                        text, min_feed_mm_per_min, max_feed_mm_per_min, max_slow_feeds));
+    return log_spaced_feeds(low * mm_per_min, high * mm_per_min, static_cast<int>(count));
 }
 
 AxisModel nominal_demo_drive() {

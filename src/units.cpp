@@ -252,7 +252,9 @@ Rating parse_rating(std::string_view text) {
     double value = 0.0;
     const auto [end, error] = fast_float::from_chars(rest.data(), rest.data() + rest.size(), value);
     if (error != std::errc() || end == rest.data()) throw fail("expected a number");
-    if (!(std::isfinite(value) && value > 0.0)) throw fail("the rated value must be a positive number");
+    // From 1 uA (uN*m, ...) to 1e7 (10 MN): past any drive, short of nonsense.
+    if (!(value >= 1e-6 && value <= 1e7))
+        throw fail("the rated value must be a positive number from 1e-06 to 1e+07 in its unit");
     const std::string_view unit = rest.substr(static_cast<std::size_t>(end - rest.data()));
     if (normalise(unit).empty()) return Rating{value, Quantity::current};  // a bare number: amperes, as before
     const auto conversion = parse_unit(unit);

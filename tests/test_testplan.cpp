@@ -259,7 +259,16 @@ TEST(TestPlanText, RefusalsNameTheOptionAndTheText) {
     EXPECT_EQ(parse_message([] { (void)parse_slow_feeds({"1:2:3:4"}); }),
               "--slow-feeds: '1:2:3:4' is not LO:HI or LO:HI:N (mm/min).");
     EXPECT_EQ(parse_message([] { (void)parse_slow_feeds({"1000:10"}); }),
-              "--slow-feeds: '1000:10' needs 0 < LO <= HI and N >= 1.");
+              "--slow-feeds: '1000:10' needs 0.001 <= LO <= HI <= 1e+06 mm/min and a whole N from 1 to 100.");
+    // absurd values are refused with the allowed range, not left to run out of memory
+    EXPECT_EQ(parse_message([] { (void)parse_slow_feeds({"10:1000:1e12"}); }),
+              "--slow-feeds: '10:1000:1e12' needs 0.001 <= LO <= HI <= 1e+06 mm/min and a whole N from 1 to 100.");
+    EXPECT_EQ(parse_message([] {
+                  (void)parse_slow_feeds({"5", "1e300"});
+              }),
+              "--slow-feeds: 1e+300 mm/min is outside the allowed range 0.001 to 1e+06 mm/min.");
+    EXPECT_EQ(parse_message([] { (void)feedid::parse_travel("-1e300:400"); }),
+              "--travel: '-1e300:400' reaches past the allowed range -1e+06 to 1e+06 mm.");
 }
 
 TEST(TestPlan, DocumentHoldsEveryPassAndNullForUndeterminedErrors) {

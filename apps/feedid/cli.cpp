@@ -1,7 +1,9 @@
 #include "cli.hpp"
 
 #include <charconv>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 
@@ -10,6 +12,48 @@
 #include "feedid/error.hpp"
 
 namespace feedid::cli {
+
+CLI::Validator allowed_range(double low, double high, const std::string& unit) {
+    const std::string range = fmt::format("{:g} to {:g}{}", low, high, unit.empty() ? "" : " " + unit);
+    auto check = [low, high, range](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double value = std::strtod(text.c_str(), &end);
+        if (text.empty() || end != text.c_str() + text.size())
+            return fmt::format("'{}' is not a number (allowed: {})", text, range);
+        if (!std::isfinite(value)) return fmt::format("{} is not a finite number (allowed: {})", text, range);
+        if (value < low || value > high) return fmt::format("{} is outside the allowed range {}", text, range);
+        return {};
+    };
+    return CLI::Validator(std::move(check), "in " + range);
+}
+
+CLI::Validator lead_range() {
+    return allowed_range(allowed_lead_m.low * 1e3, allowed_lead_m.high * 1e3, "mm");
+}
+
+CLI::Validator gear_ratio_range() {
+    return allowed_range(allowed_gear_ratio.low, allowed_gear_ratio.high, "motor turns per screw turn");
+}
+
+namespace {
+
+// --force-constant: a number, which must be a force constant DriveConstants::validate() allows, or the name of a
+// constant in the file (checked when the file is read).
+CLI::Validator force_constant_check() {
+    auto check = [](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double value = std::strtod(text.c_str(), &end);
+        if (text.empty() || end != text.c_str() + text.size()) return {};  // a name
+        DriveConstants constants;
+        constants.force_constant = value;
+        const std::string problem = constants.validate();
+        // "--force-constant 1e+308 is not allowed: ..." without the option's name, which CLI11 puts first
+        return problem.empty() ? problem : text + problem.substr(problem.find(" is "));
+    };
+    return CLI::Validator(std::move(check), "number or the file's constant");
+}
+
+}  // namespace
 
 void TraceArguments::add_to(CLI::App& app) {
     app.add_option("FILE", file,
@@ -37,7 +81,8 @@ void TraceArguments::add_to(CLI::App& app) {
                    "A second recording of the same move (e.g. a DAQ's load cell): FILE[@SHIFT], its channels "
                    "resampled onto this trace's time base after shifting its time stamps by SHIFT (@4ms, @-0.004s; "
                    "@auto or @auto:OURS=THEIRS: found by cross-correlation); --channel may name its channels");
-    app.add_option("--join-max-shift", join_max_shift_s, "Largest shift @auto searches, either way [s] (default 0.1)");
+    app.add_option("--join-max-shift", join_max_shift_s, "Largest shift @auto searches, either way [s] (default 0.1)")
+        ->check(allowed_range(1e-6, 3600.0, "s"));
     app.add_option("--tare", tare,
                    "Zero a role's channel from the samples at rest before the move (e.g. a load cell's offset): "
                    "ROLE; repeatable")
@@ -45,8 +90,9 @@ void TraceArguments::add_to(CLI::App& app) {
         ->allow_extra_args(false);
     app.add_option("--sample-time", sample_time_s,
                    "Time between samples [s] for files without a time column (a CSV log, halsampler output)")
-        ->check(CLI::PositiveNumber);
-    app.add_option("--skip-rows", skip_rows, "CSV: lines to skip at the top of the file before the header row");
+        ->check(allowed_range(1e-9, 3600.0, "s"));
+    app.add_option("--skip-rows", skip_rows, "CSV: lines to skip at the top of the file before the header row")
+        ->check(allowed_range(0.0, 1e9, "lines"));
 }
 
 ImportOptions TraceArguments::import_options() const {
@@ -97,12 +143,16 @@ Trace TraceArguments::read(bool print_findings) const {
 }
 
 void DriveArguments::add_to(CLI::App& app) {
-    app.add_option("--kt", kt, "Motor torque constant K_t [N*m/A]; with --lead gives F = K_t*i*2*pi/lead");
-    app.add_option("--lead", lead_mm, "Ball-screw lead [mm per revolution]");
-    app.add_option("--gear-ratio", gear_ratio, "Motor revolutions per screw revolution")->default_val(1.0);
+    app.add_option("--kt", kt, "Motor torque constant K_t [N*m/A]; with --lead gives F = K_t*i*2*pi/lead")
+        ->check(allowed_range(allowed_torque_constant_Nm_per_A.low, allowed_torque_constant_Nm_per_A.high, "N*m/A"));
+    app.add_option("--lead", lead_mm, "Ball-screw lead [mm per revolution]")->check(lead_range());
+    app.add_option("--gear-ratio", gear_ratio, "Motor revolutions per screw revolution")
+        ->default_val(1.0)
+        ->check(gear_ratio_range());
     app.add_option("--force-constant", force_constant,
                    "Force per unit of the drive signal [N per signal unit], a number or the name of a scalar in the "
-                   "file (e.g. gtau)");
+                   "file (e.g. gtau)")
+        ->check(force_constant_check());
 }
 
 DriveConstants DriveArguments::constants() const {

@@ -18,6 +18,15 @@ namespace feedid::cli {
 /// What a subcommand runs after parsing; returns the exit code (0 ok, 1 analysis failed, 2 bad input).
 using Action = std::function<int()>;
 
+/// A check of a numeric option at parse time: the value must be a finite number from `low` to `high` (`unit` says in
+/// what). "nan", "inf" and values outside the range are refused before anything is read (exit 2), with a message
+/// that names the option, the value and the allowed range: "--cutoff: 1e-300 is outside the allowed range 0.001 to
+/// 1e+06 Hz". The ranges reach far past what machines have: they refuse what no unit could make sense of.
+CLI::Validator allowed_range(double low, double high, const std::string& unit);
+/// The allowed ranges of --lead [mm] and --gear-ratio (drive.hpp's allowed_lead_m, allowed_gear_ratio).
+CLI::Validator lead_range();
+CLI::Validator gear_ratio_range();
+
 /// `FILE [--channel ROLE=NAME]... [--unit ROLE=UNIT]... [--axis N] [--format F] [--sample-time S] [--skip-rows N]`
 struct TraceArguments {
     std::string file;

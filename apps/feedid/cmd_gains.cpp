@@ -14,8 +14,13 @@ namespace feedid::cli {
 
 namespace {
 
+// "1.23 %", or "—" for a figure that is not a finite number.
+std::string percent(double value) {
+    return std::isfinite(value) ? fmt::format("{:.3g} %", value) : std::string("—");
+}
+
 std::string format_estimate(const Estimate& estimate, const std::string& unit, double scale = 1.0) {
-    if (!estimate.value) return "—";
+    if (!estimate.value || !std::isfinite(*estimate.value * scale)) return "—";
     std::string text = fmt::format("{:.6g}", *estimate.value * scale);
     if (estimate.standard_error && std::isfinite(*estimate.standard_error)) {
         text += fmt::format(" ± {:.2g}", *estimate.standard_error * std::abs(scale));
@@ -51,11 +56,12 @@ struct GainsCommand {
     }
 
     static void print(const Trace& trace, const GainResult& result, const GainOptions& options) {
-        fmt::print("{}: controller gains ({} samples, {}{})\n", trace.source_path, result.samples_used,
-                   result.method == "velocity_command"
-                       ? "position and velocity loop each from the logged velocity command"
-                       : "from reference, position and drive signal",
-                   result.injection_subtracted ? "; the injected signal taken out of the drive signal" : "");
+        fmt::print(
+            "{}: controller gains ({}, {}{})\n", trace.source_path,
+            result.samples_used == 0 ? std::string("not fitted") : fmt::format("{} samples", result.samples_used),
+            result.method == "velocity_command" ? "position and velocity loop each from the logged velocity command"
+                                                : "from reference, position and drive signal",
+            result.injection_subtracted ? "; the injected signal taken out of the drive signal" : "");
         const ParameterNaming naming{trace.rotary};
         fmt::print("  position loop  K_v   {:<28}", format_estimate(result.position_gain_per_s, "1/s"));
         if (!trace.rotary) {
@@ -78,19 +84,24 @@ struct GainsCommand {
             fmt::print("                 K_i   {}\n",
                        format_estimate(result.velocity_integral_gain_N_per_m, naming.velocity_integral_gain_unit()));
             fmt::print("                 T_n   {}\n", format_estimate(result.reset_time_s, "ms", 1000.0));
-        } else {
+        } else if (result.status != Status::failed) {
             fmt::print("                 K_i   — (P-only velocity loop)\n");
         }
+        if (result.samples_used == 0) return print_notes(result);  // nothing was fitted
         fmt::print(
             "  structure      velocity measured as (x_k - x_k-{0})/({0}*T); reference delay {1} samples; "
             "current-loop lag {2:.3g} ms\n",
             result.velocity_difference_samples, result.reference_delay_samples, result.current_lag_s * 1e3);
-        fmt::print("  fit            relative error {:.3g} % (velocity loop; {:.3g} % not noise)",
-                   result.relative_error_pct, result.systematic_error_pct);
+        fmt::print("  fit            relative error {} (velocity loop; {} not noise)",
+                   percent(result.relative_error_pct), percent(result.systematic_error_pct));
         if (result.method == "velocity_command") {
-            fmt::print(", {:.3g} % (position loop)", result.position_loop_relative_error_pct);
+            fmt::print(", {} (position loop)", percent(result.position_loop_relative_error_pct));
         }
         fmt::print("\n");
+        print_notes(result);
+    }
+
+    static void print_notes(const GainResult& result) {
         if (result.status == Status::failed)
             fmt::print("  status         failed: the gains above are not to be trusted\n");
         for (const auto& diagnostic : result.diagnostics) fmt::print("  note: {}\n", diagnostic);

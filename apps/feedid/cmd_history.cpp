@@ -191,6 +191,36 @@ nlohmann::json history_document(const history::HistoryStore& store, const std::v
     return document;
 }
 
+// What --check checked when no alarm fired: the runs compared with a complete baseline (as the listing marks them),
+// and the axes whose baseline is still forming, where nothing is checked yet.
+std::string check_summary(const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options) {
+    std::set<std::int64_t> checked_runs;
+    std::size_t checked_axes = 0;
+    std::string forming;
+    for (const auto& series : trends) {
+        if (!series.baseline_complete) {
+            forming += fmt::format("{}machine '{}' axis '{}': {} of {} runs", forming.empty() ? "" : ", ",
+                                   series.machine, series.axis, series.baseline_run_ids.size(), options.baseline_runs);
+            continue;
+        }
+        const std::size_t before = checked_runs.size();
+        for (const auto& parameter : series.parameters)
+            for (const auto& point : parameter.points)
+                if (point.role == history::RunRole::checked && point.z) checked_runs.insert(point.run_id);
+        if (checked_runs.size() > before) ++checked_axes;
+    }
+    if (trends.empty()) return "no drift alarm, but nothing checked: no runs recorded";
+    if (checked_runs.empty()) {
+        return forming.empty()
+                   ? std::string("no drift alarm, but nothing checked yet: no run after the baseline")
+                   : "no drift alarm, but nothing checked yet: the baseline is still forming (" + forming + ")";
+    }
+    std::string summary = fmt::format("no drift alarm: {} run(s) of {} axis/axes checked against their baseline",
+                                      checked_runs.size(), checked_axes);
+    if (!forming.empty()) summary += "; not checked yet, the baseline still forming: " + forming;
+    return summary;
+}
+
 int run_history(HistoryArguments& arguments) {
     if (const auto problem = arguments.trend.validate(); !problem.empty()) throw InputError(problem);
     if (arguments.baseline_from) arguments.trend.pinned_run = arguments.baseline_from;
@@ -220,8 +250,7 @@ int run_history(HistoryArguments& arguments) {
         if (arguments.json_path != "-" && arguments.csv_path != "-") {
             for (const auto& series : trends)
                 for (const auto& alarm : series.alarms) fmt::print("{}\n", alarm.message());
-            if (alarms == 0)
-                fmt::print("no drift alarm: {} run(s) of {} axis/axes checked\n", runs.size(), trends.size());
+            if (alarms == 0) fmt::print("{}\n", check_summary(trends, arguments.trend));
         }
         return alarms > 0 ? 1 : 0;
     }
@@ -269,11 +298,15 @@ Action add_history_command(CLI::App& app) {
                     "Store a new baseline for the run's machine and axis starting at run ID (e.g. after maintenance)");
     sub->add_option("--baseline-from", arguments->baseline_from,
                     "For this listing only: the baseline starts at run ID");
-    sub->add_option("--baseline-runs", arguments->trend.baseline_runs, "Runs in the baseline")->default_val(8);
+    sub->add_option("--baseline-runs", arguments->trend.baseline_runs, "Runs in the baseline")
+        ->default_val(8)
+        ->check(allowed_range(1, 1000, "runs"));
     sub->add_option("--cusum-k", arguments->trend.cusum_k, "CUSUM allowance [combined standard errors]")
-        ->default_val(1.0);
+        ->default_val(1.0)
+        ->check(allowed_range(0.0, 100.0, "combined standard errors"));
     sub->add_option("--cusum-h", arguments->trend.cusum_h, "CUSUM alarm threshold [combined standard errors]")
-        ->default_val(6.0);
+        ->default_val(6.0)
+        ->check(allowed_range(1e-3, 1000.0, "combined standard errors"));
     sub->footer(
         "Trend: each run's change against the baseline (mean of the first --baseline-runs runs of the axis, or of the\n"
         "runs from a pinned one) in units of the combined standard error, where a run's error is the larger of its\n"

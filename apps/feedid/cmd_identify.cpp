@@ -50,7 +50,8 @@ struct IdentifyCommand {
             ->add_option("--centers", centers_mm,
                          "Centres of the strokes C1,C2,... [mm; deg on a rotary axis] for --by-location (write "
                          "--centers=-300,0,300); default: found from the strokes in the trace")
-            ->delimiter(',');
+            ->delimiter(',')
+            ->check(allowed_range(-1e9, 1e9, "mm (deg on a rotary axis)"));
         auto* pre = sub.add_option_group("Preprocessing");
         pre->add_option("--differentiation", differentiation,
                         "How velocity and acceleration are obtained from position: butterworth (zero-phase low-pass, "
@@ -63,30 +64,46 @@ struct IdentifyCommand {
                         "when there is no position or it is too coarse)")
             ->check(CLI::IsMember({"auto", "position", "velocity"}))
             ->capture_default_str();
-        pre->add_option("--filter-order", options.preprocess.filter_order, "Butterworth order")->capture_default_str();
+        pre->add_option("--filter-order", options.preprocess.filter_order, "Butterworth order")
+            ->capture_default_str()
+            ->check(allowed_range(1, 12, ""));
         pre->add_option("--cutoff", options.preprocess.cutoff_hz,
-                        "Butterworth cut-off [Hz] (default: min(100 Hz, sample rate / 10))");
+                        "Butterworth cut-off [Hz] (default: min(100 Hz, sample rate / 10))")
+            ->check(allowed_range(1e-3, 1e6, "Hz"));
         pre->add_option("--sg-window", options.preprocess.savitzky_golay_window,
-                        "Savitzky-Golay window [samples, odd] (default: about 20 ms)");
+                        "Savitzky-Golay window [samples, odd] (default: about 20 ms)")
+            ->check(allowed_range(5, 1e6, "samples"));
         pre->add_option("--sg-order", options.preprocess.savitzky_golay_order, "Savitzky-Golay polynomial order")
-            ->capture_default_str();
+            ->capture_default_str()
+            ->check(allowed_range(2, 6, ""));
         pre->add_option("--decimate", options.preprocess.decimation,
                         "Decimate every regressor column and the force by this factor (order-8 Chebyshev anti-alias "
-                        "filter, forwards and backwards; default 1 = none)");
+                        "filter, forwards and backwards; default 1 = none)")
+            ->check(allowed_range(0, 1000, ""));
         pre->add_option("--edge-samples", options.preprocess.edge_samples,
-                        "Samples dropped at each end after filtering (default: 2.5 filter periods, fs/cutoff*2.5)");
+                        "Samples dropped at each end after filtering (default: 2.5 filter periods, fs/cutoff*2.5)")
+            ->check(allowed_range(0, 1e9, "samples"));
         auto* select = sub.add_option_group("Data selection");
-        select->add_option("--from", options.preprocess.from_s, "Start of the analysis window [s]");
-        select->add_option("--to", options.preprocess.to_s, "End of the analysis window [s]");
-        select->add_option("--split-velocity", options.selection.split_velocity,
-                           "Step 1 uses |v| above, step 2 the quasi-static samples below [m/s or rad/s] (default: a "
-                           "tenth of the typical constant-velocity speed)");
-        select->add_option("--moving-threshold", options.selection.moving_threshold,
-                           "|v| above which a sample counts as moving [m/s] (default: 5x the velocity noise floor)");
+        select->add_option("--from", options.preprocess.from_s, "Start of the analysis window [s]")
+            ->check(allowed_range(-1e12, 1e12, "s"));
+        select->add_option("--to", options.preprocess.to_s, "End of the analysis window [s]")
+            ->check(allowed_range(-1e12, 1e12, "s"));
+        select
+            ->add_option("--split-velocity", options.selection.split_velocity,
+                         "Step 1 uses |v| above, step 2 the quasi-static samples below [m/s or rad/s] (default: a "
+                         "tenth of the typical constant-velocity speed)")
+            ->check(allowed_range(0.0, 1e4, "m/s or rad/s"));
+        select
+            ->add_option("--moving-threshold", options.selection.moving_threshold,
+                         "|v| above which a sample counts as moving [m/s] (default: 5x the velocity noise floor)")
+            ->check(allowed_range(0.0, 1e4, "m/s or rad/s"));
         auto* rls = sub.add_option_group("RLS");
-        rls->add_option("--lambda", options.step1.rls.forgetting_factor, "Forgetting factor")->capture_default_str();
+        rls->add_option("--lambda", options.step1.rls.forgetting_factor, "Forgetting factor")
+            ->capture_default_str()
+            ->check(allowed_range(1e-6, 1.0, ""));
         rls->add_option("--p0", options.step1.rls.initial_covariance, "Initial covariance P(0) = p0 * I")
-            ->capture_default_str();
+            ->capture_default_str()
+            ->check(allowed_range(1e-12, 1e12, ""));
         rls->add_option("--rls", rls_variant,
                         "RLS variant: directional (forgetting only where the data excites; robust) or paper "
                         "(exponential forgetting, eq. 7-9)")
@@ -253,9 +270,15 @@ struct IdentifyCommand {
     }
 
     static void print_rls(const RlsReport& rls) {
-        fmt::print("  RLS ({}): settled at {:.3g} s{}\n",
-                   rls.options.variant == RlsVariant::exponential ? "exponential" : "directional", rls.transient_end_s,
-                   rls.settled ? "" : " (did not settle)");
+        const char* variant = rls.options.variant == RlsVariant::exponential ? "exponential" : "directional";
+        if (rls.settled) {
+            fmt::print("  RLS ({}): settled at {:.3g} s\n", variant, rls.transient_end_s);
+        } else {
+            fmt::print(
+                "  RLS ({}): did not settle before the last tenth of the data (within tolerance of the final values "
+                "only from {:.3g} s on); averaged = final\n",
+                variant, rls.transient_end_s);
+        }
         std::vector<std::size_t> order(rls.keys.size());  // by key, as the document lists them
         for (std::size_t c = 0; c < order.size(); ++c) order[c] = c;
         std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return rls.keys[a] < rls.keys[b]; });

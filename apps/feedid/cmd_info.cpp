@@ -103,9 +103,11 @@ Action add_info_command(CLI::App& app) {
     command->trace_arguments.add_to(*sub);
     sub->add_option("--json", command->json_path, "Write the info document to PATH ('-' for stdout)");
     sub->add_option("--lead", command->trace_arguments.lead_mm,
-                    "Ball-screw lead [mm per revolution]: makes channels in rpm a table velocity (a linear axis)");
+                    "Ball-screw lead [mm per revolution]: makes channels in rpm a table velocity (a linear axis)")
+        ->check(lead_range());
     sub->add_option("--gear-ratio", command->trace_arguments.gear_ratio,
-                    "Motor revolutions per screw revolution, with --lead for rpm channels");
+                    "Motor revolutions per screw revolution, with --lead for rpm channels")
+        ->check(gear_ratio_range());
     sub->footer(
         "Example:\n  feedid info ../shared/data/emps/DATA_EMPS.mat\n"
         "  feedid info trace.csv --channel position=x_act --unit current=A --json -");

@@ -114,41 +114,71 @@ struct PlanArguments {
             ->default_val("X");
         sub.add_option("--travel", travel, "Travel limits MIN:MAX [mm] (write --travel=-400:400)")->required();
         add_list_option(sub, "--centers", centers, "Centres of the strokes C1,C2,... [mm] (write --centers=-300,0,300)")
-            ->required();
-        sub.add_option("--stroke", stroke_mm, "Stroke of the ladder passes [mm]")->default_val(30.0);
+            ->required()
+            ->check(allowed_range(-1e6, 1e6, "mm"));
+        sub.add_option("--stroke", stroke_mm, "Stroke of the ladder passes [mm]")
+            ->default_val(30.0)
+            ->check(allowed_range(0.01, 1e5, "mm"));
         add_list_option(sub, "--feeds", feeds,
-                        "Ladder feedrates F1,F2,... [mm/min]; default the paper's 1250,2600,3950,5300,6650,8000,9350");
+                        "Ladder feedrates F1,F2,... [mm/min]; default the paper's 1250,2600,3950,5300,6650,8000,9350")
+            ->check(allowed_range(1e-3, 1e6, "mm/min"));
         add_list_option(sub, "--slow-feeds", slow_feeds,
                         "Slow Stribeck passes: LO:HI[:N] log-spaced, F1,F2,... [mm/min], or none")
             ->default_val("10:1000:7");
         sub.add_option("--max-pass-time", max_pass_time_s, "Longest slow pass; its stroke is shortened to fit [s]")
-            ->default_val(8.0);
-        sub.add_option("--cycles", cycles, "Back-and-forth cycles per feedrate")->default_val(2);
-        sub.add_option("--acceleration", acceleration, "Axis acceleration (machine data) [m/s^2]")->default_val(1.0);
-        sub.add_option("--jerk", jerk, "Jerk limit [m/s^3] (SINUMERIK SOFT); default none (BRISK)");
-        sub.add_option("--dwell", dwell_s, "Dwell at every reversal [s]")->default_val(0.2);
+            ->default_val(8.0)
+            ->check(allowed_range(0.01, 3600.0, "s"));
+        sub.add_option("--cycles", cycles, "Back-and-forth cycles per feedrate")
+            ->default_val(2)
+            ->check(allowed_range(1, 100, "cycles"));
+        sub.add_option("--acceleration", acceleration, "Axis acceleration (machine data) [m/s^2]")
+            ->default_val(1.0)
+            ->check(allowed_range(1e-3, 1e3, "m/s^2"));
+        sub.add_option("--jerk", jerk, "Jerk limit [m/s^3] (SINUMERIK SOFT); default none (BRISK)")
+            ->check(allowed_range(1e-3, 1e6, "m/s^3"));
+        sub.add_option("--dwell", dwell_s, "Dwell at every reversal [s]")
+            ->default_val(0.2)
+            ->check(allowed_range(0.0, 60.0, "s"));
         sub.add_option("--sample-time", sample_time_s, "Trace sample time [s] (the reference file's step)")
-            ->default_val(0.001);
-        sub.add_option("--max-feed", max_feed_mm_per_min, "Feedrate limit of the axis [mm/min]; refuse moves above it");
+            ->default_val(0.001)
+            ->check(allowed_range(1e-6, 1.0, "s"));
+        sub.add_option("--max-feed", max_feed_mm_per_min, "Feedrate limit of the axis [mm/min]; refuse moves above it")
+            ->check(allowed_range(1e-3, 1e6, "mm/min"));
         sub.add_option("--positioning-feed", positioning_feed_mm_per_min, "Feedrate between passes [mm/min]")
-            ->default_val(5000.0);
-        sub.add_option("--start", start_mm, "Where the axis stands at the program start [mm]; default the first pass");
+            ->default_val(5000.0)
+            ->check(allowed_range(1e-3, 1e6, "mm/min"));
+        sub.add_option("--start", start_mm, "Where the axis stands at the program start [mm]; default the first pass")
+            ->check(allowed_range(-1e6, 1e6, "mm"));
         sub.add_option("--dialect", dialect, "Part-program dialect")
             ->check(CLI::IsMember({"iso", "sinumerik", "linuxcnc"}))
             ->default_val("iso");
         sub.add_option("-o,--out", output, "Write the part program here ('-' for stdout)");
         sub.add_option("--reference", reference, "Write the reference trajectory (CSV: t [s], x_ref [m]) here");
         sub.add_option("--json", json, "Write the plan and its prediction as JSON ('-' for stdout)");
-        sub.add_option("--mass", mass, "Nominal mass for the prediction [kg]")->default_val(69.1);
-        sub.add_option("--viscous", viscous, "Nominal viscous friction [N*s/m]")->default_val(54.2);
-        sub.add_option("--coulomb", coulomb, "Nominal Coulomb friction [N]")->default_val(742.8);
-        sub.add_option("--breakaway", breakaway, "Nominal breakaway friction [N]")->default_val(946.2);
-        sub.add_option("--stribeck-velocity", stribeck_mm_per_s, "Nominal Stribeck velocity [mm/s]")->default_val(5.0);
-        sub.add_option("--force-noise", force_noise, "Expected force noise per sample [N]")->default_val(10.0);
+        sub.add_option("--mass", mass, "Nominal mass for the prediction [kg]")
+            ->default_val(69.1)
+            ->check(allowed_range(1e-3, 1e6, "kg"));
+        sub.add_option("--viscous", viscous, "Nominal viscous friction [N*s/m]")
+            ->default_val(54.2)
+            ->check(allowed_range(0.0, 1e7, "N*s/m"));
+        sub.add_option("--coulomb", coulomb, "Nominal Coulomb friction [N]")
+            ->default_val(742.8)
+            ->check(allowed_range(0.0, 1e7, "N"));
+        sub.add_option("--breakaway", breakaway, "Nominal breakaway friction [N]")
+            ->default_val(946.2)
+            ->check(allowed_range(0.0, 1e7, "N"));
+        sub.add_option("--stribeck-velocity", stribeck_mm_per_s, "Nominal Stribeck velocity [mm/s]")
+            ->default_val(5.0)
+            ->check(allowed_range(1e-3, 1e4, "mm/s"));
+        sub.add_option("--force-noise", force_noise, "Expected force noise per sample [N]")
+            ->default_val(10.0)
+            ->check(allowed_range(1e-9, 1e9, "N"));
         sub.add_option("--level-error", level_error, "Expected error of one pass's friction level [N]")
-            ->default_val(5.0);
+            ->default_val(5.0)
+            ->check(allowed_range(1e-9, 1e9, "N"));
         sub.add_option("--position-resolution", resolution_um, "Position measurement resolution [um]")
-            ->default_val(1.0);
+            ->default_val(1.0)
+            ->check(allowed_range(1e-6, 1e4, "um"));
     }
 
     [[nodiscard]] TestPlanOptions plan_options() const {

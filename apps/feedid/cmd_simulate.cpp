@@ -1,6 +1,7 @@
 // feedid simulate FILE --result RESULT.json: the identified axis in closed loop on the recorded reference (the
 // paper's validation): tracking errors of model and machine side by side, the modelling error, and the EMPS relative
 // errors of position, velocity, acceleration and force.
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 
@@ -16,6 +17,11 @@
 namespace feedid::cli {
 
 namespace {
+
+// A figure to 4 significant digits, or "—" when it is not a finite number (a diverged simulation's).
+std::string figure(double value, const char* unit = "") {
+    return std::isfinite(value) ? fmt::format("{:.4g}{}", value, unit) : std::string("—");
+}
 
 struct SimulateCommand {
     TraceArguments trace_arguments;
@@ -40,6 +46,10 @@ struct SimulateCommand {
         }
         const DriveConstants drive = drive_arguments.constants();
         const std::vector<double> force = drive_force(trace, drive);
+        if (const auto misfit = model_does_not_fit(axis, trace, force); !misfit.empty()) {
+            throw InputError(
+                fmt::format("{}: the result does not fit the trace {}: {}", result_path, trace.source_path, misfit));
+        }
         const std::vector<double> injection = injection_force(trace, drive);
         const GainOptions gain_options = gain_arguments.options(trace, drive);
         const TwinController controller =
@@ -73,19 +83,25 @@ struct SimulateCommand {
                    trace.source_path, trace.samples());
         for (const auto& note : controller.notes) fmt::print("  {}\n", note);
         fmt::print("  {:<32} {:>12} {:>12}\n", "", "model", "machine");
-        fmt::print("  {:<32} {:>12.4g} {:>12.4g}   {}\n", "mean absolute tracking error",
-                   metrics.tracking_error_mae_model_m * 1e3, metrics.tracking_error_mae_machine_m * 1e3, unit);
-        fmt::print("  {:<32} {:>12.4g} {:>12.4g}   {}\n", "largest tracking error",
-                   metrics.tracking_error_max_model_m * 1e3, metrics.tracking_error_max_machine_m * 1e3, unit);
-        fmt::print("  {:<32} {:>12.4g}   {}   (e_m = x_machine - x_model; largest {:.4g} {})\n",
-                   "mean absolute modelling error", metrics.modelling_error_mae_m * 1e3, unit,
-                   metrics.modelling_error_max_m * 1e3, unit);
-        fmt::print(
-            "  relative error 100*||y - y_sim||/||y||: position {:.4g} %, velocity {:.4g} %, acceleration {:.4g} %, "
-            "force {:.4g} %\n",
-            metrics.position_relative_error_pct, metrics.velocity_relative_error_pct,
-            metrics.acceleration_relative_error_pct, metrics.force_relative_error_pct);
+        fmt::print("  {:<32} {:>12} {:>12}   {}\n", "mean absolute tracking error",
+                   figure(metrics.tracking_error_mae_model_m * 1e3), figure(metrics.tracking_error_mae_machine_m * 1e3),
+                   unit);
+        fmt::print("  {:<32} {:>12} {:>12}   {}\n", "largest tracking error",
+                   figure(metrics.tracking_error_max_model_m * 1e3), figure(metrics.tracking_error_max_machine_m * 1e3),
+                   unit);
+        fmt::print("  {:<32} {:>12}   {}   (e_m = x_machine - x_model; largest {} {})\n",
+                   "mean absolute modelling error", figure(metrics.modelling_error_mae_m * 1e3), unit,
+                   figure(metrics.modelling_error_max_m * 1e3), unit);
+        fmt::print("  relative error 100*||y - y_sim||/||y||: position {}, velocity {}, acceleration {}, force {}\n",
+                   figure(metrics.position_relative_error_pct, " %"), figure(metrics.velocity_relative_error_pct, " %"),
+                   figure(metrics.acceleration_relative_error_pct, " %"),
+                   figure(metrics.force_relative_error_pct, " %"));
         if (simulation.injected) fmt::print("  the injected signal added to the simulated controller output\n");
+        if (simulation.status == Status::failed || controller.status == Status::failed) {
+            fmt::print(
+                "  status         failed: the simulation validates nothing (— marks a figure that is not a "
+                "finite number)\n");
+        }
         for (const auto& diagnostic : simulation.diagnostics) fmt::print("  note: {}\n", diagnostic);
     }
 };
@@ -105,7 +121,9 @@ Action add_simulate_command(CLI::App& app) {
                     "The controller gains (feedid gains --json); default: identified from this trace");
     sub->add_option("--json", command->json_path, "Write the validation document to PATH ('-' for stdout)");
     sub->add_option("--out", command->out_path, "Write the simulated signals as CSV");
-    sub->add_option("--substeps", command->substeps, "Integration steps per sample")->default_val(8);
+    sub->add_option("--substeps", command->substeps, "Integration steps per sample")
+        ->default_val(8)
+        ->check(allowed_range(1, 1000, "steps"));
     sub->footer(
         "Examples:\n"
         "  feedid identify DATA_EMPS.mat --channel position=qm --channel current=vir --force-constant gtau --offset "
@@ -118,7 +136,11 @@ Action add_simulate_command(CLI::App& app) {
         "--out sim.csv\n"
         "A test signal injected at the controller's output (--channel injection=NAME) is added to the simulated "
         "controller's output too. A simulation that diverges (values not finite, or farther from the machine than "
-        "the trace's whole travel), or gains identified here from a fit too poor to trust, exit 1.");
+        "the trace's whole travel) or does not follow the machine (farther from it on average than the machine's own "
+        "tracking error), or gains identified here from a fit too poor to trust, exit 1. A result whose axis kind (or "
+        "a gains document's) "
+        "is not the trace's, or whose forces do not fit the trace's drive force (units, sign, another axis), exits "
+        "2.");
     return [command] { return command->run(); };
 }
 

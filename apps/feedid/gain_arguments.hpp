@@ -25,14 +25,18 @@ struct GainArguments {
             ->check(CLI::IsMember({"auto", "p", "pi"}));
         app.add_flag("--feedforward", feedforward, "Also identify a velocity feed-forward in the position loop");
         app.add_option("--velocity-difference", velocity_difference,
-                       "The controller measures velocity as (x_k - x_{k-N})/(N*T); default: N chosen from the data");
+                       "The controller measures velocity as (x_k - x_{k-N})/(N*T); default: N chosen from the data")
+            ->check(allowed_range(1, 8, "samples"));
         app.add_option("--current-lag-ms", current_lag_ms,
-                       "Current-loop time constant [ms]; default: estimated from the data");
+                       "Current-loop time constant [ms]; default: estimated from the data")
+            ->check(allowed_range(0.0, 1000.0, "ms"));
         app.add_option("--saturation", saturation,
                        "Limit of the drive signal, in its own units (e.g. 10 for 10 V); samples at the limit are left "
-                       "out and the simulation saturates there");
+                       "out and the simulation saturates there")
+            ->check(allowed_range(1e-9, 1e12, "drive signal units"));
         app.add_option("--forgetting", forgetting, "RLS forgetting factor lambda (1 = none: gains are constant)")
-            ->default_val(1.0);
+            ->default_val(1.0)
+            ->check(allowed_range(1e-6, 1.0, ""));
     }
 
     [[nodiscard]] GainOptions options(const Trace& trace, const DriveConstants& drive) const {

@@ -22,13 +22,16 @@ struct DriveConstants {
     std::optional<double> force_constant;            ///< [N (or N*m) per signal unit]
     std::string force_constant_name;                 ///< A trace constant to use as force_constant (e.g. "gtau")
 
-    /// What is wrong with these options ("" when nothing).
+    /// What is wrong with these options ("" when nothing): a value not finite or outside its allowed range (below),
+    /// named with the range.
     [[nodiscard]] std::string validate() const;
     /// Values valid but outside what feed drives have, each named (a lead of 0.01 mm is a 10 mm lead given in metres):
     /// a lead outside 0.5..100 mm, a K_t outside 0.01..500 N*m/A, a gear ratio outside 0.01..1000.
     [[nodiscard]] std::vector<std::string> warnings() const;
     /// N (or N*m) per unit of the current channel, resolving force_constant_name against the trace's constants.
     /// nullopt when no constant is given (then the current is taken as force only if the trace has a force channel).
+    /// InputError naming the constant when the file has none of that name, or one that is not a finite number within
+    /// allowed_force_constant (a file's nan, inf or 0 is the file's fault, not the data's).
     [[nodiscard]] std::optional<double> force_per_signal(const Trace& trace) const;
 };
 
@@ -40,6 +43,15 @@ struct DriveConstantRange {
 inline constexpr DriveConstantRange plausible_lead_m{0.5e-3, 100e-3};
 inline constexpr DriveConstantRange plausible_torque_constant_Nm_per_A{0.01, 500.0};
 inline constexpr DriveConstantRange plausible_gear_ratio{0.01, 1000.0};
+
+/// The ranges validate() allows [SI: m, N*m/A, motor turns per screw turn; N (or N*m) per signal unit for the force
+/// constant's magnitude, of either sign]: a thousand times past the plausible ones (the warnings' ranges) and more,
+/// they refuse only what no unit could make sense of, such as a force constant of 1e308, whose forces have no
+/// finite squares.
+inline constexpr DriveConstantRange allowed_lead_m{0.5e-6, 100.0};
+inline constexpr DriveConstantRange allowed_torque_constant_Nm_per_A{1e-5, 5e5};
+inline constexpr DriveConstantRange allowed_gear_ratio{1e-5, 1e6};
+inline constexpr DriveConstantRange allowed_force_constant{1e-9, 1e9};
 
 /// The drive force (torque) column: the trace's force channel when it has one, otherwise the current channel times
 /// force_per_signal; a channel in N*m on a linear axis is turned into force through the lead and gear ratio. Throws

@@ -53,7 +53,10 @@ inline constexpr double gain_fit_error_limit_pct = 3.0;
 
 struct GainResult {
     /// ok; failed when the controller model does not explain the drive signal (systematic error above
-    /// gain_fit_error_limit_pct): the gains are then not to be trusted, and the first diagnostic says why.
+    /// gain_fit_error_limit_pct), when the drive force is too large for its squares to be finite numbers (nothing is
+    /// fitted), when a gain or fit figure is not a finite number (it is dropped), or when K_v or K_p came out
+    /// negative (no stable controller; the fix is named): the gains are then not to be trusted, and the first
+    /// diagnostic says why, with the figures.
     Status status{Status::ok};
     ControllerModel controller;               ///< the identified controller (for simulation)
     Estimate position_gain_per_s;             ///< K_v
@@ -92,6 +95,9 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
 /// The gain result document of DESIGN.md (`feedid gains --json`) of the gains identified from `trace` (its path and
 /// length are in the document).
 nlohmann::json gains_document(const GainResult& result, const GainOptions& options, const Trace& trace);
+
+/// Whether a gains document is of a rotary axis ("rotary": true, or without that key its rotary gain keys).
+[[nodiscard]] bool gains_document_is_rotary(const nlohmann::json& document);
 
 /// Reads a controller from a gains document (as written by gains_document), InputError naming `source` when a
 /// required key is missing.

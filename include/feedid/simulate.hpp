@@ -105,6 +105,20 @@ struct ValidationMetrics {
 ValidationMetrics validate_simulation(const Trace& trace, std::span<const double> measured_force,
                                       const SimulationOutput& simulated);
 
+/// The largest factor, either way, between a trace's drive force and the force an axis model predicts from the
+/// trace's motion at which the model is taken to be of this axis, in these units. The axis's own model gives about 1
+/// (its fit's relative error is a few to some tens of per cent); units mislabelled by 60 (per minute) or 1000 (mm,
+/// mA) lie far outside, as does another axis's model.
+inline constexpr double model_scale_limit = 10.0;
+
+/// Why `axis` does not fit `trace` and its drive force [N] per sample ("" when it does, or when the trace does not
+/// move): the force the model predicts from the trace's motion, F_hat = M*a + F_f(v) + F_0 - F_ext (velocity and
+/// acceleration as validate_simulation() measures them), against the drive force F over the samples moving faster
+/// than 5 % of the top speed. Their least-squares factor c = <F, F_hat>/<F_hat, F_hat> must lie within
+/// [1/model_scale_limit, model_scale_limit]: a negative c is a drive signal of the opposite sign, a c far from 1 a
+/// model in other units than the trace or of another axis. The reason gives the figures.
+std::string model_does_not_fit(const AxisModel& axis, const Trace& trace, std::span<const double> drive_force);
+
 /// The simulate document of DESIGN.md; a rotary axis's lengths in rad (`tracking_error_mae_rad`, ...).
 nlohmann::json validation_document(const ValidationMetrics& metrics, bool rotary = false);
 
@@ -122,7 +136,8 @@ struct ValidationSeries {
 /// At most this many points per series by default: a plot's worth, and a few tens of kB of JSON.
 inline constexpr std::size_t validation_series_points = 2000;
 
-/// The errors of a simulation against the trace it reproduces, thinned to at most `max_points` (>= 6).
+/// The errors of a simulation against the trace it reproduces, thinned to at most `max_points` (>= 6); up to the first
+/// sample at which one is not a finite number (ValidationSeries::samples counts the samples before it).
 ValidationSeries validation_series(const Trace& trace, const SimulationOutput& simulated,
                                    std::size_t max_points = validation_series_points);
 
@@ -139,13 +154,14 @@ struct TwinController {
 
 /// The controller of a gains document (`source` names it in messages) for simulating `trace`: the saturation,
 /// current-loop lag and velocity measurement that `options` sets replace the document's, and loop sample times the
-/// document leaves open become the trace's sample time. InputError as controller_from_document().
+/// document leaves open become the trace's sample time. InputError as controller_from_document(), and when the
+/// gains are of a rotary axis and the trace of a linear one, or the other way round.
 TwinController documented_twin_controller(const nlohmann::json& gains_document, const std::string& source,
                                           const GainOptions& options, const Trace& trace);
 
 /// The controller identified from the trace, its drive force [N] per sample and the injected signal [N] per sample
 /// (identify_gains), with a note giving its gains; status failed (and the reason first among the notes) when the
-/// gains' fit is too poor to trust. Throws as identify_gains() does.
+/// gains' fit is too poor to trust. Throws as identify_gains() does, and AnalysisError when the fit gave no gains.
 TwinController identified_twin_controller(const Trace& trace, std::span<const double> drive_force,
                                           const GainOptions& options, std::span<const double> injection = {});
 
@@ -154,8 +170,10 @@ struct TraceSimulation {
     SimulationOutput output;
     ValidationMetrics metrics;
     bool injected{false};  ///< an injected signal was added to the simulated controller output
-    /// failed when the simulation diverged: a simulated value not finite, or the simulated axis farther from the
-    /// machine than the trace's whole travel (an unstable loop); the diagnostics say which, with the figures.
+    /// failed when the simulation diverged (a simulated value not finite, or the simulated axis farther from the
+    /// machine than the trace's whole travel: an unstable loop), or when it does not follow the machine (its mean
+    /// distance from the machine above the machine's own mean tracking error); the diagnostics say which, with the
+    /// figures.
     Status status{Status::ok};
     std::vector<std::string> diagnostics;
 };
@@ -172,7 +190,9 @@ TraceSimulation simulate_trace(const Trace& trace, std::span<const double> drive
 
 /// The simulate document of DESIGN.md (`feedid simulate --json`): the validation figures of validation_document(),
 /// the trace (path, samples, sample time), the controller simulated, whether the axis is rotary, the series of errors
-/// (validation_series_document()) and the controller's notes as diagnostics.
+/// (validation_series_document()) and the controller's notes as diagnostics; "status" "failed" when the controller or
+/// the simulation failed. It holds no NaN or infinity: a figure that is not a finite number is null, and every null is
+/// named in a diagnostic with its reason (null_reasons.hpp).
 nlohmann::json simulation_document(const Trace& trace, const TwinController& controller,
                                    const TraceSimulation& simulation);
 

@@ -14,6 +14,7 @@
 #include "feedid/error.hpp"
 #include "feedid/report.hpp"
 
+#include "feedid/friction.hpp"
 #include "feedid/parameters.hpp"
 #include "feedid/version.hpp"
 
@@ -55,6 +56,18 @@ std::optional<double> number_at(const nlohmann::json& object, const char* key) {
     return std::nullopt;
 }
 
+/// object[key], or null when the object has no such key (or is not an object).
+const nlohmann::json& member(const nlohmann::json& object, const char* key) {
+    static const nlohmann::json none;
+    return object.is_object() && object.contains(key) ? object[key] : none;
+}
+
+/// A document's "status" ("ok", "partial", "failed"); "ok" for documents of feedid versions that wrote none.
+std::string document_status(const nlohmann::json& document) {
+    const auto& status = member(document, "status");
+    return status.is_string() ? status.get<std::string>() : std::string("ok");
+}
+
 std::string with_unit(const ParameterLabel& label) {
     return fmt::format("{} [{}]", label.name, label.unit);
 }
@@ -66,19 +79,63 @@ std::string format_estimate(const std::optional<double>& value, const std::optio
     return fmt::format("{:.5g} ± {:.2g} {}", *value, *error, unit);
 }
 
-/// The friction curve of a result document (measured bins and the fitted model per direction), if it holds one.
+/// The fitted friction law of one direction from a result document's parameters (a symmetric model's keys serve both
+/// directions), eq. (3); none when B or F_C is null. F_B and v_s give the Stribeck term when both are numbers.
+std::optional<FrictionBranch> fitted_branch(const nlohmann::json& result, Direction direction) {
+    if (!result.contains("parameters") || !result["parameters"].is_object()) return std::nullopt;
+    std::map<Term, double> values;
+    for (const auto& [key, entry] : result["parameters"].items()) {
+        const auto meaning = parse_parameter_key(key);
+        if (!meaning || (meaning->direction != Direction::both && meaning->direction != direction)) continue;
+        if (const auto value = number_at(entry, "value"); value && std::isfinite(*value))
+            values[meaning->term] = *value;
+    }
+    if (!values.count(Term::viscous) || !values.count(Term::coulomb)) return std::nullopt;
+    FrictionBranch branch{values[Term::viscous], values[Term::coulomb], std::nullopt, std::nullopt};
+    if (values.count(Term::breakaway) && values.count(Term::stribeck_velocity) &&
+        values[Term::stribeck_velocity] > 0.0) {
+        branch.breakaway = values[Term::breakaway];
+        branch.stribeck_velocity = values[Term::stribeck_velocity];
+    }
+    return branch;
+}
+
+/// A model's friction, or any other parameter, differs between directions.
+bool directional_friction(const nlohmann::json& result) {
+    if (!result.contains("parameters") || !result["parameters"].is_object()) return false;
+    for (const auto& [key, entry] : result["parameters"].items())
+        if (const auto meaning = parse_parameter_key(key); meaning && meaning->direction != Direction::both)
+            return true;
+    return false;
+}
+
+/// The fitted model evaluated at 240 speeds spread evenly (in log speed on a log axis) from `low` to `high`: the
+/// curve between the bins is the model's, not a straight line between its values at the bins.
+Series model_curve(const FrictionBranch& branch, double low, double high, bool log_speed) {
+    constexpr int points = 240;
+    Series curve;
+    const FrictionLaw law = branch.law();
+    for (int i = 0; i < points; ++i) {
+        const double fraction = static_cast<double>(i) / (points - 1);
+        const double speed = log_speed ? low * std::pow(high / low, fraction) : low + (high - low) * fraction;
+        curve.x.push_back(speed);
+        curve.y.push_back(law.magnitude(speed));
+    }
+    return curve;
+}
+
+/// The friction curve of a result document, if it holds one: the measured bins per direction and the fitted model
+/// from the result's parameters, over the measured speeds.
 std::optional<Plot> friction_curve_plot(const nlohmann::json& result, const std::string& id, const std::string& title) {
     if (!result.is_object() || !result.contains("friction_curve") || !result["friction_curve"].is_object())
         return std::nullopt;
     const auto& curve = result["friction_curve"];
-    const bool rotary = result.value("rotary", false);
-    const std::string velocity_key = rotary ? "velocity_rad_per_s" : "velocity_m_per_s";
-    const std::string force_key = rotary ? "torque_Nm" : "force_N";
+    const ParameterNaming naming{result.value("rotary", false)};
     Plot plot;
     plot.id = id;
     plot.title = title;
-    plot.x_label = rotary ? "speed |ω| [rad/s]" : "speed |v| [m/s]";
-    plot.y_label = rotary ? "friction torque [N·m]" : "friction force [N]";
+    plot.x_label = naming.rotary ? "speed |ω| [rad/s]" : "speed |v| [m/s]";
+    plot.y_label = naming.rotary ? "friction torque [N·m]" : "friction force [N]";
     double low = std::numeric_limits<double>::infinity();
     double high = 0.0;
     const std::array<std::pair<const char*, const char*>, 2> directions{{{"forward", blue}, {"reverse", orange}}};
@@ -87,34 +144,47 @@ std::optional<Plot> friction_curve_plot(const nlohmann::json& result, const std:
         const auto& branch = curve[direction];
         Series measured;
         measured.name = fmt::format("{}: measured (binned)", direction);
-        measured.x = numbers(branch.value(velocity_key, nlohmann::json::array()));
-        measured.y = numbers(branch.value(force_key, nlohmann::json::array()));
+        measured.x = numbers(branch.value(naming.curve_velocity_key(), nlohmann::json::array()));
+        measured.y = numbers(branch.value(naming.curve_force_key(), nlohmann::json::array()));
         measured.style = Series::Style::points;
         measured.colour = colour;
-        Series fitted;
-        fitted.name = fmt::format("{}: fitted model", direction);
-        fitted.x = measured.x;
-        fitted.y = numbers(branch.value("fitted_" + force_key, nlohmann::json::array()));
-        fitted.colour = colour;
-        for (const double v : measured.x)
-            if (std::isfinite(v) && v > 0.0) {
-                low = std::min(low, v);
-                high = std::max(high, v);
+        for (std::size_t i = 0; i < measured.x.size() && i < measured.y.size(); ++i)
+            if (std::isfinite(measured.x[i]) && measured.x[i] > 0.0 && std::isfinite(measured.y[i])) {
+                low = std::min(low, measured.x[i]);
+                high = std::max(high, measured.x[i]);
             }
-        if (measured.x.empty()) continue;
-        plot.series.push_back(std::move(measured));
-        if (!fitted.y.empty()) plot.series.push_back(std::move(fitted));
+        if (!measured.x.empty()) plot.series.push_back(std::move(measured));
     }
     if (plot.series.empty()) return std::nullopt;
     // The Stribeck region lives at low speed: a logarithmic speed axis when the data span more than a decade and a
     // half.
     plot.log_x = high > 0.0 && high / low > 30.0;
+    if (!(high > low)) return plot;
+    if (!directional_friction(result)) {
+        if (const auto branch = fitted_branch(result, Direction::both)) {
+            Series model = model_curve(*branch, low, high, plot.log_x);
+            model.name = "fitted model (both directions)";
+            model.colour = grey;
+            plot.series.push_back(std::move(model));
+        }
+        return plot;
+    }
+    for (const auto& [direction, colour] : directions) {
+        const auto branch =
+            fitted_branch(result, direction == std::string("forward") ? Direction::forward : Direction::reverse);
+        if (!branch) continue;
+        Series model = model_curve(*branch, low, high, plot.log_x);
+        model.name = fmt::format("{}: fitted model", direction);
+        model.colour = colour;
+        plot.series.push_back(std::move(model));
+    }
     return plot;
 }
 
-/// The errors over time of a simulate document, checked.
+/// The errors over time of a simulate document, checked; NaN where a document that did not succeed holds null.
 struct SimulationSeries {
     bool rotary{false};
+    std::string status;
     std::vector<double> time;
     std::vector<double> machine;
     std::vector<double> model;
@@ -128,6 +198,30 @@ std::string summary_length_suffix(const nlohmann::json& simulation, bool rotary)
     return simulation.contains("tracking_error_mae" + suffix) ? suffix : std::string("_m");
 }
 
+/// The series have one value per time, and the times increase.
+void check_simulation_times(const SimulationSeries& out, const std::string& unit, const std::string& source) {
+    const std::array<std::pair<const char*, const std::vector<double>*>, 3> errors{
+        {{"tracking_error_machine", &out.machine},
+         {"tracking_error_model", &out.model},
+         {"modelling_error", &out.modelling}}};
+    for (const auto& [key, values] : errors)
+        if (values->size() != out.time.size())
+            throw InputError(fmt::format("{}: series.{}{} has {} values for {} times (series.time_s)", source, key,
+                                         unit, values->size(), out.time.size()));
+    for (std::size_t i = 0; i < out.time.size(); ++i) {
+        if (!std::isfinite(out.time[i]))
+            throw InputError(fmt::format("{}: series.time_s[{}] is not a number", source, i));
+        if (i > 0 && !(out.time[i] > out.time[i - 1]))
+            throw InputError(fmt::format("{}: series.time_s[{}] does not increase", source, i));
+    }
+}
+
+/// A figure of a simulate document: a number, or null in a document whose status says it did not succeed (simulate
+/// writes null, with a diagnostic, where a diverged simulation has no finite value).
+bool figure_readable(const nlohmann::json& value, bool nulls_allowed) {
+    return value.is_number() || (nulls_allowed && value.is_null());
+}
+
 SimulationSeries read_simulation_series(const nlohmann::json& simulation, const std::string& source) {
     const auto wrong_kind = [&](const std::string& why) {
         return InputError(fmt::format("{}: not a simulate document (feedid simulate --json): {}", source, why));
@@ -139,12 +233,15 @@ SimulationSeries read_simulation_series(const nlohmann::json& simulation, const 
             throw InputError(fmt::format("{}: 'rotary' is not true or false", source));
         out.rotary = simulation["rotary"].get<bool>();
     }
+    out.status = document_status(simulation);
+    const bool nulls_allowed = out.status != "ok";
     const std::string length = summary_length_suffix(simulation, out.rotary);
     const std::string mae = "tracking_error_mae" + length;
     if (!simulation.contains(mae) || !simulation[mae].is_object()) throw wrong_kind(fmt::format("it has no '{}'", mae));
     for (const char* key : {"model", "machine"})
-        if (!number_at(simulation[mae], key)) throw wrong_kind(fmt::format("'{}.{}' is not a number", mae, key));
-    if (!number_at(simulation, ("modelling_error_mae" + length).c_str()))
+        if (!figure_readable(member(simulation[mae], key), nulls_allowed))
+            throw wrong_kind(fmt::format("'{}.{}' is not a number", mae, key));
+    if (!figure_readable(member(simulation, ("modelling_error_mae" + length).c_str()), nulls_allowed))
         throw wrong_kind(fmt::format("'modelling_error_mae{}' is not a number", length));
     if (!simulation.contains("series") || !simulation["series"].is_object())
         throw InputError(
@@ -158,6 +255,10 @@ SimulationSeries read_simulation_series(const nlohmann::json& simulation, const 
         std::vector<double> values;
         values.reserve(series[key].size());
         for (const auto& value : series[key]) {
+            if (nulls_allowed && value.is_null()) {
+                values.push_back(std::numeric_limits<double>::quiet_NaN());
+                continue;
+            }
             if (!value.is_number() || !std::isfinite(value.get<double>()))
                 throw InputError(fmt::format("{}: series.{}[{}] is not a finite number", source, key, values.size()));
             values.push_back(value.get<double>());
@@ -169,17 +270,7 @@ SimulationSeries read_simulation_series(const nlohmann::json& simulation, const 
     out.machine = column("tracking_error_machine" + unit);
     out.model = column("tracking_error_model" + unit);
     out.modelling = column("modelling_error" + unit);
-    const std::array<std::pair<const char*, const std::vector<double>*>, 3> errors{
-        {{"tracking_error_machine", &out.machine},
-         {"tracking_error_model", &out.model},
-         {"modelling_error", &out.modelling}}};
-    for (const auto& [key, values] : errors)
-        if (values->size() != out.time.size())
-            throw InputError(fmt::format("{}: series.{}{} has {} values for {} times (series.time_s)", source, key,
-                                         unit, values->size(), out.time.size()));
-    for (std::size_t i = 1; i < out.time.size(); ++i)
-        if (!(out.time[i] > out.time[i - 1]))
-            throw InputError(fmt::format("{}: series.time_s[{}] does not increase", source, i));
+    check_simulation_times(out, unit, source);
     return out;
 }
 
@@ -193,6 +284,21 @@ std::vector<double> scaled(const std::vector<double>& values) {
     std::vector<double> out(values.size());
     for (std::size_t i = 0; i < values.size(); ++i) out[i] = values[i] * display_scale;
     return out;
+}
+
+}  // namespace
+
+namespace {
+
+/// Where the simulated tracking error leaves the machine's scale for good: the first sample whose model error is not a
+/// number or more than ten times the machine's largest; none when the simulation kept to it.
+std::optional<std::size_t> divergence(const SimulationSeries& series) {
+    double largest = 0.0;
+    for (const double e : series.machine)
+        if (std::isfinite(e)) largest = std::max(largest, std::abs(e));
+    for (std::size_t i = 0; i < series.model.size(); ++i)
+        if (!std::isfinite(series.model[i]) || (largest > 0.0 && std::abs(series.model[i]) > 10.0 * largest)) return i;
+    return std::nullopt;
 }
 
 }  // namespace
@@ -217,8 +323,6 @@ std::vector<Plot> simulation_plots(const nlohmann::json& simulation, const std::
     model.y = scaled(series.model);
     model.colour = orange;
     model.dashed = true;
-    tracking.series.push_back(std::move(machine));
-    tracking.series.push_back(std::move(model));
 
     Plot modelling;
     modelling.id = "fig6-modelling-error";
@@ -230,8 +334,23 @@ std::vector<Plot> simulation_plots(const nlohmann::json& simulation, const std::
     error.x = series.time;
     error.y = scaled(series.modelling);
     error.colour = green;
-    modelling.series.push_back(std::move(error));
     modelling.horizontal.push_back({"", 0.0, grey, false});
+
+    // Both on the record's time axis, also where a diverged simulation left no value.
+    if (series.time.size() >= 2)
+        tracking.x_limits = modelling.x_limits = std::pair{series.time.front(), series.time.back()};
+    // A diverged model is drawn on the machine's scale: the axes are set by the measured error and by the
+    // modelling error before the divergence, what lies beyond is clipped and marked.
+    if (const auto diverged = divergence(series)) {
+        model.sets_y_range = false;
+        tracking.off_scale_label = modelling.off_scale_label = "diverged model beyond the axis";
+        if (*diverged > 0) modelling.y_range_to_x = series.time[*diverged - 1];
+        for (Plot* plot : {&tracking, &modelling})
+            plot->vertical.push_back({"model diverges", series.time[*diverged], red});
+    }
+    tracking.series.push_back(std::move(machine));
+    tracking.series.push_back(std::move(model));
+    modelling.series.push_back(std::move(error));
     return {std::move(tracking), std::move(modelling)};
 }
 
@@ -259,45 +378,81 @@ ParameterLabel parameter_label(const std::string& key) {
     return {name, unit};
 }
 
+namespace {
+
+/// An estimate's value and the half-width of its ±2 band: the combined uncertainty when the document gives one
+/// (statistical and preprocessing), else the standard error.
+struct BandedValue {
+    double value;
+    std::optional<double> error;
+    bool combined;
+};
+
+std::optional<BandedValue> banded_value(const nlohmann::json& estimate) {
+    const auto value = number_at(estimate, "value");
+    if (!value) return std::nullopt;
+    if (const auto uncertainty = number_at(estimate, "uncertainty"); uncertainty && *uncertainty > 0.0)
+        return BandedValue{*value, uncertainty, true};
+    if (const auto error = number_at(estimate, "stderr"); error && *error > 0.0)
+        return BandedValue{*value, error, false};
+    return BandedValue{*value, std::nullopt, false};
+}
+
+/// One parameter's RLS estimate over time. The y axis is set by the settled part (after the transient; without the
+/// first tenth of the record when the RLS did not settle) and the batch value with its band: the start-up transient,
+/// often orders of magnitude larger, is clipped and marked where it leaves the plot.
+Plot rls_plot(const nlohmann::json& result, const std::string& key, const std::vector<double>& time,
+              const std::vector<double>& values) {
+    const auto& rls = member(result, "rls");
+    const auto label = parameter_label(key);
+    Plot plot;
+    plot.id = "rls-" + slug(key);
+    plot.title = fmt::format("RLS estimate of {} over time", label.name);
+    plot.x_label = "time [s]";
+    plot.y_label = with_unit(label);
+    plot.off_scale_label = "start-up transient beyond the axis";
+    Series series;
+    series.name = "RLS estimate";
+    const std::size_t stride = std::max<std::size_t>(1, (time.size() + max_plot_points - 1) / max_plot_points);
+    for (std::size_t i = 0; i < time.size() && i < values.size(); i += stride) {
+        series.x.push_back(time[i]);
+        series.y.push_back(values[i]);
+    }
+    plot.series.push_back(std::move(series));
+    const auto transient_end = number_at(rls, "transient_end_s");
+    const bool settled = member(rls, "settled").is_boolean() && member(rls, "settled").get<bool>();
+    if (settled && transient_end) {
+        plot.y_range_from_x = *transient_end;
+    } else if (!time.empty() && std::isfinite(time.front()) && std::isfinite(time.back())) {
+        plot.y_range_from_x = time.front() + 0.1 * (time.back() - time.front());
+    }
+    // The batch fit of the same samples (step 1), and the identified value when step 2 changed it.
+    const auto batch = banded_value(member(member(member(result, "step1"), "batch"), key.c_str()));
+    const auto identified = banded_value(member(member(result, "parameters"), key.c_str()));
+    if (const auto& shown = batch ? batch : identified) {
+        plot.horizontal.push_back({"batch least-squares value", shown->value, green, true});
+        if (shown->error) {
+            const std::string band = shown->combined ? "± 2 uncertainties" : "± 2 standard errors";
+            plot.horizontal.push_back({band, shown->value + 2.0 * *shown->error, "#98df8a", true});
+            plot.horizontal.push_back({"", shown->value - 2.0 * *shown->error, "#98df8a", true});
+        }
+    }
+    if (batch && identified && std::abs(identified->value - batch->value) > 1e-9 * std::abs(batch->value))
+        plot.horizontal.push_back({"identified value (after the friction-curve fit)", identified->value, grey, false});
+    if (settled && transient_end) plot.vertical.push_back({"transient ends", *transient_end, red});
+    return plot;
+}
+
+}  // namespace
+
 std::vector<Plot> result_plots(const nlohmann::json& result, const std::string& source) {
     (void)history::run_from_result(result, source);  // InputError when it is not an identify result
     std::vector<Plot> plots;
-    if (result.contains("rls") && result["rls"].is_object() && result["rls"].contains("history") &&
-        result["rls"]["history"].is_object()) {
-        const auto& rls = result["rls"];
-        const auto& recorded = rls["history"];
+    const auto& recorded = member(member(result, "rls"), "history");
+    if (recorded.is_object()) {
         const auto time = numbers(recorded.value("time_s", nlohmann::json::array()));
-        const std::size_t stride = std::max<std::size_t>(1, (time.size() + max_plot_points - 1) / max_plot_points);
-        const auto transient_end = number_at(rls, "transient_end_s");
-        for (const auto& [key, values_json] : recorded.items()) {
-            if (key == "time_s") continue;
-            const auto values = numbers(values_json);
-            const auto label = parameter_label(key);
-            Plot plot;
-            plot.id = "rls-" + slug(key);
-            plot.title = fmt::format("RLS estimate of {} over time", label.name);
-            plot.x_label = "time [s]";
-            plot.y_label = with_unit(label);
-            Series series;
-            series.name = "RLS estimate";
-            for (std::size_t i = 0; i < time.size() && i < values.size(); i += stride) {
-                series.x.push_back(time[i]);
-                series.y.push_back(values[i]);
-            }
-            plot.series.push_back(std::move(series));
-            if (result["parameters"].contains(key)) {
-                const auto& parameter = result["parameters"][key];
-                if (const auto value = number_at(parameter, "value")) {
-                    plot.horizontal.push_back({"batch least-squares value", *value, green, true});
-                    if (const auto error = number_at(parameter, "stderr"); error && *error > 0.0) {
-                        plot.horizontal.push_back({"± 2 standard errors", *value + 2.0 * *error, "#98df8a", true});
-                        plot.horizontal.push_back({"", *value - 2.0 * *error, "#98df8a", true});
-                    }
-                }
-            }
-            if (transient_end) plot.vertical.push_back({"transient ends", *transient_end, red});
-            plots.push_back(std::move(plot));
-        }
+        for (const auto& [key, values] : recorded.items())
+            if (key != "time_s") plots.push_back(rls_plot(result, key, time, numbers(values)));
     }
     if (auto curve = friction_curve_plot(result, "friction-curve", "Friction against speed, measured and fitted"))
         plots.push_back(std::move(*curve));
@@ -338,6 +493,9 @@ Plot trend_plot(const history::ParameterTrend& parameter, const AxisRuns& axis, 
     values.title = fmt::format("{} — {}", label.name, axis.where);
     values.x_label = "run (recording order)";
     values.y_label = with_unit(label);
+    values.integer_x = true;
+    // every parameter of the axis on the same run axis, also where a run left this one null
+    values.x_limits = std::pair{1.0, static_cast<double>(std::max<std::size_t>(1, axis.runs.size()))};
     Series series;
     series.name = "value ± 2 standard errors";
     series.style = Series::Style::line_and_points;
@@ -386,6 +544,7 @@ std::optional<Plot> cusum_plot(const history::ParameterTrend& parameter, const A
     cusum.title = fmt::format("CUSUM of {} — {}", label.name, axis.where);
     cusum.x_label = "run (recording order)";
     cusum.y_label = "CUSUM [combined standard errors]";
+    cusum.integer_x = true;
     Series up;
     up.name = "S+ (rise)";
     up.style = Series::Style::line_and_points;
@@ -451,6 +610,8 @@ th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; }
 th { background: #f3f3f3; } td.text, th.text { text-align: left; }
 figure { margin: 1.5em 0; } figcaption { font-size: 0.85em; color: #555; }
 .alarm { color: #b00; font-weight: bold; } .note { color: #555; }
+.warning { border-left: 6px solid #b00; background: #fdecea; color: #5f0000; padding: 0.6em 1em; margin: 1em 0; }
+.warning ul { margin: 0.3em 0; }
 )";
 
 std::string page(const std::string& title, const std::string& body) {
@@ -463,6 +624,48 @@ std::string page(const std::string& title, const std::string& body) {
 
 std::string figure(const Plot& plot, const std::string& caption) {
     return fmt::format("<figure>\n{}<figcaption>{}</figcaption>\n</figure>\n", render_svg(plot), escape_xml(caption));
+}
+
+/// A warning box: a heading line and the document's diagnostics under it.
+std::string warning(const std::string& heading, const nlohmann::json& diagnostics) {
+    std::string box = fmt::format("<div class=\"warning\" role=\"alert\"><b>{}</b>", escape_xml(heading));
+    if (diagnostics.is_array() && !diagnostics.empty()) {
+        box += "<ul>";
+        for (const auto& line : diagnostics)
+            if (line.is_string()) box += fmt::format("<li>{}</li>", escape_xml(line.get<std::string>()));
+        box += "</ul>";
+    }
+    return box + "</div>\n";
+}
+
+/// The warning a simulate document needs: none when it succeeded.
+std::string simulation_warning(const SimulationDocument& simulation) {
+    const std::string status = document_status(simulation.document);
+    if (status == "ok") return "";
+    return warning(fmt::format("The simulation {} has status \"{}\": its figures and plots are not a validation of "
+                               "the identified axis.",
+                               simulation.source, status),
+                   member(simulation.document, "diagnostics"));
+}
+
+/// The warning a result document needs: none when its status is ok. A partial result names what it could not
+/// identify.
+std::string result_warning(const nlohmann::json& result) {
+    const std::string status = document_status(result);
+    if (status == "ok") return "";
+    if (status == "failed")
+        return warning(
+            "The identification failed: no value on this page is an identified parameter (the diagnostics below "
+            "say why).",
+            nlohmann::json());
+    std::string missing;
+    for (const auto& [key, entry] : member(result, "parameters").items())
+        if (!number_at(entry, "value")) missing += (missing.empty() ? "" : ", ") + parameter_label(key).name;
+    const std::string what = missing.empty() ? std::string("some parameters") : missing;
+    return warning(fmt::format("Partial result (status \"{}\"): {} could not be identified from this trace (the "
+                               "diagnostics below say why).",
+                               status, what),
+                   nlohmann::json());
 }
 
 std::string cell(const std::optional<double>& value, double scale) {
@@ -478,7 +681,9 @@ std::string validation_section(const SimulationDocument& simulation, const std::
     const auto object = [&](const char* key) {
         return document.contains(key) && document[key].is_object() ? document[key] : nlohmann::json::object();
     };
-    std::string body = "<h2>Validation: the identified axis simulated on the recorded reference</h2>\n";
+    std::string body =
+        "<h2 id=\"validation\">Validation: the identified axis simulated on the recorded reference</h2>\n";
+    body += simulation_warning(simulation);
     std::string simulated_trace;
     std::string samples;
     if (const auto trace = object("trace"); trace.contains("path") && trace["path"].is_string()) {
@@ -535,6 +740,51 @@ std::string validation_section(const SimulationDocument& simulation, const std::
 
 }  // namespace
 
+namespace {
+
+/// The parameter table: value and standard error, and the systematic part and combined uncertainty where the
+/// document gives them.
+std::string parameter_table(const nlohmann::json& result) {
+    const auto& parameters = member(result, "parameters");
+    bool combined = false;
+    for (const auto& [key, entry] : parameters.items())
+        combined = combined || entry.contains("uncertainty") || entry.contains("systematic");
+    std::string table = "<table>\n<tr><th class=\"text\">parameter</th><th>value</th><th>standard error</th>";
+    if (combined) table += "<th>systematic</th><th>uncertainty</th>";
+    table += "<th class=\"text\">unit</th></tr>\n";
+    const auto shown = [](const std::optional<double>& v, const char* format) {
+        return v ? fmt::format(fmt::runtime(format), *v) : std::string("—");
+    };
+    for (const auto& [key, entry] : parameters.items()) {
+        const auto label = parameter_label(key);
+        table += fmt::format("<tr><td class=\"text\">{}</td><td>{}</td><td>{}</td>", escape_xml(label.name),
+                             shown(number_at(entry, "value"), "{:.6g}"), shown(number_at(entry, "stderr"), "{:.3g}"));
+        if (combined)
+            table += fmt::format("<td>{}</td><td>{}</td>", shown(number_at(entry, "systematic"), "{:.3g}"),
+                                 shown(number_at(entry, "uncertainty"), "{:.3g}"));
+        table += fmt::format("<td class=\"text\">{}</td></tr>\n", escape_xml(label.unit));
+    }
+    return table + "</table>\n";
+}
+
+std::string plot_caption(const nlohmann::json& result, const Plot& plot) {
+    if (plot.id.rfind("rls-", 0) != 0)
+        return "Quasi-static friction binned by speed, per direction, with the fitted model (viscous, Coulomb and, "
+               "where identified, Stribeck terms) evaluated from the identified parameters over the measured speeds.";
+    const auto& settled = member(member(result, "rls"), "settled");
+    const std::string range =
+        settled.is_boolean() && settled.get<bool>()
+            ? "The dashed red line marks where the RLS transient ends (estimates within 2 % or 3 standard errors of "
+              "their final value); the y axis covers the estimate after it"
+            : "The RLS did not settle; the y axis covers the estimate after the first tenth of the record";
+    return range +
+           " and the batch least-squares value of the same samples (green) with its band; the start-up transient "
+           "beyond it is clipped, a triangle marks where it leaves the plot (its tooltip gives the farthest value). "
+           "Where the friction-curve fit changed the value, the identified value is the grey line.";
+}
+
+}  // namespace
+
 std::string result_report_html(const nlohmann::json& result, const std::string& source,
                                const std::optional<SimulationDocument>& simulation) {
     const auto plots = result_plots(result, source);
@@ -543,48 +793,33 @@ std::string result_report_html(const nlohmann::json& result, const std::string& 
         simulation ? simulation_plots(simulation->document, simulation->source) : std::vector<Plot>{};
     std::string body;
     std::string trace_path = source;
-    if (result.contains("trace") && result["trace"].is_object() && result["trace"].contains("path") &&
-        result["trace"]["path"].is_string())
-        trace_path = result["trace"]["path"].get<std::string>();
+    if (const auto& path = member(member(result, "trace"), "path"); path.is_string())
+        trace_path = path.get<std::string>();
     body += fmt::format("<p>Trace <code>{}</code>; model <b>{}</b>; status <b>{}</b>.</p>\n", escape_xml(trace_path),
                         escape_xml(result.value("model", std::string())),
                         escape_xml(result.value("status", std::string("—"))));
-    body +=
-        "<table>\n<tr><th class=\"text\">parameter</th><th>value</th><th>standard error</th>"
-        "<th class=\"text\">unit</th></tr>\n";
-    for (const auto& [key, entry] : result["parameters"].items()) {
-        const auto label = parameter_label(key);
-        const auto value = number_at(entry, "value");
-        const auto error = number_at(entry, "stderr");
-        body += fmt::format("<tr><td class=\"text\">{}</td><td>{}</td><td>{}</td><td class=\"text\">{}</td></tr>\n",
-                            escape_xml(label.name), value ? fmt::format("{:.6g}", *value) : "—",
-                            error ? fmt::format("{:.3g}", *error) : "—", escape_xml(label.unit));
-    }
-    body += "</table>\n";
-    if (result.contains("fit") && result["fit"].is_object()) {
-        const auto& fit = result["fit"];
+    body += result_warning(result);
+    if (simulation && document_status(simulation->document) != "ok")
+        body += warning(fmt::format("The validation by simulation did not succeed (status \"{}\"): see below.",
+                                    document_status(simulation->document)),
+                        nlohmann::json());
+    body += parameter_table(result);
+    if (const auto& fit = member(result, "fit"); fit.is_object()) {
         body += fmt::format(
             "<p>Step-1 batch least squares: relative error {} %, condition number {}, {} samples.</p>\n",
             number_at(fit, "relative_error_pct") ? fmt::format("{:.3g}", *number_at(fit, "relative_error_pct")) : "—",
             number_at(fit, "condition_number") ? fmt::format("{:.3g}", *number_at(fit, "condition_number")) : "—",
             number_at(fit, "samples_used") ? fmt::format("{:.0f}", *number_at(fit, "samples_used")) : "—");
     }
-    if (result.contains("diagnostics") && result["diagnostics"].is_array() && !result["diagnostics"].empty()) {
+    if (const auto& diagnostics = member(result, "diagnostics"); diagnostics.is_array() && !diagnostics.empty()) {
         body += "<h2>Diagnostics</h2>\n<ul>\n";
-        for (const auto& line : result["diagnostics"])
+        for (const auto& line : diagnostics)
             if (line.is_string()) body += fmt::format("<li>{}</li>\n", escape_xml(line.get<std::string>()));
         body += "</ul>\n";
     }
     body += "<h2>Plots</h2>\n";
     if (plots.empty()) body += "<p class=\"note\">The result holds neither an RLS history nor a friction curve.</p>\n";
-    for (const auto& plot : plots) {
-        const bool rls = plot.id.rfind("rls-", 0) == 0;
-        body += figure(plot, rls ? "The recursive estimate against time; the dashed red line marks where the RLS "
-                                   "transient ends (estimates within 2 % or 3 standard errors of their final value), "
-                                   "the green line is the batch least-squares value of the same samples."
-                                 : "Quasi-static friction binned by speed, per direction, with the fitted model "
-                                   "(viscous, Coulomb and, where identified, Stribeck terms).");
-    }
+    for (const auto& plot : plots) body += figure(plot, plot_caption(result, plot));
     if (simulation)
         body += validation_section(*simulation, trace_path, validation_plots);
     else
@@ -625,12 +860,18 @@ std::string history_report_html(const std::vector<history::RunRecord>& runs,
                 series_runs.push_back(&run);
                 for (const auto& [key, estimate] : run.parameters) keys.insert(key);
             }
-        body += "<table>\n<tr><th>run</th><th class=\"text\">recorded at</th><th class=\"text\">location</th>";
+        body +=
+            "<table>\n<tr><th>run</th><th class=\"text\">recorded at</th><th class=\"text\">location</th>"
+            "<th class=\"text\">status</th>";
         for (const auto& key : keys) body += fmt::format("<th>{}</th>", escape_xml(with_unit(parameter_label(key))));
         body += "</tr>\n";
         for (const auto* run : series_runs) {
-            body += fmt::format("<tr><td>#{}</td><td class=\"text\">{}</td><td class=\"text\">{}</td>", run->id,
-                                escape_xml(run->recorded_at), escape_xml(run->location));
+            const bool ok = run->status.empty() || run->status == "ok";
+            body += fmt::format(
+                "<tr><td>#{}</td><td class=\"text\">{}</td><td class=\"text\">{}</td>"
+                "<td class=\"text{}\">{}</td>",
+                run->id, escape_xml(run->recorded_at), escape_xml(run->location), ok ? "" : " alarm",
+                escape_xml(run->status.empty() ? std::string("—") : run->status));
             for (const auto& key : keys) {
                 const auto found = run->parameters.find(key);
                 std::string cell = "—";
