@@ -20,9 +20,13 @@ namespace {
 /// the command line records them.
 DriveConstants drive_constants(const OptionReader& o, nlohmann::json& record) {
     DriveConstants drive;
-    drive.torque_constant_Nm_per_A = o.number("kt_Nm_per_A");
-    if (const auto lead = o.number("lead_mm")) drive.lead_m = *lead * 1e-3;
-    drive.gear_ratio = o.number("gear_ratio").value_or(1.0);
+    // the allowed ranges of drive.hpp, stated as the command line states them (cli.cpp)
+    const Range kt_range{allowed_torque_constant_Nm_per_A.low, allowed_torque_constant_Nm_per_A.high, "N*m/A"};
+    const Range lead_range{allowed_lead_m.low * 1e3, allowed_lead_m.high * 1e3, "mm"};
+    const Range gear_range{allowed_gear_ratio.low, allowed_gear_ratio.high, "motor turns per screw turn"};
+    drive.torque_constant_Nm_per_A = o.number("kt_Nm_per_A", kt_range);
+    if (const auto lead = o.number("lead_mm", lead_range)) drive.lead_m = *lead * 1e-3;
+    drive.gear_ratio = o.number("gear_ratio", gear_range).value_or(1.0);
     std::string force_constant;
     if (o.given("force_constant")) {
         const py::object value = o.object("force_constant");
@@ -66,23 +70,19 @@ void preprocess_options(const OptionReader& o, PreprocessOptions& p) {
                                                {{"auto", VelocitySource::automatic},
                                                 {"position", VelocitySource::position},
                                                 {"velocity", VelocitySource::logged}});
-    const auto integer = [&](const char* name, int fallback) {
-        const auto value = o.integer(name).value_or(fallback);
-        if (value < std::numeric_limits<int>::min() || value > std::numeric_limits<int>::max())
-            throw InputError(fmt::format("{}={}: out of range", name, value));
-        return static_cast<int>(value);
+    const auto integer = [&](const char* name, int fallback, Range range) {
+        return static_cast<int>(o.integer(name, range).value_or(fallback));
     };
-    p.filter_order = integer("filter_order", p.filter_order);
-    p.cutoff_hz = o.number("cutoff_hz");
-    p.savitzky_golay_window = integer("savitzky_golay_window", p.savitzky_golay_window);
-    p.savitzky_golay_order = integer("savitzky_golay_order", p.savitzky_golay_order);
-    p.decimation = integer("decimation", p.decimation);
-    if (const auto edge = o.integer("edge_samples")) {
-        if (*edge < 0) throw InputError(fmt::format("edge_samples={}: must be 0 or more", *edge));
+    // the allowed ranges are the command line's (cmd_identify.cpp)
+    p.filter_order = integer("filter_order", p.filter_order, {1, 12, ""});
+    p.cutoff_hz = o.number("cutoff_hz", {1e-3, 1e6, "Hz"});
+    p.savitzky_golay_window = integer("savitzky_golay_window", p.savitzky_golay_window, {5, 1e6, "samples"});
+    p.savitzky_golay_order = integer("savitzky_golay_order", p.savitzky_golay_order, {2, 6, ""});
+    p.decimation = integer("decimation", p.decimation, {0, 1000, ""});
+    if (const auto edge = o.integer("edge_samples", {0, 1e9, "samples"}))
         p.edge_samples = static_cast<std::size_t>(*edge);
-    }
-    p.from_s = o.number("from_s");
-    p.to_s = o.number("to_s");
+    p.from_s = o.number("from_s", {-1e12, 1e12, "s"});
+    p.to_s = o.number("to_s", {-1e12, 1e12, "s"});
 }
 
 /// The options of `feedid identify` from the keyword arguments of feedid.identify, and the command line's record of
@@ -95,12 +95,13 @@ IdentifyOptions identify_options(const OptionReader& o, nlohmann::json& drive_re
     options.stribeck = o.flag("stribeck").value_or(true);
     options.drive = drive_constants(o, drive_record);
     preprocess_options(o, options.preprocess);
-    options.selection.split_velocity = o.number("split_velocity");
-    options.selection.moving_threshold = o.number("moving_threshold");
+    options.selection.split_velocity = o.number("split_velocity", {0.0, 1e4, "m/s or rad/s"});
+    options.selection.moving_threshold = o.number("moving_threshold", {0.0, 1e4, "m/s or rad/s"});
     options.step1.rls.variant =
         choice<RlsVariant>(o, "rls", {{"directional", RlsVariant::directional}, {"paper", RlsVariant::exponential}});
-    if (const auto lambda = o.number("forgetting_factor")) options.step1.rls.forgetting_factor = *lambda;
-    if (const auto p0 = o.number("initial_covariance")) options.step1.rls.initial_covariance = *p0;
+    if (const auto lambda = o.number("forgetting_factor", {1e-6, 1.0, ""}))
+        options.step1.rls.forgetting_factor = *lambda;
+    if (const auto p0 = o.number("initial_covariance", {1e-12, 1e12, ""})) options.step1.rls.initial_covariance = *p0;
     if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
     return options;
 }
@@ -398,13 +399,12 @@ GainOptions gain_options(const OptionReader& o, const Trace& trace, const DriveC
                                                            {"p", VelocityLoopStructure::p},
                                                            {"pi", VelocityLoopStructure::pi}});
     options.feedforward = o.flag("feedforward").value_or(false);
-    if (const auto n = o.integer("velocity_difference")) {
-        if (*n < 1 || *n > 8) throw InputError(fmt::format("velocity_difference={}: between 1 and 8 samples", *n));
+    // the allowed ranges are the command line's (gain_arguments.hpp)
+    if (const auto n = o.integer("velocity_difference", {1, 8, "samples"}))
         options.velocity_difference_samples = static_cast<int>(*n);
-    }
-    if (const auto lag = o.number("current_lag_ms")) options.current_lag_s = *lag * 1e-3;
-    options.rls.forgetting_factor = o.number("forgetting").value_or(1.0);
-    set_drive_signal(options, trace, drive, o.number("saturation"));
+    if (const auto lag = o.number("current_lag_ms", {0.0, 1000.0, "ms"})) options.current_lag_s = *lag * 1e-3;
+    options.rls.forgetting_factor = o.number("forgetting", {1e-6, 1.0, ""}).value_or(1.0);
+    set_drive_signal(options, trace, drive, o.number("saturation", {1e-9, 1e12, "drive signal units"}));
     if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
     return options;
 }
@@ -518,7 +518,7 @@ PySimulation simulate(py::handle trace_argument_object, py::handle result, py::h
     }
     const GainOptions options = gain_options(o, trace, drive);
     SimulationOptions simulation_options;
-    simulation_options.substeps = static_cast<int>(o.integer("substeps").value_or(8));
+    simulation_options.substeps = static_cast<int>(o.integer("substeps", {1, 1000, "steps"}).value_or(8));
     PySimulation out;
     {
         py::gil_scoped_release release;

@@ -27,15 +27,24 @@ py::object to_python(const nlohmann::json& value);
 /// A Python value (dict, list, str, int, float, bool, None) as JSON; InputError naming `what` for anything else.
 nlohmann::json to_json_value(py::handle value, const std::string& what);
 
+/// The values an option allows, as the command line states them (apps/feedid: allowed_range) [the option's unit].
+struct Range {
+    double low;
+    double high;
+    const char* unit;
+};
+
 /// The keyword arguments of one call, read by name with a type check: a wrong type is an InputError naming the
-/// option; None reads as "not given".
+/// option; None reads as "not given". No number may be nan or infinite; one with a Range must lie in it.
 class OptionReader {
 public:
     explicit OptionReader(py::dict options) : options_(std::move(options)) {}
 
     [[nodiscard]] bool given(const char* name) const;
     [[nodiscard]] std::optional<double> number(const char* name) const;
+    [[nodiscard]] std::optional<double> number(const char* name, Range range) const;
     [[nodiscard]] std::optional<long long> integer(const char* name) const;
+    [[nodiscard]] std::optional<long long> integer(const char* name, Range range) const;
     [[nodiscard]] std::optional<bool> flag(const char* name) const;
     [[nodiscard]] std::optional<std::string> text(const char* name) const;
     /// A str or os.PathLike.
@@ -48,6 +57,9 @@ public:
 private:
     py::dict options_;
 };
+
+/// InputError "NAME=VALUE is outside the allowed range LOW to HIGH UNIT" when `value` lies outside `range`.
+void check_range(const char* name, double value, const std::string& text, Range range);
 
 /// A str or os.PathLike as a path string; nullopt for anything else.
 std::optional<std::string> as_path(py::handle value);

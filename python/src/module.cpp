@@ -100,7 +100,30 @@ std::optional<double> OptionReader::number(const char* name) const {
     const py::object value = options_[name];
     if (py::isinstance<py::bool_>(value) || py::isinstance<py::str>(value) || !py::hasattr(value, "__float__"))
         wrong_type(name, value, "a number");
-    return value.cast<double>();
+    const double number = value.cast<double>();
+    // no option takes nan or an infinity (the command line refuses them while parsing)
+    if (!std::isfinite(number))
+        throw InputError(fmt::format("{}={}: not a finite number", name, py::repr(value).cast<std::string>()));
+    return number;
+}
+
+void check_range(const char* name, double value, const std::string& text, Range range) {
+    if (value >= range.low && value <= range.high) return;
+    const std::string unit = *range.unit ? std::string(" ") + range.unit : std::string();
+    throw InputError(
+        fmt::format("{}={} is outside the allowed range {:g} to {:g}{}", name, text, range.low, range.high, unit));
+}
+
+std::optional<double> OptionReader::number(const char* name, Range range) const {
+    const auto value = number(name);
+    if (value) check_range(name, *value, py::repr(options_[name]).cast<std::string>(), range);
+    return value;
+}
+
+std::optional<long long> OptionReader::integer(const char* name, Range range) const {
+    const auto value = integer(name);
+    if (value) check_range(name, static_cast<double>(*value), std::to_string(*value), range);
+    return value;
 }
 
 std::optional<long long> OptionReader::integer(const char* name) const {

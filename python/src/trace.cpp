@@ -5,6 +5,7 @@
 #include <fmt/core.h>
 
 #include "binding.hpp"
+#include "feedid/drive.hpp"
 #include "feedid/error.hpp"
 #include "feedid/gcode.hpp"
 #include "feedid/io/csv.hpp"
@@ -43,14 +44,15 @@ void add_roles(const OptionReader& o, ImportOptions& options, nlohmann::json& re
 }
 
 void add_join_and_tare(const OptionReader& o, ImportOptions& options, nlohmann::json& record) {
+    const auto shift = o.number("join_max_shift_s", {1e-6, 3600.0, "s"});
     if (const auto join = o.text("join")) {
         options.join = parse_join_spec(*join);
-        if (const auto shift = o.number("join_max_shift_s")) {
+        if (shift) {
             if (!(*shift > 0.0)) throw InputError("join_max_shift_s must be a positive time [s]");
             options.join->options.max_shift_s = *shift;
         }
         record["join"] = *join;
-    } else if (o.given("join_max_shift_s")) {
+    } else if (shift) {
         throw InputError("join_max_shift_s needs join='FILE@auto'");
     }
     const auto tare_roles = o.texts("tare");
@@ -72,13 +74,15 @@ ImportOptions import_options(const OptionReader& o, nlohmann::json& record) {
     record["axis"] = options.axis;
     record["format"] = options.format;
     add_join_and_tare(o, options, record);
-    options.sample_time_s = o.number("sample_time_s");
-    if (const auto skip = o.integer("skip_rows")) {
-        if (*skip < 0) throw InputError(fmt::format("skip_rows={}: must be 0 or more lines", *skip));
+    // the allowed ranges are the command line's (cli.cpp)
+    options.sample_time_s = o.number("sample_time_s", {1e-9, 3600.0, "s"});
+    if (const auto skip = o.integer("skip_rows", {0, 1e9, "lines"}))
         options.skip_rows = static_cast<std::size_t>(*skip);
-    }
-    if (const auto lead = o.number("lead_mm")) options.unit_context.lead_m = *lead * 1e-3;
-    options.unit_context.gear_ratio = o.number("gear_ratio").value_or(1.0);
+    if (const auto lead = o.number("lead_mm", {allowed_lead_m.low * 1e3, allowed_lead_m.high * 1e3, "mm"}))
+        options.unit_context.lead_m = *lead * 1e-3;
+    options.unit_context.gear_ratio =
+        o.number("gear_ratio", {allowed_gear_ratio.low, allowed_gear_ratio.high, "motor turns per screw turn"})
+            .value_or(1.0);
     record["rated"] = nullptr;
     if (const auto rated = o.text("rated")) {
         const Rating rating = parse_rating(*rated);
@@ -352,8 +356,11 @@ SynthSpec synth_spec(const OptionReader& o) {
         if (!py::isinstance<py::sequence>(injection) || py::isinstance<py::str>(injection) || py::len(injection) != 2)
             throw InputError(expected);
         const py::object amplitude = injection[py::int_(0)], frequency = injection[py::int_(1)];
-        for (const auto& value : {amplitude, frequency})
-            if (py::isinstance<py::bool_>(value) || !py::hasattr(value, "__float__")) throw InputError(expected);
+        for (const auto& value : {amplitude, frequency}) {
+            if (py::isinstance<py::bool_>(value) || !py::hasattr(value, "__float__") ||
+                !std::isfinite(value.cast<double>()))
+                throw InputError(expected);
+        }
         spec.injection = SquareWaveInjection{amplitude.cast<double>(), frequency.cast<double>()};
     }
     if (const auto problem = spec.validate(); !problem.empty())
@@ -392,14 +399,19 @@ struct PyPlan {
     nlohmann::json document;
 };
 
-std::vector<double> numbers_times(const py::object& values, const char* name, double scale) {
+/// A sequence of numbers, each in `range` [the option's unit], times `scale` (to SI).
+std::vector<double> numbers_times(const py::object& values, const char* name, double scale, Range range) {
     std::vector<double> out;
     if (!py::isinstance<py::sequence>(values) || py::isinstance<py::str>(values))
         throw InputError(fmt::format("{}: expected a sequence of numbers", name));
     for (const auto& value : values) {
+        const std::string text = py::repr(value).cast<std::string>();
         if (py::isinstance<py::bool_>(value) || !py::hasattr(value, "__float__"))
-            throw InputError(fmt::format("{}: {} is not a number", name, py::repr(value).cast<std::string>()));
-        out.push_back(value.cast<double>() * scale);
+            throw InputError(fmt::format("{}: {} is not a number", name, text));
+        const double number = value.cast<double>();
+        if (!std::isfinite(number)) throw InputError(fmt::format("{}: {} is not a finite number", name, text));
+        check_range(name, number, text, range);
+        out.push_back(number * scale);
     }
     return out;
 }
@@ -415,18 +427,26 @@ std::vector<std::string> comma_entries(const std::string& text) {
     }
 }
 
+// The allowed ranges are the command line's (cmd_plan.cpp) [mm, mm/min, s, m/s^2, ...].
+constexpr Range feed_range{1e-3, 1e6, "mm/min"};
+constexpr Range position_range{-1e6, 1e6, "mm"};
+
 void plan_feeds(const OptionReader& o, TestPlanOptions& options) {
     if (o.given("feeds_mm_per_min")) {
         const py::object feeds = o.object("feeds_mm_per_min");
-        options.feeds = py::isinstance<py::str>(feeds) ? parse_feeds(comma_entries(feeds.cast<std::string>()))
-                                                       : numbers_times(feeds, "feeds_mm_per_min", mm_per_min);
+        options.feeds = py::isinstance<py::str>(feeds)
+                            ? parse_feeds(comma_entries(feeds.cast<std::string>()))
+                            : numbers_times(feeds, "feeds_mm_per_min", mm_per_min, feed_range);
     }
     const py::object slow = o.object("slow_feeds_mm_per_min");
     if (slow.is_none()) {
         options.slow_feeds.clear();
     } else {
-        options.slow_feeds = py::isinstance<py::str>(slow) ? parse_slow_feeds(comma_entries(slow.cast<std::string>()))
-                                                           : numbers_times(slow, "slow_feeds_mm_per_min", mm_per_min);
+        options.slow_feeds = py::isinstance<py::str>(slow)
+                                 ? parse_slow_feeds(comma_entries(slow.cast<std::string>()))
+                                 : numbers_times(slow, "slow_feeds_mm_per_min", mm_per_min, feed_range);
+        if (options.slow_feeds.size() > 100)
+            throw InputError(fmt::format("slow_feeds_mm_per_min: {} feeds; at most 100", options.slow_feeds.size()));
     }
 }
 
@@ -437,38 +457,38 @@ TestPlanOptions plan_options(const OptionReader& o) {
     if (py::isinstance<py::str>(travel)) {
         std::tie(options.travel_min, options.travel_max) = parse_travel(travel.cast<std::string>());
     } else {
-        const auto limits = numbers_times(travel, "travel_mm", mm);
+        const auto limits = numbers_times(travel, "travel_mm", mm, position_range);
         if (limits.size() != 2) throw InputError("travel_mm: expected (min, max) [mm]");
         options.travel_min = limits[0];
         options.travel_max = limits[1];
     }
-    options.centers = numbers_times(o.object("centers_mm"), "centers_mm", mm);
-    options.stroke = o.number("stroke_mm").value_or(30.0) * mm;
+    options.centers = numbers_times(o.object("centers_mm"), "centers_mm", mm, position_range);
+    options.stroke = o.number("stroke_mm", {0.01, 1e5, "mm"}).value_or(30.0) * mm;
     plan_feeds(o, options);
-    options.max_pass_time = o.number("max_pass_time_s").value_or(8.0);
-    options.cycles = static_cast<int>(o.integer("cycles").value_or(2));
-    options.acceleration = o.number("acceleration_m_per_s2").value_or(1.0);
-    options.jerk = o.number("jerk_m_per_s3");
-    options.dwell = o.number("dwell_s").value_or(0.2);
-    options.sample_time = o.number("sample_time_s").value_or(0.001);
-    if (const auto feed = o.number("max_feed_mm_per_min")) options.max_feed = *feed * mm_per_min;
-    options.positioning_feed = o.number("positioning_feed_mm_per_min").value_or(5000.0) * mm_per_min;
-    if (const auto start = o.number("start_mm")) options.start_position = *start * mm;
+    options.max_pass_time = o.number("max_pass_time_s", {0.01, 3600.0, "s"}).value_or(8.0);
+    options.cycles = static_cast<int>(o.integer("cycles", {1, 100, "cycles"}).value_or(2));
+    options.acceleration = o.number("acceleration_m_per_s2", {1e-3, 1e3, "m/s^2"}).value_or(1.0);
+    options.jerk = o.number("jerk_m_per_s3", {1e-3, 1e6, "m/s^3"});
+    options.dwell = o.number("dwell_s", {0.0, 60.0, "s"}).value_or(0.2);
+    options.sample_time = o.number("sample_time_s", {1e-6, 1.0, "s"}).value_or(0.001);
+    if (const auto feed = o.number("max_feed_mm_per_min", feed_range)) options.max_feed = *feed * mm_per_min;
+    options.positioning_feed = o.number("positioning_feed_mm_per_min", feed_range).value_or(5000.0) * mm_per_min;
+    if (const auto start = o.number("start_mm", position_range)) options.start_position = *start * mm;
     return options;
 }
 
 PredictionOptions prediction_options(const OptionReader& o) {
     PredictionOptions nominal;
     FrictionBranch branch;
-    branch.viscous = o.number("viscous_Ns_per_m").value_or(54.2);
-    branch.coulomb = o.number("coulomb_N").value_or(742.8);
-    branch.breakaway = o.number("breakaway_N").value_or(946.2);
-    branch.stribeck_velocity = o.number("stribeck_velocity_mm_per_s").value_or(5.0) * mm;
-    nominal.drive.mass = o.number("mass_kg").value_or(69.1);
+    branch.viscous = o.number("viscous_Ns_per_m", {0.0, 1e7, "N*s/m"}).value_or(54.2);
+    branch.coulomb = o.number("coulomb_N", {0.0, 1e7, "N"}).value_or(742.8);
+    branch.breakaway = o.number("breakaway_N", {0.0, 1e7, "N"}).value_or(946.2);
+    branch.stribeck_velocity = o.number("stribeck_velocity_mm_per_s", {1e-3, 1e4, "mm/s"}).value_or(5.0) * mm;
+    nominal.drive.mass = o.number("mass_kg", {1e-3, 1e6, "kg"}).value_or(69.1);
     nominal.drive.friction = Friction::symmetric(branch);
-    nominal.force_noise = o.number("force_noise_N").value_or(10.0);
-    nominal.level_error = o.number("level_error_N").value_or(5.0);
-    nominal.position_resolution = o.number("position_resolution_um").value_or(1.0) * 1e-6;
+    nominal.force_noise = o.number("force_noise_N", {1e-9, 1e9, "N"}).value_or(10.0);
+    nominal.level_error = o.number("level_error_N", {1e-9, 1e9, "N"}).value_or(5.0);
+    nominal.position_resolution = o.number("position_resolution_um", {1e-6, 1e4, "um"}).value_or(1.0) * 1e-6;
     return nominal;
 }
 

@@ -2,7 +2,9 @@
 command line prints before exit 2, IdentificationError with what it prints before exit 1, TypeError/KeyError where
 Python's own conventions say so."""
 
+import inspect
 import json
+import re
 
 import numpy as np
 import pytest
@@ -51,10 +53,13 @@ def test_input_errors_carry_the_command_lines_message(emps, folder):
         feedid.identify(emps, channels={"position": "qm"}, units={"position": "furlong"}, force_constant="gtau")
     assert str(error.value) == expected
 
-    expected = cli_error("identify", emps, "--kt", "-1", "--lead", "10", expect=2)
+    expected = cli_error("identify", emps, "--force-constant", "gtau", "--kt", "1", "--lead", "10", expect=2)
     with pytest.raises(feedid.InputError) as error:
-        feedid.identify(emps, kt_Nm_per_A=-1, lead_mm=10)
+        feedid.identify(emps, force_constant="gtau", kt_Nm_per_A=1, lead_mm=10)
     assert str(error.value) == expected
+    # a value out of its range: the command line refuses it while parsing ("--kt: -1 is outside ..."); the same range
+    with pytest.raises(feedid.InputError, match=r"^kt_Nm_per_A=-1 is outside the allowed range 1e-05 to 500000 N\*m/A$"):
+        feedid.identify(emps, kt_Nm_per_A=-1, lead_mm=10)
 
 
 def test_bad_options(ladder):
@@ -66,15 +71,17 @@ def test_bad_options(ladder):
         (dict(filter_order="4"), "filter_order='4': expected an integer, not str"),
         (dict(cutoff_hz="100"), "cutoff_hz='100': expected a number, not str"),
         (dict(offset="yes"), "offset='yes': expected True or False, not str"),
-        (dict(edge_samples=-1), "edge_samples=-1: must be 0 or more"),
-        (dict(force_constant=0.0), "--force-constant must be a finite, non-zero number"),
+        (dict(edge_samples=-1), "edge_samples=-1 is outside the allowed range 0 to 1e+09 samples"),
+        (dict(force_constant=0.0), "--force-constant 0 is not allowed: a force constant is a finite number of either "
+                                   "sign with a magnitude from 1e-09 to 1e+09 N (N*m on a rotary axis) per unit of the "
+                                   "drive signal"),
     ]
     for options, message in cases:
         options.setdefault("force_constant", FORCE)
         with pytest.raises(feedid.InputError) as error:
             feedid.identify(ladder, **options)
         assert str(error.value) == message, options
-    with pytest.raises(feedid.InputError, match=r"^--lambda must lie in \(0, 1\]$"):
+    with pytest.raises(feedid.InputError, match=r"^forgetting_factor=1.5 is outside the allowed range 1e-06 to 1$"):
         feedid.identify(ladder, force_constant=FORCE, forgetting_factor=1.5)
     with pytest.raises(TypeError):
         feedid.identify(ladder, force_constant=FORCE, no_such_option=1)
@@ -91,7 +98,7 @@ def test_reading_options(emps):
     with pytest.raises(feedid.InputError) as error:
         feedid.read_trace(emps, channels={"speed": "qm"})
     assert str(error.value) == expected.replace("--channel", "channels")
-    with pytest.raises(feedid.InputError, match="^skip_rows=-1: must be 0 or more lines$"):
+    with pytest.raises(feedid.InputError, match="^skip_rows=-1 is outside the allowed range 0 to 1e\\+09 lines$"):
         feedid.read_trace(emps, skip_rows=-1)
     with pytest.raises(feedid.InputError, match="^join_max_shift_s needs join='FILE@auto'$"):
         feedid.read_trace(emps, join_max_shift_s=0.1)
@@ -134,7 +141,7 @@ def test_gains_that_cannot_be_trusted_or_determined(folder, ladder):
     assert error.value.result is None
     with pytest.raises(feedid.InputError, match="velocity_loop='pid': one of 'auto', 'p', 'pi'"):
         feedid.gains(ladder, force_constant=FORCE, velocity_loop="pid")
-    with pytest.raises(feedid.InputError, match="velocity_difference=9: between 1 and 8 samples"):
+    with pytest.raises(feedid.InputError, match="^velocity_difference=9 is outside the allowed range 1 to 8 samples$"):
         feedid.gains(ladder, force_constant=FORCE, velocity_difference=9)
 
 
@@ -273,3 +280,89 @@ def test_json_documents_from_paths(folder, ladder):
     result = folder / "result.json"
     result.write_text(json.dumps(feedid.identify(ladder, force_constant=FORCE).to_dict()))
     assert feedid.simulate(ladder, result, force_constant=FORCE).status == "ok"
+
+
+def test_no_option_takes_nan_or_an_infinity(ladder, folder):
+    """Every number-valued keyword of the functions that take options (from their signatures, so that a new option
+    is covered) refuses nan and infinities naming the option, as the command line does while parsing."""
+    path = str(folder / "ladder.csv")
+    ladder.to_csv(path)
+    result = feedid.identify(ladder, force_constant=FORCE)
+    calls = {
+        feedid.identify: lambda **o: feedid.identify(path, **{"force_constant": FORCE, **o}),
+        feedid.gains: lambda **o: feedid.gains(path, **{"force_constant": FORCE, **o}),
+        feedid.simulate: lambda **o: feedid.simulate(path, result, **{"force_constant": FORCE, **o}),
+        feedid.plan: lambda **o: feedid.plan(**{"travel_mm": (-400, 400), "centers_mm": [0], **o}),
+        feedid.read_trace: lambda **o: feedid.read_trace(path, **o),
+    }
+    checked = 0
+    for function, call in calls.items():
+        for name, parameter in inspect.signature(function).parameters.items():
+            if str(parameter.annotation) not in ("float", "Optional[float]", "Union[float, str, None]"):
+                continue  # a number alone (lists of numbers: below)
+            for bad in (float("nan"), float("inf"), -float("inf")):
+                with pytest.raises(feedid.InputError, match=f"^{name}={bad!r}: not a finite number$"):
+                    call(**{name: bad})
+            checked += 1
+    assert checked >= 30
+    with pytest.raises(feedid.InputError, match="centers_mm: nan is not a finite number"):
+        feedid.plan(travel_mm=(-400, 400), centers_mm=[float("nan")])
+    with pytest.raises(feedid.InputError, match="travel_mm: inf is not a finite number"):
+        feedid.plan(travel_mm=(-400, float("inf")), centers_mm=[0])
+    with pytest.raises(feedid.InputError, match="slow_feeds_mm_per_min: nan is not a finite number"):
+        feedid.plan(travel_mm=(-400, 400), centers_mm=[0], slow_feeds_mm_per_min=[10.0, float("nan")])
+    with pytest.raises(feedid.InputError, match="^injection: expected"):
+        feedid.synth(injection=(float("nan"), 1.0))
+
+
+# Python keyword -> the command line's option, per command: the ranges the command line states for its options.
+RANGED = {
+    "identify": {"filter_order": "--filter-order", "cutoff_hz": "--cutoff", "savitzky_golay_window": "--sg-window",
+                 "savitzky_golay_order": "--sg-order", "decimation": "--decimate", "edge_samples": "--edge-samples",
+                 "from_s": "--from", "to_s": "--to", "split_velocity": "--split-velocity",
+                 "moving_threshold": "--moving-threshold", "forgetting_factor": "--lambda",
+                 "initial_covariance": "--p0", "kt_Nm_per_A": "--kt", "lead_mm": "--lead", "gear_ratio": "--gear-ratio",
+                 "sample_time_s": "--sample-time", "skip_rows": "--skip-rows", "join_max_shift_s": "--join-max-shift"},
+    "gains": {"velocity_difference": "--velocity-difference", "current_lag_ms": "--current-lag-ms",
+              "saturation": "--saturation", "forgetting": "--forgetting"},
+    "simulate": {"substeps": "--substeps"},
+    "plan": {"stroke_mm": "--stroke", "max_pass_time_s": "--max-pass-time", "cycles": "--cycles",
+             "acceleration_m_per_s2": "--acceleration", "jerk_m_per_s3": "--jerk", "dwell_s": "--dwell",
+             "sample_time_s": "--sample-time", "max_feed_mm_per_min": "--max-feed",
+             "positioning_feed_mm_per_min": "--positioning-feed", "start_mm": "--start", "mass_kg": "--mass",
+             "viscous_Ns_per_m": "--viscous", "coulomb_N": "--coulomb", "breakaway_N": "--breakaway",
+             "stribeck_velocity_mm_per_s": "--stribeck-velocity", "force_noise_N": "--force-noise",
+             "level_error_N": "--level-error", "position_resolution_um": "--position-resolution"},
+}
+
+
+def test_options_have_the_command_lines_ranges(ladder, folder):
+    """A value the command line refuses as outside an option's range, Python refuses for that keyword, stating the same
+    range (the command line refuses while parsing, before any file is read)."""
+    path = str(folder / "ladder.csv")
+    ladder.to_csv(path)
+    result_path = folder / "result.json"
+    result_path.write_text(json.dumps(feedid.identify(ladder, force_constant=FORCE).to_dict()))
+    base = {"identify": ["identify", path, "--force-constant", "1"], "gains": ["gains", path, "--force-constant", "1"],
+            "simulate": ["simulate", path, "--force-constant", "1", "--result", str(result_path)],
+            "plan": ["plan", "--travel=-400:400", "--centers=0"]}
+    python = {"identify": lambda **o: feedid.identify(path, **o), "gains": lambda **o: feedid.gains(path, **o),
+              "simulate": lambda **o: feedid.simulate(path, str(result_path), **o),
+              "plan": lambda **o: feedid.plan(travel_mm=(-400, 400), centers_mm=[0], **o)}
+    compared = 0
+    for command, options in RANGED.items():
+        for keyword, option in options.items():
+            parameter = inspect.signature(getattr(feedid, command)).parameters[keyword]
+            whole = "int" in str(parameter.annotation)
+            for value in ((10**9 + 7, -10**9 - 7) if whole else (1e300, -1e300)):
+                refused = run_cli(*base[command], option, str(value), expect=None)
+                cli = re.search(r"is outside the allowed range (.*)$", refused.stderr.strip())
+                if refused.returncode != 2 or not cli:
+                    continue
+                extra = {"lead_mm": 10} if keyword == "kt_Nm_per_A" else {}
+                with pytest.raises(feedid.InputError) as error:
+                    python[command](**{keyword: value, **extra})
+                ours = re.search(r"is outside the allowed range (.*)$", str(error.value))
+                assert ours and ours.group(1) == cli.group(1), (command, keyword, value, str(error.value))
+                compared += 1
+    assert compared >= 70
