@@ -7,6 +7,7 @@
 
 #include "feedid/parameters.hpp"
 #include "feedid/signal.hpp"
+#include "feedid/step1.hpp"
 
 namespace feedid {
 
@@ -172,6 +173,7 @@ FrictionOnlyFit fit_friction_only(const Derivatives& d, const Selection& s, Fric
         }
     }
     fit.batch = solve_least_squares(phi, y);
+    account_for_correlated_residuals(fit.batch, phi, y, rows, correlation_block(d, options.correlation_blocks));
     if (fit.batch.rank_deficient) {
         fit.failure =
             "the steady-speed samples cannot separate the friction parameters (one direction only, and an "

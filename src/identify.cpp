@@ -2,11 +2,18 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
+#include <exception>
+#include <thread>
 
 #include <fmt/core.h>
+#include <fmt/ranges.h>
 
+#include "feedid/consistency.hpp"
 #include "feedid/error.hpp"
+#include "feedid/native_interval.hpp"
+#include "feedid/signal.hpp"
 #include "feedid/version.hpp"
 
 namespace feedid {
@@ -145,12 +152,15 @@ Parameter& parameter(IdentifyResult& result, Term term, Direction direction) {
     throw std::logic_error("identify: the model has no such parameter");
 }
 
-Step1Report step1_report(const Step1Fit& fit, const ParameterNaming& naming) {
+/// A batch least-squares fit as reported: per column its key and estimate, the figures of merit and the
+/// estimates' correlations.
+Step1Report batch_report(const std::vector<RegressorColumn>& columns, const LeastSquaresResult& batch,
+                         const ParameterNaming& naming) {
     Step1Report report;
-    const auto& batch = fit.batch;
-    for (std::size_t c = 0; c < fit.columns.size(); ++c) {
-        const auto i = static_cast<Eigen::Index>(c);
-        report.keys.push_back(naming.key(fit.columns[c].term, fit.columns[c].direction));
+    const auto p = static_cast<Eigen::Index>(columns.size());
+    for (Eigen::Index i = 0; i < p; ++i) {
+        const auto& column = columns[static_cast<std::size_t>(i)];
+        report.keys.push_back(naming.key(column.term, column.direction));
         report.batch.push_back(Estimate::of(batch.estimate(i), batch.standard_error(i)));
     }
     report.relative_error_pct = batch.relative_error_pct;
@@ -158,7 +168,53 @@ Step1Report step1_report(const Step1Fit& fit, const ParameterNaming& naming) {
     report.samples_used = batch.samples;
     report.residual_std = batch.residual_std;
     report.r_diagonal.assign(batch.r_diagonal.data(), batch.r_diagonal.data() + batch.r_diagonal.size());
+    report.white_noise_standard_error.assign(
+        batch.white_noise_standard_error.data(),
+        batch.white_noise_standard_error.data() + batch.white_noise_standard_error.size());
+    if (batch.covariance.rows() == p && batch.covariance.allFinite()) {
+        report.correlation.assign(static_cast<std::size_t>(p), std::vector<double>(static_cast<std::size_t>(p), 0.0));
+        for (Eigen::Index i = 0; i < p; ++i) {
+            for (Eigen::Index j = 0; j < p; ++j) {
+                const double scale = std::sqrt(batch.covariance(i, i) * batch.covariance(j, j));
+                report.correlation[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)] =
+                    scale > 0.0 ? batch.covariance(i, j) / scale : (i == j ? 1.0 : 0.0);
+            }
+        }
+    }
     return report;
+}
+
+/// Correlations above the threshold between M and B, and between B and F_C (per direction), said with the test
+/// that would separate them.
+void flag_correlations(const Step1Report& report, const std::vector<RegressorColumn>& columns, double threshold,
+                       std::vector<std::string>& diagnostics) {
+    if (report.correlation.empty()) return;
+    for (std::size_t i = 0; i < columns.size(); ++i) {
+        for (std::size_t j = i + 1; j < columns.size(); ++j) {
+            const Term a = columns[i].term, b = columns[j].term;
+            const bool mass_viscous = a == Term::mass && b == Term::viscous;
+            const bool viscous_coulomb =
+                a == Term::viscous && b == Term::coulomb && columns[i].direction == columns[j].direction;
+            const double r = report.correlation[i][j];
+            if (!(mass_viscous || viscous_coulomb) || !(std::abs(r) > threshold)) continue;
+            const std::string pair = fmt::format("{} and {}", ParameterNaming::symbol(a, columns[i].direction),
+                                                 ParameterNaming::symbol(b, columns[j].direction));
+            diagnostics.push_back(
+                viscous_coulomb
+                    ? fmt::format("{} are {:.3f} correlated: the trace holds too few distinct constant speeds to tell "
+                                  "viscous from Coulomb friction; record constant-velocity passes at several "
+                                  "feedrates (feedid plan designs them)",
+                                  pair, r)
+                    : fmt::format("{} are {:.3f} correlated: the axis accelerates at too few speeds to tell inertia "
+                                  "from viscous friction; record strokes that accelerate at several feedrates, with "
+                                  "reversals (feedid plan designs them)",
+                                  pair, r));
+        }
+    }
+}
+
+Step1Report step1_report(const Step1Fit& fit, const ParameterNaming& naming) {
+    return batch_report(fit.columns, fit.batch, naming);
 }
 
 RlsReport rls_report(const Step1Fit& fit, const std::vector<std::string>& keys) {
@@ -181,6 +237,7 @@ RlsReport rls_report(const Step1Fit& fit, const std::vector<std::string>& keys) 
 
 /// Step 1's estimates into the result, with what the RLS run says about itself.
 void apply_step1(const Step1Fit& fit, IdentifyResult& result) {
+    if (!fit.residual_finding.empty()) result.diagnostics.push_back(fit.residual_finding);
     for (std::size_t c = 0; c < fit.columns.size(); ++c) {
         const auto i = static_cast<Eigen::Index>(c);
         parameter(result, fit.columns[c].term, fit.columns[c].direction).estimate =
@@ -305,20 +362,13 @@ IdentifyResult friction_only_result(IdentifyResult result, const Derivatives& d,
         return failed(std::move(result),
                       fmt::format("{}; friction alone cannot be identified either: {}", why, fit.failure));
     }
+    if (auto opposed = opposed_drive_signal(fit.columns, fit.batch, d, options.step1.sign_standard_errors))
+        return failed(std::move(result), *opposed);
     const ParameterNaming naming{d.rotary};
-    Step1Report report;
-    for (std::size_t c = 0; c < fit.columns.size(); ++c) {
-        const auto i = static_cast<Eigen::Index>(c);
-        const Estimate estimate = Estimate::of(fit.batch.estimate(i), fit.batch.standard_error(i));
-        parameter(result, fit.columns[c].term, fit.columns[c].direction).estimate = estimate;
-        report.keys.push_back(naming.key(fit.columns[c].term, fit.columns[c].direction));
-        report.batch.push_back(estimate);
-    }
-    report.relative_error_pct = fit.batch.relative_error_pct;
-    report.condition_number = fit.batch.condition_number;
-    report.samples_used = fit.batch.samples;
-    report.residual_std = fit.batch.residual_std;
-    report.r_diagonal.assign(fit.batch.r_diagonal.data(), fit.batch.r_diagonal.data() + fit.batch.r_diagonal.size());
+    Step1Report report = batch_report(fit.columns, fit.batch, naming);
+    for (std::size_t c = 0; c < fit.columns.size(); ++c)
+        parameter(result, fit.columns[c].term, fit.columns[c].direction).estimate = report.batch[c];
+    flag_correlations(report, fit.columns, options.correlation_finding, result.diagnostics);
     result.step1 = std::move(report);
     const std::string reason = mass_reason(d, resolution, fit, step1_failure);
     result.friction_only =
@@ -336,6 +386,54 @@ IdentifyResult friction_only_result(IdentifyResult result, const Derivatives& d,
     return result;
 }
 
+/// B and F_C of a direction group whose constant-speed samples all run at about one speed (their 90th percentile
+/// below separable_speed_ratio times their 10th) and make most of step 1's samples: then the friction at that speed,
+/// F_C + B*v, is well determined, and what splits it into B and F_C is the ramps' few samples, where anything step 1
+/// does not model (a Stribeck tail, the current loop's lag) decides it. Both null, and the friction the speed does
+/// determine said in figures. A single long move whose ramps are most of the samples keeps them (the rig's drive:
+/// 22 % of step 1 steady).
+void null_inseparable_friction(IdentifyResult& result, const Derivatives& d, const Selection& s,
+                               const IdentifyOptions& options) {
+    const ParameterNaming naming{d.rotary};
+    const bool asymmetric = result.model == FrictionModelKind::asymmetric;
+    for (int g = 0; g < (asymmetric ? 2 : 1); ++g) {
+        const Direction direction = !asymmetric ? Direction::both : g == 0 ? Direction::forward : Direction::reverse;
+        std::vector<double> speeds;
+        for (const auto k : s.moving) {
+            if (s.steady(k) && (!asymmetric || (d.velocity[k] > 0.0) == (g == 0)))
+                speeds.push_back(std::abs(d.velocity[k]));
+        }
+        const double low = percentile(speeds, 0.1), high = percentile(speeds, 0.9);
+        if (speeds.empty() || high >= options.separable_speed_ratio * low) continue;
+        // B rests on the ramps: trusted where they are most of step 1's samples (a single long move), not where a
+        // few ramp samples decide it against many at the one speed
+        std::size_t in_group = 0, steady = 0;
+        for (const auto k : s.step1) {
+            if (asymmetric && (d.velocity[k] > 0.0) != (g == 0)) continue;
+            ++in_group;
+            if (s.steady(k)) ++steady;
+        }
+        const bool mostly_steady =
+            static_cast<double>(steady) > options.inseparable_steady_fraction * static_cast<double>(in_group);
+        if (!mostly_steady) continue;
+        Estimate& viscous = parameter(result, Term::viscous, direction).estimate;
+        Estimate& coulomb = parameter(result, Term::coulomb, direction).estimate;
+        if (!viscous.value || !coulomb.value) continue;
+        const double speed = percentile(speeds, 0.5);
+        result.diagnostics.push_back(fmt::format(
+            "{} and {}: the constant-speed samples all run at about {:.4g} {} (10th to 90th percentile {:.4g} to "
+            "{:.4g}): one speed determines only the friction there, {:.5g} {}, not how it splits into viscous and "
+            "Coulomb friction; both left null. Record constant-velocity passes at several feedrates (feedid plan "
+            "designs them)",
+            ParameterNaming::symbol(Term::viscous, direction), ParameterNaming::symbol(Term::coulomb, direction),
+            speed * naming.display_velocity_scale(), naming.display_velocity_unit(),
+            low * naming.display_velocity_scale(), high * naming.display_velocity_scale(),
+            *coulomb.value + *viscous.value * speed, naming.force_unit()));
+        viscous = Estimate{};
+        coulomb = Estimate{};
+    }
+}
+
 /// Steps 1 and 2 on the selected samples, and the result's final touches.
 IdentifyResult fit_steps(IdentifyResult result, const Derivatives& derivatives, const Regressors& regressors,
                          const Selection& selection, const IdentifyOptions& options) {
@@ -347,15 +445,18 @@ IdentifyResult fit_steps(IdentifyResult result, const Derivatives& derivatives, 
                                     assess_resolution(derivatives, options.friction_only), step1.failure, options);
     }
     apply_step1(step1, result);
+    flag_correlations(*result.step1, step1.columns, options.correlation_finding, result.diagnostics);
 
     if (options.stribeck) {
         FrictionFitOptions friction_options = options.friction;
         friction_options.minimum_slow_samples = options.selection.minimum_slow_samples;
+        friction_options.correlation_blocks = options.step1.correlation_blocks;
         apply_step2(fit_friction_curve(derivatives, selection, step1, friction_options), result);
     } else {
         result.stribeck = StribeckReport{};
         result.diagnostics.push_back("Stribeck step skipped (--no-stribeck): F_B and v_s not estimated");
     }
+    null_inseparable_friction(result, derivatives, selection, options);
     flag_undetermined(result);
     result.axis = axis_from_parameters(result.parameters, result.model, result.rotary);
     result.friction_curve = FrictionCurveReport{bin_friction_curve(derivatives, selection, result.axis, true),
@@ -381,9 +482,102 @@ IdentifyResult run_stages(const Trace& trace, std::span<const double> force, con
     const Selection selection = select_samples(derivatives, regressors, selection_options);
     result.preprocessing = derivatives.used;
     result.selection = selection.report;
+    // what was left out because the data there is not the model's, said where every reader looks
+    for (const auto& note : selection.report.notes) {
+        if (note.find("stick-slip") != std::string::npos || note.find("clipped or saturated") != std::string::npos)
+            result.diagnostics.push_back(note);
+    }
     if (const Resolution resolution = assess_resolution(derivatives, options.friction_only); resolution.coarse())
         return friction_only_result(std::move(result), derivatives, selection, resolution, {}, options);
     return fit_steps(std::move(result), derivatives, regressors, selection, options);
+}
+
+/// The stages over each member of the family, on as many threads as the machine has cores (the runs share nothing
+/// but the trace and the force, both read only); a member the trace cannot take (InputError) is empty.
+std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, std::span<const double> force,
+                                                      const IdentifyOptions& base,
+                                                      const std::vector<PreprocessingVariant>& family) {
+    std::vector<std::optional<IdentifyResult>> runs(family.size());
+    std::vector<std::exception_ptr> errors(family.size());
+    std::atomic<std::size_t> next{0};
+    const auto work = [&] {
+        for (std::size_t v = next++; v < family.size(); v = next++) {
+            IdentifyOptions options = base;
+            options.preprocess = family[v].options;
+            if (family[v].split_velocity) options.selection.split_velocity = family[v].split_velocity;
+            try {
+                runs[v] = run_stages(trace, force, options);
+            } catch (const InputError&) {
+                runs[v].reset();
+            } catch (...) {
+                errors[v] = std::current_exception();  // an internal error: raised again on the calling thread
+            }
+        }
+    };
+    const std::size_t threads = std::min<std::size_t>(family.size(), std::max(1u, std::thread::hardware_concurrency()));
+    std::vector<std::thread> pool;
+    for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(work);
+    work();
+    for (auto& thread : pool) thread.join();
+    for (const auto& error : errors) {
+        if (error) std::rethrow_exception(error);
+    }
+    return runs;
+}
+
+/// The preprocessing family's estimates (systematic.hpp): each parameter's systematic part is the largest deviation
+/// of a variant's estimate from the nominal one (variants that leave it undetermined do not count; with none left it
+/// stays unassessed), said in a finding where it exceeds the multiple of the standard error.
+void assess_systematic(const Trace& trace, std::span<const double> force, const IdentifyOptions& options,
+                       IdentifyResult& result) {
+    const bool from_velocity = result.preprocessing->velocity_source == "velocity";
+    const double interval = native_interval_of(trace, from_velocity ? Role::velocity : Role::position);
+    IdentifyOptions variant_options = options;
+    variant_options.systematic = false;
+    SystematicReport report;
+    std::vector<std::optional<double>> spread(result.parameters.size());
+    std::vector<std::string> widest(result.parameters.size());
+    const ParameterNaming naming{result.rotary};
+    // the larger of the split used and the one chosen before slow ramps joined step 1: doubling a split that fell to
+    // the moving threshold would test nothing
+    const double split =
+        result.selection ? std::max(result.selection->split_velocity, result.selection->initial_split) : 0.0;
+    const auto family = preprocessing_family(options.preprocess, *result.preprocessing, interval, split,
+                                             naming.display_velocity_scale(), naming.display_velocity_unit());
+    const auto runs = run_family(trace, force, variant_options, family);
+    for (std::size_t v = 0; v < family.size(); ++v) {
+        if (!runs[v]) continue;  // a variant this trace cannot take (a window longer than the trace)
+        const auto& variant = family[v];
+        const IdentifyResult& other = *runs[v];
+        SystematicVariant record{variant.label, other.status, {}, {}};
+        for (std::size_t i = 0; i < result.parameters.size(); ++i) {
+            const Parameter& nominal = result.parameters[i];
+            const Parameter* found = other.find(nominal.key);
+            const std::optional<double> value = found != nullptr ? found->estimate.value : std::nullopt;
+            record.keys.push_back(nominal.key);
+            record.values.push_back(value);
+            if (!nominal.estimate.value || !value) continue;
+            const double deviation = std::abs(*value - *nominal.estimate.value);
+            if (!spread[i] || deviation > *spread[i]) widest[i] = variant.label;
+            spread[i] = std::max(spread[i].value_or(0.0), deviation);
+        }
+        report.variants.push_back(std::move(record));
+    }
+    for (std::size_t i = 0; i < result.parameters.size(); ++i) {
+        Parameter& p = result.parameters[i];
+        if (!spread[i]) continue;
+        p.estimate.set_systematic(*spread[i]);
+        const double statistical = p.estimate.standard_error.value_or(0.0);
+        if (*spread[i] > options.systematic_finding_multiple * statistical) {
+            result.diagnostics.push_back(fmt::format(
+                "{} = {:.4g} {}: the preprocessing moves it by up to {:.2g} (with {}), more than {:g} times its "
+                "standard error {:.2g}: how the position is filtered decides this value; its uncertainty {:.2g} "
+                "includes that",
+                p.symbol, *p.estimate.value, p.unit, *spread[i], widest[i], options.systematic_finding_multiple,
+                statistical, *p.estimate.uncertainty));
+        }
+    }
+    result.systematic = std::move(report);
 }
 
 /// A drive signal without a constant that turns it into force (a current in A, no --kt/--lead).
@@ -398,6 +592,10 @@ const Channel* signal_without_force_constant(const Trace& trace, const DriveCons
 
 IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
+    if (const auto problems = unit_inconsistencies(trace); !problems.empty()) {
+        throw InputError(fmt::format("{}: {}", trace.source_path.empty() ? std::string("trace") : trace.source_path,
+                                     fmt::join(problems, "; ")));
+    }
     if (const Channel* signal = signal_without_force_constant(trace, options.drive)) {
         // Whether the data can identify anything at all does not depend on the force constant: find out in signal
         // units first, so that a trace that cannot identify a mass says so (exit 1) instead of asking for a constant
@@ -412,7 +610,10 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
             return provisional;
         }
     }
-    IdentifyResult result = run_stages(trace, drive_force(trace, options.drive), options);  // throws without one
+    const std::vector<double> force = drive_force(trace, options.drive);  // throws without a constant
+    IdentifyResult result = run_stages(trace, force, options);
+    if (options.systematic && result.status != Status::failed && result.preprocessing)
+        assess_systematic(trace, force, options, result);
     // Drive constants outside what feed drives have: the figures are right for the constants given, which may not be.
     for (auto& warning : options.drive.warnings()) result.diagnostics.push_back(std::move(warning));
     return result;

@@ -51,7 +51,9 @@ std::size_t butterworth_edge(const PreprocessOptions& options, double cutoff_hz,
 /// The Savitzky-Golay window [samples]: as given, or the default span at this rate (odd, at least 5).
 int savitzky_golay_window(const PreprocessOptions& options, double fs) {
     if (options.savitzky_golay_window != 0) return options.savitzky_golay_window;
-    return std::max(5, static_cast<int>(std::lround(options.savitzky_golay_span_s * fs)) | 1);
+    // odd, at least 5 and above the polynomial order (a window of the order's size fits the samples exactly)
+    const int above_order = (options.savitzky_golay_order + 2) | 1;
+    return std::max({5, above_order, static_cast<int>(std::lround(options.savitzky_golay_span_s * fs)) | 1});
 }
 
 /// x' and x'' of the window's position by the chosen method, and the edge trim that method needs.
@@ -77,10 +79,17 @@ Differentiated differentiate(std::span<const double> x, double dt, const Preproc
         case Differentiation::savitzky_golay: {
             used.differentiation = "savitzky-golay";
             const int window = savitzky_golay_window(options, fs);
+            used.savitzky_golay_window = window;
+            used.savitzky_golay_order = options.savitzky_golay_order;
             if (static_cast<std::size_t>(window) > x.size()) return out;  // the caller reports it
-            out.velocity = savitzky_golay(x, window, options.savitzky_golay_order, 1, dt);
-            out.acceleration = savitzky_golay(x, window, options.savitzky_golay_order, 2, dt);
-            out.default_edge = static_cast<std::size_t>(window / 2 + 1);
+            // smoothed, then differentiated as the Butterworth's output is: the force goes through the same
+            // smoothing, and x'' is then exactly the central second difference of a signal filtered like it (the
+            // Savitzky-Golay derivative filters are other low-passes than its smoothing filter: with them M came out
+            // 1.1 % low on the demo axis)
+            const auto smoothed = savitzky_golay(x, window, options.savitzky_golay_order, 0, dt);
+            out.velocity = central_difference(smoothed, dt);
+            out.acceleration = central_difference(out.velocity, dt);
+            out.default_edge = static_cast<std::size_t>(window / 2 + 3);
             break;
         }
     }
@@ -106,6 +115,8 @@ Differentiated differentiate_velocity(std::span<const double> v, double dt, cons
         case Differentiation::savitzky_golay: {
             used.differentiation = "savitzky-golay";
             const int window = savitzky_golay_window(options, fs);
+            used.savitzky_golay_window = window;
+            used.savitzky_golay_order = options.savitzky_golay_order;
             if (static_cast<std::size_t>(window) > v.size()) return out;  // the caller reports it
             out.velocity = savitzky_golay(v, window, options.savitzky_golay_order, 0, dt);
             out.default_edge = static_cast<std::size_t>(window / 2 + 1);
@@ -137,22 +148,6 @@ bool use_logged_velocity(const Trace& trace, std::span<const double> logged, dou
     return quantum > options.coarse_position_fraction * typical * dt;
 }
 
-std::vector<double> slice(std::span<const double> column, std::size_t first, std::size_t last) {
-    return {column.begin() + static_cast<std::ptrdiff_t>(first), column.begin() + static_cast<std::ptrdiff_t>(last)};
-}
-
-/// Every column through the same anti-alias filter, then every N-th sample (IDIM practice).
-void decimate_columns(Derivatives& d, int factor) {
-    d.full_rate_velocity = std::move(d.velocity);
-    d.full_rate_acceleration = std::move(d.acceleration);
-    d.velocity = decimate(d.full_rate_velocity, factor);
-    d.acceleration = decimate(d.full_rate_acceleration, factor);
-    d.force = decimate(d.force, factor);
-    std::vector<double> time;
-    for (const auto k : decimation_indices(d.time.size(), factor)) time.push_back(d.time[k]);
-    d.time = std::move(time);
-}
-
 /// Where a held position takes new values: every `factor`-th sample from `phase` (factor 1: not held).
 struct PositionHold {
     int factor{1};
@@ -166,15 +161,30 @@ PositionHold position_hold(const Trace& trace, std::span<const double> position)
     return {factor, hold_phase(position, factor)};
 }
 
-/// A drive force sampled faster than a held position, through the position's Butterworth (zero phase, the same
-/// cut-off): what the force holds above the position's band its derivatives cannot match, and a force with it and an
-/// acceleration without it bias M (IDIM's parallel filtering of y and phi; on the rotary SINUMERIK-like synthetic
-/// axis M came out 1.25 % high without, 0.9 % with, and the fit's relative error fell from 5.4 % to 1.4 %). Empty
-/// when the position is not held or not Butterworth-filtered: the force is used as it is.
-std::vector<double> force_in_position_band(std::span<const double> force, PositionHold hold, const Derivatives& d,
-                                           const PreprocessOptions& options) {
-    if (hold.factor < 2 || options.differentiation != Differentiation::butterworth) return {};
-    return filtfilt(butterworth_lowpass(options.filter_order, d.used.cutoff_hz, 1.0 / d.sample_time_s), force);
+/// The drive force through the low-pass the position (or the logged velocity) went through before it was
+/// differentiated: zero-phase, the same cut-off, or the same Savitzky-Golay window (IDIM's parallel filtering of y and
+/// phi). A force with content above the band that the filtered acceleration cannot have biases M: on a stick-slip
+/// axis, whose slip bursts are short, M came out 17 % high with the force left unfiltered, and on the rotary
+/// SINUMERIK-like synthetic axis 1.25 % high. Central differences filter nothing, so neither is the force.
+std::vector<double> filter_like_position(std::span<const double> force, const PreprocessReport& used, double dt) {
+    std::vector<double> filtered(force.begin(), force.end());
+    if (used.differentiation == "butterworth")
+        filtered = filtfilt(butterworth_lowpass(used.filter_order, used.cutoff_hz, 1.0 / dt), force);
+    if (used.differentiation == "savitzky-golay" &&
+        static_cast<std::size_t>(used.savitzky_golay_window) <= force.size())
+        filtered = savitzky_golay(force, used.savitzky_golay_window, used.savitzky_golay_order, 0, dt);
+    // Central differences are low-passes too: x'' = D_c(D_c(x)) has the response -w^2 * sinc^2(w*dt) of the true
+    // second derivative, x'' = D_c(v) of a logged velocity iw * sinc(w*dt). The three-tap kernels [1 1 1]/3 and
+    // [1 4 1]/6 match sinc^2 and sinc to second order (at a tenth of the sample rate sinc^2 is 0.87: the force
+    // would otherwise carry 13 % more of that frequency than M*x'' does).
+    const bool from_velocity = used.velocity_source == "velocity";
+    const double centre = from_velocity ? 4.0 / 6.0 : 1.0 / 3.0, side = from_velocity ? 1.0 / 6.0 : 1.0 / 3.0;
+    std::vector<double> out(filtered.size());
+    for (std::size_t k = 0; k < filtered.size(); ++k) {
+        const double before = filtered[k > 0 ? k - 1 : k], after = filtered[k + 1 < filtered.size() ? k + 1 : k];
+        out[k] = side * before + centre * filtered[k] + side * after;
+    }
+    return out;
 }
 
 /// min(100 Hz, fs/10) of the position signal's native rate.
@@ -270,6 +280,197 @@ std::span<const double> velocity_signal(const Trace& trace, std::size_t first, s
     return x;
 }
 
+/// A stretch of the analysis window without time-stamp jumps, [first, last) relative to the window.
+struct Segment {
+    std::size_t first{0};
+    std::size_t last{0};
+};
+
+/// The window cut at every step longer than gap_factor sample times (samples the recorder dropped): differentiating
+/// across one would turn the travel during the gap into a velocity spike.
+std::vector<Segment> contiguous_segments(std::span<const double> time, double dt, double gap_factor) {
+    std::vector<Segment> segments;
+    std::size_t begin = 0;
+    for (std::size_t k = 1; k < time.size(); ++k) {
+        if (time[k] - time[k - 1] > gap_factor * dt) {
+            segments.push_back({begin, k});
+            begin = k;
+        }
+    }
+    segments.push_back({begin, time.size()});
+    return segments;
+}
+
+std::string gap_note(std::span<const double> time, const std::vector<Segment>& segments, const Derivatives& d) {
+    double largest = 0.0;
+    for (std::size_t s = 1; s < segments.size(); ++s) {
+        largest = std::max(largest, time[segments[s].first] - time[segments[s].first - 1]);
+    }
+    return fmt::format(
+        "{}: the time stamps jump at {} place(s) (samples missing; the longest gap {:.6g} s): each stretch between "
+        "jumps is filtered and differentiated on its own, its edges trimmed",
+        d.source, segments.size() - 1, largest);
+}
+
+/// The commanded motion over the window, for telling a commanded stop from a stuck axis: the reference position
+/// (differentiated after the position's low-pass) or, without one, the velocity command.
+struct Reference {
+    std::span<const double> values;  ///< over the window; empty without a reference
+    bool is_position{false};
+};
+
+Reference reference_of(const Trace& trace, std::size_t first, std::size_t last) {
+    for (const Role role : {Role::reference_position, Role::velocity_command}) {
+        if (const Channel* channel = trace.find(role)) {
+            return {std::span<const double>(channel->values).subspan(first, last - first),
+                    role == Role::reference_position};
+        }
+    }
+    return {};
+}
+
+/// The reference velocity over one stretch [m/s]: the velocity command as logged, or the reference position through
+/// the Butterworth at the cut-off used (whatever the differentiation: a reference held over a slower cycle is a
+/// staircase), then central differences.
+std::vector<double> reference_velocity(const Reference& reference, const Segment& segment, const Derivatives& d,
+                                       const PreprocessOptions& options) {
+    const auto part = reference.values.subspan(segment.first, segment.last - segment.first);
+    if (!reference.is_position) return {part.begin(), part.end()};
+    const double fs = 1.0 / d.sample_time_s;
+    if (!(d.used.cutoff_hz < 0.5 * fs)) return central_difference(part, d.sample_time_s);
+    return central_difference(filtfilt(butterworth_lowpass(options.filter_order, d.used.cutoff_hz, fs), part),
+                              d.sample_time_s);
+}
+
+/// One stretch: differentiate, filter the force alike, trim the edges, append to d.
+void append_segment(std::span<const double> x, std::span<const double> force, std::span<const double> time,
+                    const Reference& reference, const Segment& segment, const PreprocessOptions& options,
+                    Derivatives& d, std::vector<std::size_t>& window_index) {
+    const std::size_t length = segment.last - segment.first;
+    const auto part = x.subspan(segment.first, length);
+    Differentiated derivatives = d.velocity_from_position()
+                                     ? differentiate(part, d.sample_time_s, options, d.used)
+                                     : differentiate_velocity(part, d.sample_time_s, options, d.used);
+    const std::size_t edge = options.edge_samples.value_or(derivatives.default_edge);
+    d.used.edge_samples = edge;
+    if (derivatives.velocity.empty() || length <= 2 * edge + options.minimum_samples) return;
+    const std::vector<double> filtered_force =
+        filter_like_position(force.subspan(segment.first, length), d.used, d.sample_time_s);
+    const std::vector<double> commanded =
+        reference.values.empty() ? std::vector<double>{} : reference_velocity(reference, segment, d, options);
+    d.segment_starts.push_back(d.time.size());
+    const std::size_t room = d.time.size() + length - 2 * edge;
+    for (auto* column : {&d.time, &d.velocity, &d.acceleration, &d.force}) column->reserve(room);
+    window_index.reserve(room);
+    if (!commanded.empty()) d.reference_velocity.reserve(room);
+    for (std::size_t k = edge; k < length - edge; ++k) {
+        d.time.push_back(time[segment.first + k]);
+        d.velocity.push_back(derivatives.velocity[k]);
+        d.acceleration.push_back(derivatives.acceleration[k]);
+        d.force.push_back(filtered_force[k]);
+        if (!commanded.empty()) d.reference_velocity.push_back(commanded[k]);
+        window_index.push_back(segment.first + k);
+    }
+}
+
+/// Every column through the same anti-alias filter, then every N-th sample (IDIM practice), stretch by stretch.
+void decimate_columns(Derivatives& d, int factor, std::vector<std::size_t>& window_index) {
+    d.full_rate_velocity = std::move(d.velocity);
+    d.full_rate_acceleration = std::move(d.acceleration);
+    d.full_rate_segment_starts = d.segment_starts;
+    d.velocity = decimate_segments(d.full_rate_velocity, d.segment_starts, factor);
+    d.acceleration = decimate_segments(d.full_rate_acceleration, d.segment_starts, factor);
+    d.force = decimate_segments(d.force, d.segment_starts, factor);
+    std::vector<double> time, reference;
+    std::vector<std::size_t> kept, starts;
+    for (std::size_t s = 0; s < d.segment_starts.size(); ++s) {
+        const std::size_t begin = d.segment_starts[s];
+        const std::size_t end = s + 1 < d.segment_starts.size() ? d.segment_starts[s + 1] : d.time.size();
+        starts.push_back(time.size());
+        for (const auto k : decimation_indices(end - begin, factor)) {
+            time.push_back(d.time[begin + k]);
+            if (!d.reference_velocity.empty()) reference.push_back(d.reference_velocity[begin + k]);
+            kept.push_back(window_index[begin + k]);
+        }
+    }
+    d.time = std::move(time);
+    d.reference_velocity = std::move(reference);
+    d.segment_starts = std::move(starts);
+    window_index = std::move(kept);
+}
+
+/// Samples where the drive signal sits at its largest or smallest value as a clipped or saturated signal does:
+/// runs of at least three samples at the extreme, where the samples pile up (at least three times as many as in the
+/// band of three quanta just inside it). A signal that merely peaks there tapers off: its extreme is as rare as the
+/// levels next to it.
+std::vector<char> clipped_samples(std::span<const double> force, Derivatives& d) {
+    if (force.size() < 10) return {};
+    const auto [low, high] = std::minmax_element(force.begin(), force.end());
+    // a clipped signal repeats its extreme exactly; most signals reach it once (cheap test before the quantum's sort)
+    const auto at_extremes =
+        std::count_if(force.begin(), force.end(), [&](double f) { return f == *low || f == *high; });
+    if (at_extremes < 5) return {};
+    const double quantum = std::max(position_quantum(force), 1e-12);
+    std::vector<char> clipped(force.size(), 0);
+    std::size_t count = 0;
+    for (const double extreme : {*low, *high}) {
+        const double inward = extreme == *high ? -1.0 : 1.0;
+        std::size_t at = 0, inside = 0;
+        for (const double f : force) {
+            const double depth = (f - extreme) * inward;  // how far inside the extreme [N]
+            if (depth <= 0.25 * quantum)
+                ++at;
+            else if (depth <= 3.0 * quantum)
+                ++inside;
+        }
+        if (at < 5 || at < 3 * inside) continue;
+        std::size_t run = 0;
+        for (std::size_t k = 0; k <= force.size(); ++k) {
+            if (k < force.size() && std::abs(force[k] - extreme) <= 0.25 * quantum) {
+                ++run;
+                continue;
+            }
+            if (run >= 3) {
+                for (std::size_t j = k - run; j < k; ++j) clipped[j] = 1;
+                count += run;
+            }
+            run = 0;
+        }
+    }
+    if (count == 0) return {};
+    d.clipped_samples = count;
+    d.clip_levels = {*low, *high};
+    return clipped;
+}
+
+/// The span of the low-pass in analysed samples (Derivatives::correlation_samples).
+std::size_t correlation_samples(const PreprocessOptions& options, const Derivatives& d) {
+    const double fs = 1.0 / d.sample_time_s;
+    double span = 5.0;  // central differences of central differences
+    if (options.differentiation == Differentiation::butterworth) span = fs / d.used.cutoff_hz;
+    if (options.differentiation == Differentiation::savitzky_golay) span = savitzky_golay_window(options, fs);
+    if (d.used.decimation > 1) {
+        // the anti-alias filter's cut-off, 0.8 of the new Nyquist frequency, also correlates the kept samples
+        span = std::max(span / d.used.decimation, 1.0 / (0.8 * 0.5));
+    }
+    return static_cast<std::size_t>(std::max(1.0, std::ceil(span)));
+}
+
+/// Analysed samples whose filtered force a clipped sample reaches (within the filter's edge, and the decimation
+/// filter's span) are unusable.
+void mark_unusable(const std::vector<char>& clipped, const std::vector<std::size_t>& window_index, Derivatives& d) {
+    if (clipped.empty()) return;
+    const std::size_t reach = d.used.edge_samples + 10 * static_cast<std::size_t>(d.used.decimation);
+    std::vector<char> near(clipped.size(), 0);
+    for (std::size_t k = 0; k < clipped.size(); ++k) {
+        if (!clipped[k]) continue;
+        const std::size_t from = k > reach ? k - reach : 0, to = std::min(clipped.size(), k + reach + 1);
+        std::fill(near.begin() + static_cast<std::ptrdiff_t>(from), near.begin() + static_cast<std::ptrdiff_t>(to), 1);
+    }
+    d.unusable.assign(window_index.size(), 0);
+    for (std::size_t i = 0; i < window_index.size(); ++i) d.unusable[i] = near[window_index[i]];
+}
+
 }  // namespace
 
 Derivatives preprocess(const Trace& trace, std::span<const double> force, const PreprocessOptions& options) {
@@ -295,39 +496,67 @@ Derivatives preprocess(const Trace& trace, std::span<const double> force, const 
     if (!from_velocity) {
         if (auto note = held_position_note(d, options)) d.notes.push_back(std::move(*note));
     }
-    Differentiated derivatives = from_velocity ? differentiate_velocity(x, d.sample_time_s, options, d.used)
-                                               : differentiate(x, d.sample_time_s, options, d.used);
-    if (derivatives.velocity.empty()) {
-        d.failure = fmt::format("{}: the trace is shorter than the Savitzky-Golay window", d.source);
+    const std::span<const double> window_force = force.subspan(first, last - first);
+    const std::vector<char> clipped = clipped_samples(window_force, d);
+    const std::vector<Segment> segments =
+        contiguous_segments(time.subspan(first, last - first), d.sample_time_s, options.gap_factor);
+    if (segments.size() > 1) d.notes.push_back(gap_note(time.subspan(first, last - first), segments, d));
+    std::vector<std::size_t> window_index;  // of each analysed sample, into the window
+    const Reference reference = reference_of(trace, first, last);
+    for (const Segment& segment : segments) {
+        append_segment(x, window_force, time.subspan(first, last - first), reference, segment, options, d,
+                       window_index);
+    }
+    if (d.velocity.empty()) {
+        std::size_t longest = 0;
+        for (const Segment& segment : segments) longest = std::max(longest, segment.last - segment.first);
+        const bool shorter_than_window =
+            options.differentiation == Differentiation::savitzky_golay &&
+            static_cast<std::size_t>(savitzky_golay_window(options, 1.0 / d.sample_time_s)) > longest;
+        d.failure = shorter_than_window
+                        ? fmt::format("{}: the trace is shorter than the Savitzky-Golay window", d.source)
+                        : fmt::format(
+                              "{}: {} samples in the window, {} dropped at each edge{}: too short to "
+                              "identify anything",
+                              d.source, x.size(), d.used.edge_samples,
+                              segments.size() > 1 ? " of each stretch between time-stamp jumps" : "");
         return d;
     }
-
-    // ---- edge trim
-    const std::size_t edge = options.edge_samples.value_or(derivatives.default_edge);
-    d.used.edge_samples = edge;
-    if (x.size() <= 2 * edge + options.minimum_samples) {
-        d.failure = fmt::format("{}: {} samples in the window, {} dropped at each edge: too short to identify anything",
-                                d.source, x.size(), edge);
-        return d;
-    }
-    const std::size_t keep_first = edge, keep_last = x.size() - edge;
-    d.window = keep_last - keep_first;
-    d.time = slice(time, first + keep_first, first + keep_last);
-    const std::vector<double> force_in_band = force_in_position_band(force, hold, d, options);
-    d.force = slice(force_in_band.empty() ? force : std::span<const double>(force_in_band), first + keep_first,
-                    first + keep_last);
-    d.velocity = slice(derivatives.velocity, keep_first, keep_last);
-    d.acceleration = slice(derivatives.acceleration, keep_first, keep_last);
+    d.window = d.velocity.size();
     if (from_velocity) {
         d.logged_velocity.assign(x.begin(), x.end());
-        d.logged_force = slice(force, first, last);
+        d.logged_force.assign(window_force.begin(), window_force.end());
     }
     d.velocity_noise = noise_floor(d.velocity);
 
-    // ---- decimation
+    // ---- decimation, stretch by stretch
     d.used.decimation = std::max(1, options.decimation);
-    if (d.used.decimation > 1) decimate_columns(d, d.used.decimation);
+    if (d.used.decimation > 1) decimate_columns(d, d.used.decimation, window_index);
+    d.correlation_samples = correlation_samples(options, d);
+    mark_unusable(clipped, window_index, d);
     return d;
+}
+
+std::vector<double> filter_like_force(std::span<const double> full_rate, const Derivatives& d) {
+    const auto& starts = d.used.decimation > 1 ? d.full_rate_segment_starts : d.segment_starts;
+    std::vector<double> filtered;
+    filtered.reserve(full_rate.size());
+    for (std::size_t s = 0; s < starts.size(); ++s) {
+        const std::size_t begin = starts[s], end = s + 1 < starts.size() ? starts[s + 1] : full_rate.size();
+        const auto part = filter_like_position(full_rate.subspan(begin, end - begin), d.used, d.sample_time_s);
+        filtered.insert(filtered.end(), part.begin(), part.end());
+    }
+    return d.used.decimation > 1 ? decimate_segments(filtered, starts, d.used.decimation) : filtered;
+}
+
+std::vector<double> decimate_segments(std::span<const double> values, std::span<const std::size_t> starts, int factor) {
+    std::vector<double> out;
+    for (std::size_t s = 0; s < starts.size(); ++s) {
+        const std::size_t begin = starts[s], end = s + 1 < starts.size() ? starts[s + 1] : values.size();
+        const auto part = decimate(values.subspan(begin, end - begin), factor);
+        out.insert(out.end(), part.begin(), part.end());
+    }
+    return out;
 }
 
 }  // namespace feedid

@@ -30,6 +30,10 @@ void to_json(Json& j, const PreprocessReport& p) {
              {"decimation", p.decimation},
              {"edge_samples", p.edge_samples},
              {"velocity_source", p.velocity_source}};
+    if (p.differentiation == "savitzky-golay") {
+        j["savitzky_golay_window"] = p.savitzky_golay_window;
+        j["savitzky_golay_order"] = p.savitzky_golay_order;
+    }
 }
 
 void to_json(Json& j, const SelectionReport& s) {
@@ -40,6 +44,12 @@ void to_json(Json& j, const SelectionReport& s) {
              {"step2", s.step2},
              {"moving_threshold", s.moving_threshold},
              {"split_velocity", s.split_velocity},
+             {"initial_split_velocity", s.initial_split},
+             {"passes", s.passes},
+             {"stick_slip_passes", s.stick_slip_passes},
+             {"stick_slip_samples", s.stick_slip_samples},
+             {"clipped", s.clipped},
+             {"near_rest", s.near_rest},
              {"notes", s.notes}};
 }
 
@@ -78,11 +88,30 @@ Json keyed(const std::vector<std::string>& keys, const std::vector<T>& values) {
 }
 
 Json step1_fit_json(const Step1Report& s) {
-    return Json{{"relative_error_pct", s.relative_error_pct},
-                {"condition_number", s.condition_number},
-                {"samples_used", s.samples_used},
-                {"residual_std", s.residual_std},
-                {"r_diagonal", s.r_diagonal}};
+    Json out{{"relative_error_pct", s.relative_error_pct},
+             {"condition_number", s.condition_number},
+             {"samples_used", s.samples_used},
+             {"residual_std", s.residual_std},
+             {"r_diagonal", s.r_diagonal}};
+    if (s.correlation.size() == s.keys.size() && !s.keys.empty()) {
+        // correlations of the estimates, by key pair: correlations[a][b]
+        Json correlations = Json::object();
+        for (std::size_t i = 0; i < s.keys.size(); ++i) {
+            for (std::size_t j = 0; j < s.keys.size(); ++j) {
+                if (i != j) correlations[s.keys[i]][s.keys[j]] = s.correlation[i][j];
+            }
+        }
+        out["correlations"] = correlations;
+    }
+    return out;
+}
+
+Json systematic_json(const SystematicReport& report) {
+    Json variants = Json::array();
+    for (const auto& v : report.variants) {
+        variants.push_back({{"preprocessing", v.label}, {"status", v.status}, {"parameters", keyed(v.keys, v.values)}});
+    }
+    return Json{{"variants", variants}};
 }
 
 Json rls_json(const RlsReport& r) {
@@ -143,10 +172,15 @@ void to_json(Json& document, const IdentifyResult& result) {
     if (result.step1) {
         document["fit"] = step1_fit_json(*result.step1);
         document["step1"] = {{"batch", keyed(result.step1->keys, result.step1->batch)}};
+        if (!result.step1->white_noise_standard_error.empty()) {
+            document["step1"]["white_noise_stderr"] =
+                keyed(result.step1->keys, result.step1->white_noise_standard_error);
+        }
     }
     if (result.rls) document["rls"] = rls_json(*result.rls);
     if (result.stribeck) document["stribeck"] = stribeck_json(*result.stribeck);
     if (result.friction_curve) document["friction_curve"] = friction_curve_json(*result.friction_curve, naming);
+    if (result.systematic) document["systematic"] = systematic_json(*result.systematic);
     if (result.friction_only) {
         document["friction_only"] = {{"reason", result.friction_only->reason},
                                      {"samples_used", result.friction_only->samples_used},
@@ -173,6 +207,8 @@ void from_json(const Json& j, PreprocessReport& p) {
     p.decimation = j.at("decimation").get<int>();
     p.edge_samples = j.at("edge_samples").get<std::size_t>();
     p.velocity_source = j.value("velocity_source", std::string("position"));  // documents before it existed
+    p.savitzky_golay_window = j.value("savitzky_golay_window", 0);
+    p.savitzky_golay_order = j.value("savitzky_golay_order", 0);
 }
 
 void from_json(const Json& j, SelectionReport& s) {
@@ -183,6 +219,13 @@ void from_json(const Json& j, SelectionReport& s) {
     s.step2 = j.at("step2").get<std::size_t>();
     s.moving_threshold = number(j, "moving_threshold");
     s.split_velocity = number(j, "split_velocity");
+    s.initial_split = j.contains("initial_split_velocity") ? number(j, "initial_split_velocity") : s.split_velocity;
+    // documents before stick-slip detection and clip detection hold none of these
+    s.passes = j.value("passes", std::size_t{0});
+    s.stick_slip_passes = j.value("stick_slip_passes", std::size_t{0});
+    s.stick_slip_samples = j.value("stick_slip_samples", std::size_t{0});
+    s.clipped = j.value("clipped", std::size_t{0});
+    s.near_rest = j.value("near_rest", std::size_t{0});
     s.notes = j.at("notes").get<std::vector<std::string>>();
 }
 
@@ -243,8 +286,32 @@ Step1Report read_step1(const Json& fit, const Json& step1) {
     for (const auto& [key, entry] : step1.at("batch").items()) {
         s.keys.push_back(key);
         s.batch.push_back(entry.get<Estimate>());
+        if (step1.contains("white_noise_stderr"))
+            s.white_noise_standard_error.push_back(number(step1.at("white_noise_stderr"), key.c_str()));
+    }
+    if (fit.contains("correlations")) {
+        const Json& correlations = fit.at("correlations");
+        s.correlation.assign(s.keys.size(), std::vector<double>(s.keys.size(), 1.0));
+        for (std::size_t i = 0; i < s.keys.size(); ++i) {
+            for (std::size_t j = 0; j < s.keys.size(); ++j) {
+                if (i != j) s.correlation[i][j] = number(correlations.at(s.keys[i]), s.keys[j].c_str());
+            }
+        }
     }
     return s;
+}
+
+SystematicReport read_systematic(const Json& j) {
+    SystematicReport report;
+    for (const auto& v : j.at("variants")) {
+        SystematicVariant variant{v.at("preprocessing").get<std::string>(), v.at("status").get<Status>(), {}, {}};
+        for (const auto& [key, value] : v.at("parameters").items()) {
+            variant.keys.push_back(key);
+            variant.values.push_back(value.get<std::optional<double>>());
+        }
+        report.variants.push_back(std::move(variant));
+    }
+    return report;
 }
 
 RlsReport read_rls(const Json& j) {
@@ -307,6 +374,7 @@ void read_records(const Json& j, IdentifyResult& r) {
     }
     if (j.contains("friction_curve"))
         r.friction_curve = read_friction_curve(j.at("friction_curve"), ParameterNaming{r.rotary});
+    if (j.contains("systematic")) r.systematic = read_systematic(j.at("systematic"));
 }
 
 }  // namespace
@@ -358,6 +426,7 @@ nlohmann::json identify_options_document(const IdentifyOptions& o, const nlohman
                   {"to_s", p.to_s},
                   {"split_velocity", o.selection.split_velocity},
                   {"moving_threshold", o.selection.moving_threshold},
+                  {"systematic", o.systematic},
                   {"rls",
                    {{"variant", o.step1.rls.variant == RlsVariant::exponential ? "paper" : "directional"},
                     {"forgetting_factor", o.step1.rls.forgetting_factor},

@@ -89,7 +89,8 @@ void merge_slow_ramps(const Derivatives& d, const Regressors& r, const Selection
     const double split = s.report.split_velocity;
     std::vector<std::size_t> slow;
     for (const auto k : s.moving) {
-        if (std::abs(d.velocity[k]) < split) slow.push_back(k);
+        if (std::abs(d.velocity[k]) < split && !(s.near_rest(k) && d.used.differentiation != "central"))
+            slow.push_back(k);
     }
     const LeastSquaresResult fast_fit = solve_least_squares(r.matrix(s.step1), r.outputs(s.step1));
     if (slow.size() < options.minimum_slow_samples || fast_fit.rank_deficient) return;
@@ -116,7 +117,63 @@ double max_speed(const Derivatives& d) {
     return fastest;
 }
 
-/// The moving threshold and the moving samples, with the notes on what was dropped before them.
+/// How far a stop's static force reaches into the filtered force [analysed samples]: the low-pass smears it over its
+/// half-width, and the stop itself, seen in the filtered velocity, ends that much before the axis moves: twice the
+/// half-width (1.25 periods of a Butterworth's cut-off, half a Savitzky-Golay window), plus the central
+/// differences' two samples and the three-tap kernel's one.
+std::size_t stop_reach(const Derivatives& d) {
+    double half_width = 0.0;
+    if (d.used.differentiation == "butterworth") half_width = 1.25 / (d.used.cutoff_hz * d.sample_time_s);
+    if (d.used.differentiation == "savitzky-golay") half_width = 0.5 * d.used.savitzky_golay_window;
+    const double reach = 2.0 * half_width + 3.0;
+    return std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(reach / std::max(1, d.used.decimation))));
+}
+
+/// Samples within a stop's reach (stop_reach): a stop is a run of resting samples lasting at least a quarter of
+/// that reach, long enough for the drive to hold a static force that the low-pass then smears over its neighbours.
+/// A reversal through zero speed is no stop: the sgn(x') columns go through the same low-pass as the force and model
+/// it.
+std::vector<char> resting_reach(const Derivatives& d, double threshold) {
+    const std::size_t n = d.size();
+    const std::size_t reach = stop_reach(d);
+    const std::size_t shortest_stop = std::max<std::size_t>(1, reach / 4);
+    std::vector<char> flags(n, 0);
+    std::size_t k = 0;
+    while (k < n) {
+        if (std::abs(d.velocity[k]) > threshold) {
+            ++k;
+            continue;
+        }
+        const std::size_t first = k;
+        while (k < n && !(std::abs(d.velocity[k]) > threshold)) ++k;
+        if (k - first < shortest_stop) continue;
+        const std::size_t from = first > reach ? first - reach : 0, to = std::min(n, k + reach);
+        std::fill(flags.begin() + static_cast<std::ptrdiff_t>(from), flags.begin() + static_cast<std::ptrdiff_t>(to),
+                  1);
+    }
+    return flags;
+}
+
+/// What stick-slip detection found, in words: how many passes, at which commanded speeds.
+std::string stick_slip_note(const StickSlip& found, const Units& units) {
+    double slowest = INFINITY, fastest = 0.0;
+    for (const MotionPass& pass : found.passes) {
+        if (!pass.stick_slip) continue;
+        slowest = std::min(slowest, pass.speed);
+        fastest = std::max(fastest, pass.speed);
+    }
+    return fmt::format(
+        "{} of {} passes stick-slip ({} {:.3g} to {:.3g} {}: the axis {}): their {} samples are left out of both "
+        "steps",
+        found.stick_slip_passes, found.passes.size(), found.by_reference ? "commanded at" : "moving at",
+        units.speed(slowest), units.speed(fastest), units.unit(),
+        found.by_reference ? "stops or swings by more than half the commanded speed while the command runs steadily"
+                           : "stops and restarts in the same direction again and again",
+        found.samples);
+}
+
+/// The moving threshold and the moving samples, with the notes on what was dropped before them: at rest, the drive
+/// signal at its limit nearby, stick-slip passes.
 void select_moving(const Derivatives& d, const SelectionOptions& options, double fastest, Selection& s) {
     const Units units{ParameterNaming{d.rotary}};
     const double threshold = options.moving_threshold.value_or(
@@ -124,10 +181,26 @@ void select_moving(const Derivatives& d, const SelectionOptions& options, double
                   d.velocity_from_position() ? d.position_quantum * d.used.cutoff_hz : 0.0,
                   options.rest_fraction_of_max_speed * fastest}));
     s.report.moving_threshold = threshold;
+    s.stick_slip = detect_stick_slip(d, threshold, options.stick_slip);
+    s.report.passes = s.stick_slip.passes.size();
+    s.report.stick_slip_passes = s.stick_slip.stick_slip_passes;
+    s.report.stick_slip_samples = s.stick_slip.samples;
     for (std::size_t k = 0; k < d.size(); ++k) {
-        if (std::abs(d.velocity[k]) > threshold) s.moving.push_back(k);
+        if (!(std::abs(d.velocity[k]) > threshold)) continue;
+        if (!d.unusable.empty() && d.unusable[k]) {
+            ++s.report.clipped;
+        } else if (!s.stick_slip.flags[k]) {
+            s.moving.push_back(k);
+        }
     }
     s.report.moving = s.moving.size();
+    if (s.report.clipped > 0) {
+        s.report.notes.push_back(fmt::format(
+            "{} moving samples left out: the drive signal sits at its limit near them ({} samples at {:.4g} or {:.4g} "
+            "{}: clipped or saturated), so their force is not the axis's",
+            s.report.clipped, d.clipped_samples, d.clip_levels[0], d.clip_levels[1], units.naming.force_unit()));
+    }
+    if (s.stick_slip.stick_slip_passes > 0) s.report.notes.push_back(stick_slip_note(s.stick_slip, units));
     if (d.total > d.window) {
         s.report.notes.push_back(fmt::format("{} samples outside the time window or within {} samples of its edges",
                                              d.total - d.window, d.used.edge_samples));
@@ -165,19 +238,33 @@ Selection select_samples(const Derivatives& d, const Regressors& r, const Select
     double split =
         std::max(options.split_velocity ? *options.split_velocity : default_split(d, options, fastest, s), threshold);
     s.initial_split = split;
+    s.report.initial_split = split;
+    // stopped: slower than a small fraction of the split (a dwell's creep and noise included), or than the threshold
+    s.resting_reach = resting_reach(d, std::max(threshold, options.rest_split_fraction * split));
     if (!options.split_velocity && options.stribeck && split > threshold) {
         split = raise_split_above_stribeck(d, r, options, s.moving, split, s.report);
     }
     s.stribeck_band = split;
     s.report.split_velocity = split;
     for (const auto k : s.moving) {
-        if (std::abs(d.velocity[k]) >= split)
+        if (std::abs(d.velocity[k]) >= split) {
+            if (s.near_rest(k) && d.used.differentiation != "central") {
+                ++s.report.near_rest;
+                continue;
+            }
             s.step1.push_back(k);
-        else if (s.steady(k))
+        } else if (s.steady(k)) {
             s.step2.push_back(k);
+        }
     }
     s.report.step1 = s.step1.size();
     s.report.step2 = s.step2.size();
+    if (s.report.near_rest > 0) {
+        s.report.notes.push_back(fmt::format(
+            "{} fast samples within {} samples of a stop left out of step 1: the force went through the position's "
+            "low-pass, so there it carries the smeared force of the stop, which no friction law of x' models",
+            s.report.near_rest, stop_reach(d)));
+    }
     s.report.notes.push_back(fmt::format("step 1: {} moving samples at |v| >= {:.3g} {} (Stribeck negligible)",
                                          s.step1.size(), units.speed(split), units.unit()));
     s.report.notes.push_back(fmt::format("step 2: {} quasi-static samples below {:.3g} {}", s.step2.size(),

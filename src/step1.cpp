@@ -1,6 +1,9 @@
 #include "feedid/step1.hpp"
 
 #include <algorithm>
+#include <array>
+#include <cmath>
+#include <optional>
 #include <stdexcept>
 
 #include <fmt/format.h>
@@ -48,6 +51,11 @@ std::vector<double> regressor_column(const RegressorColumn& column, std::span<co
         }
     }
     return out;
+}
+
+/// Columns that are not linear in x'' or x' (whose filtered version is not the column of the filtered signals).
+bool nonlinear(const RegressorColumn& column) {
+    return column.term == Term::coulomb || (column.term == Term::viscous && column.direction != Direction::both);
 }
 
 template <int N>
@@ -123,9 +131,16 @@ Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind mo
     const auto& v = decimated ? derivatives.full_rate_velocity : derivatives.velocity;
     for (const auto& column : r.columns) {
         std::vector<double> values = regressor_column(column, a, v);
-        // every column through the same anti-alias filter, the constant one too: the filter passes a constant scaled
-        // by its DC gain squared (-0.1 dB for the order-8 Chebyshev, forwards and backwards), as it scales the force
-        if (decimated) values = decimate(values, factor);
+        if (nonlinear(column)) {
+            // sgn(x') (and x' per direction) of the filtered x' is not the filtered sgn(x'): through the force's
+            // low-pass, then decimated like every column
+            values = filter_like_force(values, derivatives);
+        } else if (decimated) {
+            // every column through the same anti-alias filter, the constant one too: the filter passes a constant
+            // scaled by its DC gain squared (-0.1 dB for the order-8 Chebyshev, forwards and backwards), as it scales
+            // the force
+            values = decimate_segments(values, derivatives.full_rate_segment_starts, factor);
+        }
         r.values.push_back(std::move(values));
     }
     return r;
@@ -147,6 +162,28 @@ Eigen::VectorXd Regressors::outputs(const std::vector<std::size_t>& rows) const 
     return out;
 }
 
+std::optional<std::string> opposed_drive_signal(const std::vector<RegressorColumn>& columns,
+                                                const LeastSquaresResult& batch, const Derivatives& derivatives,
+                                                double standard_errors) {
+    std::vector<std::string> terms;
+    const ParameterNaming naming{derivatives.rotary};
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+        const Term term = columns[c].term;
+        if (term != Term::mass && term != Term::coulomb) continue;
+        const auto i = static_cast<Eigen::Index>(c);
+        if (!(batch.estimate(i) + standard_errors * batch.standard_error(i) < 0.0)) return std::nullopt;
+        terms.push_back(fmt::format("{} = {:.4g} +/- {:.2g} {}", ParameterNaming::symbol(term, columns[c].direction),
+                                    batch.estimate(i), batch.standard_error(i), naming.unit(term)));
+    }
+    if (terms.empty()) return std::nullopt;
+    return fmt::format(
+        "{}: the drive force opposes the motion ({}: it {}pushes against the direction of travel): the drive signal "
+        "counts the other way than the position. Flip it with --invert current (or --invert force, or give the "
+        "force constant negated, e.g. --force-constant -K)",
+        derivatives.source, fmt::join(terms, ", "),
+        columns.front().term == Term::mass ? "falls as the axis accelerates and " : "");
+}
+
 double Step1Fit::coefficient(Term term, Direction direction) const {
     for (std::size_t c = 0; c < columns.size(); ++c) {
         if (columns[c].term == term && columns[c].direction == direction) {
@@ -154,6 +191,10 @@ double Step1Fit::coefficient(Term term, Direction direction) const {
         }
     }
     return 0.0;
+}
+
+std::size_t correlation_block(const Derivatives& derivatives, double blocks) {
+    return static_cast<std::size_t>(std::ceil(blocks * static_cast<double>(derivatives.correlation_samples)));
 }
 
 namespace {
@@ -172,6 +213,83 @@ std::string rank_deficiency_message(const Step1Fit& fit, const Eigen::MatrixXd& 
         "move in both directions{}?)",
         derivatives.source, silent.empty() ? "" : fmt::format(" (no excitation of {})", fmt::join(silent, ", ")),
         offset ? ", and is the offset separable from Coulomb friction" : "");
+}
+
+/// For every analysed sample, the time to the nearest reversal (a sign change of x') [s].
+std::vector<double> time_to_reversal(const Derivatives& d) {
+    const std::size_t n = d.size();
+    std::vector<double> distance(n, INFINITY);
+    double last = -INFINITY;
+    for (std::size_t k = 1; k < n; ++k) {
+        if (d.velocity[k] * d.velocity[k - 1] < 0.0) last = d.time[k];
+        distance[k] = d.time[k] - last;
+    }
+    double next = INFINITY;
+    for (std::size_t k = n; k-- > 1;) {
+        if (d.velocity[k] * d.velocity[k - 1] < 0.0) next = d.time[k];
+        distance[k] = std::min(distance[k], next - d.time[k]);
+    }
+    return distance;
+}
+
+/// Where a poor step-1 fit's residual sits: the share of the squared residual carried by the accelerating samples,
+/// the slow ones and those near reversals, against their share of the samples; the class most over-represented
+/// names the likely cause.
+std::string investigate_residual(const Step1Fit& fit, const Eigen::MatrixXd& phi, const Eigen::VectorXd& y,
+                                 const Derivatives& d, const std::vector<std::size_t>& rows,
+                                 const Step1Options& options) {
+    const Eigen::VectorXd residual = y - phi * fit.batch.estimate;
+    const std::vector<double> reversal = time_to_reversal(d);
+    double slowest = INFINITY;
+    for (const auto k : rows) slowest = std::min(slowest, std::abs(d.velocity[k]));
+    struct Group {
+        const char* name;
+        const char* cause;
+        double samples{0.0}, share{0.0};
+    };
+    std::array<Group, 3> groups{
+        Group{"accelerating",
+              "the force and the acceleration do not match where the axis accelerates: a lag between "
+              "the drive signal and the position (current-loop lag, two recorders' clocks: --join "
+              "@SHIFT), elasticity between motor and table, or an injected test signal"},
+        Group{"slow",
+              "the friction at low speed is not the model's (Stribeck friction or stick-slip): raise "
+              "--split-velocity"},
+        Group{"near reversals",
+              "the drive force changes sign late or early against the motion at reversals: a lag "
+              "between the drive signal and the position (two recorders' clocks: --join @SHIFT), "
+              "backlash, or pre-sliding friction"}};
+    const double total = residual.squaredNorm();
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        const auto k = rows[i];
+        const double r2 = residual(static_cast<Eigen::Index>(i)) * residual(static_cast<Eigen::Index>(i)) / total;
+        const bool member[3] = {
+            std::abs(d.acceleration[k]) > options.residual_acceleration_fraction * fit.max_acceleration,
+            std::abs(d.velocity[k]) < options.residual_slow_multiple * slowest,
+            reversal[k] < options.residual_reversal_s};
+        for (std::size_t g = 0; g < 3; ++g) {
+            if (!member[g]) continue;
+            groups[g].samples += 1.0 / static_cast<double>(rows.size());
+            groups[g].share += r2;
+        }
+    }
+    const Group* worst = nullptr;
+    for (const auto& g : groups) {
+        if (g.samples > 0.0 && g.share > options.residual_concentration * g.samples &&
+            (worst == nullptr || g.share / g.samples > worst->share / worst->samples))
+            worst = &g;
+    }
+    std::string finding = fmt::format("step 1 fits poorly (relative error {:.3g} %): ", fit.batch.relative_error_pct);
+    for (const auto& g : groups) {
+        finding += fmt::format("{} samples ({:.0f} % of them) carry {:.0f} % of the squared residual; ", g.name,
+                               100.0 * g.samples, 100.0 * g.share);
+    }
+    if (worst == nullptr) {
+        return finding +
+               "it is spread over all samples: noise, or a force the model lacks (an offset: --offset; "
+               "friction that varies along the axis: --by-location)";
+    }
+    return finding + fmt::format("most likely cause: {}", worst->cause);
 }
 
 }  // namespace
@@ -193,11 +311,17 @@ Step1Fit fit_step1(const Regressors& regressors, const Derivatives& derivatives,
     const Eigen::MatrixXd phi = regressors.matrix(rows);
     const Eigen::VectorXd y = regressors.outputs(rows);
     fit.batch = solve_least_squares(phi, y);
+    account_for_correlated_residuals(fit.batch, phi, y, rows,
+                                     correlation_block(derivatives, options.correlation_blocks));
     for (const auto k : rows)
         fit.max_acceleration = std::max(fit.max_acceleration, std::abs(derivatives.acceleration[k]));
     const bool offset = !fit.columns.empty() && fit.columns.back().term == Term::offset;
     if (fit.batch.rank_deficient) {
         fit.failure = rank_deficiency_message(fit, phi, derivatives, offset);
+        return fit;
+    }
+    if (auto opposed = opposed_drive_signal(fit.columns, fit.batch, derivatives, options.sign_standard_errors)) {
+        fit.failure = std::move(*opposed);
         return fit;
     }
     // Mass: identifiable only when acceleration explains a significant part of the force.
@@ -217,6 +341,9 @@ Step1Fit fit_step1(const Regressors& regressors, const Derivatives& derivatives,
             derivatives.source, fit.max_acceleration, derivatives.rotary ? "rad" : "m", mass, mass_se,
             naming.unit(Term::mass), why);
         return fit;
+    }
+    if (fit.batch.relative_error_pct > options.investigate_relative_error_pct) {
+        fit.residual_finding = investigate_residual(fit, phi, y, derivatives, rows, options);
     }
     // RLS on the same samples, in time order.
     std::vector<double> time(rows.size());

@@ -57,7 +57,7 @@ void fit_log_linear_per_direction(const Step2Data& data, FrictionFit& out) {
         detail::FitSamples samples;
         for (const auto k : data.s.step2) {
             if ((data.d.velocity[k] > 0) == (g == 0)) {
-                samples.push(data.d.acceleration[k], data.d.velocity[k], data.d.force[k]);
+                samples.push(data.d.acceleration[k], data.d.velocity[k], data.d.force[k], k);
             }
         }
         const auto [viscous, coulomb] = data.linear_branch(g);
@@ -72,21 +72,22 @@ void fit_log_linear_per_direction(const Step2Data& data, FrictionFit& out) {
 detail::FitSamples curve_samples(const Step2Data& data) {
     const auto& d = data.d;
     detail::FitSamples samples;
+    samples.correlation_block = correlation_block(d, data.options.correlation_blocks);
     const auto& step1 = data.s.step1;
     const auto& step2 = data.s.step2;
     const std::size_t stride1 = std::max<std::size_t>(1, step1.size() / data.options.max_fit_samples);
     const std::size_t stride2 = std::max<std::size_t>(1, step2.size() / data.options.max_fit_samples);
     for (std::size_t i = 0; i < step1.size(); i += stride1) {
-        samples.push(d.acceleration[step1[i]], d.velocity[step1[i]], d.force[step1[i]]);
+        samples.push(d.acceleration[step1[i]], d.velocity[step1[i]], d.force[step1[i]], step1[i]);
     }
     for (std::size_t i = 0; i < step2.size(); i += stride2) {
-        samples.push(d.acceleration[step2[i]], d.velocity[step2[i]], d.force[step2[i]]);
+        samples.push(d.acceleration[step2[i]], d.velocity[step2[i]], d.force[step2[i]], step2[i]);
     }
     const double split = data.s.split_velocity();
     for (const auto k : data.s.moving) {
         const double speed = std::abs(d.velocity[k]);
-        if (speed >= data.s.initial_split && speed < split && !data.s.steady(k)) {
-            samples.push(d.acceleration[k], d.velocity[k], d.force[k]);
+        if (speed >= data.s.initial_split && speed < split && !data.s.steady(k) && !data.s.near_rest(k)) {
+            samples.push(d.acceleration[k], d.velocity[k], d.force[k], k);
         }
     }
     return samples;
@@ -122,18 +123,19 @@ bool fit_mass_with_curve_held(const detail::FitSamples& samples, const detail::C
     for (const int index : layout.log_vs) {
         if (index >= 0) curve(index) = std::log(curve(index));
     }
-    double aa = 0.0, ar = 0.0, rr = 0.0;
-    for (std::size_t k = 0; k < samples.size(); ++k) {
-        const double a = samples.acceleration[k];
-        const double r = samples.force[k] - layout.friction(curve, samples.velocity[k], asymmetric);
-        aa += a * a;
-        ar += a * r;
-        rr += r * r;
+    const auto n = static_cast<Eigen::Index>(samples.size());
+    Eigen::MatrixXd a(n, 1);
+    Eigen::VectorXd r(n);
+    for (Eigen::Index k = 0; k < n; ++k) {
+        const auto i = static_cast<std::size_t>(k);
+        a(k, 0) = samples.acceleration[i];
+        r(k) = samples.force[i] - layout.friction(curve, samples.velocity[i], asymmetric);
     }
-    if (!(aa > 0.0)) return false;
-    out.mass = ar / aa;
-    const double dof = static_cast<double>(samples.size()) - 1.0;
-    out.mass_se = std::sqrt(std::max(0.0, rr - out.mass * ar) / std::max(dof, 1.0) / aa);
+    LeastSquaresResult mass = solve_least_squares(a, r);
+    if (mass.rank_deficient) return false;
+    account_for_correlated_residuals(mass, a, r, samples.index, samples.correlation_block);
+    out.mass = mass.estimate(0);
+    out.mass_se = mass.standard_error(0);
     return true;
 }
 
@@ -149,15 +151,16 @@ CurveResult fit_separated(const Step2Data& data, const detail::FitSamples& sampl
     CurveResult out;
     out.mass = data.step1.batch.estimate(0);
     detail::FitSamples quasi;
+    quasi.correlation_block = samples.correlation_block;
     const std::size_t stride = std::max<std::size_t>(1, quasi_static.size() / data.options.max_fit_samples);
     const std::size_t stride2 = std::max<std::size_t>(1, data.s.step2.size() / data.options.max_fit_samples);
     for (std::size_t i = 0; i < quasi_static.size(); i += stride) {
         const auto k = quasi_static[i];
-        quasi.push(0.0, d.velocity[k], d.force[k] - out.mass * d.acceleration[k]);
+        quasi.push(0.0, d.velocity[k], d.force[k] - out.mass * d.acceleration[k], k);
     }
     for (std::size_t i = 0; i < data.s.step2.size(); i += stride2) {
         const auto k = data.s.step2[i];
-        quasi.push(0.0, d.velocity[k], d.force[k] - out.mass * d.acceleration[k]);
+        quasi.push(0.0, d.velocity[k], d.force[k] - out.mass * d.acceleration[k], k);
     }
     out.fit = detail::fit_curve(quasi, model, vs_low, vs_high);
     if (out.fit.converged && !fit_mass_with_curve_held(samples, layout, data.asymmetric, out)) {
@@ -195,14 +198,18 @@ bool stribeck_determined(const Step2Data& data, const detail::CurveFit& fit, con
     const double delta_se = fit.converged ? fit.standard_errors(layout.delta[g]) : NAN;
     const double vs = fit.converged ? fit.parameters(layout.log_vs[g]) : NAN;
     const double vs_se = fit.converged ? fit.standard_errors(layout.log_vs[g]) : NAN;
-    // the data determines v_s only with quasi-static samples below a few v_s
-    std::size_t below = 0;
+    // the data determines v_s only with quasi-static samples below a few v_s, and F_B and v_s (the height and the
+    // width of the rise) only with those at more than one speed: through one speed runs a whole family of curves
+    std::vector<double> below;
     for (const auto k : data.s.step2) {
-        if (data.in_group(k, g) && std::abs(data.d.velocity[k]) < o.determining_speed_multiple * vs) ++below;
+        const double speed = std::abs(data.d.velocity[k]);
+        if (data.in_group(k, g) && speed < o.determining_speed_multiple * vs) below.push_back(speed);
     }
+    const bool spread = !below.empty() && percentile(below, 0.9) >= o.determining_speed_ratio * percentile(below, 0.1);
     const bool ok = fit.converged && std::isfinite(vs) && vs > bounds.low * o.bound_margin_low &&
                     vs < bounds.high * o.bound_margin_high && delta > o.rise_significance * delta_se &&
-                    vs_se < o.max_stribeck_velocity_relative_error * vs && below >= o.minimum_slow_samples;
+                    vs_se < o.max_stribeck_velocity_relative_error * vs && below.size() >= o.minimum_slow_samples &&
+                    spread;
     if (ok) return true;
     const ParameterNaming naming{data.d.rotary};
     const std::string direction = data.asymmetric ? (g == 0 ? " (forward)" : " (reverse)") : "";
@@ -214,9 +221,9 @@ bool stribeck_determined(const Step2Data& data, const detail::CurveFit& fit, con
     } else {
         const double scale = naming.display_velocity_scale();
         diagnostics.push_back(fmt::format(
-            "Stribeck{}: {} quasi-static samples below 3 v_s: F_B and v_s are not determined by this data (fit {}); "
+            "Stribeck{}: {} quasi-static samples below 3 v_s{}: F_B and v_s are not determined by this data (fit {}); "
             "add constant-velocity passes spanning about 0.3 to 5 times the expected v_s",
-            direction, below,
+            direction, below.size(), below.empty() || spread ? "" : ", all at about one speed",
             fit.converged
                 ? fmt::format("v_s = {:.3g} +/- {:.2g} {}", vs * scale, vs_se * scale, naming.display_velocity_unit())
                 : "did not converge"));
@@ -255,7 +262,6 @@ void accept(const CurveResult& curve, const detail::CurveLayout& layout, bool se
 /// The nonlinear fit of the whole curve, refitted without the Stribeck terms the data does not determine.
 void fit_nonlinear(const Step2Data& data, FrictionFit& out) {
     const auto& o = data.options;
-    const detail::FitSamples samples = curve_samples(data);
     detail::CurveModel model{data.asymmetric, true, data.asymmetric, data.offset};
     if (data.asymmetric) {
         model.stribeck_forward = data.slow_count[0] >= o.minimum_slow_samples;
@@ -267,7 +273,11 @@ void fit_nonlinear(const Step2Data& data, FrictionFit& out) {
     const double slowest = std::min(data.slow_min[0], data.slow_min[1]);
     SearchBounds bounds;
     bounds.low = std::isfinite(slowest) ? std::max(slowest / o.stribeck_velocity_search_below, threshold) : threshold;
-    bounds.high = std::max(data.s.split_velocity(), 2.0 * bounds.low);
+    // up to a third of the typical constant speed (the initial split is a tenth of it): a Stribeck velocity above
+    // the split is still determined by the fast quasi-static samples, and a curve accepted there replaces step 1's
+    // B and F_C, which the Stribeck friction above the split biases
+    bounds.high =
+        std::max({data.s.split_velocity(), o.stribeck_velocity_search_above * data.s.initial_split, 2.0 * bounds.low});
     std::vector<std::size_t> quasi_static;
     for (const auto k : data.s.step1) {
         if (data.s.steady(k)) quasi_static.push_back(k);
@@ -275,6 +285,7 @@ void fit_nonlinear(const Step2Data& data, FrictionFit& out) {
     const bool separable = curve_separable(data, quasi_static);
     for (int attempt = 0; attempt < o.max_attempts; ++attempt) {
         if (!model.stribeck_forward && !model.stribeck_reverse) break;
+        const detail::FitSamples samples = curve_samples(data);
         const CurveResult curve = separable ? fit_separated(data, samples, quasi_static, model, bounds.low, bounds.high)
                                             : fit_joint(samples, model, bounds.low, bounds.high);
         detail::CurveModel fitted = model;

@@ -1,5 +1,7 @@
 #include "stribeck_fit.hpp"
 
+#include "feedid/least_squares.hpp"
+
 #include "feedid/friction.hpp"
 #include "feedid/parameters.hpp"
 
@@ -179,7 +181,7 @@ Eigen::VectorXd grid_search(const FitSamples& samples, const CurveModel& model, 
     FitSamples coarse;
     const std::size_t coarse_stride = std::max<std::size_t>(1, samples.size() / coarse_samples);
     for (std::size_t k = 0; k < samples.size(); k += coarse_stride) {
-        coarse.push(samples.acceleration[k], samples.velocity[k], samples.force[k]);
+        coarse.push(samples.acceleration[k], samples.velocity[k], samples.force[k], samples.index[k]);
     }
     const int rounds = model.asymmetric ? 2 : 1;
     double best_rss = solve_linear_part(coarse, model, layout, x);
@@ -221,7 +223,15 @@ void fill_statistics(const FitSamples& samples, const CurveModel& model, const C
     const Eigen::MatrixXd information = jacobian.transpose() * jacobian;
     const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(information);
     fit.covariance = Eigen::MatrixXd::Constant(p, p, std::numeric_limits<double>::infinity());
-    if (qr.rank() == p) fit.covariance = fit.residual_std * fit.residual_std * qr.inverse();
+    if (qr.rank() == p) {
+        const Eigen::MatrixXd inverse = qr.inverse();
+        fit.covariance =
+            samples.correlation_block > 1
+                ? Eigen::MatrixXd(inverse *
+                                  long_run_covariance(jacobian, residual, samples.index, samples.correlation_block) *
+                                  inverse)
+                : Eigen::MatrixXd(fit.residual_std * fit.residual_std * inverse);
+    }
     fit.parameters = x;
     for (int g = 0; g < 2; ++g) {
         if (layout.log_vs[g] >= 0) {

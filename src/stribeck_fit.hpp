@@ -13,16 +13,20 @@
 
 namespace feedid::detail {
 
-/// Samples for a fit: acceleration, velocity, drive force, all the same length.
+/// Samples for a fit: acceleration, velocity, drive force, all the same length, with each sample's index in the
+/// analysed samples (Derivatives) and the block over which neighbouring residuals are correlated (least_squares.hpp).
 struct FitSamples {
     std::vector<double> acceleration;
     std::vector<double> velocity;
     std::vector<double> force;
+    std::vector<std::size_t> index;
+    std::size_t correlation_block{1};
     [[nodiscard]] std::size_t size() const { return velocity.size(); }
-    void push(double a, double v, double f) {
+    void push(double a, double v, double f, std::size_t k) {
         acceleration.push_back(a);
         velocity.push_back(v);
         force.push_back(f);
+        index.push_back(k);
     }
 };
 

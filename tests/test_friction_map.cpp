@@ -99,7 +99,16 @@ TEST(FrictionMap, HigherCoulombFrictionShowsAtItsCentreOnly) {
         << map.document.at("locations").at(0).dump();
     EXPECT_TRUE(map.document.at("locations").at(2).at("stands_out").empty())
         << map.document.at("locations").at(2).dump();
-    EXPECT_TRUE(stands_out(middle, "breakaway_N")) << middle.dump();
+    // the worn centre's breakaway friction: higher too, or, where the higher friction falling with speed makes its
+    // slow passes stick and slip (the demo's velocity loop does not damp it), null with that reason
+    if (middle.at("parameters").at("breakaway_N").at("value").is_null()) {
+        const auto& diagnostics = middle.at("diagnostics");
+        EXPECT_TRUE(std::any_of(diagnostics.begin(), diagnostics.end(), [](const nlohmann::json& d) {
+            return d.get<std::string>().find("stick-slip") != std::string::npos;
+        })) << middle.dump();
+    } else {
+        EXPECT_TRUE(stands_out(middle, "breakaway_N")) << middle.dump();
+    }
 }
 
 TEST(FrictionMap, UniformFrictionStandsOutNowhere) {

@@ -175,7 +175,8 @@ TEST(UmichMill, TheCommandLineReadsThePandasFileAsItIs) {
     for (const std::string axis : {"X1", "Y1"}) {
         const auto run =
             run_cli("identify " + quoted(file) + " --axis " + axis +
-                    " --sample-time 0.1 --unit position=mm --unit velocity=mm/s --force-constant 1 --json -");
+                    " --sample-time 0.1 --unit position=mm --unit velocity=mm/s --unit reference_position=mm "
+                    "--unit velocity_command=mm/s --force-constant 1 --json -");
         ASSERT_EQ(run.exit_code, 0) << axis << ": " << run.err;
         const Json document = Json::parse(run.out);
         EXPECT_EQ(document.at("status"), "partial") << axis;

@@ -88,6 +88,11 @@ void TraceArguments::add_to(CLI::App& app) {
                    "ROLE; repeatable")
         ->take_all()
         ->allow_extra_args(false);
+    app.add_option("--invert", invert,
+                   "Flip the sign of a role's channel: ROLE (e.g. current, when the drive counts positive current in "
+                   "the direction the NC counts negative); repeatable")
+        ->take_all()
+        ->allow_extra_args(false);
     app.add_option("--sample-time", sample_time_s,
                    "Time between samples [s] for files without a time column (a CSV log, halsampler output)")
         ->check(allowed_range(1e-9, 3600.0, "s"));
@@ -121,6 +126,12 @@ ImportOptions TraceArguments::import_options() const {
         if (!role || *role == Role::other || *role == Role::time)
             throw InputError(fmt::format("--tare {}: not a role to zero (e.g. force, current, external_force)", text));
         options.tare.push_back(*role);
+    }
+    for (const auto& text : invert) {
+        const auto role = parse_role(text);
+        if (!role || *role == Role::other || *role == Role::time)
+            throw InputError(fmt::format("--invert {}: not a role to invert (e.g. current, force, position)", text));
+        options.invert.push_back(*role);
     }
     options.sample_time_s = sample_time_s;
     options.skip_rows = skip_rows;

@@ -40,6 +40,7 @@ struct TraceArguments {
     std::string join;               // FILE[@SHIFT]: a second recording joined onto this one's time base
     std::optional<double> join_max_shift_s;
     std::vector<std::string> tare;  // roles zeroed from the samples at rest before the move
+    std::vector<std::string> invert;  // roles whose sign is flipped (a drive counting the other way)
     std::optional<double> sample_time_s;
     std::size_t skip_rows{0};
 

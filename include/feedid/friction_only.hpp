@@ -38,6 +38,9 @@ struct FrictionOnlyOptions {
     /// The smallest detectable mass is the one whose inertial force at the largest acceleration stands this many
     /// friction scatters (residual standard deviations) above the noise.
     double detectable_force_multiple{3.0};
+    /// Standard errors count residuals as correlated over this many correlation lengths of the low-pass (as
+    /// Step1Options::correlation_blocks).
+    double correlation_blocks{2.0};
 };
 
 /// What the data resolves, in figures.

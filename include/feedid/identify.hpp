@@ -25,6 +25,7 @@
 #include "feedid/status.hpp"
 #include "feedid/step1.hpp"
 #include "feedid/step2.hpp"
+#include "feedid/systematic.hpp"
 #include "feedid/trace.hpp"
 
 namespace feedid {
@@ -40,6 +41,18 @@ struct IdentifyOptions {
     Step1Options step1;                 ///< with the RLS options
     FrictionFitOptions friction;        ///< step 2
     FrictionOnlyOptions friction_only;  ///< when the data cannot determine a mass
+    /// Rerun the stages over the preprocessing family (systematic.hpp) for each parameter's systematic uncertainty.
+    bool systematic{true};
+    /// A systematic part above this multiple of the standard error is said in a finding.
+    double systematic_finding_multiple{2.0};
+    /// Correlations between step-1 estimates above this are said in a finding, with the test that separates them.
+    double correlation_finding{0.95};
+    /// B and F_C are null when the constant-speed samples of their direction span less than this speed ratio (90th
+    /// against 10th percentile) and are more than inseparable_steady_fraction of step 1's samples: one speed
+    /// determines only their sum there, and the few ramp samples that split it are where an unmodelled Stribeck tail
+    /// or current-loop lag biases it.
+    double separable_speed_ratio{1.5};
+    double inseparable_steady_fraction{0.5};
 
     /// What is wrong with these options ("" when nothing).
     [[nodiscard]] std::string validate() const;
@@ -80,6 +93,10 @@ struct Step1Report {
     std::size_t samples_used{0};
     double residual_std{0.0};
     std::vector<double> r_diagonal;  ///< |diag R| of the QR factorisation
+    std::vector<std::vector<double>> correlation;  ///< of the estimates, keys x keys (empty when not estimated)
+    /// The textbook standard errors sigma*sqrt(diag((Phi^T Phi)^-1)), for comparison with published ones: the
+    /// reported ones allow for residuals correlated by the low-pass (least_squares.hpp), these do not.
+    std::vector<double> white_noise_standard_error;
 };
 
 /// Step 1's RLS as reported.
@@ -136,6 +153,7 @@ struct IdentifyResult {
     std::optional<StribeckReport> stribeck;
     std::optional<FrictionCurveReport> friction_curve;
     std::optional<FrictionOnlyReport> friction_only;
+    std::optional<SystematicReport> systematic;  ///< the preprocessing family's estimates
     std::vector<std::string> diagnostics;
     /// The options that shape the result, recorded with it (identify_options_document); null when not set.
     nlohmann::json options;

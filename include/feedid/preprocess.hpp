@@ -3,6 +3,7 @@
 // analysed (the paper's section 3: x' and x'' by differentiation of the measured position). Filter, differentiate,
 // trim the filter's edges, decimate.
 
+#include <array>
 #include <cstddef>
 #include <optional>
 #include <span>
@@ -50,6 +51,9 @@ struct PreprocessOptions {
     /// quantisation step exceeds this fraction of the travel per sample at the typical speed (the 95th percentile of
     /// the logged |v|): the differentiated position would then carry more than this relative quantisation error.
     double coarse_position_fraction{0.1};
+    /// A time step longer than this many sample times is a gap (samples the recorder dropped): the stretches on
+    /// either side are filtered and differentiated apart (regular steps lie within half a sample time, see TimeBase).
+    double gap_factor{1.5};
 };
 
 /// What preprocess() did: the values it used, which may differ from the options given (defaults resolved).
@@ -60,6 +64,8 @@ struct PreprocessReport {
     int decimation{1};            ///< the factor used (1 = none)
     std::size_t edge_samples{0};  ///< the edge trim used, at each end
     std::string velocity_source;  ///< "position" (differentiated) or "velocity" (the logged velocity channel)
+    int savitzky_golay_window{0};  ///< [samples], when the Savitzky-Golay differentiation was used
+    int savitzky_golay_order{0};
 };
 
 /// Velocity, acceleration and force on the analysed samples (after the window, the edge trim and the decimation),
@@ -82,12 +88,30 @@ struct Derivatives {
     std::vector<double> time;          ///< [s]
     std::vector<double> velocity;      ///< x' [m/s]
     std::vector<double> acceleration;  ///< x'' [m/s^2]
-    std::vector<double> force;         ///< F_d [N]
+    std::vector<double> force;         ///< F_d [N], through the same low-pass as the position
+    /// The commanded velocity (the reference position's derivative, or the velocity command) [m/s]; empty when the
+    /// trace has neither. Selection tells a stuck axis from a commanded stop by it.
+    std::vector<double> reference_velocity;
     /// The full-rate velocity and acceleration when decimating (empty otherwise): regressor columns are formed at the
     /// full rate and decimated afterwards (IDIM practice: sgn(x') goes through the anti-alias filter like every
     /// column).
     std::vector<double> full_rate_velocity;
     std::vector<double> full_rate_acceleration;
+
+    /// Where each stretch between time-stamp gaps starts in the columns above (the first is 0); the columns are
+    /// filtered, differentiated and decimated stretch by stretch. full_rate_segment_starts: the same in the
+    /// full-rate columns when decimating.
+    std::vector<std::size_t> segment_starts;
+    std::vector<std::size_t> full_rate_segment_starts;
+    /// Per analysed sample, 1 where it cannot be used: its filtered force reaches a sample where the drive signal
+    /// sits at its limit (clipped or saturated). Empty when every sample is usable.
+    std::vector<char> unusable;
+    /// Over how many analysed samples the low-pass correlates neighbours: the cut-off's period in samples (the
+    /// Savitzky-Golay window; 5 for central differences of central differences), after decimation. Residuals of a
+    /// fit on these columns are correlated over about this many samples (least_squares.hpp).
+    std::size_t correlation_samples{1};
+    std::size_t clipped_samples{0};       ///< drive-signal samples at a limit (runs at the extreme)
+    std::array<double, 2> clip_levels{};  ///< the drive force's smallest and largest value [N] when clipped
 
     /// The position signal's native interval, which the rate-dependent defaults come from [s].
     double position_interval_s{0.0};
@@ -106,6 +130,16 @@ struct Derivatives {
 /// cut-off at or above Nyquist) and for a trace with neither position nor velocity; a trace too short or without
 /// motion comes back with `failure` set.
 Derivatives preprocess(const Trace& trace, std::span<const double> force, const PreprocessOptions& options);
+
+/// The low-pass the drive force went through in preprocess(), applied to a signal given on the full-rate analysed
+/// samples (d.full_rate_velocity's when decimating, else d.velocity's), stretch by stretch, then decimated as the
+/// regressor columns are. A nonlinear function of x' (sgn x', a friction curve) evaluated on the filtered x' is not
+/// the filtered function: through this it becomes comparable with the filtered force (IDIM's parallel filtering
+/// filters every column of the regressor, not only the force).
+std::vector<double> filter_like_force(std::span<const double> full_rate, const Derivatives& d);
+
+/// decimate() stretch by stretch: `starts` are where the stretches begin in `values` (the first 0).
+std::vector<double> decimate_segments(std::span<const double> values, std::span<const std::size_t> starts, int factor);
 
 /// Smallest step the position signal takes (its quantisation), ignoring round-off: the 1st percentile of the nonzero
 /// sample-to-sample steps.

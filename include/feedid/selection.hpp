@@ -14,6 +14,7 @@
 
 #include "feedid/preprocess.hpp"
 #include "feedid/step1.hpp"
+#include "feedid/stick_slip.hpp"
 
 namespace feedid {
 
@@ -43,6 +44,12 @@ struct SelectionOptions {
     std::size_t minimum_slow_samples{20};
     /// Step 1 needs at least this many samples per parameter (identify() sets it from Step1Options).
     std::size_t minimum_step1_samples_per_parameter{10};
+    /// Step 1 and the mass fit leave out the samples within the low-pass's reach of a stop (Selection::resting_reach):
+    /// stopped is slower than this fraction of the initial split speed (or the moving threshold, if higher), so
+    /// that a dwell's creep and noise count as the stop they are.
+    double rest_split_fraction{0.05};
+    /// Passes that stick-slip are kept out of both steps (stick_slip.hpp).
+    StickSlipOptions stick_slip;
 };
 
 /// The counts reported in the result document.
@@ -52,8 +59,14 @@ struct SelectionReport {
     std::size_t moving{0};           ///< |v| above the moving threshold
     std::size_t step1{0};            ///< used in step 1 (after decimation)
     std::size_t step2{0};            ///< used in step 2
+    std::size_t passes{0};           ///< passes of (commanded) motion in one direction
+    std::size_t stick_slip_passes{0};  ///< of them, stick-slipping (left out of both steps)
+    std::size_t stick_slip_samples{0};
+    std::size_t clipped{0};          ///< samples left out because the drive signal sits at its limit near them
+    std::size_t near_rest{0};        ///< fast samples left out of step 1: the low-pass's reach of a stop
     double moving_threshold{0.0};    ///< [m/s]
     double split_velocity{0.0};      ///< [m/s]
+    double initial_split{0.0};       ///< the split before the Stribeck checks moved it [m/s]
     std::vector<std::string> notes;  ///< why samples were dropped, in words
 };
 
@@ -63,10 +76,16 @@ struct Selection {
     std::vector<std::size_t> step1;   ///< ascending
     std::vector<std::size_t> step2;   ///< ascending
     std::vector<char> quasi_static;   ///< per sample of Derivatives
+    /// Per sample of Derivatives: within the low-pass's reach of a sample where the axis rests. The force went
+    /// through the same low-pass as the position, so there it carries the smeared static force of the stop, which
+    /// no function of x' models: step 1 and the mass fit leave these samples out.
+    std::vector<char> resting_reach;
+    StickSlip stick_slip;             ///< the passes and which of them stick-slip
     double initial_split{0.0};        ///< the split before the Stribeck check raised it [m/s]
     double stribeck_band{0.0};        ///< step 2 looks for quasi-static samples below this speed [m/s]
 
     [[nodiscard]] bool steady(std::size_t k) const { return quasi_static[k] != 0; }
+    [[nodiscard]] bool near_rest(std::size_t k) const { return resting_reach[k] != 0; }
     [[nodiscard]] double moving_threshold() const { return report.moving_threshold; }
     [[nodiscard]] double split_velocity() const { return report.split_velocity; }
 };

@@ -55,12 +55,28 @@ struct Step1Options {
     /// M is usable only when its standard error is below this fraction of it (the acceleration explains a
     /// significant part of the force).
     double mass_relative_standard_error{0.25};
+    /// The drive signal counts the other way than the position when M and every Coulomb term lie more than this many
+    /// standard errors below zero.
+    double sign_standard_errors{3.0};
     /// A trace whose travel stays below this is a micro-step or creep test, and the message says so [m or rad].
     double creep_travel{1e-3};
     /// The RLS transient ends where every parameter stays within max(this fraction of |batch estimate|,
     /// rls_settle_standard_errors * its batch standard error) of the final RLS estimate.
     double rls_settle_fraction{0.02};
     double rls_settle_standard_errors{3.0};
+    /// The standard errors count residuals as correlated over blocks of this many correlation lengths of the
+    /// preprocessing's low-pass (batch means, least_squares.hpp): with the force filtered like the position, the
+    /// plain estimate sigma^2 (Phi^T Phi)^-1 would count each of the correlated samples as news.
+    double correlation_blocks{2.0};
+    /// A relative error above this [%] is investigated: which samples carry the residual (accelerating ones, above
+    /// residual_acceleration_fraction of the largest |x''|; slow ones, below residual_slow_multiple of the slowest
+    /// step-1 speed; those within residual_reversal_s of a reversal), and a class carrying more than
+    /// residual_concentration times its share of the samples names the likely cause.
+    double investigate_relative_error_pct{10.0};
+    double residual_acceleration_fraction{0.3};
+    double residual_slow_multiple{2.0};
+    double residual_reversal_s{0.05};
+    double residual_concentration{2.0};
     /// The RLS trajectory is kept at about this many points (history for plots and the transient).
     std::size_t rls_history_points{2000};
 };
@@ -89,10 +105,23 @@ struct Step1Fit {
     /// Why step 1 cannot identify the model ("" when it can); when set, `batch` may still hold the attempted fit.
     std::string failure;
     bool mass_unidentifiable{false};  ///< the failure is the mass's (the friction may still be determined)
+    /// Where a poor fit's residual sits and the likely cause ("" when the fit is not poor).
+    std::string residual_finding;
     [[nodiscard]] bool failed() const { return !failure.empty(); }
     /// The batch estimate of a parameter (0 when the model has no such column).
     [[nodiscard]] double coefficient(Term term, Direction direction) const;
 };
+
+/// The batch-means block length [analysed samples] of standard errors for data preprocessed as `derivatives`: `blocks`
+/// correlation lengths of its low-pass.
+std::size_t correlation_block(const Derivatives& derivatives, double blocks);
+
+/// The drive signal counts the other way than the position: M (when a column) and every Coulomb term of `batch` lie
+/// more than `standard_errors` below zero (real friction never pushes the axis along; a sign convention, not the
+/// data's content). The message with the fix; nullopt otherwise.
+std::optional<std::string> opposed_drive_signal(const std::vector<RegressorColumn>& columns,
+                                                const LeastSquaresResult& batch, const Derivatives& derivatives,
+                                                double standard_errors);
 
 /// Batch QR and RLS on the step-1 samples `rows` (ascending, i.e. in time order). `source` names the trace in
 /// messages.

@@ -31,8 +31,10 @@ struct FrictionFitOptions {
     /// Each of step 1's and step 2's sample sets enters the curve fit thinned to about this many samples: beyond
     /// that the fit gains little but time (a million-sample trace).
     std::size_t max_fit_samples{100000};
-    /// v_s is searched between the slowest quasi-static speed / this and the split speed.
+    /// v_s is searched between the slowest quasi-static speed / stribeck_velocity_search_below and the larger of the
+    /// split speed and stribeck_velocity_search_above times the initial split (a third of the typical speed).
     double stribeck_velocity_search_below{5.0};
+    double stribeck_velocity_search_above{3.3};
     /// Refits after dropping undetermined Stribeck terms.
     int max_attempts{3};
     /// v_s is accepted only inside (vs_low * 1.05, vs_high * 0.95) (not on a bound of the search), with a relative
@@ -43,11 +45,16 @@ struct FrictionFitOptions {
     double max_stribeck_velocity_relative_error{0.3};
     double rise_significance{3.0};
     double determining_speed_multiple{3.0};
+    /// ... at more than one speed: their 90th percentile at least this multiple of their 10th.
+    double determining_speed_ratio{1.5};
     /// The curve and M separate (quasi-static curve, M from the transients) when every direction has at least this
     /// multiple of minimum_slow_samples quasi-static samples, with speeds at least `separable_speed_ratio` apart
     /// (90th against 10th percentile): B needs two speeds.
     std::size_t separable_sample_multiple{10};
     double separable_speed_ratio{2.0};
+    /// Standard errors count residuals as correlated over this many correlation lengths of the preprocessing's
+    /// low-pass, as step 1's do (Step1Options::correlation_blocks; identify() sets it from there).
+    double correlation_blocks{2.0};
 };
 
 /// The paper's log-linear estimate for one direction (eq. 13-14).

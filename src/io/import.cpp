@@ -631,6 +631,15 @@ Trace read_trace(const std::filesystem::path& path, const ImportOptions& options
         trace = read_source(path, options);
         prepare_trace(trace, options);
     }
+    for (const Role role : options.invert) {
+        Channel* channel = trace.find(role);
+        if (channel == nullptr) {
+            throw InputError(fmt::format("{}: --invert {}: the trace has no {} channel", path.string(), role_name(role),
+                                         role_name(role)));
+        }
+        for (double& value : channel->values) value = -value;
+        trace.findings.push_back(fmt::format("channel '{}' ({}) inverted (--invert)", channel->name, role_name(role)));
+    }
     for (const Role role : options.tare) tare(trace, role);
     return trace;
 }

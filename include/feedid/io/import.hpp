@@ -42,6 +42,9 @@ struct ImportOptions {
     std::vector<Role> assigned_elsewhere;
     /// Channels zeroed from the samples at rest before the move (`--tare ROLE`, see tare.hpp), after the join.
     std::vector<Role> tare;
+    /// Channels whose sign is flipped after the units are converted (`--invert ROLE`): a drive whose current (or
+    /// torque) is positive in the direction the NC counts negative. Before the tares.
+    std::vector<Role> invert;
 };
 
 /// Parses `ROLE=VALUE` (for --channel and --unit); throws InputError naming the option.
