@@ -31,7 +31,9 @@ def main() -> None:
     frame["published"] = [PUBLISHED.get(key, (None, None))[0] for key in frame.index]
     frame["published_stderr"] = [PUBLISHED.get(key, (None, None))[1] for key in frame.index]
     frame["difference_pct"] = 100 * (frame["value"] - frame["published"]) / frame["published"].abs()
-    print(frame.dropna(subset=["value"]).to_string(float_format=lambda v: f"{v:.4f}"))
+    columns = ["symbol", "unit", "value", "standard_error", "uncertainty", "published", "published_stderr",
+               "difference_pct"]
+    print(frame.dropna(subset=["value"])[columns].to_string(float_format=lambda v: f"{v:.4f}"))
     print(f"relative error {result.step1.relative_error_pct:.2f} % (published 4.0834 %), condition number "
           f"{result.step1.condition_number:.1f} (published 25.9883)")
     for diagnostic in result.diagnostics:

@@ -32,6 +32,8 @@ class Estimate:
     _fields: Tuple[str, ...]
     value: Optional[float]
     standard_error: Optional[float]
+    systematic: Optional[float]
+    uncertainty: Optional[float]
     def __init__(self, value: Optional[float] = ..., standard_error: Optional[float] = ...,
                  **fields: Optional[float]) -> None: ...
     @property
@@ -96,7 +98,7 @@ def read_trace(path: PathLike, channels: Optional[Mapping[str, str]] = ..., unit
                *, axis: Optional[str] = ..., format: Optional[str] = ..., sample_time_s: Optional[float] = ...,
                skip_rows: Optional[int] = ..., lead_mm: Optional[float] = ..., gear_ratio: Optional[float] = ...,
                rated: Optional[str] = ..., join: Optional[str] = ..., join_max_shift_s: Optional[float] = ...,
-               tare: Optional[Sequence[str]] = ...) -> Trace: ...
+               tare: Optional[Sequence[str]] = ..., invert: Optional[Sequence[str]] = ...) -> Trace: ...
 
 class TraceSummary:
     path: str
@@ -112,6 +114,8 @@ class PreprocessReport:
     decimation: int
     edge_samples: int
     velocity_source: str
+    savitzky_golay_window: int
+    savitzky_golay_order: int
 
 class SelectionReport:
     total: int
@@ -119,6 +123,12 @@ class SelectionReport:
     moving: int
     step1: int
     step2: int
+    passes: int
+    stick_slip_passes: int
+    stick_slip_samples: int
+    clipped: int
+    near_rest: int
+    initial_split_velocity: float
     moving_threshold: float
     split_velocity: float
     notes: List[str]
@@ -130,6 +140,9 @@ class Step1Report:
     samples_used: int
     residual_std: float
     r_diagonal: FloatArray
+    white_noise_standard_error: Dict[str, float]
+    correlation: numpy.ndarray
+    keys: List[str]
 
 class RlsReport:
     variant: str
@@ -171,6 +184,14 @@ class FrictionCurveReport:
     forward: Optional[FrictionCurvePoints]
     reverse: Optional[FrictionCurvePoints]
 
+class SystematicVariant:
+    label: str
+    status: str
+    parameters: Dict[str, Optional[float]]
+
+class SystematicReport:
+    variants: List[SystematicVariant]
+
 class FrictionOnlyReport:
     reason: str
     samples_used: int
@@ -197,6 +218,7 @@ class Result:
     stribeck: Optional[StribeckReport]
     friction_curve: Optional[FrictionCurveReport]
     friction_only: Optional[FrictionOnlyReport]
+    systematic: Optional[SystematicReport]
     options: Dict[str, Any]
     failure: Optional[str]
     def to_dict(self) -> Dict[str, Any]: ...
@@ -218,7 +240,8 @@ def identify(trace: TraceArgument, *, model: Literal["symmetric", "asymmetric"] 
              channels: Optional[Mapping[str, str]] = ..., units: Optional[Mapping[str, str]] = ...,
              axis: Optional[str] = ..., format: Optional[str] = ..., sample_time_s: Optional[float] = ...,
              skip_rows: Optional[int] = ..., rated: Optional[str] = ..., join: Optional[str] = ...,
-             join_max_shift_s: Optional[float] = ..., tare: Optional[Sequence[str]] = ...) -> Result: ...
+             join_max_shift_s: Optional[float] = ..., tare: Optional[Sequence[str]] = ...,
+             invert: Optional[Sequence[str]] = ..., systematic: bool = ...) -> Result: ...
 
 class Gains:
     """Identified controller gains (K_v [1/s], K_p [N*s/m or N*m*s/rad], K_i [N/m or N*m/rad])."""
@@ -249,7 +272,7 @@ def gains(trace: TraceArgument, *, force_constant: Union[float, str, None] = ...
           units: Optional[Mapping[str, str]] = ..., axis: Optional[str] = ..., format: Optional[str] = ...,
           sample_time_s: Optional[float] = ..., skip_rows: Optional[int] = ..., rated: Optional[str] = ...,
           join: Optional[str] = ..., join_max_shift_s: Optional[float] = ...,
-          tare: Optional[Sequence[str]] = ...) -> Gains: ...
+          tare: Optional[Sequence[str]] = ..., invert: Optional[Sequence[str]] = ...) -> Gains: ...
 
 class ValidationMetrics:
     position_relative_error_pct: float
@@ -282,7 +305,8 @@ def simulate(trace: TraceArgument, result: Union[Result, Mapping[str, Any], Path
              channels: Optional[Mapping[str, str]] = ..., units: Optional[Mapping[str, str]] = ...,
              axis: Optional[str] = ..., format: Optional[str] = ..., sample_time_s: Optional[float] = ...,
              skip_rows: Optional[int] = ..., rated: Optional[str] = ..., join: Optional[str] = ...,
-             join_max_shift_s: Optional[float] = ..., tare: Optional[Sequence[str]] = ...) -> Simulation: ...
+             join_max_shift_s: Optional[float] = ..., tare: Optional[Sequence[str]] = ...,
+             invert: Optional[Sequence[str]] = ...) -> Simulation: ...
 
 def synth(drive: Union[Mapping[str, Any], PathLike, None] = ..., *, rotary: bool = ...,
           preset: Optional[Literal["sinumerik"]] = ..., seed: Optional[int] = ...,

@@ -16,8 +16,8 @@ into the workers' environment), and the trace files at the same paths on every w
 paths travel to the workers and rows come back. Dask's workers trim their heap eagerly by default
 (``MALLOC_TRIM_THRESHOLD_=65536``), which costs identify a third more CPU; start them with
 ``MALLOC_TRIM_THRESHOLD_=1073741824 MALLOC_MMAP_THRESHOLD_=33554432 dask worker tcp://scheduler:8786`` (the
-LocalCluster made here starts its workers without the setting). A history store (``history=``) is written by the calling process,
-which reads each trace file once more to hash it (so it needs the files too).
+LocalCluster made here starts its workers without the setting). A history store (``history=``) is written by the
+calling process, which reads each trace file once more to hash it (so it needs the files too).
 
 A file that fails is a row with its status and reason, never an aborted batch: ``"failed"`` when the data cannot
 identify the model (IdentificationError), ``"error"`` for bad input (InputError: unreadable file, missing channel)
@@ -67,7 +67,7 @@ def identify_file(path: Union[str, "os.PathLike[str]"], *, machine: Optional[str
         >>> row = feedid.fleet.identify_file(EMPS, channels={"position": "qm", "current": "vir"},
         ...                                  force_constant="gtau", offset=True)
         >>> row["status"], round(row["mass_kg"], 2)
-        ('partial', 95.09)
+        ('partial', 95.01)
     """
     path = os.fspath(path)
     row: dict = {"path": path, "machine": machine, "axis": axis, "status": "error", "reason": None, "model": None}

@@ -93,6 +93,7 @@ IdentifyOptions identify_options(const OptionReader& o, nlohmann::json& drive_re
         o, "model", {{"symmetric", FrictionModelKind::symmetric}, {"asymmetric", FrictionModelKind::asymmetric}});
     options.offset = o.flag("offset").value_or(false);
     options.stribeck = o.flag("stribeck").value_or(true);
+    options.systematic = o.flag("systematic").value_or(true);
     options.drive = drive_constants(o, drive_record);
     preprocess_options(o, options.preprocess);
     options.selection.split_velocity = o.number("split_velocity", {0.0, 1e4, "m/s or rad/s"});
@@ -162,6 +163,8 @@ void bind_records(py::module_& m) {
         .def_readonly("filter_order", &PreprocessReport::filter_order)
         .def_readonly("cutoff_hz", &PreprocessReport::cutoff_hz)
         .def_readonly("decimation", &PreprocessReport::decimation)
+        .def_readonly("savitzky_golay_window", &PreprocessReport::savitzky_golay_window)
+        .def_readonly("savitzky_golay_order", &PreprocessReport::savitzky_golay_order)
         .def_readonly("edge_samples", &PreprocessReport::edge_samples)
         .def_readonly("velocity_source", &PreprocessReport::velocity_source);
     py::class_<SelectionReport>(
@@ -173,6 +176,12 @@ void bind_records(py::module_& m) {
         .def_readonly("moving", &SelectionReport::moving)
         .def_readonly("step1", &SelectionReport::step1)
         .def_readonly("step2", &SelectionReport::step2)
+        .def_readonly("passes", &SelectionReport::passes)
+        .def_readonly("stick_slip_passes", &SelectionReport::stick_slip_passes)
+        .def_readonly("stick_slip_samples", &SelectionReport::stick_slip_samples)
+        .def_readonly("clipped", &SelectionReport::clipped)
+        .def_readonly("near_rest", &SelectionReport::near_rest)
+        .def_readonly("initial_split_velocity", &SelectionReport::initial_split)
         .def_readonly("moving_threshold", &SelectionReport::moving_threshold)
         .def_readonly("split_velocity", &SelectionReport::split_velocity)
         .def_readonly("notes", &SelectionReport::notes);
@@ -189,7 +198,23 @@ void bind_records(py::module_& m) {
         .def_readonly("condition_number", &Step1Report::condition_number)
         .def_readonly("samples_used", &Step1Report::samples_used)
         .def_readonly("residual_std", &Step1Report::residual_std)
-        .def_property_readonly("r_diagonal", [](const Step1Report& s) { return copy(s.r_diagonal); });
+        .def_property_readonly("r_diagonal", [](const Step1Report& s) { return copy(s.r_diagonal); })
+        .def_property_readonly(
+            "white_noise_standard_error",
+            [](const Step1Report& s) { return keyed_numbers(s.keys, s.white_noise_standard_error); },
+            "key -> the textbook standard error sigma*sqrt(diag((Phi'Phi)^-1)) [SI], for published comparisons")
+        .def_property_readonly(
+            "correlation",
+            [](const Step1Report& s) {
+                const auto n = static_cast<py::ssize_t>(s.correlation.size());
+                py::array_t<double> out({n, n});
+                for (py::ssize_t i = 0; i < n; ++i)
+                    for (py::ssize_t j = 0; j < n; ++j)
+                        out.mutable_at(i, j) = s.correlation[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)];
+                return out;
+            },
+            "The estimates' correlations, in the order of keys (0 x 0 when not estimated)")
+        .def_readonly("keys", &Step1Report::keys, "The columns' parameter keys");
     py::class_<RlsReport>(
         m, "RlsReport",
         "Step 1's RLS: variant, forgetting_factor, initial_covariance; final and averaged estimates (key -> value "
@@ -266,6 +291,21 @@ void bind_records(py::module_& m) {
                                [](py::object self) { return optional_record(self, &FrictionCurveReport::forward); })
         .def_property_readonly("reverse",
                                [](py::object self) { return optional_record(self, &FrictionCurveReport::reverse); });
+    py::class_<SystematicVariant>(m, "SystematicVariant",
+                                  "One preprocessing of the family: label, status, and each parameter's estimate "
+                                  "(key -> value [SI], None where undetermined)")
+        .def_readonly("label", &SystematicVariant::label)
+        .def_property_readonly("status", [](const SystematicVariant& v) { return to_string(v.status); })
+        .def_property_readonly("parameters", [](const SystematicVariant& v) {
+            py::dict out;
+            for (std::size_t c = 0; c < v.keys.size() && c < v.values.size(); ++c)
+                out[py::str(v.keys[c])] = v.values[c];
+            return out;
+        });
+    py::class_<SystematicReport>(m, "SystematicReport",
+                                 "The preprocessing family that gives each parameter's systematic uncertainty [SI of "
+                                 "each key]: variants (SystematicVariant)")
+        .def_readonly("variants", &SystematicReport::variants);
     py::class_<FrictionOnlyReport>(m, "FrictionOnlyReport",
                                    "Why the mass could not be identified (reason, in figures) and the steady-speed "
                                    "friction fit: samples_used, relative_error_pct [%], residual_std [N or N*m]")
@@ -293,7 +333,7 @@ Example::
     >>> result.parameters["breakaway_N"].value is None      # EMPS has no slow passes; a diagnostic says so
     True
     >>> round(result.step1.condition_number, 1), round(result.preprocessing.cutoff_hz, 6)
-    (26.0, 100.0)
+    (26.1, 100.0)
     >>> sorted(result.to_dict()["parameters"]) == sorted(result.parameters)
     True
 )doc");
@@ -357,6 +397,9 @@ Example::
     cls.def_property_readonly(
         "friction_only", [](py::object self) { return optional_record(self, &IdentifyResult::friction_only); },
         "FrictionOnlyReport: why the mass could not be identified (None when it could)");
+    cls.def_property_readonly(
+        "systematic", [](py::object self) { return optional_record(self, &IdentifyResult::systematic); },
+        "SystematicReport: the preprocessing family's estimates (None with systematic=False)");
     cls.def_property_readonly(
         "options", [](const IdentifyResult& r) { return to_python(r.options); },
         "The options that shaped the result, as the command line records them");

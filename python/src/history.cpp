@@ -141,7 +141,7 @@ Example::
     >>> with feedid.History(DATABASE) as history:
     ...     run_id, added = history.record(result, machine="EMPS", axis="X", recorded_at="2019-01-01")
     ...     runs = history.runs(machine="EMPS")
-    >>> added, runs[0]["parameters"]["mass_kg"] == result.parameters["mass_kg"].to_dict()
+    >>> added, runs[0]["parameters"]["mass_kg"]["value"] == result.parameters["mass_kg"].value
     (True, True)
 )doc")
         .def(py::init<const py::object&, bool>(), py::arg("path"), py::kw_only(), py::arg("read_only") = false,

@@ -226,6 +226,8 @@ struct EstimateField {
 constexpr std::array estimate_fields{
     EstimateField{"value", &Estimate::value},
     EstimateField{"standard_error", &Estimate::standard_error},
+    EstimateField{"systematic", &Estimate::systematic},
+    EstimateField{"uncertainty", &Estimate::uncertainty},
 };
 
 std::optional<double> optional_number(py::handle value, const char* field) {

@@ -63,6 +63,14 @@ void add_join_and_tare(const OptionReader& o, ImportOptions& options, nlohmann::
         options.tare.push_back(*role);
     }
     if (!tare_roles.empty()) record["tare"] = tare_roles;
+    const auto invert_roles = o.texts("invert");
+    for (const auto& text : invert_roles) {
+        const auto role = parse_role(text);
+        if (!role || *role == Role::other || *role == Role::time)
+            throw InputError(fmt::format("invert {}: not a role to invert (e.g. current, force, position)", text));
+        options.invert.push_back(*role);
+    }
+    if (!invert_roles.empty()) record["invert"] = invert_roles;
 }
 
 /// The import options of a call, and the record of them that identify's "options" keeps.
@@ -553,7 +561,7 @@ Example::
 const PyTrace& trace_argument(py::handle trace, const OptionReader& options, std::optional<PyTrace>& storage) {
     if (py::isinstance<PyTrace>(trace)) {
         for (const char* name : {"channels", "units", "axis", "format", "sample_time_s", "skip_rows", "rated", "join",
-                                 "join_max_shift_s", "tare"}) {
+                                 "join_max_shift_s", "tare", "invert"}) {
             if (options.given(name))
                 throw InputError(fmt::format("{}: a reading option, for a path; this trace is read already", name));
         }

@@ -63,6 +63,16 @@ def test_the_results_records_hold_the_documents_numbers(emps):
     assert result.stribeck.nonlinear is None  # EMPS has no slow passes: no curve
     assert result.friction_curve.forward.speed.tolist() == document["friction_curve"]["forward"]["velocity_m_per_s"]
     assert result.friction_only is None
+    mass = result.parameters["mass_kg"]  # the C++ Estimate's fields, each an attribute
+    assert (mass.systematic, mass.uncertainty) == (document["parameters"]["mass_kg"]["systematic"],
+                                                    document["parameters"]["mass_kg"]["uncertainty"])
+    assert [v.label for v in result.systematic.variants] == \
+        [v["preprocessing"] for v in document["systematic"]["variants"]]
+    assert result.systematic.variants[0].parameters == document["systematic"]["variants"][0]["parameters"]
+    keys = result.step1.keys
+    assert result.step1.correlation[0, 1] == document["fit"]["correlations"][keys[0]][keys[1]]
+    assert result.step1.white_noise_standard_error == document["step1"]["white_noise_stderr"]
+    assert result.selection.passes == document["selection"]["passes"]
     assert result.diagnostics == document["diagnostics"]
     assert result.options == document["options"]
     # the DataFrame: one row per parameter, None as NaN
@@ -77,9 +87,20 @@ def test_the_results_records_hold_the_documents_numbers(emps):
     assert json.loads(result.to_json()) == document
 
 
+def test_without_the_systematic_family_and_with_an_inverted_channel(emps):
+    expected = cli_json("identify", emps, "--channel", "position=qm", "--channel", "current=vir", "--force-constant",
+                        "-35.15", "--invert", "current", "--no-systematic")
+    result = feedid.identify(emps, channels=EMPS_CHANNELS, force_constant=-35.15, invert=["current"],
+                             systematic=False)
+    assert_documents_equal(result.to_dict(), expected, TOLERANCE)
+    assert result.systematic is None and result.parameters["mass_kg"].uncertainty is None
+    assert "channel 'vir' (current) inverted (--invert)" in feedid.read_trace(emps, channels=EMPS_CHANNELS,
+                                                                             invert=["current"]).findings
+
+
 def test_estimate_fields_come_from_the_cpp_struct():
     estimate = feedid.Estimate(95.11, 0.12)
-    assert feedid.Estimate._fields[:2] == ("value", "standard_error")
+    assert feedid.Estimate._fields == ("value", "standard_error", "systematic", "uncertainty")
     assert estimate == feedid.Estimate(value=95.11, standard_error=0.12)
     assert estimate != feedid.Estimate(95.11)
     assert estimate.to_dict() == {"value": 95.11, "stderr": 0.12}
@@ -91,10 +112,10 @@ def test_estimate_fields_come_from_the_cpp_struct():
 def test_a_friction_only_result_says_why():
     # the UMich mill log: 10 Hz, positions in whole mm; the mass is null, friction from the steady speeds
     path = shared(SHARED_DATA / "umich-cnc-mill" / "experiment_01.csv")
-    expected = cli_json("identify", path, "--axis", "X1", "--sample-time", "0.1", "--unit", "position=mm", "--unit",
-                        "velocity=mm/s", "--force-constant", "1")
-    result = feedid.identify(path, axis="X1", sample_time_s=0.1, units={"position": "mm", "velocity": "mm/s"},
-                             force_constant=1)
+    units = {"position": "mm", "velocity": "mm/s", "reference_position": "mm", "velocity_command": "mm/s"}
+    expected = cli_json("identify", path, "--axis", "X1", "--sample-time", "0.1",
+                        *[f"--unit={role}={unit}" for role, unit in units.items()], "--force-constant", "1")
+    result = feedid.identify(path, axis="X1", sample_time_s=0.1, units=units, force_constant=1)
     assert_documents_equal(result.to_dict(), expected, TOLERANCE)
     assert result.status == "partial" and result.parameters["mass_kg"].value is None
     assert result.friction_only.reason == expected["friction_only"]["reason"]

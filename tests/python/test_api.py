@@ -69,7 +69,8 @@ def test_every_public_function_and_class_has_a_documented_example():
                    feedid.Result.to_pandas, feedid.fleet.identify_file, feedid.fleet.identify_many]
     records = {"TraceSummary", "PreprocessReport", "SelectionReport", "Step1Report", "RlsReport", "LogLinearStribeck",
                "NonlinearFitReport", "StribeckReport", "FrictionCurvePoints", "FrictionCurveReport",
-               "FrictionOnlyReport", "ValidationMetrics"}  # the Result's and Simulation's records: units, no example
+               "FrictionOnlyReport", "ValidationMetrics", "SystematicReport",
+               "SystematicVariant"}  # the Result's and Simulation's records: units, no example
     for item in documented:
         text = inspect.getdoc(item) or ""
         if getattr(item, "__name__", "") in records:

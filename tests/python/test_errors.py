@@ -58,7 +58,8 @@ def test_input_errors_carry_the_command_lines_message(emps, folder):
         feedid.identify(emps, force_constant="gtau", kt_Nm_per_A=1, lead_mm=10)
     assert str(error.value) == expected
     # a value out of its range: the command line refuses it while parsing ("--kt: -1 is outside ..."); the same range
-    with pytest.raises(feedid.InputError, match=r"^kt_Nm_per_A=-1 is outside the allowed range 1e-05 to 500000 N\*m/A$"):
+    kt_range = r"^kt_Nm_per_A=-1 is outside the allowed range 1e-05 to 500000 N\*m/A$"
+    with pytest.raises(feedid.InputError, match=kt_range):
         feedid.identify(emps, kt_Nm_per_A=-1, lead_mm=10)
 
 
@@ -104,6 +105,10 @@ def test_reading_options(emps):
         feedid.read_trace(emps, join_max_shift_s=0.1)
     with pytest.raises(feedid.InputError, match="^tare time: not a role to zero"):
         feedid.read_trace(emps, tare=["time"])
+    with pytest.raises(feedid.InputError, match="^invert time: not a role to invert"):
+        feedid.read_trace(emps, invert=["time"])
+    with pytest.raises(feedid.InputError, match="--invert force: the trace has no force channel"):
+        feedid.read_trace(emps, channels=EMPS_CHANNELS, invert=["force"])
     with pytest.raises(feedid.InputError, match="unknown format"):
         feedid.read_trace(emps, format="xlsx")
     with pytest.raises(feedid.InputError, match="read_trace: expected a path"):

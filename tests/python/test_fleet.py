@@ -10,6 +10,7 @@ import feedid.fleet
 
 FORCE = "force_constant_N_per_A"
 TRACES = 200
+FAST = {"systematic": False}  # standard errors only: the batch's mechanics, a fifth of the time
 
 
 @pytest.fixture(scope="module")
@@ -45,14 +46,15 @@ def test_identify_many_on_two_workers_equals_a_serial_loop(traces, client):
     paths, masses = traces
     assert len(client.scheduler_info()["workers"]) == 2
     frame = feedid.fleet.identify_many(paths, client, machine="plant", axis=lambda path: path[-7:-4],
-                                       force_constant=FORCE)
-    serial = pd.DataFrame([feedid.fleet.identify_file(path, machine="plant", axis=path[-7:-4], force_constant=FORCE)
-                           for path in paths]).reindex(columns=frame.columns).astype({"samples_used": "Int64"})
+                                       force_constant=FORCE, **FAST)
+    rows = [feedid.fleet.identify_file(path, machine="plant", axis=path[-7:-4], force_constant=FORCE, **FAST)
+            for path in paths]
+    serial = pd.DataFrame(rows).reindex(columns=frame.columns).astype({"samples_used": "Int64"})
     pd.testing.assert_frame_equal(frame, serial)
     assert list(frame["path"]) == paths and set(frame["status"]) == {"partial"}  # partial: no slow passes, no F_B
     # each row is feedid.identify's result for that file, and recovers that file's drive
     for index in (0, 77, 199):
-        result = feedid.identify(paths[index], force_constant=FORCE)
+        result = feedid.identify(paths[index], force_constant=FORCE, **FAST)
         for key, estimate in result.parameters.items():
             value = frame.loc[index, key]
             assert (np.isnan(value) and estimate.value is None) or value == estimate.value
@@ -70,10 +72,10 @@ def test_bad_files_are_rows_and_runs_go_into_the_history(traces, client, folder)
     batch = [paths[0], missing, str(not_a_trace), paths[1]]
     database = folder / "fleet.db"
     frame = feedid.fleet.identify_many(batch, client, machine="plant", axis="X", history=database,
-                                       force_constant=FORCE)
+                                       force_constant=FORCE, **FAST)
     assert list(frame["status"]) == ["partial", "error", "error", "partial"]
     with pytest.raises(feedid.InputError) as error:
-        feedid.identify(missing, force_constant=FORCE)
+        feedid.identify(missing, force_constant=FORCE, **FAST)
     assert frame.loc[1, "reason"] == str(error.value)
     assert frame.loc[0, "reason"] is None and np.isnan(frame.loc[1, "mass_kg"])
     with feedid.History(database, read_only=True) as history:
@@ -83,12 +85,13 @@ def test_bad_files_are_rows_and_runs_go_into_the_history(traces, client, folder)
     assert runs[1]["parameters"]["mass_kg"]["value"] == frame.loc[3, "mass_kg"]
     # recording again: the same traces with the same options are not added twice
     again = feedid.fleet.identify_many(batch[:1], client, machine="plant", axis="X", history=database,
-                                       force_constant=FORCE)
+                                       force_constant=FORCE, **FAST)
     assert again.loc[0, "run_id"] == frame.loc[0, "run_id"]
 
 
 def test_a_local_cluster_is_made_when_no_client_is_given(traces):
     paths, _ = traces
-    frame = feedid.fleet.identify_many(paths[:4], workers=2, force_constant=FORCE, model="asymmetric")
+    frame = feedid.fleet.identify_many(paths[:4], workers=2, force_constant=FORCE, model="asymmetric",
+                                       **FAST)
     assert list(frame["model"]) == ["asymmetric"] * 4 and "coulomb_forward_N" in frame.columns
-    assert feedid.fleet.identify_many([], force_constant=FORCE).empty
+    assert feedid.fleet.identify_many([], force_constant=FORCE, **FAST).empty

@@ -43,7 +43,8 @@ def test_record_list_and_check_as_the_command_line(folder):
     assert runs == listed["runs"]
     assert trends == listed["trends"]
     assert [run["id"] for run in runs] == [run_id for run_id, _ in recorded]
-    assert runs[3]["parameters"]["mass_kg"] == recorded[3][1].parameters["mass_kg"].to_dict()
+    stored, identified = runs[3]["parameters"]["mass_kg"], recorded[3][1].parameters["mass_kg"]
+    assert (stored["value"], stored["stderr"]) == (identified.value, identified.standard_error)
     check = run_cli("history", database, "--check", expect=1)
     assert alarms == check.stdout.strip().splitlines()
     assert any("coulomb_N" in alarm for alarm in alarms)

@@ -30,7 +30,8 @@ def one_of_each(feedid, trace, time, position, current, phi, y, rls, history, do
     trace.role("position")
     trace.roles
     feedid.Trace.from_arrays(time=time, position=position, current=current, constants={"k": 1.0})
-    result = feedid.identify(trace, force_constant=FORCE)
+    # without the systematic family: the same binding, a fifth of the time (the family's reruns are C++ inside)
+    result = feedid.identify(trace, force_constant=FORCE, systematic=False)
     result.parameters["mass_kg"].to_dict()
     result.rls.history["mass_kg"]
     result.step1.batch
