@@ -42,6 +42,21 @@ std::string GainOptions::validate() const {
     return {};
 }
 
+void set_drive_signal(GainOptions& options, const Trace& trace, const DriveConstants& drive,
+                      std::optional<double> saturation_in_signal_units) {
+    if (!trace.has(Role::force)) {
+        if (const auto factor = drive.force_per_signal(trace)) {
+            options.force_per_signal = *factor;
+            if (const auto* current = trace.find(Role::current))
+                options.signal_unit = current->unit.empty() ? current->source_unit : current->unit;
+        }
+    }
+    if (saturation_in_signal_units) {
+        options.saturation_N = std::abs(*saturation_in_signal_units) *
+                               (options.force_per_signal != 0.0 ? std::abs(options.force_per_signal) : 1.0);
+    }
+}
+
 namespace {
 
 using Column = std::vector<double>;

@@ -1,7 +1,6 @@
 #pragma once
 // Gain-identification options shared by `feedid gains` and `feedid simulate` (which identifies the gains from the
 // trace when no gains document is given).
-#include <cmath>
 #include <optional>
 #include <string>
 
@@ -49,18 +48,7 @@ struct GainArguments {
         options.velocity_difference_samples = velocity_difference;
         if (current_lag_ms) options.current_lag_s = *current_lag_ms * 1e-3;
         options.rls.forgetting_factor = forgetting;
-        if (!trace.has(Role::force)) {
-            if (const auto factor = drive.force_per_signal(trace)) {
-                options.force_per_signal = *factor;
-                if (const auto* current = trace.find(Role::current)) {
-                    options.signal_unit = current->unit.empty() ? current->source_unit : current->unit;
-                }
-            }
-        }
-        if (saturation) {
-            options.saturation_N =
-                std::abs(*saturation) * (options.force_per_signal != 0.0 ? std::abs(options.force_per_signal) : 1.0);
-        }
+        set_drive_signal(options, trace, drive, saturation);
         if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
         return options;
     }

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "feedid/controller.hpp"
+#include "feedid/drive.hpp"
 #include "feedid/estimate.hpp"
 #include "feedid/rls.hpp"
 #include "feedid/status.hpp"
@@ -34,6 +35,13 @@ struct GainOptions {
 
     [[nodiscard]] std::string validate() const;
 };
+
+/// Sets what the options take from the drive signal, as `feedid gains` does: force_per_signal and signal_unit when the
+/// trace's drive signal is a current or voltage that `drive` turns into force (not when the trace has a force
+/// channel), and saturation_N from a limit given in the drive signal's own units (e.g. 10 for 10 V; its magnitude,
+/// times force_per_signal when known).
+void set_drive_signal(GainOptions& options, const Trace& trace, const DriveConstants& drive,
+                      std::optional<double> saturation_in_signal_units);
 
 /// The largest systematic error [%] of the velocity loop's force fit (GainResult::systematic_error_pct: the part of
 /// the residual that is not white sensor noise) at which the gains are trusted. Measured (README, "Injected test
