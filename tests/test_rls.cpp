@@ -147,6 +147,21 @@ TEST(Rls, ThePapersForgettingWindsUpOnTheSameDataAndSaysSo) {
     EXPECT_LT(k, 10'000'000u);
 }
 
+TEST(Rls, ThePapersForgettingKeepsItsCovarianceSymmetricOnWellExcitingData) {
+    // Well-exciting data, forgetting at 0.9999 over 400,000 updates: P stays bounded, so it must also stay symmetric
+    // (an update whose round-off is asymmetric grows that asymmetry by 1/lambda a sample: 1e32 after 200,000) and the
+    // estimate right.
+    const auto data = exciting_data(400000, 2);
+    Rls<4> rls(RlsOptions{0.9999, 1e6, RlsVariant::exponential});
+    for (const auto& sample : data) rls.update(sample.phi, sample.y);
+    const Eigen::Matrix4d& p = rls.covariance();
+    ASSERT_TRUE(p.allFinite());
+    EXPECT_EQ((p - p.transpose()).cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_FALSE(rls.wound_up());
+    const Eigen::Vector4d truth(95.0, 203.0, 20.4, -3.2);
+    for (int i = 0; i < 4; ++i) EXPECT_NEAR(rls.estimate()(i), truth(i), 0.05 * std::abs(truth(i)) + 0.5) << i;
+}
+
 TEST(Rls, IgnoresNonFiniteSamplesAndNothingToLearn) {
     Rls<3> rls;
     const Eigen::Vector3d before = rls.estimate();

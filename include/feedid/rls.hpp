@@ -77,7 +77,10 @@ private:
         const double inverse_denominator = 1.0 / (lambda + r);
         const Vector gain = p_phi * inverse_denominator;
         theta_ += gain * error;
-        covariance_ = (covariance_ - gain * p_phi.transpose()) * inverse_lambda_;
+        // L*phi^T*P = P*phi*phi^T*P / (lambda + r), written as the outer product of P*phi with itself: each entry
+        // p_i*p_j equals p_j*p_i to the last bit, so P stays symmetric. (gain * p_phi^T is not: its round-off is
+        // asymmetric, and dividing by lambda every sample grew it to 1e32 within 200,000 samples at lambda 0.9999.)
+        covariance_ = (covariance_ - (p_phi * p_phi.transpose()) * inverse_denominator) * inverse_lambda_;
         // P is positive semi-definite, so its trace bounds every entry; NaN fails the comparison too
         if (!(covariance_.trace() <= wind_up_limit)) wound_up_ = true;
         ++updates_;
