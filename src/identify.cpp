@@ -514,7 +514,8 @@ std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, std::s
             }
         }
     };
-    const std::size_t threads = std::min<std::size_t>(family.size(), std::max(1u, std::thread::hardware_concurrency()));
+    const unsigned cores = base.threads > 0 ? base.threads : std::max(1u, std::thread::hardware_concurrency());
+    const std::size_t threads = std::min<std::size_t>(family.size(), cores);
     std::vector<std::thread> pool;
     for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(work);
     work();

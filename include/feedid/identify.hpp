@@ -43,6 +43,9 @@ struct IdentifyOptions {
     FrictionOnlyOptions friction_only;  ///< when the data cannot determine a mass
     /// Rerun the stages over the preprocessing family (systematic.hpp) for each parameter's systematic uncertainty.
     bool systematic{true};
+    /// Threads the family runs on; 0 = one per core (std::thread::hardware_concurrency). 1 keeps identify on the
+    /// calling thread (a batch that runs one identify per core already).
+    unsigned threads{0};
     /// A systematic part above this multiple of the standard error is said in a finding.
     double systematic_finding_multiple{2.0};
     /// Correlations between step-1 estimates above this are said in a finding, with the test that separates them.

@@ -200,7 +200,7 @@ def identify(trace: TraceArgument, *, model: str = "symmetric", offset: bool = F
              sample_time_s: Optional[float] = None, skip_rows: Optional[int] = None, rated: Optional[str] = None,
              join: Optional[str] = None, join_max_shift_s: Optional[float] = None,
              tare: Optional[Sequence[str]] = None, invert: Optional[Sequence[str]] = None,
-             systematic: bool = True) -> Result:
+             systematic: bool = True, threads: int = 0) -> Result:
     """Mass and friction of the axis, each with a standard error: ``feedid identify`` (README, "Identification").
 
     The options are the command line's, with the same defaults; the reading options (``channels`` to ``invert``, see
@@ -227,6 +227,8 @@ def identify(trace: TraceArgument, *, model: str = "symmetric", offset: bool = F
         systematic: rerun the stages over a family of preprocessing choices for each parameter's systematic
             uncertainty (``Estimate.systematic``, ``Estimate.uncertainty``, same unit); False: standard errors only,
             about 5x faster (``--no-systematic``).
+        threads: threads the family runs on (``--threads``); 0: one per core. In a batch that already runs one
+            identify per core, 1.
 
     Returns:
         The Result; ``result.status`` is ``"ok"``, or ``"partial"`` when some parameters are None (a diagnostic says

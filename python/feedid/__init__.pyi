@@ -241,7 +241,7 @@ def identify(trace: TraceArgument, *, model: Literal["symmetric", "asymmetric"] 
              axis: Optional[str] = ..., format: Optional[str] = ..., sample_time_s: Optional[float] = ...,
              skip_rows: Optional[int] = ..., rated: Optional[str] = ..., join: Optional[str] = ...,
              join_max_shift_s: Optional[float] = ..., tare: Optional[Sequence[str]] = ...,
-             invert: Optional[Sequence[str]] = ..., systematic: bool = ...) -> Result: ...
+             invert: Optional[Sequence[str]] = ..., systematic: bool = ..., threads: int = ...) -> Result: ...
 
 class Gains:
     """Identified controller gains (K_v [1/s], K_p [N*s/m or N*m*s/rad], K_i [N/m or N*m/rad])."""

@@ -16,9 +16,8 @@ into the workers' environment), and the trace files at the same paths on every w
 paths travel to the workers and rows come back. Dask's workers trim their heap eagerly by default
 (``MALLOC_TRIM_THRESHOLD_=65536``), which costs identify a third more CPU; start them with
 ``MALLOC_TRIM_THRESHOLD_=1073741824 MALLOC_MMAP_THRESHOLD_=33554432 dask worker tcp://scheduler:8786`` (the
-LocalCluster made here starts its workers without the setting). identify's systematic family runs on as many threads
-as the machine has cores, in every worker: one single-threaded worker per node, or ``systematic=False``, keeps a
-node from being oversubscribed. A history store (``history=``) is written by the
+LocalCluster made here starts its workers without the setting). Each worker runs identify's systematic family on one
+thread (``threads=1`` unless the options say otherwise): the workers already keep the cores busy. A history store (``history=``) is written by the
 calling process, which reads each trace file once more to hash it (so it needs the files too).
 
 A file that fails is a row with its status and reason, never an aborted batch: ``"failed"`` when the data cannot
@@ -77,7 +76,7 @@ def identify_file(path: Union[str, "os.PathLike[str]"], *, machine: Optional[str
     try:
         if axis is not None:
             options = dict(options, axis=axis)
-        result = feedid.identify(path, **options)
+        result = feedid.identify(path, **{"threads": 1, **options})
     except feedid.IdentificationError as error:
         row.update(status="failed", reason=str(error))
         result = error.result

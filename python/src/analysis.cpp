@@ -94,6 +94,7 @@ IdentifyOptions identify_options(const OptionReader& o, nlohmann::json& drive_re
     options.offset = o.flag("offset").value_or(false);
     options.stribeck = o.flag("stribeck").value_or(true);
     options.systematic = o.flag("systematic").value_or(true);
+    options.threads = static_cast<unsigned>(o.integer("threads", {0, 1024, ""}).value_or(0));
     options.drive = drive_constants(o, drive_record);
     preprocess_options(o, options.preprocess);
     options.selection.split_velocity = o.number("split_velocity", {0.0, 1e4, "m/s or rad/s"});
