@@ -709,12 +709,14 @@ void true_values(const SynthSpec& spec, const ControllerModel& controller, std::
 
 // The closed loop simulated on the reference: lengths of a rotary axis' test, encoder and friction zones in radians.
 SimulationOutput simulate_spec(const SynthSpec& spec, const ControllerModel& controller,
-                               const std::vector<double>& reference, std::span<const double> injection) {
+                               const std::vector<double>& reference, std::span<const double> injection,
+                               std::span<const double> external_force) {
     const double scale = spec.axis.rotary ? rotary_rad_per_length_unit : 1.0;
     SimulationInput input;
     input.sample_time_s = spec.sensors.sample_time_s;
     input.reference = reference;
     input.injection = injection;
+    input.external_force = external_force;
     SimulationOptions options;
     options.substeps = spec.sensors.substeps;
     if (spec.sensors.position_resolution_m > 0.0)
@@ -757,11 +759,15 @@ void log_injection(const SynthSpec& spec, std::span<const double> injection, Tra
 
 }  // namespace
 
-Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>& reference_override) {
+Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>& reference_override,
+                 std::span<const double> external_force) {
     if (const auto problem = spec.validate(); !problem.empty()) throw InputError("synth: " + problem);
     const double dt = spec.sensors.sample_time_s;
     std::vector<double> reference = reference_override ? *reference_override : test_reference(spec.test, dt);
     if (reference.size() < 2) throw InputError("synth: the reference needs at least two samples");
+    if (!external_force.empty() && external_force.size() != reference.size())
+        throw InputError(fmt::format("synth: the external force has {} samples where the reference has {}",
+                                     external_force.size(), reference.size()));
     if (spec.axis.rotary && !reference_override) {
         for (double& r : reference) r *= rotary_rad_per_length_unit;  // the test's "mm" are degrees
     }
@@ -770,7 +776,7 @@ Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>
     if (controller.position_cycle_s == 0.0) controller.position_cycle_s = dt;
     if (controller.velocity_cycle_s == 0.0) controller.velocity_cycle_s = controller.position_cycle_s;
     const std::vector<double> injection = injected_signal(spec, reference.size());
-    SimulationOutput simulated = simulate_spec(spec, controller, reference, injection);
+    SimulationOutput simulated = simulate_spec(spec, controller, reference, injection, external_force);
 
     SensorReadings sensors = read_sensors(spec, simulated.force);
 

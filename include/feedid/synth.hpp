@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -143,7 +144,9 @@ std::vector<double> test_reference(const TestReference& test, double sample_time
 /// recording's (format source), its values held over it. Constants kt_Nm_per_A, gear_ratio, lead_m and
 /// force_constant_N_per_A (linear) or torque_constant_Nm_per_A (rotary), and the true values (true_mass_kg or
 /// true_inertia_kgm2, ...). `reference` overrides the test (sampled every sensors.sample_time_s). Deterministic for a
-/// given seed.
-Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>& reference = std::nullopt);
+/// given seed. `external_force` [N, or N*m on a rotary axis], one value per reference sample acting in +x (a process
+/// force such as cutting), is felt by the axis and not logged; empty = none.
+Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>& reference = std::nullopt,
+                 std::span<const double> external_force = {});
 
 }  // namespace feedid
