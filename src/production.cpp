@@ -199,12 +199,17 @@ void add_spindle(Trace& out, std::vector<double> load, const Trajectory& traject
 
 }  // namespace
 
+ProcessForces production_forces(const Trajectory& trajectory, const MachineSpec& machine,
+                                const ProductionOptions& options) {
+    return cutting_forces(trajectory, machine, options.cutting_force_fraction, options.seed * seeds_per_trace);
+}
+
 Trace synthesize_production(const GcodeProgram& program, const MachineSpec& machine, const ProductionOptions& options) {
     if (auto problem = machine.validate(); !problem.empty()) throw InputError("machine: " + problem);
     if (auto problem = options.validate(); !problem.empty()) throw InputError("production: " + problem);
     const Trajectory trajectory = plan_trajectory(program, machine.limits);
     const std::uint64_t base_seed = options.seed * seeds_per_trace;
-    ProcessForces process = cutting_forces(trajectory, machine, options.cutting_force_fraction, base_seed);
+    ProcessForces process = production_forces(trajectory, machine, options);
     Trace out;
     out.format = "synthetic";
     for (std::size_t i = 0; i < 3; ++i) {

@@ -93,6 +93,10 @@ struct ProductionOptions {
     [[nodiscard]] std::string validate() const;
 };
 
+/// The cutting forces synthesize_production applies for these options (cutting_forces with the trace's cutting seed).
+ProcessForces production_forces(const Trajectory& trajectory, const MachineSpec& machine,
+                                const ProductionOptions& options);
+
 /// The trace of the machine running `program`: t [s]; per axis A in X, Y, Z: A_x_ref, A_x [m], A_i [A]; spindle_load
 /// [%], spindle_speed [rpm]. Constants: each axis' synth constants with its prefix (X_force_constant_N_per_A,
 /// X_true_mass_kg, ...), X_drive_force_N ..., X_peak_cutting_force_N ..., cutting_force_fraction, seed.
