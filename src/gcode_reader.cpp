@@ -151,10 +151,7 @@ bool apply_m_codes(const Line& line, State& state, GcodeProgram& program, const 
             case 40: state.spindle_on = true; break;
             case 50: state.spindle_on = false; break;
             case 20:
-            case 300:
-                end = true;
-                state.spindle_on = false;
-                break;
+            case 300: end = true; break;  // executed last, after the line's motion
             case 60: program.notes.push_back(fmt::format("{}: M6 (tool change) ignored", where)); break;
             case 70:
             case 80:
@@ -239,13 +236,7 @@ bool apply_line(const Line& line, State& state, GcodeProgram& program, const std
         state.spindle_rpm = s->second;
     }
     // LinuxCNC's order of execution: feed and speed, then spindle on/off, then dwell, then motion, then stop.
-    bool end = false;
-    {
-        Line spindle = line;
-        std::erase_if(spindle.m_codes, [](int code) { return code == 20 || code == 300; });
-        apply_m_codes(spindle, state, program, where);
-        end = spindle.m_codes.size() != line.m_codes.size();
-    }
+    const bool end = apply_m_codes(line, state, program, where);
     if (line.dwell) {
         const auto p = line.values.find('P');
         if (p == line.values.end() || p->second < 0.0)
