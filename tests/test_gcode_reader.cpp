@@ -20,13 +20,6 @@ namespace {
 
 const std::filesystem::path programs = std::filesystem::path(FEEDID_TEST_SOURCE_DIR) / ".." / "examples" / "programs";
 
-std::filesystem::path find_rs274() {
-    for (const char* candidate : {"/usr/bin/rs274", "/usr/local/bin/rs274"}) {
-        if (std::filesystem::exists(candidate)) return candidate;
-    }
-    return {};
-}
-
 struct Canonical {
     feedid::BlockKind kind;
     std::vector<double> values;  // as printed [mm, mm/min, s]
@@ -47,12 +40,10 @@ std::vector<double> numbers(const std::string& list) {
 constexpr double printed = 5.1e-5;
 
 // The canonical motion commands rs274 prints for a program (run in a folder of its own).
-std::vector<Canonical> run_rs274(const std::filesystem::path& rs274, const std::filesystem::path& program) {
+std::vector<Canonical> canonical_moves(const std::filesystem::path& rs274, const std::filesystem::path& program) {
     const auto dir = feedid::testing::temp_dir() / "rs274";
     std::filesystem::create_directories(dir);
-    const std::string command = "cd '" + dir.string() + "' && '" + rs274.string() + "' -g '" + program.string() +
-                                "' >out.txt 2>err.txt </dev/null";
-    const int status = std::system(command.c_str());
+    const int status = feedid::testing::run_rs274(rs274, program, dir);
     const auto out = feedid::testing::read_text(dir / "out.txt");
     EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "rs274 failed on " << program << ":\n"
                                                                << feedid::testing::read_text(dir / "err.txt") << out;
@@ -91,11 +82,11 @@ std::vector<Canonical> run_rs274(const std::filesystem::path& rs274, const std::
 }
 
 void expect_same_moves(const std::filesystem::path& program) {
-    const auto rs274 = find_rs274();
+    const auto rs274 = feedid::testing::find_rs274();
     if (rs274.empty())
         GTEST_SKIP() << "LinuxCNC's rs274 interpreter not found (install Debian's linuxcnc-uspace: scripts/setup.sh "
                         "--extra); the comparison is skipped";
-    const auto canonical = run_rs274(rs274, program);
+    const auto canonical = canonical_moves(rs274, program);
     const auto read = feedid::read_gcode_file(program);
     ASSERT_EQ(read.blocks.size(), canonical.size()) << program;
     for (std::size_t k = 0; k < canonical.size(); ++k) {
