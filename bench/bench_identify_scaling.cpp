@@ -62,7 +62,7 @@ struct ChildFigures {
 };
 
 // identify on `samples` in a child process; its wall time and the child's peak resident set.
-ChildFigures run_in_child(std::size_t samples) {
+ChildFigures run_in_child(std::size_t samples, unsigned threads) {
     int fds[2];
     if (pipe(fds) != 0) return {};
     const pid_t pid = fork();
@@ -71,6 +71,7 @@ ChildFigures run_in_child(std::size_t samples) {
         const feedid::Trace trace = make_trace(samples);
         feedid::IdentifyOptions options;
         options.drive.force_constant = 450.0;
+        options.threads = threads;
         const auto start = std::chrono::steady_clock::now();
         const auto result = feedid::identify(trace, options);
         const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -95,7 +96,7 @@ void BM_IdentifyScaling(benchmark::State& state) {
     ChildFigures last;
     double seconds = 0.0;
     for (auto _ : state) {
-        last = run_in_child(samples);
+        last = run_in_child(samples, static_cast<unsigned>(state.range(1)));
         if (!last.ok) {
             state.SkipWithError("the child process failed");
             return;
@@ -109,9 +110,12 @@ void BM_IdentifyScaling(benchmark::State& state) {
     state.counters["s_per_M_samples"] = seconds / static_cast<double>(state.iterations()) / (n / 1e6);
 }
 BENCHMARK(BM_IdentifyScaling)
-    ->Arg(1'000'000)
-    ->Arg(4'000'000)
-    ->Arg(16'000'000)
+    ->ArgNames({"samples", "threads"})
+    ->Args({1'000'000, 0})
+    ->Args({4'000'000, 0})
+    ->Args({16'000'000, 0})
+    ->Args({1'000'000, 1})
+    ->Args({16'000'000, 1})
     ->UseManualTime()
     ->Iterations(2)
     ->Unit(benchmark::kMillisecond);
