@@ -196,27 +196,7 @@ WindowVerdict OnlineIdentifier::judge_window(std::size_t first, std::size_t last
     }
     if (static_cast<double>(moving) < options_.minimum_moving_fraction * static_cast<double>(n))
         return WindowVerdict::at_rest;
-    // stick-slip: brief stops inside slow motion, restarting in the same direction
-    int stops = 0;
-    int direction = 0;
-    std::size_t stopped_at = 0;
-    double peak = 0.0;
-    for (std::size_t k = first; k < last; ++k) {
-        const double speed = std::abs(v_[k]);
-        if (direction != 0 && speed < options_.stick_stop_fraction * peak) {
-            if (stopped_at == 0) stopped_at = k;
-        } else if (speed > options_.moving_threshold) {
-            const int d = v_[k] > 0.0 ? 1 : -1;
-            if (stopped_at != 0 && d == direction && peak < 2.0 * options_.split_velocity &&
-                static_cast<double>(k - stopped_at) * dt_ < 0.2)
-                ++stops;
-            if (d != direction || stopped_at != 0) peak = 0.0;
-            direction = d;
-            stopped_at = 0;
-            peak = std::max(peak, speed);
-        }
-    }
-    if (stops >= options_.stick_slip_stops) return WindowVerdict::stick_slip;
+    if (stick_slips(first, last)) return WindowVerdict::stick_slip;
     const std::size_t rows = build_rows(first, last);
     if (static_cast<double>(rows) < options_.minimum_row_fraction * static_cast<double>(window_)) {
         std::size_t ungated = 0;
@@ -226,6 +206,40 @@ WindowVerdict OnlineIdentifier::judge_window(std::size_t first, std::size_t last
                    : WindowVerdict::low_excitation;
     }
     return fit_window(rows);
+}
+
+// Stick-slip without a reference (stick_slip.hpp's rule for traces without one, on the window): a slow pass that
+// stops and restarts in the same direction, each burst and each stop brief, at least stick_slip_stops times.
+bool OnlineIdentifier::stick_slips(std::size_t first, std::size_t last) const {
+    const auto brief = [&](std::size_t samples) { return static_cast<double>(samples) * dt_ < options_.max_stick_s; };
+    int stops = 0;
+    int direction = 0;
+    std::size_t burst_start = first;
+    std::size_t stopped_at = 0;
+    std::size_t burst = 0;
+    double peak = 0.0;
+    for (std::size_t k = first; k < last; ++k) {
+        const double speed = std::abs(v_[k]);
+        if (direction != 0 && speed < options_.stick_stop_fraction * peak) {
+            if (stopped_at == 0) {
+                stopped_at = k;
+                burst = k - burst_start;
+            }
+        } else if (speed > options_.moving_threshold) {
+            const int d = v_[k] > 0.0 ? 1 : -1;
+            if (stopped_at != 0 || d != direction) {
+                if (stopped_at != 0 && d == direction && peak < 2.0 * options_.split_velocity && brief(burst) &&
+                    brief(k - stopped_at))
+                    ++stops;
+                burst_start = k;
+                peak = 0.0;
+            }
+            direction = d;
+            stopped_at = 0;
+            peak = std::max(peak, speed);
+        }
+    }
+    return stops >= options_.stick_slip_stops;
 }
 
 std::size_t OnlineIdentifier::build_rows(std::size_t first, std::size_t last) {

@@ -63,6 +63,7 @@ struct OnlineOptions {
     std::optional<double> force_limit;  ///< saturation: |F_d| at or above 0.99 of it in a window [N]
     double stick_stop_fraction{0.2};    ///< stick-slip: |x'| falls below this fraction of the pass's speed ...
     int stick_slip_stops{2};            ///< ... and restarts in the same direction this often in a window
+    double max_stick_s{0.15};           ///< ... each stop and each burst between them shorter than this [s]
     // Stribeck bins: log-spaced speed bins from stribeck_lowest_speed to split_velocity, per direction.
     double stribeck_lowest_speed{1e-4};  ///< [m/s]
     std::size_t minimum_bin_samples{20};
@@ -162,6 +163,7 @@ private:
     [[nodiscard]] bool consistent(const WindowInformation& window, const Vec& reference) const;
     void bin_slow_samples(std::size_t first, std::size_t last);
     void filter(std::span<const double> in, std::span<double> out, std::size_t count);
+    [[nodiscard]] bool stick_slips(std::size_t first, std::size_t last) const;
     std::size_t build_rows(std::size_t first, std::size_t last);
     [[nodiscard]] Vec pooled_theta() const;
 
