@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 
 #include <fmt/core.h>
 
 #include "feedid/error.hpp"
+#include "feedid/io/csv.hpp"
 #include "feedid/result_document.hpp"
 #include "feedid/version.hpp"
 
@@ -75,27 +77,29 @@ void set_parameters(ScanResult& s, const OnlineEstimate& e) {
 
 }  // namespace
 
-ScanResult scan(const Trace& trace, std::span<const double> force, std::span<const char> use,
-                const OnlineOptions& options, std::size_t block) {
-    if (const auto problem = options.validate(); !problem.empty()) throw InputError("scan: " + problem);
+namespace {
+
+void push_trace(OnlineIdentifier& online, const Trace& trace, std::span<const double> force, std::span<const char> use,
+                std::size_t block) {
     const auto t = trace.column(Role::time);
     const auto x = trace.column(Role::position);
-    OnlineIdentifier online(options);
     for (std::size_t k = 0; k < t.size(); k += block) {
         const std::size_t n = std::min(block, t.size() - k);
         online.push(t.subspan(k, n), x.subspan(k, n), force.subspan(k, n), use.empty() ? use : use.subspan(k, n));
     }
+}
+
+ScanResult finish(OnlineIdentifier& online, const TraceSummary& summary, const OnlineOptions& options, bool rotary) {
     online.flush();
     ScanResult s;
     s.online = online.estimate();
     IdentifyResult& r = s.result;
     r.model = FrictionModelKind::symmetric;
     r.offset = options.offset;
-    r.rotary = trace.rotary;
-    r.axis.rotary = trace.rotary;
+    r.rotary = rotary;
+    r.axis.rotary = rotary;
     r.feedid_version = version;
-    const TimeBase base = trace.samples() >= 2 ? trace.time_base() : TimeBase{};
-    r.trace = TraceSummary{trace.source_path, trace.format, trace.samples(), base.sample_time_s, base.duration_s};
+    r.trace = summary;
     r.parameters = model_parameters(r.model, r.offset, r.rotary);
     set_parameters(s, s.online);
     const OnlineEstimate& e = s.online;
@@ -107,6 +111,92 @@ ScanResult scan(const Trace& trace, std::span<const double> force, std::span<con
     r.status = !e.mass.determined() ? Status::failed : all ? Status::ok : Status::partial;
     r.axis = axis_from_parameters(r.parameters, r.model, r.rotary);
     return s;
+}
+
+}  // namespace
+
+ScanResult scan(const Trace& trace, std::span<const double> force, std::span<const char> use,
+                const OnlineOptions& options, std::size_t block) {
+    if (const auto problem = options.validate(); !problem.empty()) throw InputError("scan: " + problem);
+    if (!trace.has(Role::position))
+        throw InputError(fmt::format("{}: scan needs a position channel (--channel position=NAME)", trace.source_path));
+    OnlineIdentifier online(options);
+    push_trace(online, trace, force, use, block);
+    const TimeBase base = trace.samples() >= 2 ? trace.time_base() : TimeBase{};
+    return finish(online,
+                  TraceSummary{trace.source_path, trace.format, trace.samples(), base.sample_time_s, base.duration_s},
+                  options, trace.rotary);
+}
+
+namespace {
+
+// Reads up to `rows` lines into `text` (each with its '\n'); returns how many.
+std::size_t read_lines(std::istream& in, std::size_t rows, std::string& text) {
+    std::string line;
+    std::size_t n = 0;
+    while (n < rows && std::getline(in, line)) {
+        text += line;
+        text += '\n';
+        ++n;
+    }
+    return n;
+}
+
+Trace parse_block(const std::string& text, const std::filesystem::path& path, const ImportOptions& import) {
+    CsvOptions csv;
+    csv.skip_rows = import.skip_rows;
+    for (const auto& [role, name] : import.channels) csv.numeric_columns.push_back(name);
+    Trace trace = parse_csv(text, path.string(), csv);
+    trace.source_path = path.string();
+    trace.format = "csv";
+    prepare_trace(trace, import);
+    if (!trace.has(Role::position))
+        throw InputError(fmt::format("{}: scan needs a position channel (--channel position=NAME)", path.string()));
+    return trace;
+}
+
+}  // namespace
+
+ScanResult scan_csv_stream(const std::filesystem::path& path, const ImportOptions& import, const DriveConstants& drive,
+                           std::span<const GateCondition> gates, const OnlineOptions& options, std::size_t block_rows,
+                           std::vector<std::string>& findings) {
+    if (const auto problem = options.validate(); !problem.empty()) throw InputError("scan: " + problem);
+    if (import.join || !import.tare.empty() || !import.invert.empty() || import.sample_time_s)
+        throw InputError(
+            fmt::format("{}: --join, --tare, --invert and --sample-time need the whole file; it is read "
+                        "in blocks",
+                        path.string()));
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(fmt::format("{}: cannot open the file", path.string()));
+    std::string text;
+    const std::size_t first_lines = read_lines(in, block_rows, text);
+    Trace first = parse_block(text, path, import);
+    findings = first.findings;
+    // the lines before the first data row: the header (and comments, constants, skipped rows) of every block
+    if (first.samples() > first_lines) throw InputError(fmt::format("{}: unexpected CSV layout", path.string()));
+    std::size_t preamble_end = 0;
+    for (std::size_t line = 0; line < first_lines - first.samples(); ++line)
+        preamble_end = text.find('\n', preamble_end) + 1;
+    const std::string preamble = text.substr(0, preamble_end);
+    OnlineIdentifier online(options);
+    TraceSummary summary{path.string(), "csv", 0, 0.0, 0.0};
+    const TimeBase base = first.samples() >= 2 ? first.time_base() : TimeBase{};
+    summary.sample_time_s = base.sample_time_s;
+    const double start = first.samples() > 0 ? first.column(Role::time).front() : 0.0;
+    double end = start;
+    const bool rotary = first.rotary;
+    for (Trace block = std::move(first);;) {
+        const std::vector<double> force = drive_force(block, drive);
+        const std::vector<char> use = gate_samples(block, gates);
+        push_trace(online, block, force, use, 65536);
+        summary.samples += block.samples();
+        if (block.samples() > 0) end = block.column(Role::time).back();
+        text = preamble;
+        if (read_lines(in, block_rows, text) == 0) break;
+        block = parse_block(text, path, import);
+    }
+    summary.duration_s = end - start;
+    return finish(online, summary, options, rotary);
 }
 
 nlohmann::json scan_document(const ScanResult& s) {

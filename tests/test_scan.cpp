@@ -95,6 +95,24 @@ TEST(Scan, IsTheOnlineIdentifierRunOverTheFile) {
     EXPECT_EQ(d["windows"]["qualified"].get<std::size_t>(), e.windows.qualified());
 }
 
+TEST(Scan, ReadingTheFileInBlocksGivesTheSameEstimate) {
+    const nlohmann::json whole = scan_json(production_csv().string());
+    const nlohmann::json blocks = scan_json(production_csv().string() + " --block-rows 10007");
+    for (const auto& [key, entry] : whole["parameters"].items()) {
+        ASSERT_FALSE(entry["value"].is_null()) << key;
+        const double a = entry["value"].get<double>();
+        const double b = blocks["parameters"][key]["value"].get<double>();
+        EXPECT_LE(std::abs(a - b), 1e-9 * std::abs(a)) << key;
+    }
+    EXPECT_EQ(whole["windows"], blocks["windows"]);
+    EXPECT_EQ(whole["trace"]["samples"], blocks["trace"]["samples"]);
+    // a gate on another channel works block by block too
+    const nlohmann::json gated = scan_json(production_csv().string() + " --only-when 'spindle_load<5'");
+    const nlohmann::json gated_blocks =
+        scan_json(production_csv().string() + " --only-when 'spindle_load<5' --block-rows 10007");
+    EXPECT_EQ(gated["parameters"], gated_blocks["parameters"]);
+}
+
 TEST(Scan, GatingOnTheSpindleLoadRemovesTheCuttingEvenWithoutRobustWeighting) {
     const AxisModel truth = demo_spec().axis;
     const nlohmann::json plain = scan_json(production_csv().string() + " --no-robust");

@@ -2,6 +2,7 @@
 // run over the file, windows that carry information pooled, the others counted by why.
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <vector>
 
@@ -24,6 +25,7 @@ struct ScanCommand {
     bool no_robust{false};
     std::vector<std::string> only_when;
     std::string json_path;
+    std::size_t block_rows{0};
     RecordArguments record;
 
     void add_to(CLI::App& sub) {
@@ -53,6 +55,10 @@ struct ScanCommand {
         sub.add_option("--force-limit", options.force_limit,
                        "The drive's force limit [N]: a window reaching 99 % of it is rejected as saturated")
             ->check(allowed_range(1e-6, 1e9, "N"));
+        sub.add_option("--block-rows", block_rows,
+                       "Read a CSV file in blocks of this many lines (memory of one block; the same estimate). "
+                       "Default: blocks of 500000 for CSV files above 256 MB, the whole file otherwise")
+            ->check(allowed_range(1000, 1e9, "lines"));
         sub.add_option("--json", json_path, "Write the result document to PATH ('-' for stdout)");
         record.add_to(sub);
     }
@@ -67,13 +73,7 @@ struct ScanCommand {
         inputs.push_back({"the --record history database", record.database, true});
         require_separate_outputs({{"--json", json_path}}, inputs);
         record.check(trace_arguments.axis);
-        const Trace trace = read_trace_for_drive(trace_arguments, drive_arguments);
-        if (!trace.has(Role::position))
-            throw InputError(
-                fmt::format("{}: scan needs a position channel (--channel position=NAME)", trace.source_path));
-        const std::vector<double> force = drive_force(trace, drive_arguments.constants());
-        const std::vector<char> use = gate_samples(trace, gates);
-        ScanResult result = scan(trace, force, use, o);
+        ScanResult result = streamed() ? scan_streamed(o, gates) : scan_whole(o, gates);
         result.result.options = options_document(o);
         const nlohmann::json document = scan_document(result);
         if (!json_path.empty()) write_json(document, json_path);
@@ -84,6 +84,34 @@ struct ScanCommand {
         }
         if (record.enabled()) record.record(document, trace_arguments.file, trace_arguments.axis, document["options"]);
         return 0;
+    }
+
+    bool streamed() const {
+        if (block_rows > 0) return true;
+        std::error_code error;
+        const auto size = std::filesystem::file_size(trace_arguments.file, error);
+        const bool csv = trace_arguments.format.empty() ? detect_format(trace_arguments.file) == "csv"
+                                                        : trace_arguments.format == "csv";
+        return !error && csv && size > (std::uintmax_t{256} << 20) && trace_arguments.join.empty() &&
+               trace_arguments.tare.empty() && trace_arguments.invert.empty() && !trace_arguments.sample_time_s;
+    }
+
+    ScanResult scan_whole(const OnlineOptions& o, const std::vector<GateCondition>& gates) const {
+        const Trace trace = read_trace_for_drive(trace_arguments, drive_arguments);
+        const std::vector<double> force = drive_force(trace, drive_arguments.constants());
+        const std::vector<char> use = gate_samples(trace, gates);
+        return scan(trace, force, use, o);
+    }
+
+    ScanResult scan_streamed(const OnlineOptions& o, const std::vector<GateCondition>& gates) const {
+        TraceArguments arguments = trace_arguments;
+        if (!arguments.lead_mm) arguments.lead_mm = drive_arguments.lead_mm;
+        if (!arguments.gear_ratio) arguments.gear_ratio = drive_arguments.gear_ratio;
+        std::vector<std::string> findings;
+        ScanResult result = scan_csv_stream(arguments.file, arguments.import_options(), drive_arguments.constants(),
+                                            gates, o, block_rows > 0 ? block_rows : 500000, findings);
+        for (const auto& finding : findings) fmt::print(stderr, "feedid: {}\n", terminal_message(finding));
+        return result;
     }
 
     nlohmann::json options_document(const OnlineOptions& o) const {

@@ -3,6 +3,7 @@
 // the identify result document (the same "parameters" keys, value and stderr, null with a diagnostic) with the
 // windows' verdicts and each parameter's information.
 
+#include <filesystem>
 #include <optional>
 #include <span>
 #include <string>
@@ -10,7 +11,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "feedid/drive.hpp"
 #include "feedid/identify.hpp"
+#include "feedid/io/import.hpp"
 #include "feedid/online.hpp"
 #include "feedid/trace.hpp"
 
@@ -39,6 +42,16 @@ struct ScanResult {
 /// `block` samples; `use` (empty = all) is the --only-when gate. InputError for a trace without a position.
 ScanResult scan(const Trace& trace, std::span<const double> force, std::span<const char> use,
                 const OnlineOptions& options, std::size_t block = 65536);
+
+/// The same over a CSV file read in blocks of `block_rows` lines, for files larger than memory: the first block goes
+/// through the importer as a whole file would (header, units, roles, constants), and every later block is parsed with
+/// the lines before the first data row put in front of it, so that its values are converted exactly as the whole
+/// file's would be; the identifier sees the same samples, in the same order, whatever the block size. Memory is that
+/// of one block. `findings` receives the first block's import findings. InputError as read_trace; also for options
+/// a block cannot apply (--join, --tare, --invert, a time base from --sample-time): read the file whole for those.
+ScanResult scan_csv_stream(const std::filesystem::path& path, const ImportOptions& import, const DriveConstants& drive,
+                           std::span<const GateCondition> gates, const OnlineOptions& options, std::size_t block_rows,
+                           std::vector<std::string>& findings);
 
 /// The result document: identify's keys plus "kind": "scan", "windows" {total, qualified, rejected: {reason: n}}
 /// and "information" {key: {"inverse_variance": 1/var [1/unit^2]}, "eigenvalues": [...] (of the information matrix
