@@ -328,25 +328,40 @@ WindowVerdict OnlineIdentifier::fit_window(std::size_t rows) {
 }
 
 OnlineIdentifier::Vec OnlineIdentifier::solve_weighted(std::size_t rows) const {
-    const auto p = static_cast<Eigen::Index>(p_);
-    Mat hw = Mat::Zero(p, p);
-    Vec cw = Vec::Zero(p);
+    // the normal equations of the weighted rows, in plain loops over the contiguous rows (the IRLS's inner loop)
+    const std::size_t p = p_;
+    std::array<double, max_p * max_p> h{};
+    std::array<double, max_p> c{};
     for (std::size_t k = 0; k < rows; ++k) {
         const double w = weights_[k];
         if (w == 0.0) continue;
-        const auto row = rows_.row(static_cast<Eigen::Index>(k)).head(p);
-        hw.noalias() += w * row.transpose() * row;
-        cw.noalias() += w * rows_(static_cast<Eigen::Index>(k), p) * row.transpose();
+        const double* row = rows_.data() + k * (max_p + 1);
+        for (std::size_t i = 0; i < p; ++i) {
+            const double wi = w * row[i];
+            c[i] += wi * row[p];
+            for (std::size_t j = 0; j <= i; ++j) h[i * max_p + j] += wi * row[j];
+        }
     }
-    const Mat hs = column_scale_.asDiagonal() * hw * column_scale_.asDiagonal();
-    return column_scale_.asDiagonal() * hs.ldlt().solve(Vec(column_scale_.asDiagonal() * cw));
+    const auto n = static_cast<Eigen::Index>(p);
+    Mat hs(n, n);
+    Vec cs(n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+        cs(i) = column_scale_(i) * c[static_cast<std::size_t>(i)];
+        for (Eigen::Index j = 0; j <= i; ++j) {
+            hs(i, j) = column_scale_(i) * h[static_cast<std::size_t>(i * max_p + j)] * column_scale_(j);
+            hs(j, i) = hs(i, j);
+        }
+    }
+    return column_scale_.asDiagonal() * hs.ldlt().solve(cs);
 }
 
 void OnlineIdentifier::residuals(const Vec& theta, std::size_t rows) {
-    const auto p = static_cast<Eigen::Index>(p_);
+    const std::size_t p = p_;
     for (std::size_t k = 0; k < rows; ++k) {
-        const auto r = static_cast<Eigen::Index>(k);
-        residual_[k] = rows_(r, p) - rows_.row(r).head(p).dot(theta);
+        const double* row = rows_.data() + k * (max_p + 1);
+        double fitted = 0.0;
+        for (std::size_t i = 0; i < p; ++i) fitted += row[i] * theta(static_cast<Eigen::Index>(i));
+        residual_[k] = row[p] - fitted;
     }
 }
 
@@ -595,7 +610,12 @@ OnlineEstimate OnlineIdentifier::estimate() const {
         e.offset.standard_error.reset();
         e.friction_reason = why;
     }
-    // Stribeck from the bins
+    estimate_stribeck(theta, se(2), e);
+    return e;
+}
+
+void OnlineIdentifier::estimate_stribeck(const Vec& theta, double coulomb_standard_error, OnlineEstimate& e) const {
+    // the quasi-static bins: F_stri = friction - B |v| - F_C per bin, eq. (13) on those above their noise
     std::array<BinPoint, 2 * bins_per_direction> points{};
     std::size_t used = 0;
     const double correlation = std::max(1.0, 1.0 / (dt_ * options_.cutoff_hz.value_or(std::min(100.0, 0.1 / dt_))));
@@ -625,7 +645,7 @@ OnlineEstimate OnlineIdentifier::estimate() const {
                       "the slow moves ({} quasi-static samples below {:.3g} mm/s) show a friction rise above "
                       "F_C in only {} speed bin(s); {} needed",
                       slow_samples, options_.split_velocity * 1e3, used, options_.minimum_stribeck_bins);
-        return e;
+        return;
     }
     Eigen::Matrix2d normal = Eigen::Matrix2d::Zero();
     Eigen::Vector2d right = Eigen::Vector2d::Zero();
@@ -639,22 +659,21 @@ OnlineEstimate OnlineIdentifier::estimate() const {
     const Eigen::Vector2d fit = cov * right;
     if (!(fit(1) < 0.0)) {
         e.stribeck_reason = "the slow moves' friction does not fall with speed: no Stribeck term to determine";
-        return e;
+        return;
     }
     const double rise = std::exp(fit(0));
     const double vs = -1.0 / fit(1);
     const double vs_se = std::sqrt(cov(1, 1)) / (fit(1) * fit(1));
-    const double fb_se = std::hypot(se(2), rise * std::sqrt(cov(0, 0)));
+    const double fb_se = std::hypot(coulomb_standard_error, rise * std::sqrt(cov(0, 0)));
     if (!(vs_se < 0.3 * vs)) {
         e.stribeck_reason =
             fmt::format("v_s = {:.3g} mm/s is not determined by the slow moves (standard error {:.0f} %)", vs * 1e3,
                         100.0 * vs_se / vs);
-        return e;
+        return;
     }
     e.breakaway = Estimate::of(theta(2) + rise, fb_se);
     e.stribeck_velocity = Estimate::of(vs, vs_se);
     e.stribeck_bins_used = used;
-    return e;
 }
 
 }  // namespace feedid

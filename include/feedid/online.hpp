@@ -6,7 +6,8 @@
 // too little excitation, ill-conditioned), fitted robustly (Tukey's biweight by IRLS from several starts, the one of
 // smallest robust scale kept, so that the rows a cutting force pushes off the model weigh nothing) and, when it
 // qualifies, pooled by its information:
-//   R, z  <-  QR of [sqrt(lambda) R, sqrt(lambda) z ; sqrt(W) Phi_w, sqrt(W) y_w]   (square-root information, Givens)
+//   [R z]  <-  QR of [sqrt(lambda) [R z] ; L_w^T, L_w^-1 c_w]   (square-root information by Givens rotations,
+//   L_w L_w^T = H_w the window's information: the same as rotating its weighted rows in)
 // theta = R^-1 z. Standard errors treat windows as clusters (they are long against the filter's correlation length):
 //   Cov = H^-1 (sum_w g_w g_w^T) H^-1,  g_w = c_w - H_w theta,  H_w = Phi_w^T W Phi_w,  c_w = Phi_w^T W y_w,
 // whose meat is kept as fixed-size moment sums (sum c c^T, sum c (x) H, sum H (x) H) and evaluated at the final theta.
@@ -101,9 +102,7 @@ struct WindowCounts {
 struct OnlineEstimate {
     Estimate mass, viscous, coulomb, offset, breakaway, stribeck_velocity;
     std::string mass_reason, friction_reason, stribeck_reason;  ///< why null ("" when determined)
-    /// Information of each step-1 parameter alone: diag(H) in 1/(parameter unit)^2 per unit residual variance; and
-    /// the eigenvalues of the pooled information scaled to the parameters' units, i.e. of D^-1 H D^-1 with
-    /// D = diag(standard errors)^-1 ... see information_eigenvalues.
+    /// What the data says of each step-1 parameter (M, B, F_C (, F_0)), from the cluster covariance.
     Eigen::VectorXd information;  ///< 1 / variance of each parameter (from the cluster covariance) [1/unit^2]
     /// Eigenvalues of the correlation-scaled information (the information matrix with every parameter in units of
     /// its standard error): all 1 for uncorrelated parameters; a small one names a poorly separated combination.
@@ -166,6 +165,7 @@ private:
     [[nodiscard]] bool stick_slips(std::size_t first, std::size_t last) const;
     std::size_t build_rows(std::size_t first, std::size_t last);
     [[nodiscard]] Vec pooled_theta() const;
+    void estimate_stribeck(const Vec& theta, double coulomb_standard_error, OnlineEstimate& e) const;
 
     OnlineOptions options_;
     std::size_t p_{3};
@@ -181,7 +181,8 @@ private:
     std::vector<double> t_, x_, f_, xf_, ff_, v_, a_, s_, sf_, workspace_;
     std::vector<char> use_;
     // the window's rows (step-1 samples), allocated once
-    Eigen::MatrixXd rows_;  ///< [x'', x', filtered sgn x' (, 1)], y in the last column
+    /// [x'', x', filtered sgn x' (, 1)], y after them; row-major, so that a row is contiguous
+    Eigen::Matrix<double, Eigen::Dynamic, max_p + 1, Eigen::RowMajor> rows_;
     std::vector<double> weights_, residual_, scratch_;
     // pooled square-root information: R (p x p upper), z (p), and the cluster moments
     Eigen::Matrix<double, max_p, max_p + 1> r_z_;
