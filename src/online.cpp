@@ -46,6 +46,7 @@ const char* verdict_name(WindowVerdict verdict) {
         case WindowVerdict::saturation: return "saturation";
         case WindowVerdict::gap: return "gap";
         case WindowVerdict::gated_out: return "gated_out";
+        case WindowVerdict::inconsistent: return "inconsistent";
         case WindowVerdict::pending: return "pending";
     }
     return "?";
@@ -292,10 +293,28 @@ WindowVerdict OnlineIdentifier::fit_window(std::size_t rows) {
         for (std::size_t r = 0; r < rows; ++r) sum += residual_[r] * residual_[r];
         return admit(rows, std::sqrt(sum / static_cast<double>(rows)));
     }
-    // Tukey's biweight from several starts, keeping the fit with the smallest robust scale (the S-estimator's rule):
-    // least squares, the pooled estimate, and the fastest third of the rows (rapid moves, which do not cut)
+    // Tukey's biweight: settled, from the pooled estimate with the clean windows' scale, so that a cutting force on
+    // most of the window's rows is what gets rejected (a fit of smallest scale would follow the majority); before,
+    // from several starts (independent_fit)
     Vec best = least_squares;
-    double best_scale = std::numeric_limits<double>::max();
+    double best_scale = 0.0;
+    if (have_pooled_)
+        best = tukey_fit(pooled_theta(), rows, best_scale);
+    else
+        best = independent_fit(rows, least_squares, fast, best_scale);
+    const WindowVerdict verdict =
+        settle_weights(rows, best, best_scale) ? admit(rows, best_scale) : WindowVerdict::process_force;
+    if (verdict == WindowVerdict::qualified) inconsistent_run_ = 0;
+    if (verdict != WindowVerdict::process_force || !have_pooled_) return verdict;
+    return judge_change(rows, least_squares, fast);
+}
+
+OnlineIdentifier::Vec OnlineIdentifier::independent_fit(std::size_t rows, const Vec& least_squares, double fast,
+                                                        double& best_scale) {
+    // Tukey's biweight from least squares and from the fastest third of the rows (rapid moves, which do not cut),
+    // keeping the fit of smallest robust scale (the S-estimator's rule)
+    Vec best = least_squares;
+    best_scale = std::numeric_limits<double>::max();
     const auto attempt = [&](const Vec& start) {
         double scale = 0.0;
         const Vec theta = tukey_fit(start, rows, scale);
@@ -304,27 +323,70 @@ WindowVerdict OnlineIdentifier::fit_window(std::size_t rows) {
             best_scale = scale;
         }
     };
-    if (have_pooled_) {
-        // settled: from the pooled estimate, with the clean windows' scale, so that a cutting force on most of the
-        // window's rows is what gets rejected (a fit of smallest scale would follow the majority)
-        attempt(pooled_theta());
-    } else {
-        attempt(least_squares);
-        for (std::size_t r = 0; r < rows; ++r)
-            weights_[r] = std::abs(rows_(static_cast<Eigen::Index>(r), 1)) >= fast ? 1.0 : 0.0;
-        const Vec fastest = solve_weighted(rows);
-        if (fastest.allFinite()) attempt(fastest);
-    }
-    // the weights of the chosen fit
-    residuals(best, rows);
+    attempt(least_squares);
+    for (std::size_t r = 0; r < rows; ++r)
+        weights_[r] = std::abs(rows_(static_cast<Eigen::Index>(r), 1)) >= fast ? 1.0 : 0.0;
+    const Vec fastest = solve_weighted(rows);
+    if (fastest.allFinite()) attempt(fastest);
+    return best;
+}
+
+bool OnlineIdentifier::settle_weights(std::size_t rows, const Vec& theta, double scale) {
+    residuals(theta, rows);
     std::size_t rejected = 0;
     for (std::size_t r = 0; r < rows; ++r) {
-        weights_[r] = tukey_weight(residual_[r], options_.tukey_c * best_scale);
+        weights_[r] = tukey_weight(residual_[r], options_.tukey_c * scale);
         rejected += weights_[r] == 0.0 ? 1 : 0;
     }
-    if (static_cast<double>(rejected) > options_.maximum_outlier_fraction * static_cast<double>(rows))
+    last_outlier_fraction_ = static_cast<double>(rejected) / static_cast<double>(rows);
+    return last_outlier_fraction_ <= options_.maximum_outlier_fraction;
+}
+
+WindowVerdict OnlineIdentifier::judge_change(std::size_t rows, const Vec& least_squares, double fast) {
+    // A window the pool rejects but that fits the model on its own (small scale, few outliers) and disagrees with the
+    // pooled estimate: the axis may have changed (a heavier workpiece, worn guides). Many in a row, with forgetting,
+    // start the pool again from them; without forgetting they are counted and said.
+    double scale = 0.0;
+    const Vec theta = independent_fit(rows, least_squares, fast, scale);
+    if (!settle_weights(rows, theta, scale) || last_outlier_fraction_ > options_.clean_outlier_fraction ||
+        scale > options_.maximum_scale_ratio * reference_scale_)
         return WindowVerdict::process_force;
-    return admit(rows, best_scale);
+    if (consistent(information(rows, scale), pooled_theta())) return WindowVerdict::process_force;
+    if (++inconsistent_run_ >= options_.change_windows && options_.forgetting < 1.0) {
+        reset_pool();
+        ++changes_;
+        inconsistent_run_ = 0;
+    }
+    return WindowVerdict::inconsistent;
+}
+
+OnlineIdentifier::WindowInformation OnlineIdentifier::information(std::size_t rows, double scale) const {
+    const auto p = static_cast<Eigen::Index>(p_);
+    WindowInformation window;
+    window.h = Mat::Zero(p, p);
+    window.c = Vec::Zero(p);
+    window.scale = scale;
+    for (std::size_t k = 0; k < rows; ++k) {
+        const double w = weights_[k];
+        if (w == 0.0) continue;
+        const auto r = static_cast<Eigen::Index>(k);
+        window.h.noalias() += w * rows_.row(r).head(p).transpose() * rows_.row(r).head(p);
+        window.c.noalias() += w * rows_(r, p) * rows_.row(r).head(p).transpose();
+        ++window.rows;
+    }
+    return window;
+}
+
+void OnlineIdentifier::reset_pool() {
+    r_z_.setZero();
+    sum_cc_.setZero();
+    for (auto& m : sum_cH_) m.setZero();
+    for (auto& row : sum_HH_)
+        for (auto& m : row) m.setZero();
+    forgotten_windows_ = 0.0;
+    sum_scale_sq_ = 0.0;
+    have_pooled_ = false;
+    pending_count_ = 0;
 }
 
 OnlineIdentifier::Vec OnlineIdentifier::solve_weighted(std::size_t rows) const {
@@ -386,19 +448,7 @@ OnlineIdentifier::Vec OnlineIdentifier::tukey_fit(const Vec& start, std::size_t 
 }
 
 WindowVerdict OnlineIdentifier::admit(std::size_t rows, double scale) {
-    const auto p = static_cast<Eigen::Index>(p_);
-    WindowInformation window;
-    window.h = Mat::Zero(p, p);
-    window.c = Vec::Zero(p);
-    window.scale = scale;
-    for (std::size_t k = 0; k < rows; ++k) {
-        const double w = weights_[k];
-        if (w == 0.0) continue;
-        const auto r = static_cast<Eigen::Index>(k);
-        window.h.noalias() += w * rows_.row(r).head(p).transpose() * rows_.row(r).head(p);
-        window.c.noalias() += w * rows_(r, p) * rows_.row(r).head(p).transpose();
-        ++window.rows;
-    }
+    const WindowInformation window = information(rows, scale);
     if (!options_.robust) {
         pool(window);
         return WindowVerdict::qualified;
@@ -563,6 +613,7 @@ struct BinPoint {
 OnlineEstimate OnlineIdentifier::estimate() const {
     OnlineEstimate e;
     e.windows = counts_;
+    e.changes = changes_;
     e.samples = pushed_;
     e.rows_used = rows_used_;
     const auto p = static_cast<Eigen::Index>(p_);

@@ -106,6 +106,17 @@ ScanResult finish(OnlineIdentifier& online, const TraceSummary& summary, const O
     for (const std::string* reason : {&e.mass_reason, &e.friction_reason, &e.stribeck_reason})
         if (!reason->empty() && std::find(r.diagnostics.begin(), r.diagnostics.end(), *reason) == r.diagnostics.end())
             r.diagnostics.push_back(*reason);
+    if (e.changes > 0)
+        r.diagnostics.push_back(fmt::format(
+            "the axis changed {} time(s) during the trace ({} windows in a row fitted the model on their own but not "
+            "the pooled estimate): the estimate is of the axis after the last change",
+            e.changes, options.change_windows));
+    const std::size_t inconsistent = e.windows.count(WindowVerdict::inconsistent);
+    if (options.forgetting >= 1.0 && inconsistent >= options.change_windows)
+        r.diagnostics.push_back(fmt::format(
+            "{} windows fitted the model on their own but disagreed with the pooled estimate: if the axis changed "
+            "during the trace, --forgetting (e.g. 0.9 per window) follows the change",
+            inconsistent));
     const bool all = std::all_of(r.parameters.begin(), r.parameters.end(),
                                  [](const Parameter& p) { return p.estimate.determined(); });
     r.status = !e.mass.determined() ? Status::failed : all ? Status::ok : Status::partial;

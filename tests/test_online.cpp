@@ -200,6 +200,43 @@ TEST(Online, AllocatesNothingPerSample) {
     EXPECT_GT(e.windows.qualified(), 10U);
 }
 
+// A mass that changes (a heavier workpiece clamped): with forgetting the pool starts again from the windows that
+// disagree with it and follows the change; without, it keeps the first mass and counts the windows as inconsistent.
+TEST(Online, ForgettingFollowsAChangedMass) {
+    testing::ProductionOptions o;
+    o.duration_s = 240.0;
+    SynthSpec heavy = demo_spec();
+    heavy.axis.mass = 90.0;
+    heavy.seed = 22;
+    const testing::ProductionTrace second = testing::production_trace(22, o);
+    const Columns before = columns(testing::production_synth(21, o));
+    Columns after = columns(synthesize(heavy, second.reference, second.cutting_force));
+    const double shift = before.t.back() + 1e-3;
+    const double offset = before.x.back() - after.x.front();
+    for (auto& t : after.t) t += shift;
+    for (auto& x : after.x) x += offset;
+    const auto scan = [&](double forgetting) {
+        OnlineOptions options;
+        options.forgetting = forgetting;
+        OnlineIdentifier online(options);
+        online.push(before.t, before.x, before.force);
+        online.push(after.t, after.x, after.force);
+        online.flush();
+        return online.estimate();
+    };
+    const OnlineEstimate forgetting = scan(0.9);
+    const OnlineEstimate none = scan(1.0);
+    fmt::print(
+        "M after the change (truth 69.1 -> 90): forgetting 0.9 per window {:.2f} kg ({} change), none {:.2f} kg "
+        "({} windows inconsistent)\n",
+        *forgetting.mass.value, forgetting.changes, *none.mass.value, none.windows.count(WindowVerdict::inconsistent));
+    EXPECT_NEAR(*forgetting.mass.value, 90.0, 0.03 * 90.0);
+    EXPECT_GE(forgetting.changes, 1U);
+    EXPECT_NEAR(*none.mass.value, 69.1, 0.03 * 69.1);
+    EXPECT_EQ(none.changes, 0U);
+    EXPECT_GT(none.windows.count(WindowVerdict::inconsistent), 20U);
+}
+
 TEST(Online, OptionsAreChecked) {
     OnlineOptions o;
     EXPECT_EQ(o.validate(), "");

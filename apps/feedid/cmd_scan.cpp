@@ -149,8 +149,9 @@ struct ScanCommand {
         fmt::print("  {:<6} {:>14}   {:<12} {:<10}\n", "", "value", "std. error", "unit");
         for (const auto& p : r.parameters) {
             if (p.estimate.value) {
-                fmt::print("  {:<6} {:>14.6g} ± {:<12.3g} {:<10}\n", p.symbol, *p.estimate.value,
-                           p.estimate.standard_error.value_or(NAN), p.unit);
+                const std::string error =
+                    p.estimate.standard_error ? fmt::format("{:.3g}", *p.estimate.standard_error) : std::string("—");
+                fmt::print("  {:<6} {:>14.6g} ± {:<12} {:<10}\n", p.symbol, *p.estimate.value, error, p.unit);
             } else {
                 fmt::print("  {:<6} {:>14}   {:<12} {:<10}\n", p.symbol, "—", "", p.unit);
             }

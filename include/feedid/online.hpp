@@ -60,7 +60,11 @@ struct OnlineOptions {
     /// ... or when its own estimate lies farther than this chi^2 (p degrees of freedom) from the pooled one, in its
     /// own information (the first windows: from their consensus, the median of their estimates)
     double consistency_chi2{25.0};
-    double scale_cap{1.5};              ///< the IRLS scale is at most this multiple of the clean windows' scale
+    double scale_cap{1.5};
+    /// A rejected window fits the model on its own when its own fit rejects at most this fraction of its rows ...
+    double clean_outlier_fraction{0.1};
+    /// ... and this many such windows in a row that disagree with the pooled estimate are a change of the axis.
+    std::size_t change_windows{8};      ///< the IRLS scale is at most this multiple of the clean windows' scale
     std::optional<double> force_limit;  ///< saturation: |F_d| at or above 0.99 of it in a window [N]
     double stick_stop_fraction{0.2};    ///< stick-slip: |x'| falls below this fraction of the pass's speed ...
     int stick_slip_stops{2};            ///< ... and restarts in the same direction this often in a window
@@ -85,9 +89,12 @@ enum class WindowVerdict {
     saturation,
     gap,
     gated_out,
+    /// fits the model on its own but not the pooled estimate: the axis changed? (with forgetting, change_windows of
+    /// them in a row start the pool again)
+    inconsistent,
     pending,  ///< one of the first windows, held until the clean windows' residual scale is known (not counted)
 };
-constexpr std::size_t window_verdicts = 9;
+constexpr std::size_t window_verdicts = 10;
 /// "qualified", "at_rest", "low_excitation", ...
 const char* verdict_name(WindowVerdict verdict);
 
@@ -109,6 +116,7 @@ struct OnlineEstimate {
     Eigen::VectorXd information_eigenvalues;
     Eigen::MatrixXd covariance;  ///< of M, B, F_C (, F_0)
     WindowCounts windows;
+    std::size_t changes{0};    ///< times the pool started again after a change of the axis (with forgetting)
     std::size_t samples{0};    ///< pushed
     std::size_t rows_used{0};  ///< step-1 rows pooled (weighted rows count once)
     double residual_std{0.0};  ///< robust scale of the pooled windows' residuals [N]
@@ -158,6 +166,11 @@ private:
     WindowVerdict admit(std::size_t rows, double scale);
     void pool(const WindowInformation& window);
     void update_reference_scale();
+    Vec independent_fit(std::size_t rows, const Vec& least_squares, double fast, double& best_scale);
+    bool settle_weights(std::size_t rows, const Vec& theta, double scale);
+    WindowVerdict judge_change(std::size_t rows, const Vec& least_squares, double fast);
+    [[nodiscard]] WindowInformation information(std::size_t rows, double scale) const;
+    void reset_pool();
     void settle_pending();
     [[nodiscard]] bool consistent(const WindowInformation& window, const Vec& reference) const;
     void bin_slow_samples(std::size_t first, std::size_t last);
@@ -199,6 +212,9 @@ private:
     double reference_scale_{0.0};  ///< 0 until the first windows are settled
     std::array<WindowInformation, 8> pending_;
     std::size_t pending_count_{0};
+    std::size_t inconsistent_run_{0};
+    std::size_t changes_{0};
+    double last_outlier_fraction_{0.0};
     WindowCounts counts_;
     std::array<std::vector<StribeckBin>, 2> bins_;  ///< forward, reverse
 };
