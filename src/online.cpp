@@ -346,6 +346,11 @@ WindowVerdict OnlineIdentifier::judge_change(std::size_t rows, const Vec& least_
     // A window the pool rejects but that fits the model on its own (small scale, few outliers) and disagrees with the
     // pooled estimate: the axis may have changed (a heavier workpiece, worn guides). Many in a row, with forgetting,
     // start the pool again from them; without forgetting they are counted and said.
+    // A cutting force shows in the least-squares fit's own scale: only a window that least squares fits well is
+    // fitted again robustly (the IRLS runs for few rejected windows)
+    residuals(least_squares, rows);
+    const double plain_scale = 1.4826 * median_absolute(std::span<const double>(residual_.data(), rows), scratch_);
+    if (!(plain_scale <= options_.maximum_scale_ratio * reference_scale_)) return WindowVerdict::process_force;
     double scale = 0.0;
     const Vec theta = independent_fit(rows, least_squares, fast, scale);
     if (!settle_weights(rows, theta, scale) || last_outlier_fraction_ > options_.clean_outlier_fraction ||
