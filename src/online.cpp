@@ -676,11 +676,13 @@ void OnlineIdentifier::estimate_stribeck(const Vec& theta, double coulomb_standa
     std::size_t used = 0;
     const double correlation = std::max(1.0, 1.0 / (dt_ * options_.cutoff_hz.value_or(std::min(100.0, 0.1 / dt_))));
     std::size_t slow_samples = 0;
+    std::size_t populated = 0;
     for (std::size_t direction = 0; direction < 2; ++direction) {
         const double sg = direction == 0 ? 1.0 : -1.0;
         for (const auto& bin : bins_[direction]) {
             slow_samples += static_cast<std::size_t>(bin.n);
             if (bin.n < static_cast<double>(options_.minimum_bin_samples)) continue;
+            ++populated;
             const double speed = bin.speed / bin.n;
             const double friction = bin.force / bin.n - theta(0) * bin.acceleration / bin.n;
             double stribeck = friction - theta(1) * speed - theta(2);
@@ -692,11 +694,12 @@ void OnlineIdentifier::estimate_stribeck(const Vec& theta, double coulomb_standa
     }
     if (used < options_.minimum_stribeck_bins) {
         e.stribeck_reason =
-            slow_samples == 0
+            populated < options_.minimum_stribeck_bins
                 ? fmt::format(
-                      "no quasi-static moves slower than {:.3g} mm/s: the trace has no moves slow enough "
-                      "to determine F_B and v_s",
-                      options_.split_velocity * 1e3)
+                      "the trace has no moves slow enough to determine F_B and v_s: its quasi-static samples "
+                      "below {:.3g} mm/s ({}) fill {} speed bin(s) of {} or more; {} needed",
+                      options_.split_velocity * 1e3, slow_samples, populated, options_.minimum_bin_samples,
+                      options_.minimum_stribeck_bins)
                 : fmt::format(
                       "the slow moves ({} quasi-static samples below {:.3g} mm/s) show a friction rise above "
                       "F_C in only {} speed bin(s); {} needed",
@@ -711,8 +714,16 @@ void OnlineIdentifier::estimate_stribeck(const Vec& theta, double coulomb_standa
         normal += w * phi * phi.transpose();
         right += w * std::log(points[k].stribeck) * phi;
     }
-    const Eigen::Matrix2d cov = normal.inverse();
-    const Eigen::Vector2d fit = cov * right;
+    const Eigen::Vector2d fit = normal.inverse() * right;
+    // the bins' scatter about the fitted line beyond their own noise (the log-linear law's misfit, bins correlated by
+    // the filter) widens the covariance: reduced chi^2, when above 1
+    double chi2 = 0.0;
+    for (std::size_t k = 0; k < used; ++k) {
+        const double w = std::pow(points[k].stribeck / points[k].standard_error, 2);
+        chi2 += w * std::pow(std::log(points[k].stribeck) - fit(0) - fit(1) * points[k].speed, 2);
+    }
+    const double inflation = used > 2 ? std::max(1.0, chi2 / static_cast<double>(used - 2)) : 1.0;
+    const Eigen::Matrix2d cov = inflation * normal.inverse();
     if (!(fit(1) < 0.0)) {
         e.stribeck_reason = "the slow moves' friction does not fall with speed: no Stribeck term to determine";
         return;

@@ -137,6 +137,27 @@ TEST(Online, WithoutRobustWeightingTheSameScansAreVisiblyBiased) {
     EXPECT_GT(plain_error, 5.0 * robust_error);
 }
 
+TEST(Online, BreakawayAndStribeckNeedSlowMovesAndSayWhyWithout) {
+    const AxisModel truth = demo_spec().axis;
+    const OnlineEstimate& with = seed_runs()[0].robust;
+    ASSERT_TRUE(with.breakaway.value && with.stribeck_velocity.value) << with.stribeck_reason;
+    fmt::print("F_B {:.1f} +- {:.2f} N (truth {:.1f}), v_s {:.3f} +- {:.3f} mm/s (truth {:.1f})\n",
+               *with.breakaway.value, *with.breakaway.standard_error, *truth.friction.forward.breakaway,
+               1e3 * *with.stribeck_velocity.value, 1e3 * *with.stribeck_velocity.standard_error,
+               1e3 * *truth.friction.forward.stribeck_velocity);
+    EXPECT_NEAR(*with.breakaway.value, *truth.friction.forward.breakaway, 0.03 * *truth.friction.forward.breakaway);
+    EXPECT_NEAR(*with.stribeck_velocity.value, *truth.friction.forward.stribeck_velocity,
+                0.1 * *truth.friction.forward.stribeck_velocity);
+    testing::ProductionOptions o;
+    o.slow_moves = false;
+    const OnlineEstimate without = run(columns(testing::production_synth(1, o)), {});
+    ASSERT_TRUE(without.mass.value);
+    EXPECT_FALSE(without.breakaway.value);
+    EXPECT_FALSE(without.stribeck_velocity.value);
+    EXPECT_NE(without.stribeck_reason.find("slow"), std::string::npos) << without.stribeck_reason;
+    fmt::print("without slow moves: {}\n", without.stribeck_reason);
+}
+
 TEST(Online, AnAxisStandingStillQualifiesNothingAndSaysWhy) {
     Columns c;
     for (std::size_t k = 0; k < 20000; ++k) {
