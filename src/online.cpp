@@ -165,7 +165,9 @@ void OnlineIdentifier::process_window(std::size_t count) {
     ++counts_.total;
     const auto verdict = [&](WindowVerdict v) { ++counts_.by_verdict[static_cast<std::size_t>(v)]; };
     for (std::size_t k = 1; k < count; ++k) {
-        if (t_[k] - t_[k - 1] > 1.5 * dt_ || !(t_[k] > t_[k - 1])) return verdict(WindowVerdict::gap);
+        // a gap, time running backwards, or a value that is not a number: the window is not used
+        if (t_[k] - t_[k - 1] > 1.5 * dt_ || !(t_[k] > t_[k - 1]) || !std::isfinite(x_[k]) || !std::isfinite(f_[k]))
+            return verdict(WindowVerdict::gap);
     }
     filter(x_, xf_, count);
     filter(f_, ff_, count);

@@ -123,6 +123,11 @@ TEST(Scan, GatingOnTheSpindleLoadRemovesTheCuttingEvenWithoutRobustWeighting) {
     EXPECT_GT(std::abs(value(plain, "coulomb_N") - coulomb), 0.03 * coulomb);
     EXPECT_LT(std::abs(value(gated, "coulomb_N") - coulomb), 0.03 * coulomb);
     EXPECT_EQ(gated["options"]["only_when"][0], "spindle_load<5");
+    // repeated conditions are ANDed; the option goes before the file too
+    const nlohmann::json both = scan_json("--only-when 'spindle_load>=0' --only-when 'spindle_load<5' " +
+                                          production_csv().string() + " --no-robust");
+    EXPECT_EQ(both["options"]["only_when"].size(), 2U);
+    EXPECT_EQ(both["parameters"], gated["parameters"]);
 }
 
 TEST(Scan, NothingQualifyingExitsOneWithTheRejectionCounts) {

@@ -39,8 +39,9 @@ struct ScanCommand {
                      "to see what the process forces do to the estimate");
         sub.add_option("--only-when", only_when,
                        "Use only the samples where another channel meets a condition, e.g. 'spindle_load<5' (also >, "
-                       "<=, >=; in the channel's units as read); several are ANDed")
-            ->take_all();
+                       "<=, >=; in the channel's units as read); repeat it for several, which are ANDed")
+            ->take_all()
+            ->allow_extra_args(false);
         sub.add_option("--forgetting", options.forgetting,
                        "Forgetting factor per window (1 = none): older windows weigh lambda^age, for slow drift")
             ->capture_default_str()
