@@ -59,7 +59,7 @@ double prewarped(double cutoff_hz, double sample_rate_hz) {
 }
 
 // One pass of the cascade over x (transposed direct form II), starting from steady state for the level x[0].
-void filter_in_place(const SecondOrderSections& filter, std::vector<double>& x) {
+void filter_in_place(const SecondOrderSections& filter, std::span<double> x) {
     if (x.empty()) return;
     double level = x.front();
     for (const auto& s : filter.sections) {
@@ -120,22 +120,34 @@ SecondOrderSections chebyshev1_lowpass(int order, double ripple_db, double cutof
 }
 
 std::vector<double> filtfilt(const SecondOrderSections& filter, std::span<const double> x) {
+    std::vector<double> out(x.size());
+    std::vector<double> workspace;
+    filtfilt(filter, x, out, workspace);
+    return out;
+}
+
+void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std::span<double> out,
+              std::vector<double>& workspace) {
     const std::size_t n = x.size();
-    if (n == 0) return {};
-    if (n == 1) return {x[0]};
+    if (n == 0) return;
+    if (n == 1) {
+        out[0] = x[0];
+        return;
+    }
     // odd reflection about the end points, max(1, 3 * (filter order)) samples, as MATLAB's filtfilt (which refuses a
     // signal of no more samples than that; here the padding is cut to n - 1)
     const std::size_t pad = std::min(std::max<std::size_t>(1, 3 * filter_order(filter)), n - 1);
-    std::vector<double> y;
-    y.reserve(n + 2 * pad);
-    for (std::size_t k = pad; k >= 1; --k) y.push_back(2.0 * x[0] - x[k]);
-    y.insert(y.end(), x.begin(), x.end());
-    for (std::size_t k = 1; k <= pad; ++k) y.push_back(2.0 * x[n - 1] - x[n - 1 - k]);
+    if (workspace.size() < n + 2 * pad) workspace.resize(n + 2 * pad);
+    const std::span<double> y(workspace.data(), n + 2 * pad);
+    for (std::size_t k = pad; k >= 1; --k) y[pad - k] = 2.0 * x[0] - x[k];
+    std::copy(x.begin(), x.end(), y.begin() + static_cast<std::ptrdiff_t>(pad));
+    for (std::size_t k = 1; k <= pad; ++k) y[pad + n - 1 + k] = 2.0 * x[n - 1] - x[n - 1 - k];
     filter_in_place(filter, y);
     std::reverse(y.begin(), y.end());
     filter_in_place(filter, y);
     std::reverse(y.begin(), y.end());
-    return {y.begin() + static_cast<std::ptrdiff_t>(pad), y.begin() + static_cast<std::ptrdiff_t>(pad + n)};
+    std::copy(y.begin() + static_cast<std::ptrdiff_t>(pad), y.begin() + static_cast<std::ptrdiff_t>(pad + n),
+              out.begin());
 }
 
 std::vector<double> central_difference(std::span<const double> x, double dt) {

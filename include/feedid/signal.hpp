@@ -23,6 +23,10 @@ SecondOrderSections chebyshev1_lowpass(int order, double ripple_db, double cutof
 /// Forward-backward (zero-phase) filtering with odd reflection padding of 3 * (filter order) samples at both ends (at
 /// most n - 1) and steady-state initial conditions, as MATLAB's filtfilt(b, a, x) on the cascade's transfer function.
 std::vector<double> filtfilt(const SecondOrderSections& filter, std::span<const double> x);
+/// The same into `out` (x.size() values), padding in `workspace`, which grows only when x is longer than before: no
+/// allocation once it has held the longest signal (the online identifier's windows).
+void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std::span<double> out,
+              std::vector<double>& workspace);
 
 /// Central differences: d[k] = (x[k+1] - x[k-1]) / (2*dt); one-sided at the ends.
 std::vector<double> central_difference(std::span<const double> x, double dt);

@@ -1,0 +1,748 @@
+#include "feedid/online.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <fmt/core.h>
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+
+#include "feedid/parameters.hpp"
+
+namespace feedid {
+
+namespace {
+
+constexpr std::size_t bins_per_direction = 24;
+constexpr std::size_t startup_samples = 101;  // time stamps that give the sample time when none is stated
+
+double tukey_weight(double r, double limit) {
+    if (!(std::abs(r) < limit)) return 0.0;
+    const double u = r / limit;
+    return (1.0 - u * u) * (1.0 - u * u);
+}
+
+// Median of |values| by selection in `scratch` (no allocation: scratch holds at least values.size()).
+double median_absolute(std::span<const double> values, std::vector<double>& scratch) {
+    if (values.empty()) return 0.0;
+    std::transform(values.begin(), values.end(), scratch.begin(), [](double v) { return std::abs(v); });
+    const auto middle = scratch.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+    std::nth_element(scratch.begin(), middle, scratch.begin() + static_cast<std::ptrdiff_t>(values.size()));
+    return *middle;
+}
+
+}  // namespace
+
+const char* verdict_name(WindowVerdict verdict) {
+    switch (verdict) {
+        case WindowVerdict::qualified: return "qualified";
+        case WindowVerdict::at_rest: return "at_rest";
+        case WindowVerdict::low_excitation: return "low_excitation";
+        case WindowVerdict::ill_conditioned: return "ill_conditioned";
+        case WindowVerdict::process_force: return "process_force";
+        case WindowVerdict::stick_slip: return "stick_slip";
+        case WindowVerdict::saturation: return "saturation";
+        case WindowVerdict::gap: return "gap";
+        case WindowVerdict::gated_out: return "gated_out";
+        case WindowVerdict::inconsistent: return "inconsistent";
+        case WindowVerdict::pending: return "pending";
+    }
+    return "?";
+}
+
+std::string OnlineOptions::validate() const {
+    const auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+    if (!positive(window_s)) return fmt::format("window length must be positive (got {} s)", window_s);
+    if (sample_time_s && !positive(*sample_time_s)) return "sample time must be positive";
+    if (cutoff_hz && !positive(*cutoff_hz)) return "cut-off must be positive";
+    if (filter_order < 1 || filter_order > 12) return "filter order must be 1..12";
+    if (!(forgetting > 0.0 && forgetting <= 1.0))
+        return fmt::format("forgetting factor must lie in (0, 1] (got {})", forgetting);
+    if (!positive(split_velocity) || !positive(moving_threshold) || !positive(stribeck_lowest_speed))
+        return "speeds must be positive";
+    if (stribeck_lowest_speed >= split_velocity) return "the lowest Stribeck speed must lie below the split speed";
+    if (!positive(tukey_c) || irls_iterations < 1) return "Tukey constant and IRLS iterations must be positive";
+    if (force_limit && !positive(*force_limit)) return "force limit must be positive";
+    return "";
+}
+
+OnlineIdentifier::OnlineIdentifier(OnlineOptions options) : options_(std::move(options)) {
+    p_ = options_.offset ? 4 : 3;
+    counts_ = {};
+    sum_cc_ = Mat::Zero(static_cast<Eigen::Index>(p_), static_cast<Eigen::Index>(p_));
+    for (auto& m : sum_cH_) m = sum_cc_;
+    for (auto& row : sum_HH_)
+        for (auto& m : row) m = sum_cc_;
+    r_z_.setZero();
+    for (auto& b : bins_) b.assign(bins_per_direction, StribeckBin{});
+    // the start-up buffer: enough for the sample time from the first time stamps
+    const std::size_t start = options_.sample_time_s ? 0 : startup_samples;
+    if (options_.sample_time_s) {
+        setup(*options_.sample_time_s);
+    } else {
+        t_.resize(start);
+        x_.resize(start);
+        f_.resize(start);
+        use_.resize(start);
+    }
+}
+
+void OnlineIdentifier::setup(double sample_time_s) {
+    dt_ = sample_time_s;
+    const double fs = 1.0 / dt_;
+    const double cutoff = options_.cutoff_hz.value_or(std::min(100.0, 0.1 * fs));
+    cutoff_hz_ = cutoff;
+    filter_ = butterworth_lowpass(options_.filter_order, std::min(cutoff, 0.45 * fs), fs);
+    window_ = std::max<std::size_t>(20, static_cast<std::size_t>(std::llround(options_.window_s / dt_)));
+    margin_ =
+        std::max<std::size_t>(3, static_cast<std::size_t>(std::ceil(options_.filter_settling_periods * fs / cutoff)));
+    const std::size_t capacity = window_ + 2 * margin_;
+    for (auto* b : {&t_, &x_, &f_, &xf_, &ff_, &v_, &a_, &s_, &sf_, &residual_, &scratch_, &weights_})
+        b->resize(capacity);
+    use_.resize(capacity);
+    workspace_.resize(capacity + 64);
+    rows_.resize(static_cast<Eigen::Index>(capacity), max_p + 1);
+    ready_ = true;
+}
+
+void OnlineIdentifier::push(double t, double x, double force, bool use) {
+    ++pushed_;
+    if (!ready_) {
+        t_[filled_] = t;
+        x_[filled_] = x;
+        f_[filled_] = force;
+        use_[filled_] = use ? 1 : 0;
+        if (++filled_ < t_.size()) return;
+        // the median step of the first time stamps (robust to a gap among them); allocates once, at start-up
+        std::vector<double> steps(filled_ - 1);
+        for (std::size_t k = 1; k < filled_; ++k) steps[k - 1] = t_[k] - t_[k - 1];
+        std::nth_element(steps.begin(), steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2), steps.end());
+        const double step = steps[steps.size() / 2];
+        const std::vector<double> t0 = t_, x0 = x_, f0 = f_;
+        const std::vector<char> u0 = use_;
+        filled_ = 0;
+        pushed_ -= t0.size();
+        setup(step > 0.0 && std::isfinite(step) ? step : 1e-3);
+        for (std::size_t k = 0; k < t0.size(); ++k) push(t0[k], x0[k], f0[k], u0[k] != 0);
+        return;
+    }
+    t_[filled_] = t;
+    x_[filled_] = x;
+    f_[filled_] = force;
+    use_[filled_] = use ? 1 : 0;
+    if (++filled_ == t_.size()) {
+        process_window(filled_);
+        // the last 2 margins start the next buffer: every sample is in the core of one window
+        const std::size_t keep = 2 * margin_;
+        const std::size_t from = filled_ - keep;
+        for (auto* b : {&t_, &x_, &f_}) std::copy(b->begin() + static_cast<std::ptrdiff_t>(from), b->end(), b->begin());
+        std::copy(use_.begin() + static_cast<std::ptrdiff_t>(from), use_.end(), use_.begin());
+        filled_ = keep;
+    }
+}
+
+void OnlineIdentifier::push(std::span<const double> t, std::span<const double> x, std::span<const double> force,
+                            std::span<const char> use) {
+    const std::size_t n = std::min({t.size(), x.size(), force.size()});
+    for (std::size_t k = 0; k < n; ++k) push(t[k], x[k], force[k], use.empty() || use[k] != 0);
+}
+
+void OnlineIdentifier::flush() {
+    if (ready_ && filled_ >= 2 * margin_ + window_ / 4) {
+        process_window(filled_);
+        filled_ = 0;
+    }
+    settle_pending();
+}
+
+void OnlineIdentifier::filter(std::span<const double> in, std::span<double> out, std::size_t count) {
+    filtfilt(filter_, in.first(count), out.first(count), workspace_);
+}
+
+void OnlineIdentifier::process_window(std::size_t count) {
+    ++counts_.total;
+    const auto verdict = [&](WindowVerdict v) { ++counts_.by_verdict[static_cast<std::size_t>(v)]; };
+    for (std::size_t k = 1; k < count; ++k) {
+        // a gap, time running backwards, or a value that is not a number: the window is not used
+        if (t_[k] - t_[k - 1] > 1.5 * dt_ || !(t_[k] > t_[k - 1]) || !std::isfinite(x_[k]) || !std::isfinite(f_[k]))
+            return verdict(WindowVerdict::gap);
+    }
+    filter(x_, xf_, count);
+    filter(f_, ff_, count);
+    // central differences of the filtered position, and of the velocity for the acceleration
+    for (std::size_t k = 1; k + 1 < count; ++k) v_[k] = (xf_[k + 1] - xf_[k - 1]) / (2.0 * dt_);
+    v_[0] = v_[1];
+    v_[count - 1] = v_[count - 2];
+    for (std::size_t k = 1; k + 1 < count; ++k) a_[k] = (v_[k + 1] - v_[k - 1]) / (2.0 * dt_);
+    a_[0] = a_[1];
+    a_[count - 1] = a_[count - 2];
+    // sgn(x') through the force's low-pass (IDIM's parallel filtering): the filtered force has the Coulomb step
+    // smoothed, and so must its regressor
+    for (std::size_t k = 0; k < count; ++k) s_[k] = sign(v_[k]);
+    filter(s_, sf_, count);
+    const std::size_t first = margin_;
+    const std::size_t last = count - margin_;
+    const WindowVerdict v = judge_window(first, last);
+    if (v != WindowVerdict::pending) verdict(v);
+    if (v == WindowVerdict::at_rest || v == WindowVerdict::saturation || v == WindowVerdict::stick_slip) return;
+    bin_slow_samples(first, last);
+}
+
+WindowVerdict OnlineIdentifier::judge_window(std::size_t first, std::size_t last) {
+    const std::size_t n = last - first;
+    std::size_t moving = 0;
+    for (std::size_t k = first; k < last; ++k) {
+        if (options_.force_limit && std::abs(f_[k]) >= 0.99 * *options_.force_limit) return WindowVerdict::saturation;
+        if (std::abs(v_[k]) > options_.moving_threshold) ++moving;
+    }
+    if (static_cast<double>(moving) < options_.minimum_moving_fraction * static_cast<double>(n))
+        return WindowVerdict::at_rest;
+    if (stick_slips(first, last)) return WindowVerdict::stick_slip;
+    const std::size_t rows = build_rows(first, last);
+    if (static_cast<double>(rows) < options_.minimum_row_fraction * static_cast<double>(window_)) {
+        std::size_t ungated = 0;
+        for (std::size_t k = first; k < last; ++k) ungated += std::abs(v_[k]) > options_.split_velocity ? 1 : 0;
+        return static_cast<double>(ungated) >= options_.minimum_row_fraction * static_cast<double>(window_)
+                   ? WindowVerdict::gated_out
+                   : WindowVerdict::low_excitation;
+    }
+    return fit_window(rows);
+}
+
+// Stick-slip without a reference (stick_slip.hpp's rule for traces without one, on the window): a slow pass that
+// stops and restarts in the same direction, each burst and each stop brief, at least stick_slip_stops times.
+bool OnlineIdentifier::stick_slips(std::size_t first, std::size_t last) const {
+    const auto brief = [&](std::size_t samples) { return static_cast<double>(samples) * dt_ < options_.max_stick_s; };
+    int stops = 0;
+    int direction = 0;
+    std::size_t burst_start = first;
+    std::size_t stopped_at = 0;
+    std::size_t burst = 0;
+    double peak = 0.0;
+    for (std::size_t k = first; k < last; ++k) {
+        const double speed = std::abs(v_[k]);
+        if (direction != 0 && speed < options_.stick_stop_fraction * peak) {
+            if (stopped_at == 0) {
+                stopped_at = k;
+                burst = k - burst_start;
+            }
+        } else if (speed > options_.moving_threshold) {
+            const int d = v_[k] > 0.0 ? 1 : -1;
+            if (stopped_at != 0 || d != direction) {
+                if (stopped_at != 0 && d == direction && peak < 2.0 * options_.split_velocity && brief(burst) &&
+                    brief(k - stopped_at))
+                    ++stops;
+                burst_start = k;
+                peak = 0.0;
+            }
+            direction = d;
+            stopped_at = 0;
+            peak = std::max(peak, speed);
+        }
+    }
+    return stops >= options_.stick_slip_stops;
+}
+
+std::size_t OnlineIdentifier::build_rows(std::size_t first, std::size_t last) {
+    std::size_t rows = 0;
+    const auto p = static_cast<Eigen::Index>(p_);
+    for (std::size_t k = first; k < last; ++k) {
+        if (use_[k] == 0 || !(std::abs(v_[k]) > options_.split_velocity)) continue;
+        const auto r = static_cast<Eigen::Index>(rows++);
+        rows_(r, 0) = a_[k];
+        rows_(r, 1) = v_[k];
+        rows_(r, 2) = sf_[k];
+        if (p_ == 4) rows_(r, 3) = 1.0;
+        rows_(r, p) = ff_[k];
+    }
+    return rows;
+}
+
+WindowVerdict OnlineIdentifier::fit_window(std::size_t rows) {
+    const auto n = static_cast<Eigen::Index>(rows);
+    const auto p = static_cast<Eigen::Index>(p_);
+    // excitation: rms acceleration, and more than one speed (B and F_C inseparable at one speed)
+    double a2 = 0.0;
+    for (Eigen::Index r = 0; r < n; ++r) {
+        a2 += rows_(r, 0) * rows_(r, 0);
+        scratch_[static_cast<std::size_t>(r)] = std::abs(rows_(r, 1));
+    }
+    if (std::sqrt(a2 / static_cast<double>(n)) < options_.minimum_acceleration) return WindowVerdict::low_excitation;
+    const auto s_begin = scratch_.begin();
+    const auto s_end = s_begin + n;
+    std::nth_element(s_begin, s_begin + n / 10, s_end);
+    const double p10 = scratch_[static_cast<std::size_t>(n / 10)];
+    std::nth_element(s_begin, s_begin + (9 * n) / 10, s_end);
+    const double p90 = scratch_[static_cast<std::size_t>((9 * n) / 10)];
+    if (p90 < options_.minimum_speed_ratio * p10) return WindowVerdict::low_excitation;
+    std::nth_element(s_begin, s_begin + (2 * n) / 3, s_end);
+    const double fast = scratch_[static_cast<std::size_t>((2 * n) / 3)];
+    // conditioning of the column-scaled regressor
+    const Mat h = rows_.topLeftCorner(n, p).transpose() * rows_.topLeftCorner(n, p);
+    column_scale_ = h.diagonal().cwiseSqrt().cwiseInverse();
+    const Mat scaled = column_scale_.asDiagonal() * h * column_scale_.asDiagonal();
+    const Eigen::SelfAdjointEigenSolver<Mat> eigen(scaled, Eigen::EigenvaluesOnly);
+    const double condition =
+        std::sqrt(eigen.eigenvalues().maxCoeff() / std::max(eigen.eigenvalues().minCoeff(), 1e-300));
+    if (!(condition <= options_.maximum_condition)) return WindowVerdict::ill_conditioned;
+    std::fill_n(weights_.begin(), rows, 1.0);
+    const Vec least_squares = solve_weighted(rows);
+    if (!options_.robust) {
+        residuals(least_squares, rows);
+        double sum = 0.0;
+        for (std::size_t r = 0; r < rows; ++r) sum += residual_[r] * residual_[r];
+        return admit(rows, std::sqrt(sum / static_cast<double>(rows)));
+    }
+    // Tukey's biweight: settled, from the pooled estimate with the clean windows' scale, so that a cutting force on
+    // most of the window's rows is what gets rejected (a fit of smallest scale would follow the majority); before,
+    // from several starts (independent_fit)
+    Vec best = least_squares;
+    double best_scale = 0.0;
+    if (have_pooled_)
+        best = tukey_fit(pooled_theta(), rows, best_scale);
+    else
+        best = independent_fit(rows, least_squares, fast, best_scale);
+    const WindowVerdict verdict =
+        settle_weights(rows, best, best_scale) ? admit(rows, best_scale) : WindowVerdict::process_force;
+    if (verdict == WindowVerdict::qualified) inconsistent_run_ = 0;
+    if (verdict != WindowVerdict::process_force || !have_pooled_) return verdict;
+    return judge_change(rows, least_squares, fast);
+}
+
+OnlineIdentifier::Vec OnlineIdentifier::independent_fit(std::size_t rows, const Vec& least_squares, double fast,
+                                                        double& best_scale) {
+    // Tukey's biweight from least squares and from the fastest third of the rows (rapid moves, which do not cut),
+    // keeping the fit of smallest robust scale (the S-estimator's rule)
+    Vec best = least_squares;
+    best_scale = std::numeric_limits<double>::max();
+    const auto attempt = [&](const Vec& start) {
+        double scale = 0.0;
+        const Vec theta = tukey_fit(start, rows, scale);
+        if (scale < best_scale) {
+            best = theta;
+            best_scale = scale;
+        }
+    };
+    attempt(least_squares);
+    for (std::size_t r = 0; r < rows; ++r)
+        weights_[r] = std::abs(rows_(static_cast<Eigen::Index>(r), 1)) >= fast ? 1.0 : 0.0;
+    const Vec fastest = solve_weighted(rows);
+    if (fastest.allFinite()) attempt(fastest);
+    return best;
+}
+
+bool OnlineIdentifier::settle_weights(std::size_t rows, const Vec& theta, double scale) {
+    residuals(theta, rows);
+    std::size_t rejected = 0;
+    for (std::size_t r = 0; r < rows; ++r) {
+        weights_[r] = tukey_weight(residual_[r], options_.tukey_c * scale);
+        rejected += weights_[r] == 0.0 ? 1 : 0;
+    }
+    last_outlier_fraction_ = static_cast<double>(rejected) / static_cast<double>(rows);
+    return last_outlier_fraction_ <= options_.maximum_outlier_fraction;
+}
+
+WindowVerdict OnlineIdentifier::judge_change(std::size_t rows, const Vec& least_squares, double fast) {
+    // A window the pool rejects but that fits the model on its own (small scale, few outliers) and disagrees with the
+    // pooled estimate: the axis may have changed (a heavier workpiece, worn guides). Many in a row, with forgetting,
+    // start the pool again from them; without forgetting they are counted and said.
+    // A cutting force shows in the least-squares fit's own scale: only a window that least squares fits well is
+    // fitted again robustly (the IRLS runs for few rejected windows)
+    residuals(least_squares, rows);
+    const double plain_scale = 1.4826 * median_absolute(std::span<const double>(residual_.data(), rows), scratch_);
+    if (!(plain_scale <= options_.maximum_scale_ratio * reference_scale_)) return WindowVerdict::process_force;
+    double scale = 0.0;
+    const Vec theta = independent_fit(rows, least_squares, fast, scale);
+    if (!settle_weights(rows, theta, scale) || last_outlier_fraction_ > options_.clean_outlier_fraction ||
+        scale > options_.maximum_scale_ratio * reference_scale_)
+        return WindowVerdict::process_force;
+    if (consistent(information(rows, scale), pooled_theta())) return WindowVerdict::process_force;
+    if (++inconsistent_run_ >= options_.change_windows && options_.forgetting < 1.0) {
+        reset_pool();
+        ++changes_;
+        inconsistent_run_ = 0;
+    }
+    return WindowVerdict::inconsistent;
+}
+
+OnlineIdentifier::WindowInformation OnlineIdentifier::information(std::size_t rows, double scale) const {
+    const auto p = static_cast<Eigen::Index>(p_);
+    WindowInformation window;
+    window.h = Mat::Zero(p, p);
+    window.c = Vec::Zero(p);
+    window.scale = scale;
+    for (std::size_t k = 0; k < rows; ++k) {
+        const double w = weights_[k];
+        if (w == 0.0) continue;
+        const auto r = static_cast<Eigen::Index>(k);
+        window.h.noalias() += w * rows_.row(r).head(p).transpose() * rows_.row(r).head(p);
+        window.c.noalias() += w * rows_(r, p) * rows_.row(r).head(p).transpose();
+        ++window.rows;
+    }
+    return window;
+}
+
+void OnlineIdentifier::reset_pool() {
+    r_z_.setZero();
+    sum_cc_.setZero();
+    for (auto& m : sum_cH_) m.setZero();
+    for (auto& row : sum_HH_)
+        for (auto& m : row) m.setZero();
+    forgotten_windows_ = 0.0;
+    sum_scale_sq_ = 0.0;
+    have_pooled_ = false;
+    pending_count_ = 0;
+}
+
+OnlineIdentifier::Vec OnlineIdentifier::solve_weighted(std::size_t rows) const {
+    // the normal equations of the weighted rows, in plain loops over the contiguous rows (the IRLS's inner loop)
+    const std::size_t p = p_;
+    std::array<double, max_p * max_p> h{};
+    std::array<double, max_p> c{};
+    for (std::size_t k = 0; k < rows; ++k) {
+        const double w = weights_[k];
+        if (w == 0.0) continue;
+        const double* row = rows_.data() + k * (max_p + 1);
+        for (std::size_t i = 0; i < p; ++i) {
+            const double wi = w * row[i];
+            c[i] += wi * row[p];
+            for (std::size_t j = 0; j <= i; ++j) h[i * max_p + j] += wi * row[j];
+        }
+    }
+    const auto n = static_cast<Eigen::Index>(p);
+    Mat hs(n, n);
+    Vec cs(n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+        cs(i) = column_scale_(i) * c[static_cast<std::size_t>(i)];
+        for (Eigen::Index j = 0; j <= i; ++j) {
+            hs(i, j) = column_scale_(i) * h[static_cast<std::size_t>(i * max_p + j)] * column_scale_(j);
+            hs(j, i) = hs(i, j);
+        }
+    }
+    return column_scale_.asDiagonal() * hs.ldlt().solve(cs);
+}
+
+void OnlineIdentifier::residuals(const Vec& theta, std::size_t rows) {
+    const std::size_t p = p_;
+    for (std::size_t k = 0; k < rows; ++k) {
+        const double* row = rows_.data() + k * (max_p + 1);
+        double fitted = 0.0;
+        for (std::size_t i = 0; i < p; ++i) fitted += row[i] * theta(static_cast<Eigen::Index>(i));
+        residual_[k] = row[p] - fitted;
+    }
+}
+
+OnlineIdentifier::Vec OnlineIdentifier::tukey_fit(const Vec& start, std::size_t rows, double& scale) {
+    Vec theta = start;
+    for (int iteration = 0; iteration < options_.irls_iterations; ++iteration) {
+        residuals(theta, rows);
+        scale = std::max(1e-12, 1.4826 * median_absolute(std::span<const double>(residual_.data(), rows), scratch_));
+        // a window that a process force dominates would inflate its own scale: the clean windows' scale bounds it
+        if (reference_scale_ > 0.0) scale = std::min(scale, options_.scale_cap * reference_scale_);
+        const double limit = options_.tukey_c * scale;
+        for (std::size_t r = 0; r < rows; ++r) weights_[r] = tukey_weight(residual_[r], limit);
+        const Vec next = solve_weighted(rows);
+        if (!next.allFinite()) break;
+        const bool converged = (next - theta).cwiseAbs().maxCoeff() <= 1e-10 * (theta.cwiseAbs().maxCoeff() + 1e-300);
+        theta = next;
+        if (converged) break;
+    }
+    residuals(theta, rows);
+    scale = std::max(1e-12, 1.4826 * median_absolute(std::span<const double>(residual_.data(), rows), scratch_));
+    return theta;
+}
+
+WindowVerdict OnlineIdentifier::admit(std::size_t rows, double scale) {
+    const WindowInformation window = information(rows, scale);
+    if (!options_.robust) {
+        pool(window);
+        return WindowVerdict::qualified;
+    }
+    recent_scales_[recent_count_++ % recent_scales_.size()] = scale;
+    if (have_pooled_) {
+        update_reference_scale();
+        if (scale > options_.maximum_scale_ratio * reference_scale_ || !consistent(window, pooled_theta()))
+            return WindowVerdict::process_force;
+        pool(window);
+        return WindowVerdict::qualified;
+    }
+    // the first windows wait until the clean windows' scale is known: a process force that dominates one of them
+    // must not enter the pool before there is a scale to tell it by
+    pending_[pending_count_++] = window;
+    if (pending_count_ == pending_.size()) settle_pending();
+    return WindowVerdict::pending;
+}
+
+void OnlineIdentifier::update_reference_scale() {
+    const std::size_t n = std::min(recent_count_, recent_scales_.size());
+    std::array<double, 32> sorted{};
+    std::copy_n(recent_scales_.begin(), n, sorted.begin());
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(n / 2),
+                     sorted.begin() + static_cast<std::ptrdiff_t>(n));
+    reference_scale_ = sorted[n / 2];
+}
+
+void OnlineIdentifier::settle_pending() {
+    if (pending_count_ == 0) return;
+    update_reference_scale();
+    // the first windows' consensus: the median of their estimates, coordinate by coordinate, among those whose
+    // scale is that of clean windows; a window then enters when its estimate agrees with the consensus
+    const auto p = static_cast<Eigen::Index>(p_);
+    std::array<Vec, 8> estimates;
+    std::array<double, 8> column{};
+    std::size_t clean = 0;
+    for (std::size_t k = 0; k < pending_count_; ++k) {
+        estimates[k] = pending_[k].h.ldlt().solve(pending_[k].c);
+        if (pending_[k].scale <= options_.maximum_scale_ratio * reference_scale_) ++clean;
+    }
+    Vec consensus = Vec::Zero(p);
+    for (Eigen::Index i = 0; i < p; ++i) {
+        std::size_t n = 0;
+        for (std::size_t k = 0; k < pending_count_; ++k)
+            if (pending_[k].scale <= options_.maximum_scale_ratio * reference_scale_) column[n++] = estimates[k](i);
+        std::nth_element(column.begin(), column.begin() + static_cast<std::ptrdiff_t>(n / 2),
+                         column.begin() + static_cast<std::ptrdiff_t>(n));
+        consensus(i) = n > 0 ? column[n / 2] : 0.0;
+    }
+    for (std::size_t k = 0; k < pending_count_; ++k) {
+        const bool ok = clean > 0 && pending_[k].scale <= options_.maximum_scale_ratio * reference_scale_ &&
+                        consistent(pending_[k], consensus);
+        if (ok) pool(pending_[k]);
+        ++counts_.by_verdict[static_cast<std::size_t>(ok ? WindowVerdict::qualified : WindowVerdict::process_force)];
+    }
+    pending_count_ = 0;
+}
+
+bool OnlineIdentifier::consistent(const WindowInformation& window, const Vec& reference) const {
+    // (theta_w - theta)^T H_w (theta_w - theta) / (s^2 kappa): chi^2 with p degrees of freedom for a window that
+    // fits the model, its residuals correlated over kappa samples by the low-pass
+    const Vec theta = window.h.ldlt().solve(window.c);
+    const Vec d = theta - reference;
+    const double kappa = std::max(1.0, 1.0 / (dt_ * cutoff_hz_));
+    const double distance = d.dot(window.h * d) / (window.scale * window.scale * kappa);
+    return distance <= options_.consistency_chi2;
+}
+
+void OnlineIdentifier::pool(const WindowInformation& window) {
+    const auto p = static_cast<Eigen::Index>(p_);
+    const double lambda = options_.forgetting;
+    if (lambda < 1.0) {
+        r_z_ *= std::sqrt(lambda);
+        sum_cc_ *= lambda * lambda;
+        for (auto& m : sum_cH_) m *= lambda * lambda;
+        for (auto& row : sum_HH_)
+            for (auto& m : row) m *= lambda * lambda;
+    }
+    forgotten_windows_ = lambda * forgotten_windows_ + 1.0;
+    sum_scale_sq_ = lambda * sum_scale_sq_ + window.scale * window.scale;
+    rows_used_ += window.rows;
+    // the window's information H_w = L L^T enters [R z] as the rows [L^T, L^-1 c_w], by Givens rotations: the
+    // square-root information update (R^T R + H_w, R^T z + c_w), never forming R^T R
+    const Eigen::LLT<Mat> cholesky(window.h);
+    const Mat upper = cholesky.matrixU();
+    const Vec rhs = cholesky.matrixL().solve(window.c);
+    Eigen::Matrix<double, 1, max_p + 1> row;
+    for (Eigen::Index k = 0; k < p; ++k) {
+        row.setZero();
+        row.head(p) = upper.row(k);
+        row(p) = rhs(k);
+        for (Eigen::Index i = 0; i < p; ++i) {
+            if (row(i) == 0.0) continue;
+            const double a = r_z_(i, i);
+            const double b = row(i);
+            const double hyp = std::hypot(a, b);
+            const double c = a / hyp;
+            const double s = b / hyp;
+            for (Eigen::Index j = i; j < p; ++j) {
+                const double rij = r_z_(i, j);
+                r_z_(i, j) = c * rij + s * row(j);
+                row(j) = -s * rij + c * row(j);
+            }
+            const double zi = r_z_(i, max_p);
+            r_z_(i, max_p) = c * zi + s * row(p);
+            row(p) = -s * zi + c * row(p);
+        }
+    }
+    sum_cc_.noalias() += window.c * window.c.transpose();
+    for (Eigen::Index i = 0; i < p; ++i) {
+        const auto ii = static_cast<std::size_t>(i);
+        sum_cH_[ii] += window.c(i) * window.h;
+        for (Eigen::Index j = 0; j < p; ++j) sum_HH_[ii][static_cast<std::size_t>(j)] += window.h(i, j) * window.h;
+    }
+    have_pooled_ = true;
+}
+
+OnlineIdentifier::Vec OnlineIdentifier::pooled_theta() const {
+    const auto p = static_cast<Eigen::Index>(p_);
+    const Mat r = r_z_.topLeftCorner(p, p);
+    const Vec z = r_z_.col(max_p).head(p);
+    return r.triangularView<Eigen::Upper>().solve(z);
+}
+
+void OnlineIdentifier::bin_slow_samples(std::size_t first, std::size_t last) {
+    const double low = std::log(options_.stribeck_lowest_speed);
+    const double span = std::log(options_.split_velocity) - low;
+    for (std::size_t k = first; k < last; ++k) {
+        const double speed = std::abs(v_[k]);
+        if (use_[k] == 0 || speed <= options_.moving_threshold || speed > options_.split_velocity ||
+            speed < options_.stribeck_lowest_speed || std::abs(a_[k]) > options_.quasi_static_acceleration)
+            continue;
+        // the quasi-static slow samples: the force is friction (and M*x'', small); away from a reversal, where the
+        // filtered sgn would not be +-1
+        if (std::abs(sf_[k]) < 0.999) continue;
+        const double d = v_[k] > 0.0 ? 1.0 : -1.0;
+        const auto index = std::min(bins_per_direction - 1,
+                                    static_cast<std::size_t>((std::log(speed) - low) / span * bins_per_direction));
+        StribeckBin& bin = bins_[d > 0.0 ? 0 : 1][index];
+        bin.n += 1.0;
+        bin.speed += speed;
+        bin.force += d * ff_[k];
+        bin.force_sq += ff_[k] * ff_[k];
+        bin.acceleration += d * a_[k];
+    }
+}
+
+}  // namespace feedid
+
+namespace feedid {
+
+namespace {
+
+// eq. (13) on the bins: ln(F_stri) = ln(F_B - F_C) - |v| / v_s, weighted by each bin's precision.
+struct BinPoint {
+    double speed, stribeck, standard_error;
+};
+
+}  // namespace
+
+OnlineEstimate OnlineIdentifier::estimate() const {
+    OnlineEstimate e;
+    e.windows = counts_;
+    e.changes = changes_;
+    e.samples = pushed_;
+    e.rows_used = rows_used_;
+    const auto p = static_cast<Eigen::Index>(p_);
+    if (!have_pooled_) {
+        e.mass_reason = fmt::format("no window qualified ({} of {} windows; see the rejection counts)",
+                                    counts_.qualified(), counts_.total);
+        e.friction_reason = e.mass_reason;
+        e.stribeck_reason = e.mass_reason;
+        return e;
+    }
+    e.residual_std = std::sqrt(sum_scale_sq_ / forgotten_windows_);
+    const Mat r = r_z_.topLeftCorner(p, p);
+    const Vec theta = pooled_theta();
+    const Mat h = r.transpose() * r;
+    // the clusters' meat at the final theta: sum_w (c_w - H_w theta)(c_w - H_w theta)^T from the moment sums
+    Mat cross = Mat::Zero(p, p);      // sum_w c_w (H_w theta)^T
+    Mat quadratic = Mat::Zero(p, p);  // sum_w (H_w theta)(H_w theta)^T
+    for (Eigen::Index i = 0; i < p; ++i) {
+        cross.row(i) = (sum_cH_[static_cast<std::size_t>(i)] * theta).transpose();
+        for (Eigen::Index j = 0; j < p; ++j)
+            quadratic.row(i) +=
+                theta(j) * (sum_HH_[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)] * theta).transpose();
+    }
+    Mat meat = sum_cc_ - cross - cross.transpose() + quadratic;
+    const double clusters = forgotten_windows_;
+    if (clusters > static_cast<double>(p_)) meat *= clusters / (clusters - static_cast<double>(p_));
+    const Mat h_inverse = h.inverse();
+    e.covariance = h_inverse * meat * h_inverse;
+    const Vec se = e.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+    e.information = e.covariance.diagonal().cwiseInverse();
+    const Vec d = se;
+    const Mat scaled_information = d.asDiagonal() * e.covariance.inverse() * d.asDiagonal();
+    e.information_eigenvalues =
+        Eigen::SelfAdjointEigenSolver<Mat>(scaled_information, Eigen::EigenvaluesOnly).eigenvalues();
+    e.mass = Estimate::of(theta(0), se(0));
+    e.viscous = Estimate::of(theta(1), se(1));
+    e.coulomb = Estimate::of(theta(2), se(2));
+    if (p_ == 4) e.offset = Estimate::of(theta(3), se(3));
+    if (counts_.qualified() < 2 * p_) {
+        const std::string why = fmt::format(
+            "only {} window(s) qualified: too few clusters for an honest standard error", counts_.qualified());
+        e.mass.standard_error.reset();
+        e.viscous.standard_error.reset();
+        e.coulomb.standard_error.reset();
+        e.offset.standard_error.reset();
+        e.friction_reason = why;
+    }
+    estimate_stribeck(theta, se(2), e);
+    return e;
+}
+
+void OnlineIdentifier::estimate_stribeck(const Vec& theta, double coulomb_standard_error, OnlineEstimate& e) const {
+    // the quasi-static bins: F_stri = friction - B |v| - F_C per bin, eq. (13) on those above their noise
+    std::array<BinPoint, 2 * bins_per_direction> points{};
+    std::size_t used = 0;
+    const double correlation = std::max(1.0, 1.0 / (dt_ * options_.cutoff_hz.value_or(std::min(100.0, 0.1 / dt_))));
+    std::size_t slow_samples = 0;
+    std::size_t populated = 0;
+    for (std::size_t direction = 0; direction < 2; ++direction) {
+        const double sg = direction == 0 ? 1.0 : -1.0;
+        for (const auto& bin : bins_[direction]) {
+            slow_samples += static_cast<std::size_t>(bin.n);
+            if (bin.n < static_cast<double>(options_.minimum_bin_samples)) continue;
+            ++populated;
+            const double speed = bin.speed / bin.n;
+            const double friction = bin.force / bin.n - theta(0) * bin.acceleration / bin.n;
+            double stribeck = friction - theta(1) * speed - theta(2);
+            if (p_ == 4) stribeck -= sg * theta(3);
+            const double variance = std::max(0.0, bin.force_sq / bin.n - (bin.force / bin.n) * (bin.force / bin.n));
+            const double standard_error = std::sqrt(variance * correlation / bin.n) + 1e-12;
+            if (stribeck > 2.0 * standard_error) points[used++] = {speed, stribeck, standard_error};
+        }
+    }
+    if (used < options_.minimum_stribeck_bins) {
+        e.stribeck_reason =
+            populated < options_.minimum_stribeck_bins
+                ? fmt::format(
+                      "the trace has no moves slow enough to determine F_B and v_s: its quasi-static samples "
+                      "below {:.3g} mm/s ({}) fill {} speed bin(s) of {} or more; {} needed",
+                      options_.split_velocity * 1e3, slow_samples, populated, options_.minimum_bin_samples,
+                      options_.minimum_stribeck_bins)
+                : fmt::format(
+                      "the slow moves ({} quasi-static samples below {:.3g} mm/s) show a friction rise above "
+                      "F_C in only {} speed bin(s); {} needed",
+                      slow_samples, options_.split_velocity * 1e3, used, options_.minimum_stribeck_bins);
+        return;
+    }
+    Eigen::Matrix2d normal = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d right = Eigen::Vector2d::Zero();
+    for (std::size_t k = 0; k < used; ++k) {
+        const double w = std::pow(points[k].stribeck / points[k].standard_error, 2);  // 1 / var(ln F_stri)
+        const Eigen::Vector2d phi(1.0, points[k].speed);
+        normal += w * phi * phi.transpose();
+        right += w * std::log(points[k].stribeck) * phi;
+    }
+    const Eigen::Vector2d fit = normal.inverse() * right;
+    // the bins' scatter about the fitted line beyond their own noise (the log-linear law's misfit, bins correlated by
+    // the filter) widens the covariance: reduced chi^2, when above 1
+    double chi2 = 0.0;
+    for (std::size_t k = 0; k < used; ++k) {
+        const double w = std::pow(points[k].stribeck / points[k].standard_error, 2);
+        chi2 += w * std::pow(std::log(points[k].stribeck) - fit(0) - fit(1) * points[k].speed, 2);
+    }
+    const double inflation = used > 2 ? std::max(1.0, chi2 / static_cast<double>(used - 2)) : 1.0;
+    const Eigen::Matrix2d cov = inflation * normal.inverse();
+    if (!(fit(1) < 0.0)) {
+        e.stribeck_reason = "the slow moves' friction does not fall with speed: no Stribeck term to determine";
+        return;
+    }
+    const double rise = std::exp(fit(0));
+    const double vs = -1.0 / fit(1);
+    const double vs_se = std::sqrt(cov(1, 1)) / (fit(1) * fit(1));
+    const double fb_se = std::hypot(coulomb_standard_error, rise * std::sqrt(cov(0, 0)));
+    if (!(vs_se < 0.3 * vs)) {
+        e.stribeck_reason =
+            fmt::format("v_s = {:.3g} mm/s is not determined by the slow moves (standard error {:.0f} %)", vs * 1e3,
+                        100.0 * vs_se / vs);
+        return;
+    }
+    e.breakaway = Estimate::of(theta(2) + rise, fb_se);
+    e.stribeck_velocity = Estimate::of(vs, vs_se);
+    e.stribeck_bins_used = used;
+}
+
+}  // namespace feedid
