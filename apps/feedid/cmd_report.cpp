@@ -43,25 +43,27 @@ void attach_latest_results(const history::HistoryStore& store, std::vector<histo
 
 int run_report(const ReportArguments& arguments) {
     if (const auto problem = arguments.trend.validate(); !problem.empty()) throw InputError(problem);
-    if (!std::filesystem::is_regular_file(arguments.input))
+    const bool server = history::is_postgresql_location(arguments.input);
+    if (!server && !std::filesystem::is_regular_file(arguments.input))
         throw InputError(
             fmt::format("{}: no such file (give an identify result document or a history database)", arguments.input));
     // A history database is guarded with its -wal and -shm files; a result document alone.
-    const bool database = history::looks_like_sqlite(arguments.input);
+    const bool database = server || history::looks_like_sqlite(arguments.input);
     require_separate_outputs({{"-o", arguments.out_path}},
-                             {{database ? "the history database" : "the result document", arguments.input, database},
+                             {{database ? "the history database" : "the result document",
+                               server ? std::string() : arguments.input, database},
                               {"the --simulation document", arguments.simulation_path}});
     std::string html;
-    if (history::looks_like_sqlite(arguments.input)) {
+    if (database) {
         // A simulation validates one run; a history holds many.
         if (!arguments.simulation_path.empty())
             throw InputError(
                 fmt::format("--simulation {}: goes with an identify result document, not with a history "
                             "database ({})",
                             arguments.simulation_path, arguments.input));
-        history::SqliteOpenOptions options;
+        history::OpenOptions options;
         options.read_only = true;
-        const auto store = history::open_sqlite_store(arguments.input, options);
+        const auto store = history::open_store(arguments.input, options);
         // The typed columns of every run; of the stored documents only those the friction curves need.
         auto runs = store->runs(arguments.filter, history::RunDetail::summary);
         attach_latest_results(*store, runs);

@@ -20,9 +20,9 @@ public:
         const auto text = as_path(path);
         if (!text) throw InputError("History: expected the path of a history file (str or os.PathLike)");
         path_ = *text;
-        history::SqliteOpenOptions options;
+        history::OpenOptions options;
         options.read_only = read_only;
-        store_ = history::open_sqlite_store(path_, options);
+        store_ = history::open_store(path_, options);
     }
 
     /// Records an identify result (a Result, its dict, or the path of its JSON document) as one run.
