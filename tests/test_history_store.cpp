@@ -1,5 +1,7 @@
-// The SQLite history store: round trip, duplicates, migrations, durability under a forced abort between statements,
-// and two processes recording at the same time.
+// The history store: round trip, duplicates, migrations, durability under a forced abort between statements,
+// and two processes recording at the same time. The tests of the store's contract run on both backends (SQLite and
+// PostgreSQL, postgres_testing.hpp); those of the SQLite file itself (migrations of older files, its integrity check)
+// on SQLite.
 
 #include <gtest/gtest.h>
 
@@ -17,6 +19,7 @@
 #include "feedid/history/store.hpp"
 #include "feedid/history/trend.hpp"
 #include "history_testing.hpp"
+#include "postgres_testing.hpp"
 #include "testing.hpp"
 
 namespace {
@@ -62,18 +65,20 @@ std::string integrity(const std::filesystem::path& path) {
     return result;
 }
 
-TEST(HistoryStore, RoundTripKeepsEveryField) {
-    const auto folder = temp_dir();
-    const auto path = folder / "h.db";
+class HistoryStoreOn : public HistoryBackendTest {};
+INSTANTIATE_TEST_SUITE_P(Backends, HistoryStoreOn, ::testing::Values(Backend::sqlite, Backend::postgresql),
+                         backend_name);
+
+TEST_P(HistoryStoreOn, RoundTripKeepsEveryField) {
+    const auto location = new_location();
     {
-        auto store = history::open_sqlite_store(path);
-        EXPECT_EQ(store->schema_version(), history::sqlite_schema_version);
+        auto store = open(location);
+        EXPECT_EQ(store->schema_version(),
+                  postgresql() ? history::postgres_schema_version : history::sqlite_schema_version);
         const auto outcome = store->add_run(sample_run("aa", 742.0));
         EXPECT_TRUE(outcome.inserted);
     }
-    history::SqliteOpenOptions read_only;
-    read_only.read_only = true;
-    const auto store = history::open_sqlite_store(path, read_only);
+    const auto store = open(location, true);
     const auto runs = store->runs();
     ASSERT_EQ(runs.size(), 1u);
     const auto& run = runs[0];
@@ -96,9 +101,8 @@ TEST(HistoryStore, RoundTripKeepsEveryField) {
     EXPECT_THROW(store->add_run(sample_run("bb", 1.0)), feedid::InputError);  // opened read-only
 }
 
-TEST(HistoryStore, SameTraceWithSameOptionsIsNotAddedTwice) {
-    const auto folder = temp_dir();
-    auto store = history::open_sqlite_store(folder / "h.db");
+TEST_P(HistoryStoreOn, SameTraceWithSameOptionsIsNotAddedTwice) {
+    auto store = open(new_location());
     const auto first = store->add_run(sample_run("aa", 742.0));
     const auto again = store->add_run(sample_run("aa", 742.0));
     EXPECT_FALSE(again.inserted);
@@ -109,9 +113,8 @@ TEST(HistoryStore, SameTraceWithSameOptionsIsNotAddedTwice) {
     EXPECT_EQ(store->runs().size(), 2u);
 }
 
-TEST(HistoryStore, PinsCheckMachineAndAxis) {
-    const auto folder = temp_dir();
-    auto store = history::open_sqlite_store(folder / "h.db");
+TEST_P(HistoryStoreOn, PinsCheckMachineAndAxis) {
+    auto store = open(new_location());
     const auto id = store->add_run(sample_run("aa", 742.0)).id;
     EXPECT_THROW(store->pin_baseline("DMU 50", "Y", id), feedid::InputError);
     EXPECT_THROW(store->pin_baseline("DMU 50", "X", id + 100), feedid::InputError);
@@ -193,9 +196,8 @@ TEST(HistoryStore, MigrationToSchemaFiveKeepsEveryDocumentAndTypesTheFit) {
 }
 
 // The compact series the trend reads hold what the full listing holds, and give the same trend.
-TEST(HistoryStore, SeriesHoldWhatTheListingHolds) {
-    const auto folder = temp_dir();
-    auto store = history::open_sqlite_store(folder / "h.db");
+TEST_P(HistoryStoreOn, SeriesHoldWhatTheListingHolds) {
+    auto store = open(new_location());
     for (int i = 0; i < 30; ++i) {
         auto run = sample_run(fmt::format("sha-{}", i), 742.0 + (i >= 20 ? 5.0 : 0.1 * (i % 3)));
         run.machine = i % 3 == 0 ? "B" : "A";
@@ -246,9 +248,8 @@ history::RunRecord rotary_run(const std::string& sha) {
     return run;
 }
 
-TEST(HistoryStore, AnAxisHoldsRunsOfOneAxisKind) {
-    const auto folder = temp_dir();
-    auto store = history::open_sqlite_store(folder / "h.db");
+TEST_P(HistoryStoreOn, AnAxisHoldsRunsOfOneAxisKind) {
+    auto store = open(new_location());
     const auto linear = store->add_run(sample_run("aa", 742.0));  // no axis_kind given: its keys say linear
     try {
         (void)store->add_run(rotary_run("bb"));
@@ -329,15 +330,19 @@ TEST(HistoryStore, TheAxisKindComesFromTheResult) {
     }
 }
 
-TEST(HistoryCli, ARotaryRunOnALinearAxisIsExitTwo) {
-    const auto folder = temp_dir();
+class HistoryCliOn : public HistoryBackendTest {};
+INSTANTIATE_TEST_SUITE_P(Backends, HistoryCliOn, ::testing::Values(Backend::sqlite, Backend::postgresql),
+                         backend_name);
+
+TEST_P(HistoryCliOn, ARotaryRunOnALinearAxisIsExitTwo) {
+    const auto folder = folder_;
     const auto results = write_small_results(folder, "run", 2);
     auto rotary = small_rotary_result(folder / "run-2.csv");
     write_text(results[1], rotary.dump());
-    const auto database = folder / "h.db";
+    const auto database = new_location();
     const auto command = [&](const std::filesystem::path& result) {
         return run_shell(
-            fmt::format("{} history {} --record {} --machine M1 --axis X", cli(), quoted(database), quoted(result)),
+            fmt::format("{} history '{}' --record {} --machine M1 --axis X", cli(), database, quoted(result)),
             folder);
     };
     ASSERT_EQ(command(results[0]).exit_code, 0);
@@ -365,7 +370,7 @@ TEST(HistoryStore, ResultDocumentIsStoredWithoutTheRlsHistory) {
 }
 
 /// Records `results` one command each into `database`; expects success.
-void record_all(const std::filesystem::path& folder, const std::filesystem::path& database,
+void record_all(const std::filesystem::path& folder, const std::string& database,
                 const std::vector<std::filesystem::path>& results) {
     for (std::size_t i = 0; i < results.size(); ++i) {
         const auto r = run_shell(fmt::format("{} history {} --record {} --machine M1 --axis X "
@@ -386,7 +391,7 @@ TEST(HistoryDurability, AbortBetweenStatementsLeavesEveryEarlierRunAndTheNewOneW
     int whole = 0;
     for (int n = 1;; ++n) {
         ASSERT_LE(n, 30) << "the abort hook never let --record finish";
-        const auto database = folder / fmt::format("abort-{}.db", n);
+        const auto database = (folder / fmt::format("abort-{}.db", n)).string();
         record_all(folder, database, {results[0], results[1], results[2]});
         const auto r = run_shell(fmt::format("FEEDID_TEST_ABORT_AFTER_STATEMENT={} {} history {} --record {} --machine "
                                              "M1 --axis X --recorded-at 2026-03-04T06:00:00Z",
@@ -428,11 +433,15 @@ TEST(HistoryDurability, AbortBetweenStatementsLeavesEveryEarlierRunAndTheNewOneW
 
 // Two processes, each recording 50 runs (one command per run) into the same file at the same time, starting without
 // the file: both create and migrate it, then contend for the write lock 50 times each.
-TEST(HistoryDurability, TwoProcessesRecordingAtOnceLoseNothing) {
-    const auto folder = temp_dir();
+class HistoryDurabilityOn : public HistoryBackendTest {};
+INSTANTIATE_TEST_SUITE_P(Backends, HistoryDurabilityOn, ::testing::Values(Backend::sqlite, Backend::postgresql),
+                         backend_name);
+
+TEST_P(HistoryDurabilityOn, TwoProcessesRecordingAtOnceLoseNothing) {
+    const auto folder = folder_;
     const auto first = write_small_results(folder, "a", 50);
     const auto second = write_small_results(folder, "b", 50);
-    const auto database = folder / "shared.db";
+    const auto database = new_location("shared");
     const auto loop = [&](const std::string& stem) {
         return fmt::format(
             "fail=0; for i in $(seq 1 50); do {} history {} --record {}/{}-$i.json --machine M1 --axis "
@@ -444,10 +453,10 @@ TEST(HistoryDurability, TwoProcessesRecordingAtOnceLoseNothing) {
                                          loop("a"), loop("b")),
                              folder);
     EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
-    EXPECT_EQ(integrity(database), "ok");
-    history::SqliteOpenOptions read_only;
-    read_only.read_only = true;
-    const auto runs = history::open_sqlite_store(database, read_only)->runs();
+    if (!postgresql()) {
+        EXPECT_EQ(integrity(database), "ok");
+    }
+    const auto runs = open(database, true)->runs();
     ASSERT_EQ(runs.size(), 100u);
     std::set<std::string> traces;
     for (const auto& run : runs) {
@@ -458,11 +467,11 @@ TEST(HistoryDurability, TwoProcessesRecordingAtOnceLoseNothing) {
 }
 
 // The same with each process recording its 50 runs in one command (50 transactions back to back).
-TEST(HistoryDurability, TwoProcessesWithFiftyRunsPerCommandLoseNothing) {
-    const auto folder = temp_dir();
+TEST_P(HistoryDurabilityOn, TwoProcessesWithFiftyRunsPerCommandLoseNothing) {
+    const auto folder = folder_;
     write_small_results(folder, "a", 50);
     write_small_results(folder, "b", 50);
-    const auto database = folder / "shared.db";
+    const auto database = new_location("shared");
     const auto command = [&](const std::string& stem) {
         std::string files;
         for (int i = 1; i <= 50; ++i) files += " --record " + quoted(folder / fmt::format("{}-{}.json", stem, i));
@@ -473,10 +482,10 @@ TEST(HistoryDurability, TwoProcessesWithFiftyRunsPerCommandLoseNothing) {
                                          command("a"), command("b")),
                              folder);
     EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
-    history::SqliteOpenOptions read_only;
-    read_only.read_only = true;
-    EXPECT_EQ(history::open_sqlite_store(database, read_only)->runs().size(), 100u);
-    EXPECT_EQ(integrity(database), "ok");
+    EXPECT_EQ(open(database, true)->runs().size(), 100u);
+    if (!postgresql()) {
+        EXPECT_EQ(integrity(database), "ok");
+    }
 }
 
 }  // namespace
@@ -485,8 +494,12 @@ namespace {
 
 // feedid identify --record files the run as it is made; the result document it writes carries the options, so that
 // recording that document again (feedid history --record) is recognised as the same run.
-TEST(HistoryRecord, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
-    const auto folder = temp_dir();
+class HistoryRecordOn : public HistoryBackendTest {};
+INSTANTIATE_TEST_SUITE_P(Backends, HistoryRecordOn, ::testing::Values(Backend::sqlite, Backend::postgresql),
+                         backend_name);
+
+TEST_P(HistoryRecordOn, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
+    const auto folder = folder_;
     const auto drive = folder / "drive.json";
     write_text(drive, R"({"seed": 9, "slow_passes": false, "test": {"feedrates_mm_per_min": [1500, 3000, 4500, 6000],
                           "stroke_mm": 20}})");
@@ -494,7 +507,7 @@ TEST(HistoryRecord, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
     ASSERT_EQ(
         run_shell(fmt::format("{} synth --drive {} --out {}", cli(), quoted(drive), quoted(trace)), folder).exit_code,
         0);
-    const auto database = folder / "shop.db";
+    const auto database = new_location("shop");
     const auto result = folder / "result.json";
     const auto identify = run_shell(fmt::format("{} identify {} --force-constant force_constant_N_per_A --json {} "
                                                 "--record {} --machine 'DMU 50' --axis X --location Aachen "
@@ -504,9 +517,7 @@ TEST(HistoryRecord, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
     ASSERT_EQ(identify.exit_code, 0) << identify.err;
     EXPECT_NE(identify.err.find("recorded as run #1 of machine 'DMU 50' axis 'X'"), std::string::npos) << identify.err;
 
-    history::SqliteOpenOptions read_only;
-    read_only.read_only = true;
-    auto runs = history::open_sqlite_store(database, read_only)->runs();
+    auto runs = open(database, true)->runs();
     ASSERT_EQ(runs.size(), 1u);
     const auto document = nlohmann::json::parse(read_text(result));
     EXPECT_EQ(runs[0].location, "Aachen");
@@ -523,7 +534,7 @@ TEST(HistoryRecord, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
         folder);
     EXPECT_EQ(again.exit_code, 0) << again.err;
     EXPECT_NE(again.err.find("already recorded as run #1"), std::string::npos) << again.err;
-    EXPECT_EQ(history::open_sqlite_store(database, read_only)->runs().size(), 1u);
+    EXPECT_EQ(open(database, true)->runs().size(), 1u);
 
     // Other options make another run of the same trace.
     const auto other = run_shell(fmt::format("{} identify {} --force-constant force_constant_N_per_A --offset "
@@ -531,7 +542,7 @@ TEST(HistoryRecord, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
                                              cli(), quoted(trace), quoted(database)),
                                  folder);
     EXPECT_EQ(other.exit_code, 0) << other.err;
-    EXPECT_EQ(history::open_sqlite_store(database, read_only)->runs().size(), 2u);
+    EXPECT_EQ(open(database, true)->runs().size(), 2u);
 }
 
 // In WAL mode a connection opened with SQLITE_OPEN_READONLY creates DB-wal and DB-shm and may not delete them when it
