@@ -88,6 +88,13 @@ public:
         return location(name);
     }
 
+    /// The database `name`, created when the server has none of that name (a kept server's from an earlier run).
+    std::string database(const std::string& name) {
+        if (value(fmt::format("SELECT 1 FROM pg_database WHERE datname = '{}'", name), "postgres") != "1")
+            execute(fmt::format("CREATE DATABASE {}", name));
+        return location(name);
+    }
+
     /// Writes a file (the configuration; the tests' own helpers are not at hand here).
     static void write_text(const std::filesystem::path& path, const std::string& text) {
         std::ofstream(path, std::ios::binary) << text;
