@@ -406,6 +406,25 @@ TEST_F(HistoryPostgres, CopyRoundTripLeavesIdenticalListingAndCheck) {
         EXPECT_EQ(returned[k], original[k]) << "output " << k;
     }
     EXPECT_EQ(integrity_of(plant, 3).runs, 60);
+    // the report reads the plant database as it reads a file
+    const auto report =
+        run_shell(fmt::format("{} report '{}' -o {}", cli(), plant, quoted(folder_ / "plant.html")), folder_);
+    EXPECT_EQ(report.exit_code, 0) << report.err;
+    EXPECT_NE(read_text(folder_ / "plant.html").find("coulomb_N"), std::string::npos);
+}
+
+// Messages name a PostgreSQL location without its password, wherever it was given.
+TEST(HistoryLocation, APasswordIsNeverShown) {
+    EXPECT_TRUE(history::is_postgresql_location("postgresql://h/db"));
+    EXPECT_TRUE(history::is_postgresql_location("postgres://h/db"));
+    EXPECT_FALSE(history::is_postgresql_location("shop.db"));
+    EXPECT_FALSE(history::is_postgresql_location("./postgresql://x"));
+    EXPECT_EQ(history::shown_location("postgresql://alice:Pw-1@plant-db:5432/history"),
+              "postgresql://alice@plant-db:5432/history");
+    EXPECT_EQ(history::shown_location("postgres://alice:Pw-1@plant-db/history?sslmode=require&password=Pw-1&x=1"),
+              "postgres://alice@plant-db/history?sslmode=require&x=1");
+    EXPECT_EQ(history::shown_location("postgresql:///history?service=plant"), "postgresql:///history?service=plant");
+    EXPECT_EQ(history::shown_location("shop.db"), "shop.db");
 }
 
 }  // namespace

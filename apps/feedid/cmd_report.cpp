@@ -60,7 +60,7 @@ int run_report(const ReportArguments& arguments) {
             throw InputError(
                 fmt::format("--simulation {}: goes with an identify result document, not with a history "
                             "database ({})",
-                            arguments.simulation_path, arguments.input));
+                            arguments.simulation_path, history::shown_location(arguments.input)));
         history::OpenOptions options;
         options.read_only = true;
         const auto store = history::open_store(arguments.input, options);
@@ -69,10 +69,10 @@ int run_report(const ReportArguments& arguments) {
         attach_latest_results(*store, runs);
         if (runs.empty())
             throw InputError(fmt::format(
-                "{}: no runs recorded{}", arguments.input,
+                "{}: no runs recorded{}", history::shown_location(arguments.input),
                 arguments.filter.machine.empty() && arguments.filter.axis.empty() ? "" : " for this machine/axis"));
         const auto trends = history::analyse_trends(runs, store->pins(), arguments.trend);
-        html = report::history_report_html(runs, trends, arguments.trend, arguments.input);
+        html = report::history_report_html(runs, trends, arguments.trend, history::shown_location(arguments.input));
     } else {
         nlohmann::json document;
         try {
