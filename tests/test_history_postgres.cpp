@@ -413,6 +413,18 @@ TEST_F(HistoryPostgres, CopyRoundTripLeavesIdenticalListingAndCheck) {
     EXPECT_NE(read_text(folder_ / "plant.html").find("coulomb_N"), std::string::npos);
 }
 
+// A build without libpq (cmake -DFEEDID_WITH_POSTGRESQL=OFF, or no libpq-dev) still reads and writes SQLite files,
+// and a PostgreSQL location is exit 2 naming what is missing (and never the password).
+TEST(HistoryLocation, WithoutTheBackendAPostgresqlLocationIsExitTwoNamingWhatIsMissing) {
+    if (feedid::history::postgresql_supported()) GTEST_SKIP() << "this build has the PostgreSQL backend";
+    const auto r = run_cli("history postgresql://alice:Pw-1@plant-db/history --check");
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_EQ(count_lines(r.err), 1) << r.err;
+    EXPECT_NE(r.err.find("postgresql://alice@plant-db/history"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("libpq-dev"), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("Pw-1"), std::string::npos) << r.err;
+}
+
 // Messages name a PostgreSQL location without its password, wherever it was given.
 TEST(HistoryLocation, APasswordIsNeverShown) {
     EXPECT_TRUE(history::is_postgresql_location("postgresql://h/db"));
