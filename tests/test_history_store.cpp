@@ -331,8 +331,7 @@ TEST(HistoryStore, TheAxisKindComesFromTheResult) {
 }
 
 class HistoryCliOn : public HistoryBackendTest {};
-INSTANTIATE_TEST_SUITE_P(Backends, HistoryCliOn, ::testing::Values(Backend::sqlite, Backend::postgresql),
-                         backend_name);
+INSTANTIATE_TEST_SUITE_P(Backends, HistoryCliOn, ::testing::Values(Backend::sqlite, Backend::postgresql), backend_name);
 
 TEST_P(HistoryCliOn, ARotaryRunOnALinearAxisIsExitTwo) {
     const auto folder = folder_;
@@ -342,8 +341,7 @@ TEST_P(HistoryCliOn, ARotaryRunOnALinearAxisIsExitTwo) {
     const auto database = new_location();
     const auto command = [&](const std::filesystem::path& result) {
         return run_shell(
-            fmt::format("{} history '{}' --record {} --machine M1 --axis X", cli(), database, quoted(result)),
-            folder);
+            fmt::format("{} history '{}' --record {} --machine M1 --axis X", cli(), database, quoted(result)), folder);
     };
     ASSERT_EQ(command(results[0]).exit_code, 0);
     const auto refused = command(results[1]);

@@ -174,7 +174,8 @@ void pin_baseline(history::HistoryStore& store, const HistoryArguments& argument
                    terminal_text(series.machine), terminal_text(series.axis), *arguments.pin);
         return;
     }
-    throw InputError(fmt::format("{}: there is no run #{}", history::shown_location(arguments.database), *arguments.pin));
+    throw InputError(
+        fmt::format("{}: there is no run #{}", history::shown_location(arguments.database), *arguments.pin));
 }
 
 nlohmann::json history_document(const history::HistoryStore& store, const std::vector<history::RunRecord>& runs,
@@ -229,9 +230,9 @@ int verify(const HistoryArguments& arguments) {
     const auto problems = history::open_store(arguments.database, read_only)->verify();
     const std::string shown = terminal_text(history::shown_location(arguments.database));
     if (problems.empty()) {
-        fmt::print("{}: ok ({}, every stored document readable)\n", shown,
-                   history::is_postgresql_location(arguments.database) ? "every table read"
-                                                                       : "SQLite's integrity check");
+        fmt::print(
+            "{}: ok ({}, every stored document readable)\n", shown,
+            history::is_postgresql_location(arguments.database) ? "every table read" : "SQLite's integrity check");
         return 0;
     }
     for (const auto& problem : problems) fmt::print("{}\n", terminal_text(problem));
@@ -251,8 +252,8 @@ int copy(const HistoryArguments& arguments) {
     const auto destination = history::open_store(to);
     const auto outcome = history::copy_history(*source, *destination);
     fmt::print(stderr, "feedid: copied {} run(s) from {} to {} ({} already there), {} baseline pin(s)\n",
-               outcome.copied, terminal_text(history::shown_location(from)),
-               terminal_text(history::shown_location(to)), outcome.already_there, outcome.pins);
+               outcome.copied, terminal_text(history::shown_location(from)), terminal_text(history::shown_location(to)),
+               outcome.already_there, outcome.pins);
     return 0;
 }
 

@@ -49,10 +49,9 @@ int run_report(const ReportArguments& arguments) {
             fmt::format("{}: no such file (give an identify result document or a history database)", arguments.input));
     // A history database is guarded with its -wal and -shm files; a result document alone.
     const bool database = server || history::looks_like_sqlite(arguments.input);
-    require_separate_outputs({{"-o", arguments.out_path}},
-                             {{database ? "the history database" : "the result document",
-                               server ? std::string() : arguments.input, database},
-                              {"the --simulation document", arguments.simulation_path}});
+    require_separate_outputs({{"-o", arguments.out_path}}, {{database ? "the history database" : "the result document",
+                                                             server ? std::string() : arguments.input, database},
+                                                            {"the --simulation document", arguments.simulation_path}});
     std::string html;
     if (database) {
         // A simulation validates one run; a history holds many.
