@@ -15,6 +15,8 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
+#include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -194,12 +196,30 @@ private:
         return port;
     }
 
+    /// Stops and removes the servers of earlier programs that died without stopping theirs (a crash): sibling folders
+    /// named <program>-<pid> whose process is gone.
+    void reap_orphans() const {
+        std::error_code error;
+        for (const auto& entry : std::filesystem::directory_iterator(data_.parent_path(), error)) {
+            const std::string name = entry.path().filename().string();
+            const auto dash = name.rfind('-');
+            if (dash == std::string::npos || entry.path() == data_) continue;
+            const long pid = std::strtol(name.c_str() + dash + 1, nullptr, 10);
+            if (pid <= 0 || ::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;
+            if (std::filesystem::exists(entry.path() / "cluster" / "postmaster.pid", error))
+                as_server_user(fmt::format("{} -D {} -m immediate -w stop", quoted(bin_ / "pg_ctl"),
+                                           quoted(entry.path() / "cluster")));
+            std::filesystem::remove_all(entry.path(), error);
+        }
+    }
+
     void start() {
         const auto cluster = data_ / "cluster";
         std::error_code error;
         const bool reuse = keep_ && std::filesystem::exists(cluster / "PG_VERSION", error);
         if (!reuse) std::filesystem::remove_all(data_, error);
         std::filesystem::create_directories(data_);
+        if (!keep_) reap_orphans();
         if (uid_ != 0 && ::chown(data_.c_str(), uid_, gid_) != 0) {
             why_not_ = "cannot give the data folder to the postgres user";
             return;
