@@ -278,6 +278,28 @@ TEST_F(HistoryPostgres, ConnectionFailuresAreOneLineNamingHostAndDatabaseNeverTh
     expect_refused("", server().location("no_such_database"), {"127.0.0.1", "no_such_database", "does not exist"});
 }
 
+// What the URI leaves out comes from libpq's environment variables and service files, as for psql.
+TEST_F(HistoryPostgres, EnvironmentVariablesAndServiceFilesFillInTheLocation) {
+    const auto results = write_small_results(folder_, "run", 2);
+    const auto location = server().create_database();
+    const auto database = database_of(location);
+    const auto by_environment = run_shell(
+        fmt::format("PGHOST=127.0.0.1 PGPORT={} PGUSER=feedid_admin PGDATABASE={} {} history postgresql:// --record {} "
+                    "--machine M --axis X",
+                    server().port(), database, cli(), quoted(results[0])),
+        folder_);
+    EXPECT_EQ(by_environment.exit_code, 0) << by_environment.err;
+    write_text(
+        folder_ / "pg_service.conf",
+        fmt::format("[plant]\nhost=127.0.0.1\nport={}\nuser=feedid_admin\ndbname={}\n", server().port(), database));
+    const auto by_service = run_shell(fmt::format("PGSERVICEFILE={} {} history 'postgresql:///?service=plant' --record "
+                                                  "{} --machine M --axis X",
+                                                  quoted(folder_ / "pg_service.conf"), cli(), quoted(results[1])),
+                                      folder_);
+    EXPECT_EQ(by_service.exit_code, 0) << by_service.err;
+    EXPECT_EQ(value(location, "SELECT count(*) FROM runs"), "2");
+}
+
 // Another application's tables of the same names, a newer feedid schema and an empty database: refused (exit 2),
 // nothing written.
 TEST_F(HistoryPostgres, ForeignTablesNewerSchemasAndEmptyDatabasesAreRefusedUntouched) {
