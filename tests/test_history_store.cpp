@@ -7,6 +7,7 @@
 
 #include <sqlite3.h>
 
+#include <algorithm>
 #include <csignal>
 #include <map>
 #include <set>
@@ -236,6 +237,36 @@ TEST_P(HistoryStoreOn, SeriesHoldWhatTheListingHolds) {
         alarms += a[s].alarms.size();
     }
     EXPECT_GT(alarms, 0u);  // the step at run 20 is found
+}
+
+// Reading in pages (copy_history's bounded memory): every run once, in id order, with what the listing gives.
+TEST_P(HistoryStoreOn, PagesInStorageOrderHoldWhatTheListingHolds) {
+    auto store = open(new_location());
+    for (int i = 0; i < 7; ++i) {
+        auto run = sample_run(fmt::format("sha-{}", i), 742.0 + i);
+        run.recorded_at = fmt::format("2026-03-{:02}T06:00:00.000Z", 10 - i);  // the listing's order is the reverse
+        if (i == 3) run.parameters.erase("mass_kg");
+        store->add_run(run);
+    }
+    std::map<std::int64_t, history::RunRecord> listed;
+    for (auto& run : store->runs()) listed[run.id] = run;
+    std::vector<std::int64_t> paged;
+    std::size_t pages = 0;
+    for (std::int64_t after = 0;; ++pages) {
+        const auto page = store->runs_in_storage_order(after, 3);
+        for (const auto& run : page) {
+            paged.push_back(run.id);
+            const auto& same = listed.at(run.id);
+            EXPECT_EQ(history::to_json(run), history::to_json(same)) << "run #" << run.id;
+            EXPECT_EQ(run.result, same.result);
+        }
+        if (page.empty()) break;
+        after = page.back().id;
+    }
+    EXPECT_EQ(pages, 3u);
+    ASSERT_EQ(paged.size(), 7u);
+    EXPECT_TRUE(std::is_sorted(paged.begin(), paged.end()));
+    EXPECT_EQ(paged.front(), listed.begin()->first);
 }
 
 /// sample_run as a rotary table's run: its parameters under the rotary keys.

@@ -69,15 +69,20 @@ std::unique_ptr<HistoryStore> open_store(const std::string& location, const Open
 }
 
 CopyOutcome copy_history(const HistoryStore& from, HistoryStore& to) {
-    auto runs = from.runs({}, RunDetail::documents);
-    // in the order they were stored, so that an empty destination numbers them as the source does
-    std::sort(runs.begin(), runs.end(), [](const RunRecord& a, const RunRecord& b) { return a.id < b.id; });
+    // In the order they were stored, so that an empty destination numbers them as the source does; a page at a
+    // time, so that a history of any size is copied in bounded memory (the documents are most of it).
+    constexpr std::size_t page = 500;
     CopyOutcome outcome;
     std::map<std::int64_t, std::int64_t> ids;
-    for (const auto& run : runs) {
-        const AddOutcome added = to.add_run(run);
-        ids[run.id] = added.id;
-        ++(added.inserted ? outcome.copied : outcome.already_there);
+    for (std::int64_t after = 0;;) {
+        const auto runs = from.runs_in_storage_order(after, page);
+        for (const auto& run : runs) {
+            const AddOutcome added = to.add_run(run);
+            ids[run.id] = added.id;
+            ++(added.inserted ? outcome.copied : outcome.already_there);
+        }
+        if (runs.size() < page) break;
+        after = runs.back().id;
     }
     std::map<std::pair<std::string, std::string>, std::int64_t> pinned;
     for (const auto& pin : to.pins()) pinned[{pin.machine, pin.axis}] = pin.run_id;

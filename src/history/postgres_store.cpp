@@ -308,11 +308,35 @@ public:
             std::vector<RunRecord> result;
             snapshot([&] {
                 std::unordered_map<std::int64_t, std::size_t> index;
-                read_run_rows(filter, detail, result, index);
+                read_run_rows(std::string(filter_clause) + " ORDER BY r.recorded_at, r.id",
+                              Parameters{}.add(filter.machine).add(filter.axis).add(filter.location), detail, result,
+                              index);
                 read_parameters(filter, [&](std::int64_t id, std::string_view key, const StoredEstimate& estimate) {
                     if (const auto found = index.find(id); found != index.end())
                         result[found->second].parameters.emplace(std::string(key), estimate);
                 });
+            });
+            return result;
+        });
+    }
+
+    std::vector<RunRecord> runs_in_storage_order(std::int64_t after_id, std::size_t limit) const override {
+        return guarded([&] {
+            std::vector<RunRecord> result;
+            snapshot([&] {
+                std::unordered_map<std::int64_t, std::size_t> index;
+                read_run_rows(" WHERE r.id > $1 ORDER BY r.id LIMIT $2",
+                              Parameters{}.add(after_id).add(static_cast<std::int64_t>(limit)), RunDetail::documents,
+                              result, index);
+                if (result.empty()) return;
+                const Result select = query(
+                    "SELECT p.run_id, p.key, p.value, p.stderr, p.systematic, p.uncertainty FROM parameters p WHERE "
+                    "p.run_id > $1 AND p.run_id <= $2",
+                    Parameters{}.add(after_id).add(result.back().id));
+                for (int row = 0; row < select.rows(); ++row)
+                    result[index.at(select.integer(row, 0))].parameters.emplace(
+                        select.text(row, 1), StoredEstimate{select.real(row, 2), select.real(row, 3),
+                                                            select.real(row, 4), select.real(row, 5)});
             });
             return result;
         });
@@ -558,8 +582,9 @@ private:
         write(sql, parameters);
     }
 
-    void read_run_rows(const RunFilter& filter, RunDetail detail, std::vector<RunRecord>& result,
-                       std::unordered_map<std::int64_t, std::size_t>& index) const;
+    /// The runs `clause` (WHERE ... ORDER BY ... over `parameters`) selects, in its order.
+    void read_run_rows(const std::string& clause, const Parameters& parameters, RunDetail detail,
+                       std::vector<RunRecord>& result, std::unordered_map<std::int64_t, std::size_t>& index) const;
     void read_series_rows(const RunFilter& filter, std::vector<SeriesRuns>& result,
                           std::unordered_map<std::int64_t, std::pair<std::uint32_t, std::uint32_t>>& where) const;
 
@@ -700,17 +725,17 @@ void PostgresStore::migrate() {
     });
 }
 
-void PostgresStore::read_run_rows(const RunFilter& filter, RunDetail detail, std::vector<RunRecord>& result,
+void PostgresStore::read_run_rows(const std::string& clause, const Parameters& parameters, RunDetail detail,
+                                  std::vector<RunRecord>& result,
                                   std::unordered_map<std::int64_t, std::size_t>& index) const {
     const bool documents = detail == RunDetail::documents;
     const Result select =
         query(fmt::format("SELECT r.id, r.machine, r.axis, r.location, r.recorded_at, r.trace_path, r.trace_sha256, "
                           "r.feedid_version, r.model, r.status, r.options_json, r.stored_at, r.axis_kind, "
-                          "r.relative_error_pct, r.condition_number, r.samples_used, {} FROM runs r{}{} ORDER BY "
-                          "r.recorded_at, r.id",
+                          "r.relative_error_pct, r.condition_number, r.samples_used, {} FROM runs r{}{}",
                           documents ? "r.fit_json, d.diagnostics_json, d.result_json" : "NULL, NULL, NULL",
-                          documents ? " LEFT JOIN documents d ON d.run_id = r.id" : "", filter_clause),
-              Parameters{}.add(filter.machine).add(filter.axis).add(filter.location));
+                          documents ? " LEFT JOIN documents d ON d.run_id = r.id" : "", clause),
+              parameters);
     OptionsGroups groups;
     for (int row = 0; row < select.rows(); ++row) {
         RunRecord run;

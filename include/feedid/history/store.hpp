@@ -140,6 +140,11 @@ public:
     /// The runs matching the filter as the trend reads them, one series per (machine, axis), ordered by machine,
     /// then axis; each in recording order (time, then id).
     [[nodiscard]] virtual std::vector<SeriesRuns> series(const RunFilter& filter = {}) const = 0;
+    /// A page of the runs in the order the store added them (by id): at most `limit` runs with an id above
+    /// `after_id`, with their documents (RunDetail::documents); empty after the last. For reading a large history in
+    /// bounded memory (copy_history).
+    [[nodiscard]] virtual std::vector<RunRecord> runs_in_storage_order(std::int64_t after_id,
+                                                                       std::size_t limit) const = 0;
     /// The stored result document of a run (without its RLS history); an empty object when none was stored.
     /// InputError when there is no such run or its document is not readable JSON.
     [[nodiscard]] virtual nlohmann::json result_document(std::int64_t run_id) const = 0;
@@ -237,7 +242,8 @@ struct CopyOutcome {
 };
 
 /// Copies every run of `from` into `to` in the order `from` stored them (each in its own transaction, skipping those
-/// `to` holds already), then its pinned baselines, mapped to the runs' ids in `to`. Copying again adds nothing.
+/// `to` holds already; read a page of runs at a time), then its pinned baselines, mapped to the runs' ids in `to`.
+/// Copying again adds nothing.
 CopyOutcome copy_history(const HistoryStore& from, HistoryStore& to);
 
 /// True when the file starts with the SQLite 3 header ("SQLite format 3\0").
