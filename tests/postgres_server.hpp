@@ -206,6 +206,10 @@ private:
             if (dash == std::string::npos || entry.path() == data_) continue;
             const long pid = std::strtol(name.c_str() + dash + 1, nullptr, 10);
             if (pid <= 0 || ::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;
+            // only what a server of these tests left (a cluster or its log), nothing else of that name
+            if (!std::filesystem::exists(entry.path() / "cluster", error) &&
+                !std::filesystem::exists(entry.path() / "server.log", error))
+                continue;
             if (std::filesystem::exists(entry.path() / "cluster" / "postmaster.pid", error))
                 as_server_user(fmt::format("{} -D {} -m immediate -w stop", quoted(bin_ / "pg_ctl"),
                                            quoted(entry.path() / "cluster")));
@@ -213,18 +217,37 @@ private:
         }
     }
 
-    void start() {
-        const auto cluster = data_ / "cluster";
+    /// Makes the data folder, the server's user's own; false (why_not_ says why) when it cannot be.
+    bool make_data_folder(bool reuse) {
         std::error_code error;
-        const bool reuse = keep_ && std::filesystem::exists(cluster / "PG_VERSION", error);
         if (!reuse) std::filesystem::remove_all(data_, error);
-        std::filesystem::create_directories(data_);
-        if (!keep_) reap_orphans();
+        std::filesystem::create_directories(data_, error);
+        if (error) {
+            why_not_ = fmt::format("cannot create {}: {}", data_.string(), error.message());
+            return false;
+        }
         if (uid_ != 0 && ::chown(data_.c_str(), uid_, gid_) != 0) {
             why_not_ = "cannot give the data folder to the postgres user";
-            return;
+            return false;
         }
         ::chmod(data_.c_str(), 0700);
+        return true;
+    }
+
+    void start() {
+        std::error_code error;
+        const bool reuse = keep_ && std::filesystem::exists(data_ / "cluster" / "PG_VERSION", error);
+        if (!make_data_folder(reuse)) return;
+        // A build tree the server's user may not reach (a home folder of mode 0750): the cluster goes to the system's
+        // temporary folder instead.
+        if (!runas_.empty() && as_server_user("test -w " + quoted(data_)) != 0) {
+            std::filesystem::remove_all(data_, error);
+            data_ = std::filesystem::temp_directory_path() / "feedid-pg" / data_.filename();
+            std::filesystem::create_directories(data_.parent_path(), error);
+            if (!make_data_folder(reuse)) return;
+        }
+        if (!keep_) reap_orphans();
+        const auto cluster = data_ / "cluster";
         if (!reuse && as_server_user(fmt::format("{} -D {} -U feedid_admin -A trust --no-sync -E UTF8 --no-locale",
                                                  quoted(bin_ / "initdb"), quoted(cluster))) != 0) {
             why_not_ = fmt::format("initdb failed in {}", cluster.string());
@@ -253,12 +276,15 @@ private:
                    "host all feedid_password 127.0.0.1/32 scram-sha-256\n"
                    "host all all 127.0.0.1/32 trust\n");
         // fsync off: the tests kill clients, never the server, and a test cluster need not survive a power cut.
+        // The unix socket in the cluster's folder, or none where that path is too long for a socket's name (107
+        // bytes): the tests connect by TCP.
+        const bool socket_fits = (cluster / ".s.PGSQL.65535").string().size() <= 107;
         const std::string settings =
             read_text(cluster / "postgresql.conf") +
             fmt::format(
                 "\nlisten_addresses = '127.0.0.1'\nunix_socket_directories = '{}'\nmax_connections = 250\n"
                 "fsync = off\nfull_page_writes = off\n",
-                cluster.string());
+                socket_fits ? cluster.string() : std::string());
         write_text(cluster / "postgresql.conf", settings);
         for (const char* name : {"pg_hba.conf", "postgresql.conf"})
             if (uid_ != 0 && ::chown((cluster / name).c_str(), uid_, gid_) != 0) {
