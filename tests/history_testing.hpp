@@ -41,6 +41,10 @@ inline std::string cli() {
 inline std::string quoted(const std::filesystem::path& path) {
     return "'" + path.string() + "'";
 }
+/// A location (a path or a postgresql:// URI) quoted for a shell (a better match than std::quoted for a string).
+inline std::string quoted(const std::string& location) {
+    return "'" + location + "'";
+}
 
 /// A small identify result document (the shape of DESIGN.md's result document) naming `trace`: the store tests need
 /// many distinct runs quickly, not the identification itself.

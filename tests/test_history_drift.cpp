@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "history_testing.hpp"
+#include "postgres_testing.hpp"
 #include "testing.hpp"
 
 namespace {
@@ -82,7 +83,7 @@ struct CheckOutcome {
 };
 
 /// Records the runs one by one (one recording day each) and runs --check after each.
-CheckOutcome record_and_check(const std::filesystem::path& folder, const std::filesystem::path& database,
+CheckOutcome record_and_check(const std::filesystem::path& folder, const std::string& database,
                               const std::vector<std::filesystem::path>& results) {
     CheckOutcome outcome;
     for (std::size_t i = 0; i < results.size(); ++i) {
@@ -100,10 +101,16 @@ CheckOutcome record_and_check(const std::filesystem::path& folder, const std::fi
     return outcome;
 }
 
-TEST(HistoryDrift, RisingCoulombFrictionAlarmsByRun16AndNotBefore11) {
-    const auto folder = temp_dir();
+// Both backends: the same runs recorded in a SQLite file and in a PostgreSQL database give the same alarms.
+class HistoryDriftOn : public HistoryBackendTest {};
+INSTANTIATE_TEST_SUITE_P(Backends, HistoryDriftOn, ::testing::Values(Backend::sqlite, Backend::postgresql),
+                         backend_name);
+
+TEST_P(HistoryDriftOn, RisingCoulombFrictionAlarmsByRun16AndNotBefore11) {
+    const auto folder = folder_;
     const auto results = make_series(folder, "rising", true);
-    const auto outcome = record_and_check(folder, folder / "rising.db", results);
+    const auto database = new_location("rising");
+    const auto outcome = record_and_check(folder, database, results);
     ASSERT_EQ(outcome.exit_codes.size(), static_cast<std::size_t>(runs_per_series));
     for (int i = 1; i <= 10; ++i) EXPECT_EQ(outcome.exit_codes[static_cast<std::size_t>(i - 1)], 0) << "run " << i;
     int first_alarm = 0;
@@ -122,7 +129,7 @@ TEST(HistoryDrift, RisingCoulombFrictionAlarmsByRun16AndNotBefore11) {
     fmt::print("first alarm after run {}: {}", first_alarm, outcome.first_alarm_message);
 
     // The JSON document agrees and names the run.
-    const auto listing = run_shell(fmt::format("{} history {} --json -", cli(), quoted(folder / "rising.db")), folder);
+    const auto listing = run_shell(fmt::format("{} history {} --json -", cli(), quoted(database)), folder);
     ASSERT_EQ(listing.exit_code, 0) << listing.err;
     const auto document = nlohmann::json::parse(listing.out);
     EXPECT_TRUE(document["alarm"].get<bool>());
@@ -137,10 +144,10 @@ TEST(HistoryDrift, RisingCoulombFrictionAlarmsByRun16AndNotBefore11) {
               document["runs"][static_cast<std::size_t>(first_alarm - 1)]["id"].get<int>());
 }
 
-TEST(HistoryDrift, ConstantFrictionRaisesNoAlarmIn20Runs) {
-    const auto folder = temp_dir();
+TEST_P(HistoryDriftOn, ConstantFrictionRaisesNoAlarmIn20Runs) {
+    const auto folder = folder_;
     const auto results = make_series(folder, "constant", false);
-    const auto outcome = record_and_check(folder, folder / "constant.db", results);
+    const auto outcome = record_and_check(folder, new_location("constant"), results);
     ASSERT_EQ(outcome.exit_codes.size(), static_cast<std::size_t>(runs_per_series));
     for (int i = 1; i <= runs_per_series; ++i)
         EXPECT_EQ(outcome.exit_codes[static_cast<std::size_t>(i - 1)], 0)

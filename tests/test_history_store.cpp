@@ -1,10 +1,13 @@
-// The SQLite history store: round trip, duplicates, migrations, durability under a forced abort between statements,
-// and two processes recording at the same time.
+// The history store: round trip, duplicates, migrations, durability under a forced abort between statements,
+// and two processes recording at the same time. The tests of the store's contract run on both backends (SQLite and
+// PostgreSQL, postgres_testing.hpp); those of the SQLite file itself (migrations of older files, its integrity check)
+// on SQLite.
 
 #include <gtest/gtest.h>
 
 #include <sqlite3.h>
 
+#include <algorithm>
 #include <csignal>
 #include <map>
 #include <set>
@@ -17,6 +20,7 @@
 #include "feedid/history/store.hpp"
 #include "feedid/history/trend.hpp"
 #include "history_testing.hpp"
+#include "postgres_testing.hpp"
 #include "testing.hpp"
 
 namespace {
@@ -62,18 +66,20 @@ std::string integrity(const std::filesystem::path& path) {
     return result;
 }
 
-TEST(HistoryStore, RoundTripKeepsEveryField) {
-    const auto folder = temp_dir();
-    const auto path = folder / "h.db";
+class HistoryStoreOn : public HistoryBackendTest {};
+INSTANTIATE_TEST_SUITE_P(Backends, HistoryStoreOn, ::testing::Values(Backend::sqlite, Backend::postgresql),
+                         backend_name);
+
+TEST_P(HistoryStoreOn, RoundTripKeepsEveryField) {
+    const auto location = new_location();
     {
-        auto store = history::open_sqlite_store(path);
-        EXPECT_EQ(store->schema_version(), history::sqlite_schema_version);
+        auto store = open(location);
+        EXPECT_EQ(store->schema_version(),
+                  postgresql() ? history::postgres_schema_version : history::sqlite_schema_version);
         const auto outcome = store->add_run(sample_run("aa", 742.0));
         EXPECT_TRUE(outcome.inserted);
     }
-    history::SqliteOpenOptions read_only;
-    read_only.read_only = true;
-    const auto store = history::open_sqlite_store(path, read_only);
+    const auto store = open(location, true);
     const auto runs = store->runs();
     ASSERT_EQ(runs.size(), 1u);
     const auto& run = runs[0];
@@ -96,9 +102,8 @@ TEST(HistoryStore, RoundTripKeepsEveryField) {
     EXPECT_THROW(store->add_run(sample_run("bb", 1.0)), feedid::InputError);  // opened read-only
 }
 
-TEST(HistoryStore, SameTraceWithSameOptionsIsNotAddedTwice) {
-    const auto folder = temp_dir();
-    auto store = history::open_sqlite_store(folder / "h.db");
+TEST_P(HistoryStoreOn, SameTraceWithSameOptionsIsNotAddedTwice) {
+    auto store = open(new_location());
     const auto first = store->add_run(sample_run("aa", 742.0));
     const auto again = store->add_run(sample_run("aa", 742.0));
     EXPECT_FALSE(again.inserted);
@@ -109,9 +114,8 @@ TEST(HistoryStore, SameTraceWithSameOptionsIsNotAddedTwice) {
     EXPECT_EQ(store->runs().size(), 2u);
 }
 
-TEST(HistoryStore, PinsCheckMachineAndAxis) {
-    const auto folder = temp_dir();
-    auto store = history::open_sqlite_store(folder / "h.db");
+TEST_P(HistoryStoreOn, PinsCheckMachineAndAxis) {
+    auto store = open(new_location());
     const auto id = store->add_run(sample_run("aa", 742.0)).id;
     EXPECT_THROW(store->pin_baseline("DMU 50", "Y", id), feedid::InputError);
     EXPECT_THROW(store->pin_baseline("DMU 50", "X", id + 100), feedid::InputError);
@@ -193,9 +197,8 @@ TEST(HistoryStore, MigrationToSchemaFiveKeepsEveryDocumentAndTypesTheFit) {
 }
 
 // The compact series the trend reads hold what the full listing holds, and give the same trend.
-TEST(HistoryStore, SeriesHoldWhatTheListingHolds) {
-    const auto folder = temp_dir();
-    auto store = history::open_sqlite_store(folder / "h.db");
+TEST_P(HistoryStoreOn, SeriesHoldWhatTheListingHolds) {
+    auto store = open(new_location());
     for (int i = 0; i < 30; ++i) {
         auto run = sample_run(fmt::format("sha-{}", i), 742.0 + (i >= 20 ? 5.0 : 0.1 * (i % 3)));
         run.machine = i % 3 == 0 ? "B" : "A";
@@ -236,6 +239,36 @@ TEST(HistoryStore, SeriesHoldWhatTheListingHolds) {
     EXPECT_GT(alarms, 0u);  // the step at run 20 is found
 }
 
+// Reading in pages (copy_history's bounded memory): every run once, in id order, with what the listing gives.
+TEST_P(HistoryStoreOn, PagesInStorageOrderHoldWhatTheListingHolds) {
+    auto store = open(new_location());
+    for (int i = 0; i < 7; ++i) {
+        auto run = sample_run(fmt::format("sha-{}", i), 742.0 + i);
+        run.recorded_at = fmt::format("2026-03-{:02}T06:00:00.000Z", 10 - i);  // the listing's order is the reverse
+        if (i == 3) run.parameters.erase("mass_kg");
+        store->add_run(run);
+    }
+    std::map<std::int64_t, history::RunRecord> listed;
+    for (auto& run : store->runs()) listed[run.id] = run;
+    std::vector<std::int64_t> paged;
+    std::size_t pages = 0;
+    for (std::int64_t after = 0;; ++pages) {
+        const auto page = store->runs_in_storage_order(after, 3);
+        for (const auto& run : page) {
+            paged.push_back(run.id);
+            const auto& same = listed.at(run.id);
+            EXPECT_EQ(history::to_json(run), history::to_json(same)) << "run #" << run.id;
+            EXPECT_EQ(run.result, same.result);
+        }
+        if (page.empty()) break;
+        after = page.back().id;
+    }
+    EXPECT_EQ(pages, 3u);
+    ASSERT_EQ(paged.size(), 7u);
+    EXPECT_TRUE(std::is_sorted(paged.begin(), paged.end()));
+    EXPECT_EQ(paged.front(), listed.begin()->first);
+}
+
 /// sample_run as a rotary table's run: its parameters under the rotary keys.
 history::RunRecord rotary_run(const std::string& sha) {
     auto run = sample_run(sha, 0.0);
@@ -246,9 +279,8 @@ history::RunRecord rotary_run(const std::string& sha) {
     return run;
 }
 
-TEST(HistoryStore, AnAxisHoldsRunsOfOneAxisKind) {
-    const auto folder = temp_dir();
-    auto store = history::open_sqlite_store(folder / "h.db");
+TEST_P(HistoryStoreOn, AnAxisHoldsRunsOfOneAxisKind) {
+    auto store = open(new_location());
     const auto linear = store->add_run(sample_run("aa", 742.0));  // no axis_kind given: its keys say linear
     try {
         (void)store->add_run(rotary_run("bb"));
@@ -329,16 +361,18 @@ TEST(HistoryStore, TheAxisKindComesFromTheResult) {
     }
 }
 
-TEST(HistoryCli, ARotaryRunOnALinearAxisIsExitTwo) {
-    const auto folder = temp_dir();
+class HistoryCliOn : public HistoryBackendTest {};
+INSTANTIATE_TEST_SUITE_P(Backends, HistoryCliOn, ::testing::Values(Backend::sqlite, Backend::postgresql), backend_name);
+
+TEST_P(HistoryCliOn, ARotaryRunOnALinearAxisIsExitTwo) {
+    const auto folder = folder_;
     const auto results = write_small_results(folder, "run", 2);
     auto rotary = small_rotary_result(folder / "run-2.csv");
     write_text(results[1], rotary.dump());
-    const auto database = folder / "h.db";
+    const auto database = new_location();
     const auto command = [&](const std::filesystem::path& result) {
         return run_shell(
-            fmt::format("{} history {} --record {} --machine M1 --axis X", cli(), quoted(database), quoted(result)),
-            folder);
+            fmt::format("{} history '{}' --record {} --machine M1 --axis X", cli(), database, quoted(result)), folder);
     };
     ASSERT_EQ(command(results[0]).exit_code, 0);
     const auto refused = command(results[1]);
@@ -365,7 +399,7 @@ TEST(HistoryStore, ResultDocumentIsStoredWithoutTheRlsHistory) {
 }
 
 /// Records `results` one command each into `database`; expects success.
-void record_all(const std::filesystem::path& folder, const std::filesystem::path& database,
+void record_all(const std::filesystem::path& folder, const std::string& database,
                 const std::vector<std::filesystem::path>& results) {
     for (std::size_t i = 0; i < results.size(); ++i) {
         const auto r = run_shell(fmt::format("{} history {} --record {} --machine M1 --axis X "
@@ -376,17 +410,22 @@ void record_all(const std::filesystem::path& folder, const std::filesystem::path
     }
 }
 
+class HistoryDurabilityOn : public HistoryBackendTest {};
+INSTANTIATE_TEST_SUITE_P(Backends, HistoryDurabilityOn, ::testing::Values(Backend::sqlite, Backend::postgresql),
+                         backend_name);
+
 // A process killed between any two statements of --record (FEEDID_TEST_ABORT_AFTER_STATEMENT=N aborts right after
-// the N-th write statement: BEGIN, the run, its documents, each parameter, COMMIT) leaves a file that opens, holds
-// every earlier run whole, and holds the interrupted run whole (aborted after COMMIT) or not at all.
-TEST(HistoryDurability, AbortBetweenStatementsLeavesEveryEarlierRunAndTheNewOneWholeOrAbsent) {
-    const auto folder = temp_dir();
+// the N-th write statement: BEGIN, the run, its documents, each parameter (on PostgreSQL: all parameters in one),
+// COMMIT) leaves a history that opens, holds every earlier run whole, and holds the interrupted run whole (aborted
+// after COMMIT) or not at all.
+TEST_P(HistoryDurabilityOn, AbortBetweenStatementsLeavesEveryEarlierRunAndTheNewOneWholeOrAbsent) {
+    const auto folder = folder_;
     const auto results = write_small_results(folder, "run", 4);
     int aborted = 0;
     int whole = 0;
     for (int n = 1;; ++n) {
         ASSERT_LE(n, 30) << "the abort hook never let --record finish";
-        const auto database = folder / fmt::format("abort-{}.db", n);
+        const auto database = new_location(fmt::format("abort-{}", n));
         record_all(folder, database, {results[0], results[1], results[2]});
         const auto r = run_shell(fmt::format("FEEDID_TEST_ABORT_AFTER_STATEMENT={} {} history {} --record {} --machine "
                                              "M1 --axis X --recorded-at 2026-03-04T06:00:00Z",
@@ -397,7 +436,9 @@ TEST(HistoryDurability, AbortBetweenStatementsLeavesEveryEarlierRunAndTheNewOneW
         ++aborted;
 
         // The file opens (through feedid and through SQLite's own check) ...
-        EXPECT_EQ(integrity(database), "ok") << "n = " << n;
+        if (!postgresql()) {
+            EXPECT_EQ(integrity(database), "ok") << "n = " << n;
+        }
         const auto listing = run_shell(fmt::format("{} history {} --json -", cli(), quoted(database)), folder);
         ASSERT_EQ(listing.exit_code, 0) << "n = " << n << ": " << listing.err;
         const auto document = nlohmann::json::parse(listing.out);
@@ -420,19 +461,19 @@ TEST(HistoryDurability, AbortBetweenStatementsLeavesEveryEarlierRunAndTheNewOneW
         const auto after = run_shell(fmt::format("{} history {} --json -", cli(), quoted(database)), folder);
         EXPECT_EQ(nlohmann::json::parse(after.out)["runs"].size(), 4u) << "n = " << n;
     }
-    // BEGIN, the run's row, its documents' row, five parameters and COMMIT: 9 places to die; only the abort after
-    // COMMIT keeps the run.
-    EXPECT_EQ(aborted, 9);
+    // BEGIN, the run's row, its documents' row, five parameters (PostgreSQL: one statement) and COMMIT: 9 (5) places
+    // to die; only the abort after COMMIT keeps the run.
+    EXPECT_EQ(aborted, postgresql() ? 5 : 9);
     EXPECT_EQ(whole, 1);
 }
 
 // Two processes, each recording 50 runs (one command per run) into the same file at the same time, starting without
 // the file: both create and migrate it, then contend for the write lock 50 times each.
-TEST(HistoryDurability, TwoProcessesRecordingAtOnceLoseNothing) {
-    const auto folder = temp_dir();
+TEST_P(HistoryDurabilityOn, TwoProcessesRecordingAtOnceLoseNothing) {
+    const auto folder = folder_;
     const auto first = write_small_results(folder, "a", 50);
     const auto second = write_small_results(folder, "b", 50);
-    const auto database = folder / "shared.db";
+    const auto database = new_location("shared");
     const auto loop = [&](const std::string& stem) {
         return fmt::format(
             "fail=0; for i in $(seq 1 50); do {} history {} --record {}/{}-$i.json --machine M1 --axis "
@@ -444,10 +485,10 @@ TEST(HistoryDurability, TwoProcessesRecordingAtOnceLoseNothing) {
                                          loop("a"), loop("b")),
                              folder);
     EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
-    EXPECT_EQ(integrity(database), "ok");
-    history::SqliteOpenOptions read_only;
-    read_only.read_only = true;
-    const auto runs = history::open_sqlite_store(database, read_only)->runs();
+    if (!postgresql()) {
+        EXPECT_EQ(integrity(database), "ok");
+    }
+    const auto runs = open(database, true)->runs();
     ASSERT_EQ(runs.size(), 100u);
     std::set<std::string> traces;
     for (const auto& run : runs) {
@@ -458,11 +499,11 @@ TEST(HistoryDurability, TwoProcessesRecordingAtOnceLoseNothing) {
 }
 
 // The same with each process recording its 50 runs in one command (50 transactions back to back).
-TEST(HistoryDurability, TwoProcessesWithFiftyRunsPerCommandLoseNothing) {
-    const auto folder = temp_dir();
+TEST_P(HistoryDurabilityOn, TwoProcessesWithFiftyRunsPerCommandLoseNothing) {
+    const auto folder = folder_;
     write_small_results(folder, "a", 50);
     write_small_results(folder, "b", 50);
-    const auto database = folder / "shared.db";
+    const auto database = new_location("shared");
     const auto command = [&](const std::string& stem) {
         std::string files;
         for (int i = 1; i <= 50; ++i) files += " --record " + quoted(folder / fmt::format("{}-{}.json", stem, i));
@@ -473,10 +514,10 @@ TEST(HistoryDurability, TwoProcessesWithFiftyRunsPerCommandLoseNothing) {
                                          command("a"), command("b")),
                              folder);
     EXPECT_EQ(r.exit_code, 0) << r.out << r.err;
-    history::SqliteOpenOptions read_only;
-    read_only.read_only = true;
-    EXPECT_EQ(history::open_sqlite_store(database, read_only)->runs().size(), 100u);
-    EXPECT_EQ(integrity(database), "ok");
+    EXPECT_EQ(open(database, true)->runs().size(), 100u);
+    if (!postgresql()) {
+        EXPECT_EQ(integrity(database), "ok");
+    }
 }
 
 }  // namespace
@@ -485,8 +526,12 @@ namespace {
 
 // feedid identify --record files the run as it is made; the result document it writes carries the options, so that
 // recording that document again (feedid history --record) is recognised as the same run.
-TEST(HistoryRecord, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
-    const auto folder = temp_dir();
+class HistoryRecordOn : public HistoryBackendTest {};
+INSTANTIATE_TEST_SUITE_P(Backends, HistoryRecordOn, ::testing::Values(Backend::sqlite, Backend::postgresql),
+                         backend_name);
+
+TEST_P(HistoryRecordOn, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
+    const auto folder = folder_;
     const auto drive = folder / "drive.json";
     write_text(drive, R"({"seed": 9, "slow_passes": false, "test": {"feedrates_mm_per_min": [1500, 3000, 4500, 6000],
                           "stroke_mm": 20}})");
@@ -494,7 +539,7 @@ TEST(HistoryRecord, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
     ASSERT_EQ(
         run_shell(fmt::format("{} synth --drive {} --out {}", cli(), quoted(drive), quoted(trace)), folder).exit_code,
         0);
-    const auto database = folder / "shop.db";
+    const auto database = new_location("shop");
     const auto result = folder / "result.json";
     const auto identify = run_shell(fmt::format("{} identify {} --force-constant force_constant_N_per_A --json {} "
                                                 "--record {} --machine 'DMU 50' --axis X --location Aachen "
@@ -504,9 +549,7 @@ TEST(HistoryRecord, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
     ASSERT_EQ(identify.exit_code, 0) << identify.err;
     EXPECT_NE(identify.err.find("recorded as run #1 of machine 'DMU 50' axis 'X'"), std::string::npos) << identify.err;
 
-    history::SqliteOpenOptions read_only;
-    read_only.read_only = true;
-    auto runs = history::open_sqlite_store(database, read_only)->runs();
+    auto runs = open(database, true)->runs();
     ASSERT_EQ(runs.size(), 1u);
     const auto document = nlohmann::json::parse(read_text(result));
     EXPECT_EQ(runs[0].location, "Aachen");
@@ -523,7 +566,7 @@ TEST(HistoryRecord, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
         folder);
     EXPECT_EQ(again.exit_code, 0) << again.err;
     EXPECT_NE(again.err.find("already recorded as run #1"), std::string::npos) << again.err;
-    EXPECT_EQ(history::open_sqlite_store(database, read_only)->runs().size(), 1u);
+    EXPECT_EQ(open(database, true)->runs().size(), 1u);
 
     // Other options make another run of the same trace.
     const auto other = run_shell(fmt::format("{} identify {} --force-constant force_constant_N_per_A --offset "
@@ -531,7 +574,7 @@ TEST(HistoryRecord, IdentifyRecordsAndHistoryRecognisesTheSameRun) {
                                              cli(), quoted(trace), quoted(database)),
                                  folder);
     EXPECT_EQ(other.exit_code, 0) << other.err;
-    EXPECT_EQ(history::open_sqlite_store(database, read_only)->runs().size(), 2u);
+    EXPECT_EQ(open(database, true)->runs().size(), 2u);
 }
 
 // In WAL mode a connection opened with SQLITE_OPEN_READONLY creates DB-wal and DB-shm and may not delete them when it

@@ -30,6 +30,7 @@ struct HistoryArguments {
     std::string recorded_at;
     std::optional<std::int64_t> pin;
     std::optional<std::int64_t> baseline_from;
+    std::vector<std::string> copy;  ///< --copy FROM TO
     history::TrendOptions trend;
 };
 
@@ -173,14 +174,15 @@ void pin_baseline(history::HistoryStore& store, const HistoryArguments& argument
                    terminal_text(series.machine), terminal_text(series.axis), *arguments.pin);
         return;
     }
-    throw InputError(fmt::format("{}: there is no run #{}", arguments.database, *arguments.pin));
+    throw InputError(
+        fmt::format("{}: there is no run #{}", history::shown_location(arguments.database), *arguments.pin));
 }
 
 nlohmann::json history_document(const history::HistoryStore& store, const std::vector<history::RunRecord>& runs,
                                 const std::vector<history::SeriesTrend>& trends, std::size_t alarms,
                                 const HistoryArguments& arguments) {
     nlohmann::json document;
-    document["database"] = arguments.database;
+    document["database"] = history::shown_location(arguments.database);
     document["schema_version"] = store.schema_version();
     document["runs"] = nlohmann::json::array();
     for (const auto& run : runs) document["runs"].push_back(history::to_json(run));
@@ -220,20 +222,39 @@ std::string check_summary(const std::vector<history::SeriesTrend>& trends, const
     return summary;
 }
 
-/// --verify: SQLite's full integrity check and every stored document; exit 0 when sound, 2 with the problems.
+/// --verify: SQLite's full integrity check (on PostgreSQL: every table read) and every stored document; exit 0 when
+/// sound, 2 with the problems.
 int verify(const HistoryArguments& arguments) {
-    history::SqliteOpenOptions read_only;
+    history::OpenOptions read_only;
     read_only.read_only = true;
-    const auto problems = history::open_sqlite_store(arguments.database, read_only)->verify();
+    const auto problems = history::open_store(arguments.database, read_only)->verify();
+    const std::string shown = terminal_text(history::shown_location(arguments.database));
     if (problems.empty()) {
-        fmt::print("{}: ok (SQLite's integrity check, every stored document readable)\n",
-                   terminal_text(arguments.database));
+        fmt::print(
+            "{}: ok ({}, every stored document readable)\n", shown,
+            history::is_postgresql_location(arguments.database) ? "every table read" : "SQLite's integrity check");
         return 0;
     }
     for (const auto& problem : problems) fmt::print("{}\n", terminal_text(problem));
-    fmt::print(stderr, "feedid: {}: the history database is damaged ({} problem(s), listed on stdout)\n",
-               terminal_text(arguments.database), problems.size());
+    fmt::print(stderr, "feedid: {}: the history database is damaged ({} problem(s), listed on stdout)\n", shown,
+               problems.size());
     return 2;
+}
+
+/// --copy FROM TO: every run of FROM (and its pinned baselines) into TO, created when missing; idempotent.
+int copy(const HistoryArguments& arguments) {
+    const std::string& from = arguments.copy[0];
+    const std::string& to = arguments.copy[1];
+    if (from == to) throw InputError(fmt::format("--copy {} {}: the same history twice", from, to));
+    history::OpenOptions read_only;
+    read_only.read_only = true;
+    const auto source = history::open_store(from, read_only);
+    const auto destination = history::open_store(to);
+    const auto outcome = history::copy_history(*source, *destination);
+    fmt::print(stderr, "feedid: copied {} run(s) from {} to {} ({} already there), {} baseline pin(s)\n",
+               outcome.copied, terminal_text(history::shown_location(from)), terminal_text(history::shown_location(to)),
+               outcome.already_there, outcome.pins);
+    return 0;
 }
 
 /// --check alone: the trend from the compact series, alarms only.
@@ -254,6 +275,14 @@ int check_only(const history::HistoryStore& store, const HistoryArguments& argum
 
 void check_arguments(const HistoryArguments& arguments) {
     if (const auto problem = arguments.trend.validate(); !problem.empty()) throw InputError(problem);
+    if (!arguments.copy.empty()) {
+        if (!arguments.database.empty() || !arguments.add.empty() || arguments.pin || arguments.check ||
+            arguments.verify || !arguments.json_path.empty() || !arguments.csv_path.empty())
+            throw InputError("--copy goes alone: feedid history --copy FROM TO");
+        return;
+    }
+    if (arguments.database.empty())
+        throw InputError("history needs DB: the history database (a SQLite file or postgresql://user@host:port/db)");
     if (!arguments.trace.empty() && arguments.add.size() != 1)
         throw InputError("--trace goes with exactly one --add RESULT.json");
     if (!arguments.recorded_at.empty() && arguments.add.size() != 1)
@@ -261,7 +290,8 @@ void check_arguments(const HistoryArguments& arguments) {
     if (arguments.verify && (!arguments.add.empty() || arguments.pin || arguments.check ||
                              !arguments.json_path.empty() || !arguments.csv_path.empty()))
         throw InputError("--verify goes alone: feedid history DB --verify");
-    std::vector<GuardedFile> inputs{{"the history database", arguments.database, true},
+    const bool server = history::is_postgresql_location(arguments.database);
+    std::vector<GuardedFile> inputs{{"the history database", server ? std::string() : arguments.database, true},
                                     {"the --trace file", arguments.trace}};
     for (const auto& path : arguments.add) inputs.push_back({"a --record document", path});
     require_separate_outputs({{"--json", arguments.json_path}, {"--csv", arguments.csv_path}}, inputs);
@@ -270,14 +300,15 @@ void check_arguments(const HistoryArguments& arguments) {
 int run_history(HistoryArguments& arguments) {
     check_arguments(arguments);
     if (arguments.baseline_from) arguments.trend.pinned_run = arguments.baseline_from;
+    if (!arguments.copy.empty()) return copy(arguments);
     if (arguments.verify) return verify(arguments);
     const bool writes = !arguments.add.empty() || arguments.pin;
     const std::vector<history::RunRecord> prepared = prepare_runs(arguments);
 
-    history::SqliteOpenOptions open_options;
+    history::OpenOptions open_options;
     open_options.read_only = !writes;
     open_options.create = !arguments.add.empty();  // --pin names a run: a missing file has none, and is not made
-    auto store = history::open_sqlite_store(arguments.database, open_options);
+    auto store = history::open_store(arguments.database, open_options);
     record_runs(*store, prepared, arguments);
     if (arguments.pin) pin_baseline(*store, arguments);
     const bool listing = arguments.json_path.empty() && arguments.csv_path.empty() && !writes;
@@ -321,7 +352,9 @@ int run_history(HistoryArguments& arguments) {
 Action add_history_command(CLI::App& app) {
     auto arguments = std::make_shared<HistoryArguments>();
     auto* sub = app.add_subcommand("history", "List, record and check the parameter history of machines and axes");
-    sub->add_option("DB", arguments->database, "The history database (SQLite file)")->required();
+    sub->add_option("DB", arguments->database,
+                    "The history database: a SQLite file or a PostgreSQL database (postgresql://user@host:port/db; "
+                    "libpq's PG* environment variables and service files fill in the rest)");
     sub->add_option("--machine", arguments->filter.machine,
                     "Only this machine (with --add: the machine to file under)");
     sub->add_option("--axis", arguments->filter.axis, "Only this axis (with --add: the axis to file under)");
@@ -345,6 +378,11 @@ Action add_history_command(CLI::App& app) {
                     "--machine and --axis")
         ->take_all()
         ->allow_extra_args(false);
+    sub->add_option("--copy", arguments->copy,
+                    "Copy every run and pinned baseline of the history FROM into the history TO (created when "
+                    "missing); runs TO holds already are skipped, so copying again adds nothing")
+        ->expected(2)
+        ->type_name("FROM TO");
     sub->add_option("--trace", arguments->trace, "With --add: the trace file (default: the path in the result)");
     sub->add_option("--recorded-at", arguments->recorded_at,
                     "With --add: when the trace was recorded, ISO 8601 UTC (default: the trace file's modification "
@@ -373,7 +411,8 @@ Action add_history_command(CLI::App& app) {
         "  feedid history shop.db --machine DMU50 --axis X\n"
         "  feedid history shop.db --check          # nightly: exit 1 and name machine, axis, parameter, run on drift\n"
         "  feedid history shop.db --pin 42        # after maintenance: baseline starts again at run 42\n"
-        "  feedid history shop.db --verify        # the whole file: SQLite's integrity check, every stored document");
+        "  feedid history shop.db --verify        # the whole file: SQLite's integrity check, every stored document\n"
+        "  feedid history --copy cell7.db postgresql://feedid@plant-db/history   # the edge device's runs upward");
     return [arguments, json, csv] {
         if (json->count() > 0 && arguments->json_path.empty()) arguments->json_path = "-";
         if (csv->count() > 0 && arguments->csv_path.empty()) arguments->csv_path = "-";

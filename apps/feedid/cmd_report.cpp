@@ -43,34 +43,35 @@ void attach_latest_results(const history::HistoryStore& store, std::vector<histo
 
 int run_report(const ReportArguments& arguments) {
     if (const auto problem = arguments.trend.validate(); !problem.empty()) throw InputError(problem);
-    if (!std::filesystem::is_regular_file(arguments.input))
+    const bool server = history::is_postgresql_location(arguments.input);
+    if (!server && !std::filesystem::is_regular_file(arguments.input))
         throw InputError(
             fmt::format("{}: no such file (give an identify result document or a history database)", arguments.input));
     // A history database is guarded with its -wal and -shm files; a result document alone.
-    const bool database = history::looks_like_sqlite(arguments.input);
-    require_separate_outputs({{"-o", arguments.out_path}},
-                             {{database ? "the history database" : "the result document", arguments.input, database},
-                              {"the --simulation document", arguments.simulation_path}});
+    const bool database = server || history::looks_like_sqlite(arguments.input);
+    require_separate_outputs({{"-o", arguments.out_path}}, {{database ? "the history database" : "the result document",
+                                                             server ? std::string() : arguments.input, database},
+                                                            {"the --simulation document", arguments.simulation_path}});
     std::string html;
-    if (history::looks_like_sqlite(arguments.input)) {
+    if (database) {
         // A simulation validates one run; a history holds many.
         if (!arguments.simulation_path.empty())
             throw InputError(
                 fmt::format("--simulation {}: goes with an identify result document, not with a history "
                             "database ({})",
-                            arguments.simulation_path, arguments.input));
-        history::SqliteOpenOptions options;
+                            arguments.simulation_path, history::shown_location(arguments.input)));
+        history::OpenOptions options;
         options.read_only = true;
-        const auto store = history::open_sqlite_store(arguments.input, options);
+        const auto store = history::open_store(arguments.input, options);
         // The typed columns of every run; of the stored documents only those the friction curves need.
         auto runs = store->runs(arguments.filter, history::RunDetail::summary);
         attach_latest_results(*store, runs);
         if (runs.empty())
             throw InputError(fmt::format(
-                "{}: no runs recorded{}", arguments.input,
+                "{}: no runs recorded{}", history::shown_location(arguments.input),
                 arguments.filter.machine.empty() && arguments.filter.axis.empty() ? "" : " for this machine/axis"));
         const auto trends = history::analyse_trends(runs, store->pins(), arguments.trend);
-        html = report::history_report_html(runs, trends, arguments.trend, arguments.input);
+        html = report::history_report_html(runs, trends, arguments.trend, history::shown_location(arguments.input));
     } else {
         nlohmann::json document;
         try {

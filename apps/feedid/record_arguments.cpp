@@ -26,8 +26,8 @@ history::RecordContext record_context(const RecordArguments& arguments, const st
 void RecordArguments::add_to(CLI::App& app) {
     auto* group = app.add_option_group("History");
     group->add_option("--record", database,
-                      "Record the result as a run in this history database (SQLite; created when missing); needs "
-                      "--machine and --axis");
+                      "Record the result as a run in this history database (a SQLite file, created when missing, or "
+                      "postgresql://user@host:port/db); needs --machine and --axis");
     group->add_option("--machine", machine, "With --record: the machine the axis belongs to");
     group->add_option("--location", location, "With --record: the site, for tests at several centres");
     group->add_option("--recorded-at", recorded_at,
@@ -52,13 +52,13 @@ void RecordArguments::record(const nlohmann::json& result, const std::string& tr
     context.trace = trace;
     context.options = options;
     const auto run = history::prepare_run(result, trace, context);
-    const auto outcome = history::open_sqlite_store(database)->add_run(run);
+    const auto outcome = history::open_store(database)->add_run(run);
     if (outcome.inserted)
         fmt::print(stderr, "feedid: recorded as run #{} of machine '{}' axis '{}' in {}\n", outcome.id,
-                   terminal_text(machine), terminal_text(axis), terminal_text(database));
+                   terminal_text(machine), terminal_text(axis), terminal_text(history::shown_location(database)));
     else
         fmt::print(stderr, "feedid: already recorded as run #{} in {} (same trace, same options); not added\n",
-                   outcome.id, terminal_text(database));
+                   outcome.id, terminal_text(history::shown_location(database)));
 }
 
 }  // namespace feedid::cli

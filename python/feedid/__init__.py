@@ -11,7 +11,7 @@ This package is feedid's C++ library (the one the ``feedid`` command line uses) 
   the document ``feedid identify --json`` writes; ``result.to_pandas()``);
 - :func:`gains`, :func:`simulate`, :func:`synth`, :func:`plan` as the subcommands of the same names;
 - :class:`Rls`, the recursive least squares estimator, sample by sample or a whole array in C++ without the GIL;
-- :class:`History`, the parameter history store (SQLite) of ``feedid history``;
+- :class:`History`, the parameter history store (SQLite or PostgreSQL) of ``feedid history``;
 - :mod:`feedid.fleet`, identification of many files on a Dask cluster.
 
 Units are SI (m, s, kg, N, A; rad, kg*m^2, N*m on rotary axes) unless an argument's name says otherwise

@@ -366,7 +366,7 @@ class Rls:
     def reset(self, initial_estimate: Optional[ArrayLike] = ...) -> None: ...
 
 class History:
-    """The parameter history (one SQLite file), as feedid history uses it."""
+    """The parameter history (one SQLite file or a postgresql:// database), as feedid history uses it."""
 
     def __init__(self, path: PathLike, *, read_only: bool = ...) -> None: ...
     def record(self, result: Union[Result, Mapping[str, Any], PathLike], *, machine: str, axis: str,

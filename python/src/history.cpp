@@ -18,11 +18,13 @@ class PyHistory {
 public:
     PyHistory(const py::object& path, bool read_only) {
         const auto text = as_path(path);
-        if (!text) throw InputError("History: expected the path of a history file (str or os.PathLike)");
+        if (!text)
+            throw InputError(
+                "History: expected the path of a history file or a postgresql:// location (str or os.PathLike)");
         path_ = *text;
-        history::SqliteOpenOptions options;
+        history::OpenOptions options;
         options.read_only = read_only;
-        store_ = history::open_sqlite_store(path_, options);
+        store_ = history::open_store(path_, options);
     }
 
     /// Records an identify result (a Result, its dict, or the path of its JSON document) as one run.
@@ -87,7 +89,8 @@ public:
     void pin(std::int64_t run_id) {
         const auto all = store().runs({});
         const auto found = std::find_if(all.begin(), all.end(), [&](const auto& run) { return run.id == run_id; });
-        if (found == all.end()) throw InputError(fmt::format("{}: there is no run #{}", path_, run_id));
+        if (found == all.end())
+            throw InputError(fmt::format("{}: there is no run #{}", history::shown_location(path_), run_id));
         store().pin_baseline(found->machine, found->axis, found->id);
     }
 
@@ -98,7 +101,7 @@ public:
 
 private:
     [[nodiscard]] history::HistoryStore& store() const {
-        if (!store_) throw InputError(fmt::format("{}: the history is closed", path_));
+        if (!store_) throw InputError(fmt::format("{}: the history is closed", history::shown_location(path_)));
         return *store_;
     }
 
@@ -126,8 +129,9 @@ history::TrendOptions trend_options(int baseline_runs, double cusum_k, double cu
 
 void bind_history(py::module_& m) {
     const history::TrendOptions defaults;
-    py::class_<PyHistory>(m, "History", R"doc(The parameter history of machines and axes: one SQLite file, as
-``feedid identify --record`` and ``feedid history`` use it. A run is recorded whole or not at all; the same trace
+    py::class_<PyHistory>(m, "History", R"doc(The parameter history of machines and axes: one SQLite file, or a
+PostgreSQL database (``postgresql://user@host:port/db``, a plant's shared history), as ``feedid identify --record``
+and ``feedid history`` use it. A run is recorded whole or not at all; the same trace
 with the same options is recorded once; several processes may write at once. Parameters are stored in the SI unit
 their keys name.
 
@@ -145,7 +149,7 @@ Example::
     (True, True)
 )doc")
         .def(py::init<const py::object&, bool>(), py::arg("path"), py::kw_only(), py::arg("read_only") = false,
-             "Opens (or creates) the history file; InputError when it is not a feedid history")
+             "Opens (or creates) the history file or PostgreSQL database; InputError when it is not a feedid history")
         .def("record", &PyHistory::record, py::arg("result"), py::kw_only(), py::arg("machine"), py::arg("axis"),
              py::arg("trace") = py::none(), py::arg("location") = "", py::arg("recorded_at") = py::none(),
              "Records an identify result (a Result, its dict, or the path of its JSON) as a run of machine and axis; "

@@ -57,7 +57,19 @@ std::filesystem::path trace_of_result(const nlohmann::json& result, const std::s
     return trace;
 }
 
-void check_recordable(const std::filesystem::path& database) {
+void check_recordable(const std::string& database) {
+    if (is_postgresql_location(database)) {
+        // Connect, authenticate and look at the schema without writing: a database without feedid's tables is fine
+        // (the first run creates them).
+        OpenOptions read_only;
+        read_only.read_only = true;
+        try {
+            (void)open_store(database, read_only);
+        } catch (const InputError& e) {
+            if (std::string_view(e.what()).find("(no run recorded yet)") == std::string_view::npos) throw;
+        }
+        return;
+    }
     // Where a writer may not write (permission, a read-only mount, the folder), say so now, not after identifying.
     const OpenPlan plan = plan_open(database, SqliteOpenOptions{});
     (void)plan;

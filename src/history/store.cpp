@@ -206,11 +206,45 @@ public:
         exec("BEGIN");  // one snapshot for both queries
         try {
             std::unordered_map<std::int64_t, std::size_t> index;
-            read_run_rows(filter, detail, result, index);
+            read_run_rows(
+                std::string(filter_clause) + " ORDER BY r.recorded_at, r.id",
+                [&](Statement& select) {
+                    select.bind(1, filter.machine).bind(2, filter.axis).bind(3, filter.location);
+                },
+                detail, result, index);
             read_parameters(filter, [&](std::int64_t id, std::string_view key, const StoredEstimate& estimate) {
                 if (const auto found = index.find(id); found != index.end())
                     result[found->second].parameters.emplace(std::string(key), estimate);
             });
+            exec("COMMIT");
+        } catch (...) {
+            sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+            throw;
+        }
+        return result;
+    }
+
+    std::vector<RunRecord> runs_in_storage_order(std::int64_t after_id, std::size_t limit) const override {
+        std::vector<RunRecord> result;
+        exec("BEGIN");  // one snapshot for both queries
+        try {
+            std::unordered_map<std::int64_t, std::size_t> index;
+            read_run_rows(
+                " WHERE r.id > ?1 ORDER BY r.id LIMIT ?2",
+                [&](Statement& select) { select.bind(1, after_id).bind(2, static_cast<std::int64_t>(limit)); },
+                RunDetail::documents, result, index);
+            if (!result.empty()) {
+                const Columns c = columns_of(schema_version_);
+                Statement select(db_,
+                                 fmt::format("SELECT p.run_id, p.key, p.value, p.stderr, {} FROM parameters p WHERE "
+                                             "p.run_id > ?1 AND p.run_id <= ?2",
+                                             c.parameter_errors),
+                                 path_);
+                select.bind(1, after_id).bind(2, result.back().id);
+                while (select.step())
+                    result[index.at(select.integer(0))].parameters.emplace(
+                        select.text(1), StoredEstimate{select.real(2), select.real(3), select.real(4), select.real(5)});
+            }
             exec("COMMIT");
         } catch (...) {
             sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
@@ -376,19 +410,21 @@ private:
         }
     }
 
-    void read_run_rows(const RunFilter& filter, RunDetail detail, std::vector<RunRecord>& result,
+    /// The runs `clause` (WHERE ... ORDER BY ..., its parameters bound by `bind`) selects, in its order.
+    template <class Bind>
+    void read_run_rows(const std::string& clause, Bind&& bind, RunDetail detail, std::vector<RunRecord>& result,
                        std::unordered_map<std::int64_t, std::size_t>& index) const {
         const Columns c = columns_of(schema_version_);
         const bool documents = detail == RunDetail::documents;
         Statement select(db_,
                          fmt::format("SELECT r.id, r.machine, r.axis, r.location, r.recorded_at, r.trace_path, "
                                      "r.trace_sha256, r.feedid_version, r.model, r.status, r.options_json, "
-                                     "r.stored_at, {}, {}, {}, {}, {} FROM runs r{}{} ORDER BY r.recorded_at, r.id",
+                                     "r.stored_at, {}, {}, {}, {}, {} FROM runs r{}{}",
                                      c.axis_kind, c.fit_figures, documents ? "r.fit_json" : "NULL",
                                      documents ? c.diagnostics : "NULL", documents ? c.result : "NULL",
-                                     documents ? c.documents_join : "", filter_clause),
+                                     documents ? c.documents_join : "", clause),
                          path_);
-        select.bind(1, filter.machine).bind(2, filter.axis).bind(3, filter.location);
+        bind(select);
         OptionsGroups groups;
         while (select.step()) {
             RunRecord run;

@@ -36,10 +36,11 @@ RunRecord prepare_run(const nlohmann::json& result, const std::string& source, c
 /// `source` when the document is not an identify result or names no trace file.
 std::filesystem::path trace_of_result(const nlohmann::json& result, const std::string& source);
 
-/// Checks, before a long computation and without writing, that a run can be recorded in `database`: a missing or
-/// empty file is fine (the store creates its tables), an existing one must open as a feedid history. InputError
-/// naming the file otherwise.
-void check_recordable(const std::filesystem::path& database);
+/// Checks, before a long computation and without writing, that a run can be recorded in `database` (a SQLite file or
+/// a PostgreSQL location, as open_store takes): a missing or empty file, or a database without feedid's tables, is
+/// fine (the store creates its tables); an existing one must open as a feedid history, and a server must accept the
+/// connection. InputError naming the file or the database otherwise.
+void check_recordable(const std::string& database);
 
 /// True for "2026-11-23", "2026-11-23T09:30", "2026-11-23T09:30:21", "2026-11-23T09:30:21.250Z" and the like.
 bool is_iso8601_utc(const std::string& text);

@@ -1,8 +1,9 @@
 #pragma once
 // The parameter history: one record per test run of an axis (machine, axis, location, when it was recorded, a content
 // hash of the trace, the options and feedid version that produced the result, every parameter with its standard
-// error, the fit metrics and diagnostics). Callers see only the HistoryStore interface; SQLite (one file, no server)
-// is the implementation today, and a server database can be added behind the same interface.
+// error, the fit metrics and diagnostics). Callers see only the HistoryStore interface, opened by open_store from a
+// location: a SQLite file (one file, no server; the default) or a PostgreSQL database (a plant's shared history,
+// written by many machines at once and read by dashboards).
 //
 // Guarantees of the SQLite store (tested in tests/test_history_store.cpp):
 //   - a run is written in one transaction: after a crash it is either whole or absent;
@@ -24,6 +25,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -138,6 +140,11 @@ public:
     /// The runs matching the filter as the trend reads them, one series per (machine, axis), ordered by machine,
     /// then axis; each in recording order (time, then id).
     [[nodiscard]] virtual std::vector<SeriesRuns> series(const RunFilter& filter = {}) const = 0;
+    /// A page of the runs in the order the store added them (by id): at most `limit` runs with an id above
+    /// `after_id`, with their documents (RunDetail::documents); empty after the last. For reading a large history in
+    /// bounded memory (copy_history).
+    [[nodiscard]] virtual std::vector<RunRecord> runs_in_storage_order(std::int64_t after_id,
+                                                                       std::size_t limit) const = 0;
     /// The stored result document of a run (without its RLS history); an empty object when none was stored.
     /// InputError when there is no such run or its document is not readable JSON.
     [[nodiscard]] virtual nlohmann::json result_document(std::int64_t run_id) const = 0;
@@ -182,6 +189,62 @@ struct SqliteOpenOptions {
 /// write leaves the file whole. Never set it outside tests.
 std::unique_ptr<HistoryStore> open_sqlite_store(const std::filesystem::path& path,
                                                 const SqliteOpenOptions& options = {});
+
+/// How a history is opened, whatever holds it.
+struct OpenOptions {
+    bool read_only{false};  ///< open for reading only; nothing is ever written
+    bool create{true};      ///< a SQLite file: create it when missing (ignored when read_only)
+};
+
+/// The newest schema of the PostgreSQL backend (the highest version in its feedid_schema table).
+inline constexpr int postgres_schema_version = 1;
+
+/// True when `location` names a PostgreSQL database (a URI starting postgresql:// or postgres://) rather than a
+/// SQLite file.
+bool is_postgresql_location(std::string_view location);
+
+/// True when this build has the PostgreSQL backend (libpq was found when feedid was built).
+bool postgresql_supported();
+
+/// The location as messages show it: a PostgreSQL URI without a password (neither user:password@ nor a password=
+/// parameter); a path as it is.
+std::string shown_location(const std::string& location);
+
+/// Opens the history at `location`: a PostgreSQL URI (is_postgresql_location; libpq's environment variables PGHOST,
+/// PGUSER, PGPASSWORD, ... and service files fill in what the URI leaves out, e.g. postgresql:///?service=plant)
+/// opens the PostgreSQL backend, anything else is a SQLite file (open_sqlite_store). InputError naming the location
+/// (never a password) when it cannot be opened as asked, and when a PostgreSQL location is given to a build without
+/// the PostgreSQL backend.
+std::unique_ptr<HistoryStore> open_store(const std::string& location, const OpenOptions& options = {});
+
+/// Opens the history held in a PostgreSQL database (postgresql://user@host:port/db). A writer creates the schema, or
+/// migrates it, in one transaction (serialised between processes by an advisory lock); a reader writes nothing (its
+/// session is read-only). InputError, one line naming user, host, port and database, when the server is unreachable,
+/// refuses the authentication or the user lacks a permission; when the database holds another application's tables
+/// of the same names, or a newer feedid schema.
+///
+/// A run is written in one transaction; a run already stored (same trace hash, same options) is found inside it and,
+/// should two writers race, the unique index keeps one (INSERT ... ON CONFLICT DO NOTHING). A write whose connection
+/// is lost is retried on a new connection, a bounded number of times, without duplicates.
+///
+/// Test hooks (never set them outside tests): FEEDID_TEST_ABORT_AFTER_STATEMENT=N as for SQLite (BEGIN, the run,
+/// its documents, its parameters and COMMIT are the write statements); FEEDID_TEST_DROP_CONNECTION_AT_STATEMENT=N
+/// ends the store's own server session just before its N-th write statement, once, to test the retry;
+/// FEEDID_TEST_PAUSE_AFTER_STATEMENT=N sleeps two minutes right after the N-th, so that a test can kill the process
+/// in the middle of a write.
+std::unique_ptr<HistoryStore> open_postgres_store(const std::string& location, const OpenOptions& options = {});
+
+/// What copy_history did.
+struct CopyOutcome {
+    std::size_t copied{0};         ///< runs added to the destination
+    std::size_t already_there{0};  ///< runs the destination held already (same trace, same options)
+    std::size_t pins{0};           ///< baselines pinned in the destination (those not already pinned there)
+};
+
+/// Copies every run of `from` into `to` in the order `from` stored them (each in its own transaction, skipping those
+/// `to` holds already; read a page of runs at a time), then its pinned baselines, mapped to the runs' ids in `to`.
+/// Copying again adds nothing.
+CopyOutcome copy_history(const HistoryStore& from, HistoryStore& to);
 
 /// True when the file starts with the SQLite 3 header ("SQLite format 3\0").
 bool looks_like_sqlite(const std::filesystem::path& path);
