@@ -188,7 +188,9 @@ void OnlineIdentifier::process_window(std::size_t count) {
     const std::size_t last = count - margin_;
     const WindowVerdict v = judge_window(first, last);
     if (v != WindowVerdict::pending) verdict(v);
-    if (v == WindowVerdict::at_rest || v == WindowVerdict::saturation || v == WindowVerdict::stick_slip) return;
+    // the slow samples only of windows whose fast rows fit the model: a slow cutting move (a helix, an arc's slow
+    // stretch) adds a force opposing the motion that the bins cannot tell from Stribeck friction
+    if (v != WindowVerdict::qualified && v != WindowVerdict::pending) return;
     bin_slow_samples(first, last);
 }
 
@@ -818,6 +820,11 @@ OnlineEstimate OnlineIdentifier::estimate() const {
     if (clusters > static_cast<double>(p_)) meat *= clusters / (clusters - static_cast<double>(p_));
     const Mat h_inverse = h.inverse();
     e.covariance = h_inverse * meat * h_inverse;
+    // with fewer than p + 2 windows the cluster covariance is not honest (its meat has the rank of the number of
+    // windows): the model-based one instead, s^2 kappa H^-1, the residuals' variance times their integrated
+    // autocorrelation after the zero-phase low-pass (about fs / (2 f_c) samples for white noise)
+    const bool few = forgotten_windows_ < static_cast<double>(p_) + 2.0;
+    if (few) e.covariance = (e.residual_std * e.residual_std * std::max(1.0, 0.5 / (dt_ * cutoff_hz_))) * h_inverse;
     const Vec se = e.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
     e.information = e.covariance.diagonal().cwiseInverse();
     const Vec d = se;
@@ -828,21 +835,11 @@ OnlineEstimate OnlineIdentifier::estimate() const {
     e.viscous = Estimate::of(theta(1), se(1));
     e.coulomb = Estimate::of(theta(2), se(2));
     if (p_ == 4) e.offset = Estimate::of(theta(3), se(3));
-    // the cluster covariance needs more windows than parameters (its meat has rank of the number of windows; with
-    // p + 1 its small-sample factor is p + 1): below p + 2 no honest standard error, so no value
-    if (forgotten_windows_ < static_cast<double>(p_) + 2.0) {
-        const std::string why = fmt::format(
-            "only {} window(s) qualified ({} of {}): too few for an honest standard error (at least {} needed)",
-            counts_.qualified(), counts_.qualified(), counts_.total, p_ + 2);
-        e.mass = Estimate{};
-        e.viscous = Estimate{};
-        e.coulomb = Estimate{};
-        e.offset = Estimate{};
-        e.mass_reason = why;
-        e.friction_reason = why;
-        e.stribeck_reason = why;
-        return e;
-    }
+    if (few)
+        e.friction_reason = fmt::format(
+            "only {} window(s) qualified: standard errors model-based (residual scale and the filter's correlation), "
+            "not from the scatter between windows ({} or more)",
+            counts_.qualified(), p_ + 2);
     estimate_stribeck(theta, se, e);
     return e;
 }
