@@ -77,6 +77,7 @@ OnlineIdentifier::OnlineIdentifier(OnlineOptions options) : options_(std::move(o
         for (auto& m : row) m = sum_cc_;
     r_z_.setZero();
     for (auto& b : bins_) b.assign(bins_per_direction, StribeckBin{});
+    deferred_.assign(options_.deferred_windows, OneSpeedWindow{});
     // the start-up buffer: enough for the sample time from the first time stamps
     const std::size_t start = options_.sample_time_s ? 0 : startup_samples;
     if (options_.sample_time_s) {
@@ -155,6 +156,7 @@ void OnlineIdentifier::flush() {
         filled_ = 0;
     }
     settle_pending();
+    settle_deferred();
 }
 
 void OnlineIdentifier::filter(std::span<const double> in, std::span<double> out, std::size_t count) {
@@ -186,7 +188,9 @@ void OnlineIdentifier::process_window(std::size_t count) {
     const std::size_t last = count - margin_;
     const WindowVerdict v = judge_window(first, last);
     if (v != WindowVerdict::pending) verdict(v);
-    if (v == WindowVerdict::at_rest || v == WindowVerdict::saturation || v == WindowVerdict::stick_slip) return;
+    // the slow samples only of windows whose fast rows fit the model: a slow cutting move (a helix, an arc's slow
+    // stretch) adds a force opposing the motion that the bins cannot tell from Stribeck friction
+    if (v != WindowVerdict::qualified && v != WindowVerdict::pending) return;
     bin_slow_samples(first, last);
 }
 
@@ -269,14 +273,15 @@ WindowVerdict OnlineIdentifier::fit_window(std::size_t rows) {
         a2 += rows_(r, 0) * rows_(r, 0);
         scratch_[static_cast<std::size_t>(r)] = std::abs(rows_(r, 1));
     }
-    if (std::sqrt(a2 / static_cast<double>(n)) < options_.minimum_acceleration) return WindowVerdict::low_excitation;
+    if (std::sqrt(a2 / static_cast<double>(n)) < options_.minimum_acceleration)
+        return one_speed(rows, WindowVerdict::low_excitation);
     const auto s_begin = scratch_.begin();
     const auto s_end = s_begin + n;
     std::nth_element(s_begin, s_begin + n / 10, s_end);
     const double p10 = scratch_[static_cast<std::size_t>(n / 10)];
     std::nth_element(s_begin, s_begin + (9 * n) / 10, s_end);
     const double p90 = scratch_[static_cast<std::size_t>((9 * n) / 10)];
-    if (p90 < options_.minimum_speed_ratio * p10) return WindowVerdict::low_excitation;
+    if (p90 < options_.minimum_speed_ratio * p10) return one_speed(rows, WindowVerdict::low_excitation);
     std::nth_element(s_begin, s_begin + (2 * n) / 3, s_end);
     const double fast = scratch_[static_cast<std::size_t>((2 * n) / 3)];
     // conditioning of the column-scaled regressor
@@ -286,7 +291,7 @@ WindowVerdict OnlineIdentifier::fit_window(std::size_t rows) {
     const Eigen::SelfAdjointEigenSolver<Mat> eigen(scaled, Eigen::EigenvaluesOnly);
     const double condition =
         std::sqrt(eigen.eigenvalues().maxCoeff() / std::max(eigen.eigenvalues().minCoeff(), 1e-300));
-    if (!(condition <= options_.maximum_condition)) return WindowVerdict::ill_conditioned;
+    if (!(condition <= options_.maximum_condition)) return one_speed(rows, WindowVerdict::ill_conditioned);
     std::fill_n(weights_.begin(), rows, 1.0);
     const Vec least_squares = solve_weighted(rows);
     if (!options_.robust) {
@@ -309,6 +314,90 @@ WindowVerdict OnlineIdentifier::fit_window(std::size_t rows) {
     if (verdict == WindowVerdict::qualified) inconsistent_run_ = 0;
     if (verdict != WindowVerdict::process_force || !have_pooled_) return verdict;
     return judge_change(rows, least_squares, fast);
+}
+
+// A window of one speed (or too little acceleration) cannot be fitted on its own, but its rows still inform the
+// pooled estimate: B and F_C at its speed, M from its accelerations. It is judged against the pooled model instead
+// (judge_one_speed) from its least-squares sufficient statistics; before a pooled estimate exists it is held
+// (deferred_, a fixed number) until one does. Without robust weighting it is pooled as it is.
+WindowVerdict OnlineIdentifier::one_speed(std::size_t rows, WindowVerdict own) {
+    const std::size_t p = p_;
+    std::array<double, max_p * max_p> h{};
+    std::array<double, max_p> c{};
+    double yy = 0.0;
+    for (std::size_t k = 0; k < rows; ++k) {
+        const double* row = rows_.data() + k * (max_p + 1);
+        yy += row[p] * row[p];
+        for (std::size_t i = 0; i < p; ++i) {
+            c[i] += row[i] * row[p];
+            for (std::size_t j = 0; j <= i; ++j) h[i * max_p + j] += row[i] * row[j];
+        }
+    }
+    OneSpeedWindow w;
+    const auto n = static_cast<Eigen::Index>(p);
+    w.h = Mat::Zero(n, n);
+    w.c = Vec::Zero(n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+        w.c(i) = c[static_cast<std::size_t>(i)];
+        for (Eigen::Index j = 0; j <= i; ++j) w.h(i, j) = w.h(j, i) = h[static_cast<std::size_t>(i * max_p + j)];
+    }
+    w.yy = yy;
+    w.rows = rows;
+    w.own = own;
+    if (!options_.robust) {
+        // plain least squares pools every window; its scale: the residual of its own (minimum-norm) fit
+        const Eigen::SelfAdjointEigenSolver<Mat> eigen(w.h);
+        double explained = 0.0;
+        const double top = eigen.eigenvalues().maxCoeff();
+        for (Eigen::Index k = 0; k < n; ++k) {
+            const double lambda = eigen.eigenvalues()(k);
+            if (lambda > 1e-12 * top) explained += std::pow(eigen.eigenvectors().col(k).dot(w.c), 2) / lambda;
+        }
+        pool(WindowInformation{w.h, w.c, std::sqrt(std::max(0.0, yy - explained) / static_cast<double>(rows)), rows});
+        return WindowVerdict::qualified;
+    }
+    if (have_pooled_ && reference_scale_ > 0.0) return judge_one_speed(w);
+    if (deferred_count_ == deferred_.size()) return own;
+    deferred_[deferred_count_++] = w;
+    return WindowVerdict::pending;
+}
+
+// The process-force test of a one-speed window against the pooled estimate theta: its rms residual at theta within
+// maximum_scale_ratio of the clean windows' scale (a cutting force shows there), and its gradient
+// g = c - H theta within consistency_chi2 of zero in its own covariance s^2 kappa (H + H H_pool^-1 H) (the window's
+// noise and the pooled estimate's, pseudo-inverted on the directions the window informs): a constant force at its
+// speed (a cut the scale does not show) moves g.
+WindowVerdict OnlineIdentifier::judge_one_speed(const OneSpeedWindow& window) {
+    const auto p = static_cast<Eigen::Index>(p_);
+    const Vec theta = pooled_theta();
+    const double rss = window.yy - 2.0 * theta.dot(window.c) + theta.dot(window.h * theta);
+    const double rms = std::sqrt(std::max(0.0, rss) / static_cast<double>(window.rows));
+    const bool scale_ok = rms <= options_.maximum_scale_ratio * reference_scale_;
+    const Mat r = r_z_.topLeftCorner(p, p);
+    const Mat pooled_information = r.transpose() * r;
+    const Vec g = window.c - window.h * theta;
+    const Mat v = window.h + window.h * pooled_information.ldlt().solve(window.h);
+    const Eigen::SelfAdjointEigenSolver<Mat> eigen(v);
+    const double top = eigen.eigenvalues().maxCoeff();
+    double distance = 0.0;
+    for (Eigen::Index k = 0; k < p; ++k) {
+        const double lambda = eigen.eigenvalues()(k);
+        if (lambda > 1e-10 * top) distance += std::pow(eigen.eigenvectors().col(k).dot(g), 2) / lambda;
+    }
+    const double kappa = std::max(1.0, 1.0 / (dt_ * cutoff_hz_));
+    distance /= reference_scale_ * reference_scale_ * kappa;
+    if (!scale_ok || !(distance <= options_.consistency_chi2)) return WindowVerdict::process_force;
+    pool(WindowInformation{window.h, window.c, rms, window.rows});
+    return WindowVerdict::qualified;
+}
+
+void OnlineIdentifier::settle_deferred() {
+    for (std::size_t k = 0; k < deferred_count_; ++k) {
+        const WindowVerdict v =
+            have_pooled_ && reference_scale_ > 0.0 ? judge_one_speed(deferred_[k]) : deferred_[k].own;
+        ++counts_.by_verdict[static_cast<std::size_t>(v)];
+    }
+    deferred_count_ = 0;
 }
 
 OnlineIdentifier::Vec OnlineIdentifier::independent_fit(std::size_t rows, const Vec& least_squares, double fast,
@@ -471,7 +560,10 @@ WindowVerdict OnlineIdentifier::admit(std::size_t rows, double scale) {
     // the first windows wait until the clean windows' scale is known: a process force that dominates one of them
     // must not enter the pool before there is a scale to tell it by
     pending_[pending_count_++] = window;
-    if (pending_count_ == pending_.size()) settle_pending();
+    if (pending_count_ == pending_.size()) {
+        settle_pending();
+        settle_deferred();
+    }
     return WindowVerdict::pending;
 }
 
@@ -540,9 +632,18 @@ void OnlineIdentifier::pool(const WindowInformation& window) {
     rows_used_ += window.rows;
     // the window's information H_w = L L^T enters [R z] as the rows [L^T, L^-1 c_w], by Givens rotations: the
     // square-root information update (R^T R + H_w, R^T z + c_w), never forming R^T R
-    const Eigen::LLT<Mat> cholesky(window.h);
-    const Mat upper = cholesky.matrixU();
-    const Vec rhs = cholesky.matrixL().solve(window.c);
+    // (by its eigen-decomposition H_w = V D V^T: L = V D^1/2, so that a one-speed window's singular H_w enters on the
+    // directions it informs)
+    const Eigen::SelfAdjointEigenSolver<Mat> eigen(window.h);
+    const double top = eigen.eigenvalues().maxCoeff();
+    Mat upper = Mat::Zero(p, p);
+    Vec rhs = Vec::Zero(p);
+    for (Eigen::Index k = 0; k < p; ++k) {
+        const double lambda = eigen.eigenvalues()(k);
+        if (!(lambda > 1e-12 * top)) continue;
+        upper.row(k) = std::sqrt(lambda) * eigen.eigenvectors().col(k).transpose();
+        rhs(k) = eigen.eigenvectors().col(k).dot(window.c) / std::sqrt(lambda);
+    }
     Eigen::Matrix<double, 1, max_p + 1> row;
     for (Eigen::Index k = 0; k < p; ++k) {
         row.setZero();
@@ -596,6 +697,10 @@ void OnlineIdentifier::bin_slow_samples(std::size_t first, std::size_t last) {
         const auto index = std::min(bins_per_direction - 1,
                                     static_cast<std::size_t>((std::log(speed) - low) / span * bins_per_direction));
         StribeckBin& bin = bins_[d > 0.0 ? 0 : 1][index];
+        if (bin.last_window != counts_.total) {
+            bin.last_window = counts_.total;
+            ++bin.windows;
+        }
         bin.n += 1.0;
         bin.speed += speed;
         bin.force += d * ff_[k];
@@ -614,6 +719,72 @@ namespace {
 struct BinPoint {
     double speed, stribeck, standard_error;
 };
+
+struct StribeckFit {
+    bool ok{false};
+    double rise{0.0}, vs{0.0}, rise_se{0.0}, vs_se{0.0};
+    std::size_t used{0};
+    std::size_t slow{0};  ///< bins below 3 v_s
+};
+
+// The bins' points F_stri = friction - B |v| - F_C (- F_0 sgn) above twice their noise; bins with too few samples or
+// from too few windows (one slow move is one realisation of the noise and of any cutting force) are left out.
+template <class Bins, class Theta>
+std::size_t stribeck_points(const Bins& bins, const Theta& theta, bool offset, double correlation,
+                            const OnlineOptions& options, std::span<BinPoint> points, std::size_t& slow_samples,
+                            std::size_t& populated) {
+    std::size_t used = 0;
+    slow_samples = 0;
+    populated = 0;
+    for (std::size_t direction = 0; direction < 2; ++direction) {
+        for (const auto& bin : bins[direction]) {
+            slow_samples += static_cast<std::size_t>(bin.n);
+            if (bin.n < static_cast<double>(options.minimum_bin_samples) ||
+                bin.windows < options.minimum_stribeck_windows)
+                continue;
+            ++populated;
+            const double speed = bin.speed / bin.n;
+            const double mean = bin.force / bin.n;
+            double stribeck = mean - theta(0) * bin.acceleration / bin.n - theta(1) * speed - theta(2);
+            if (offset) stribeck -= (direction == 0 ? 1.0 : -1.0) * theta(3);
+            const double se = std::sqrt(std::max(0.0, bin.force_sq / bin.n - mean * mean) * correlation / bin.n);
+            if (stribeck > 2.0 * se + 1e-12 && used < points.size()) points[used++] = {speed, stribeck, se + 1e-12};
+        }
+    }
+    return used;
+}
+
+StribeckFit fit_stribeck(std::span<const BinPoint> points, std::size_t minimum_bins) {
+    StribeckFit f;
+    f.used = points.size();
+    if (points.size() < minimum_bins) return f;
+    Eigen::Matrix2d normal = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d right = Eigen::Vector2d::Zero();
+    for (const auto& point : points) {
+        const double w = std::pow(point.stribeck / point.standard_error, 2);  // 1 / var(ln F_stri)
+        const Eigen::Vector2d phi(1.0, point.speed);
+        normal += w * phi * phi.transpose();
+        right += w * std::log(point.stribeck) * phi;
+    }
+    const Eigen::Vector2d line = normal.inverse() * right;
+    // the bins' scatter about the fitted line beyond their own noise (the log-linear law's misfit, bins correlated by
+    // the filter) widens the covariance: reduced chi^2, when above 1
+    double chi2 = 0.0;
+    for (const auto& point : points) {
+        const double w = std::pow(point.stribeck / point.standard_error, 2);
+        chi2 += w * std::pow(std::log(point.stribeck) - line(0) - line(1) * point.speed, 2);
+    }
+    const double inflation = points.size() > 2 ? std::max(1.0, chi2 / static_cast<double>(points.size() - 2)) : 1.0;
+    const Eigen::Matrix2d cov = inflation * normal.inverse();
+    if (!(line(1) < 0.0)) return f;
+    f.ok = true;
+    f.rise = std::exp(line(0));
+    f.vs = -1.0 / line(1);
+    f.vs_se = std::sqrt(cov(1, 1)) / (line(1) * line(1));
+    f.rise_se = f.rise * std::sqrt(cov(0, 0));
+    for (const auto& point : points) f.slow += point.speed < 3.0 * f.vs ? 1 : 0;
+    return f;
+}
 
 }  // namespace
 
@@ -649,6 +820,11 @@ OnlineEstimate OnlineIdentifier::estimate() const {
     if (clusters > static_cast<double>(p_)) meat *= clusters / (clusters - static_cast<double>(p_));
     const Mat h_inverse = h.inverse();
     e.covariance = h_inverse * meat * h_inverse;
+    // with fewer than p + 2 windows the cluster covariance is not honest (its meat has the rank of the number of
+    // windows): the model-based one instead, s^2 kappa H^-1, the residuals' variance times their integrated
+    // autocorrelation after the zero-phase low-pass (about fs / (2 f_c) samples for white noise)
+    const bool few = forgotten_windows_ < static_cast<double>(p_) + 2.0;
+    if (few) e.covariance = (e.residual_std * e.residual_std * std::max(1.0, 0.5 / (dt_ * cutoff_hz_))) * h_inverse;
     const Vec se = e.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
     e.information = e.covariance.diagonal().cwiseInverse();
     const Vec d = se;
@@ -659,90 +835,84 @@ OnlineEstimate OnlineIdentifier::estimate() const {
     e.viscous = Estimate::of(theta(1), se(1));
     e.coulomb = Estimate::of(theta(2), se(2));
     if (p_ == 4) e.offset = Estimate::of(theta(3), se(3));
-    if (counts_.qualified() < 2 * p_) {
-        const std::string why = fmt::format(
-            "only {} window(s) qualified: too few clusters for an honest standard error", counts_.qualified());
-        e.mass.standard_error.reset();
-        e.viscous.standard_error.reset();
-        e.coulomb.standard_error.reset();
-        e.offset.standard_error.reset();
-        e.friction_reason = why;
-    }
-    estimate_stribeck(theta, se(2), e);
+    if (few)
+        e.friction_reason = fmt::format(
+            "only {} window(s) qualified: standard errors model-based (residual scale and the filter's correlation), "
+            "not from the scatter between windows ({} or more)",
+            counts_.qualified(), p_ + 2);
+    estimate_stribeck(theta, se, e);
     return e;
 }
 
-void OnlineIdentifier::estimate_stribeck(const Vec& theta, double coulomb_standard_error, OnlineEstimate& e) const {
+void OnlineIdentifier::estimate_stribeck(const Vec& theta, const Vec& standard_error, OnlineEstimate& e) const {
     // the quasi-static bins: F_stri = friction - B |v| - F_C per bin, eq. (13) on those above their noise
     std::array<BinPoint, 2 * bins_per_direction> points{};
-    std::size_t used = 0;
-    const double correlation = std::max(1.0, 1.0 / (dt_ * options_.cutoff_hz.value_or(std::min(100.0, 0.1 / dt_))));
+    const double correlation = std::max(1.0, 1.0 / (dt_ * cutoff_hz_));
     std::size_t slow_samples = 0;
     std::size_t populated = 0;
-    for (std::size_t direction = 0; direction < 2; ++direction) {
-        const double sg = direction == 0 ? 1.0 : -1.0;
-        for (const auto& bin : bins_[direction]) {
-            slow_samples += static_cast<std::size_t>(bin.n);
-            if (bin.n < static_cast<double>(options_.minimum_bin_samples)) continue;
-            ++populated;
-            const double speed = bin.speed / bin.n;
-            const double friction = bin.force / bin.n - theta(0) * bin.acceleration / bin.n;
-            double stribeck = friction - theta(1) * speed - theta(2);
-            if (p_ == 4) stribeck -= sg * theta(3);
-            const double variance = std::max(0.0, bin.force_sq / bin.n - (bin.force / bin.n) * (bin.force / bin.n));
-            const double standard_error = std::sqrt(variance * correlation / bin.n) + 1e-12;
-            if (stribeck > 2.0 * standard_error) points[used++] = {speed, stribeck, standard_error};
-        }
-    }
-    if (used < options_.minimum_stribeck_bins) {
+    // the bins' points for B + db and F_C + dc (F_B and v_s extrapolate the rise above F_C to zero speed: an error
+    // of F_C or B moves them, and their uncertainty must say so)
+    const auto fit = [&](double db, double dc) {
+        Vec moved = theta;
+        moved(1) += db;
+        moved(2) += dc;
+        const std::size_t used =
+            stribeck_points(bins_, moved, p_ == 4, correlation, options_, points, slow_samples, populated);
+        return fit_stribeck(std::span<const BinPoint>(points.data(), used), options_.minimum_stribeck_bins);
+    };
+    const StribeckFit nominal = fit(0.0, 0.0);
+    if (nominal.used < options_.minimum_stribeck_bins) {
         e.stribeck_reason =
             populated < options_.minimum_stribeck_bins
                 ? fmt::format(
                       "the trace has no moves slow enough to determine F_B and v_s: its quasi-static samples "
-                      "below {:.3g} mm/s ({}) fill {} speed bin(s) of {} or more; {} needed",
+                      "below {:.3g} mm/s ({}) fill {} speed bin(s) of {} or more from {} or more windows; {} needed",
                       options_.split_velocity * 1e3, slow_samples, populated, options_.minimum_bin_samples,
-                      options_.minimum_stribeck_bins)
+                      options_.minimum_stribeck_windows, options_.minimum_stribeck_bins)
                 : fmt::format(
                       "the slow moves ({} quasi-static samples below {:.3g} mm/s) show a friction rise above "
                       "F_C in only {} speed bin(s); {} needed",
-                      slow_samples, options_.split_velocity * 1e3, used, options_.minimum_stribeck_bins);
+                      slow_samples, options_.split_velocity * 1e3, nominal.used, options_.minimum_stribeck_bins);
         return;
     }
-    Eigen::Matrix2d normal = Eigen::Matrix2d::Zero();
-    Eigen::Vector2d right = Eigen::Vector2d::Zero();
-    for (std::size_t k = 0; k < used; ++k) {
-        const double w = std::pow(points[k].stribeck / points[k].standard_error, 2);  // 1 / var(ln F_stri)
-        const Eigen::Vector2d phi(1.0, points[k].speed);
-        normal += w * phi * phi.transpose();
-        right += w * std::log(points[k].stribeck) * phi;
-    }
-    const Eigen::Vector2d fit = normal.inverse() * right;
-    // the bins' scatter about the fitted line beyond their own noise (the log-linear law's misfit, bins correlated by
-    // the filter) widens the covariance: reduced chi^2, when above 1
-    double chi2 = 0.0;
-    for (std::size_t k = 0; k < used; ++k) {
-        const double w = std::pow(points[k].stribeck / points[k].standard_error, 2);
-        chi2 += w * std::pow(std::log(points[k].stribeck) - fit(0) - fit(1) * points[k].speed, 2);
-    }
-    const double inflation = used > 2 ? std::max(1.0, chi2 / static_cast<double>(used - 2)) : 1.0;
-    const Eigen::Matrix2d cov = inflation * normal.inverse();
-    if (!(fit(1) < 0.0)) {
+    if (!nominal.ok) {
         e.stribeck_reason = "the slow moves' friction does not fall with speed: no Stribeck term to determine";
         return;
     }
-    const double rise = std::exp(fit(0));
-    const double vs = -1.0 / fit(1);
-    const double vs_se = std::sqrt(cov(1, 1)) / (fit(1) * fit(1));
-    const double fb_se = std::hypot(coulomb_standard_error, rise * std::sqrt(cov(0, 0)));
-    if (!(vs_se < 0.3 * vs)) {
-        e.stribeck_reason =
-            fmt::format("v_s = {:.3g} mm/s is not determined by the slow moves (standard error {:.0f} %)", vs * 1e3,
-                        100.0 * vs_se / vs);
+    // the decay must be seen: several bins below 3 v_s (above it the rise is under 5 % of its size)
+    if (nominal.slow < options_.minimum_stribeck_bins) {
+        e.stribeck_reason = fmt::format(
+            "v_s = {:.3g} mm/s is not determined by the slow moves: only {} speed bin(s) below 3 v_s; {} needed",
+            nominal.vs * 1e3, nominal.slow, options_.minimum_stribeck_bins);
         return;
     }
-    e.breakaway = Estimate::of(theta(2) + rise, fb_se);
-    e.stribeck_velocity = Estimate::of(vs, vs_se);
-    e.stribeck_bins_used = used;
+    // F_C's and B's standard errors carried through: the fit again with each moved by one standard error
+    double vs_shift = 0.0;
+    double rise_shift = 0.0;
+    for (const auto& [db, dc] : {std::pair{standard_error(1), 0.0}, std::pair{-standard_error(1), 0.0},
+                                 std::pair{0.0, standard_error(2)}, std::pair{0.0, -standard_error(2)}}) {
+        const StribeckFit moved = fit(db, dc);
+        if (!moved.ok) {
+            e.stribeck_reason = fmt::format(
+                "v_s = {:.3g} mm/s is not determined: the slow moves' rise above F_C vanishes within F_C's and B's "
+                "standard errors",
+                nominal.vs * 1e3);
+            return;
+        }
+        vs_shift = std::max(vs_shift, std::abs(moved.vs - nominal.vs));
+        rise_shift = std::max(rise_shift, std::abs(moved.rise + dc - nominal.rise));  // F_B = F_C + rise
+    }
+    const double vs_se = std::hypot(nominal.vs_se, vs_shift);
+    const double fb_se = std::hypot(nominal.rise_se, rise_shift);
+    if (!(vs_se < 0.3 * nominal.vs)) {
+        e.stribeck_reason =
+            fmt::format("v_s = {:.3g} mm/s is not determined by the slow moves (standard error {:.0f} %)",
+                        nominal.vs * 1e3, 100.0 * vs_se / nominal.vs);
+        return;
+    }
+    e.breakaway = Estimate::of(theta(2) + nominal.rise, fb_se);
+    e.stribeck_velocity = Estimate::of(nominal.vs, vs_se);
+    e.stribeck_bins_used = nominal.used;
 }
 
 }  // namespace feedid

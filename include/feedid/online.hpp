@@ -73,6 +73,12 @@ struct OnlineOptions {
     double stribeck_lowest_speed{1e-4};  ///< [m/s]
     std::size_t minimum_bin_samples{20};
     std::size_t minimum_stribeck_bins{3};
+    /// F_B and v_s need the slow samples of at least this many windows (one slow move is one realisation of the
+    /// drive's noise and of the cutting force)
+    std::size_t minimum_stribeck_windows{2};
+    /// One-speed windows (too little excitation or ill-conditioned on their own) held until a pooled estimate exists
+    /// to judge them against; beyond this many they are counted as low_excitation
+    std::size_t deferred_windows{256};
 
     /// What is wrong ("" when nothing).
     [[nodiscard]] std::string validate() const;
@@ -148,6 +154,15 @@ private:
     using Mat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, max_p, max_p>;
     struct StribeckBin {
         double n{0}, speed{0}, force{0}, force_sq{0}, acceleration{0};
+        std::size_t windows{0}, last_window{0};  ///< windows that put samples in it, the last of them (1-based)
+    };
+    /// A one-speed window's least-squares sufficient statistics: enough to judge it against any pooled estimate.
+    struct OneSpeedWindow {
+        Mat h;  ///< Phi^T Phi
+        Vec c;  ///< Phi^T y
+        double yy{0.0};
+        std::size_t rows{0};
+        WindowVerdict own{WindowVerdict::low_excitation};  ///< its verdict on its own
     };
 
     void setup(double sample_time_s);
@@ -173,12 +188,15 @@ private:
     void reset_pool();
     void settle_pending();
     [[nodiscard]] bool consistent(const WindowInformation& window, const Vec& reference) const;
+    WindowVerdict one_speed(std::size_t rows, WindowVerdict own);
+    WindowVerdict judge_one_speed(const OneSpeedWindow& window);
+    void settle_deferred();
     void bin_slow_samples(std::size_t first, std::size_t last);
     void filter(std::span<const double> in, std::span<double> out, std::size_t count);
     [[nodiscard]] bool stick_slips(std::size_t first, std::size_t last) const;
     std::size_t build_rows(std::size_t first, std::size_t last);
     [[nodiscard]] Vec pooled_theta() const;
-    void estimate_stribeck(const Vec& theta, double coulomb_standard_error, OnlineEstimate& e) const;
+    void estimate_stribeck(const Vec& theta, const Vec& standard_error, OnlineEstimate& e) const;
 
     OnlineOptions options_;
     std::size_t p_{3};
@@ -211,6 +229,8 @@ private:
     std::size_t recent_count_{0};
     double reference_scale_{0.0};  ///< 0 until the first windows are settled
     std::array<WindowInformation, 8> pending_;
+    std::vector<OneSpeedWindow> deferred_;  ///< allocated once (deferred_windows)
+    std::size_t deferred_count_{0};
     std::size_t pending_count_{0};
     std::size_t inconsistent_run_{0};
     std::size_t changes_{0};
