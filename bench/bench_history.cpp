@@ -33,11 +33,14 @@
 #include "feedid/result_document.hpp"
 #include "feedid/synth.hpp"
 #include "postgres_server.hpp"
+#include "run_program.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 namespace history = feedid::history;
+using feedid::bench::Outcome;
+using feedid::bench::run;
 
 /// A history to benchmark: machines x axes, each with its share of the runs.
 struct Composition {
@@ -148,44 +151,6 @@ std::string history_database(const Composition& composition) {
         record_composition(*history::open_store(location), composition);
     }
     return made.emplace(composition.name, location).first->second;
-}
-
-/// What one run of a program did.
-struct Outcome {
-    double seconds{0.0};
-    double peak_megabytes{0.0};
-    int exit_code{-1};
-    std::string out;
-};
-
-/// Runs `argv` (stdout captured, stderr to /dev/null) and waits for it.
-Outcome run(const std::vector<std::string>& argv) {
-    const fs::path capture = fs::path(FEEDID_BENCH_DATA) / fmt::format("out-{}.txt", ::getpid());
-    const auto start = std::chrono::steady_clock::now();
-    const pid_t pid = ::fork();
-    if (pid == 0) {
-        if (!std::freopen(capture.c_str(), "w", stdout) || !std::freopen("/dev/null", "w", stderr)) ::_exit(126);
-        std::vector<char*> args;
-        for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-        args.push_back(nullptr);
-        ::execv(args[0], args.data());
-        ::_exit(127);
-    }
-    int status = 0;
-    struct rusage usage {};
-    ::wait4(pid, &status, 0, &usage);
-    Outcome outcome;
-    outcome.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    outcome.peak_megabytes = static_cast<double>(usage.ru_maxrss) / 1024.0;
-    outcome.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    if (FILE* file = std::fopen(capture.c_str(), "r")) {
-        char buffer[4096];
-        std::size_t n = 0;
-        while ((n = std::fread(buffer, 1, sizeof buffer, file)) > 0) outcome.out.append(buffer, n);
-        std::fclose(file);
-    }
-    fs::remove(capture);
-    return outcome;
 }
 
 /// The lines that start with "drift alarm:" (feedid's and the Python check's alarm lines).

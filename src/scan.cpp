@@ -8,6 +8,7 @@
 
 #include "feedid/error.hpp"
 #include "feedid/io/csv.hpp"
+#include "feedid/parameters.hpp"
 #include "feedid/result_document.hpp"
 #include "feedid/version.hpp"
 
@@ -79,17 +80,60 @@ void set_parameters(ScanResult& s, const OnlineEstimate& e) {
 
 namespace {
 
-void push_trace(OnlineIdentifier& online, const Trace& trace, std::span<const double> force, std::span<const char> use,
-                std::size_t block) {
+// The identifiers a scan runs: the nominal one and, for the systematic part of each parameter's uncertainty, the same
+// with the split speed doubled (friction just above the split speed that is still Stribeck's biases B and F_C, and
+// only a second split shows it; the family of identify's systematic.hpp, reduced to the choice a scan makes).
+struct Identifiers {
+    OnlineIdentifier nominal;
+    std::optional<OnlineIdentifier> variant;
+
+    Identifiers(const OnlineOptions& options, bool systematic) : nominal(options) {
+        if (!systematic) return;
+        OnlineOptions doubled = options;
+        doubled.split_velocity = 2.0 * options.split_velocity;
+        variant.emplace(doubled);
+    }
+};
+
+void push_trace(Identifiers& identifiers, const Trace& trace, std::span<const double> force,
+                std::span<const char> use, std::size_t block) {
     const auto t = trace.column(Role::time);
     const auto x = trace.column(Role::position);
     for (std::size_t k = 0; k < t.size(); k += block) {
         const std::size_t n = std::min(block, t.size() - k);
-        online.push(t.subspan(k, n), x.subspan(k, n), force.subspan(k, n), use.empty() ? use : use.subspan(k, n));
+        const auto gate = use.empty() ? use : use.subspan(k, n);
+        identifiers.nominal.push(t.subspan(k, n), x.subspan(k, n), force.subspan(k, n), gate);
+        if (identifiers.variant) identifiers.variant->push(t.subspan(k, n), x.subspan(k, n), force.subspan(k, n), gate);
     }
 }
 
-ScanResult finish(OnlineIdentifier& online, const TraceSummary& summary, const OnlineOptions& options, bool rotary) {
+// Each parameter's systematic part: how far it moves when the split speed doubles (unassessed where either is null);
+// a finding where that exceeds twice the standard error.
+void assess_split(OnlineIdentifier& variant, const OnlineOptions& options, ScanResult& s) {
+    variant.flush();
+    ScanResult other;
+    other.result.parameters = s.result.parameters;
+    set_parameters(other, variant.estimate());
+    const ParameterNaming naming{s.result.rotary};
+    for (std::size_t i = 0; i < s.result.parameters.size(); ++i) {
+        Parameter& p = s.result.parameters[i];
+        const Estimate& doubled = other.result.parameters[i].estimate;
+        if (!p.estimate.value || !p.estimate.standard_error || !doubled.value) continue;
+        const double spread = std::abs(*doubled.value - *p.estimate.value);
+        p.estimate.set_systematic(spread);
+        if (spread > 2.0 * *p.estimate.standard_error)
+            s.result.diagnostics.push_back(fmt::format(
+                "{} moves by {:.3g} {} ({:.2g} standard errors) when the split speed doubles from {:.3g} to {:.3g} "
+                "{}: the friction just above the split speed is not yet the linear law (Stribeck); its systematic "
+                "part and combined uncertainty say so, and a higher --split-velocity may be the better choice",
+                p.symbol, spread, p.unit, spread / *p.estimate.standard_error,
+                options.split_velocity * naming.display_velocity_scale(),
+                2.0 * options.split_velocity * naming.display_velocity_scale(), naming.display_velocity_unit()));
+    }
+}
+
+ScanResult finish(Identifiers& identifiers, const TraceSummary& summary, const OnlineOptions& options, bool rotary) {
+    OnlineIdentifier& online = identifiers.nominal;
     online.flush();
     ScanResult s;
     s.online = online.estimate();
@@ -120,6 +164,7 @@ ScanResult finish(OnlineIdentifier& online, const TraceSummary& summary, const O
     const bool all = std::all_of(r.parameters.begin(), r.parameters.end(),
                                  [](const Parameter& p) { return p.estimate.determined(); });
     r.status = !e.mass.determined() ? Status::failed : all ? Status::ok : Status::partial;
+    if (identifiers.variant && r.status != Status::failed) assess_split(*identifiers.variant, options, s);
     r.axis = axis_from_parameters(r.parameters, r.model, r.rotary);
     return s;
 }
@@ -127,14 +172,14 @@ ScanResult finish(OnlineIdentifier& online, const TraceSummary& summary, const O
 }  // namespace
 
 ScanResult scan(const Trace& trace, std::span<const double> force, std::span<const char> use,
-                const OnlineOptions& options, std::size_t block) {
+                const OnlineOptions& options, std::size_t block, bool systematic) {
     if (const auto problem = options.validate(); !problem.empty()) throw InputError("scan: " + problem);
     if (!trace.has(Role::position))
         throw InputError(fmt::format("{}: scan needs a position channel (--channel position=NAME)", trace.source_path));
-    OnlineIdentifier online(options);
-    push_trace(online, trace, force, use, block);
+    Identifiers identifiers(options, systematic);
+    push_trace(identifiers, trace, force, use, block);
     const TimeBase base = trace.samples() >= 2 ? trace.time_base() : TimeBase{};
-    return finish(online,
+    return finish(identifiers,
                   TraceSummary{trace.source_path, trace.format, trace.samples(), base.sample_time_s, base.duration_s},
                   options, trace.rotary);
 }
@@ -170,7 +215,7 @@ Trace parse_block(const std::string& text, const std::filesystem::path& path, co
 
 ScanResult scan_csv_stream(const std::filesystem::path& path, const ImportOptions& import, const DriveConstants& drive,
                            std::span<const GateCondition> gates, const OnlineOptions& options, std::size_t block_rows,
-                           std::vector<std::string>& findings) {
+                           std::vector<std::string>& findings, bool systematic) {
     if (const auto problem = options.validate(); !problem.empty()) throw InputError("scan: " + problem);
     if (import.join || !import.tare.empty() || !import.invert.empty() || import.sample_time_s)
         throw InputError(
@@ -189,7 +234,7 @@ ScanResult scan_csv_stream(const std::filesystem::path& path, const ImportOption
     for (std::size_t line = 0; line < first_lines - first.samples(); ++line)
         preamble_end = text.find('\n', preamble_end) + 1;
     const std::string preamble = text.substr(0, preamble_end);
-    OnlineIdentifier online(options);
+    Identifiers identifiers(options, systematic);
     TraceSummary summary{path.string(), "csv", 0, 0.0, 0.0};
     const TimeBase base = first.samples() >= 2 ? first.time_base() : TimeBase{};
     summary.sample_time_s = base.sample_time_s;
@@ -199,7 +244,7 @@ ScanResult scan_csv_stream(const std::filesystem::path& path, const ImportOption
     for (Trace block = std::move(first);;) {
         const std::vector<double> force = drive_force(block, drive);
         const std::vector<char> use = gate_samples(block, gates);
-        push_trace(online, block, force, use, 65536);
+        push_trace(identifiers, block, force, use, 65536);
         summary.samples += block.samples();
         if (block.samples() > 0) end = block.column(Role::time).back();
         text = preamble;
@@ -207,7 +252,7 @@ ScanResult scan_csv_stream(const std::filesystem::path& path, const ImportOption
         block = parse_block(text, path, import);
     }
     summary.duration_s = end - start;
-    return finish(online, summary, options, rotary);
+    return finish(identifiers, summary, options, rotary);
 }
 
 nlohmann::json scan_document(const ScanResult& s) {

@@ -23,6 +23,7 @@ struct ScanCommand {
     DriveArguments drive_arguments;
     OnlineOptions options;
     bool no_robust{false};
+    bool no_systematic{false};
     std::vector<std::string> only_when;
     std::string json_path;
     std::size_t block_rows{0};
@@ -46,6 +47,9 @@ struct ScanCommand {
                        "Forgetting factor per window (1 = none): older windows weigh lambda^age, for slow drift")
             ->capture_default_str()
             ->check(allowed_range(1e-6, 1.0, ""));
+        sub.add_flag("--no-systematic", no_systematic,
+                     "Skip the second identifier (split speed doubled) that gives each parameter its systematic "
+                     "uncertainty: standard errors only, about 2x faster");
         sub.add_flag("--offset", options.offset, "Also estimate a constant force offset (gravity, sensor offset)");
         sub.add_option("--cutoff", options.cutoff_hz, "Butterworth cut-off [Hz] (default: min(100 Hz, fs / 10))")
             ->check(allowed_range(1e-3, 1e6, "Hz"));
@@ -101,7 +105,7 @@ struct ScanCommand {
         const Trace trace = read_trace_for_drive(trace_arguments, drive_arguments);
         const std::vector<double> force = drive_force(trace, drive_arguments.constants());
         const std::vector<char> use = gate_samples(trace, gates);
-        return scan(trace, force, use, o);
+        return scan(trace, force, use, o, 65536, !no_systematic);
     }
 
     ScanResult scan_streamed(const OnlineOptions& o, const std::vector<GateCondition>& gates) const {
@@ -110,7 +114,8 @@ struct ScanCommand {
         if (!arguments.gear_ratio) arguments.gear_ratio = drive_arguments.gear_ratio;
         std::vector<std::string> findings;
         ScanResult result = scan_csv_stream(arguments.file, arguments.import_options(), drive_arguments.constants(),
-                                            gates, o, block_rows > 0 ? block_rows : 500000, findings);
+                                            gates, o, block_rows > 0 ? block_rows : 500000, findings,
+                                            !no_systematic);
         for (const auto& finding : findings) fmt::print(stderr, "feedid: {}\n", terminal_message(finding));
         return result;
     }
@@ -123,6 +128,7 @@ struct ScanCommand {
                 {"offset", o.offset},
                 {"cutoff_hz", o.cutoff_hz ? nlohmann::json(*o.cutoff_hz) : nlohmann::json()},
                 {"split_velocity", o.split_velocity},
+                {"systematic", !no_systematic},
                 {"only_when", only_when},
                 {"channels", trace_arguments.channel_assignments},
                 {"units", trace_arguments.unit_assignments},
@@ -147,18 +153,32 @@ struct ScanCommand {
         fmt::print("{} ({} samples, {:.6g} s): production scan\n", terminal_text(r.trace.path), r.trace.samples,
                    r.trace.duration_s);
         fmt::print("windows: {}\n\n", counts_text(s.online.windows));
-        fmt::print("  {:<6} {:>14}   {:<12} {:<10}\n", "", "value", "std. error", "unit");
+        // the standard error (statistical) and the combined uncertainty (with the split speed's systematic part)
+        fmt::print("  {:<6} {:>14}   {:<12} {:<12} {:<10}\n", "", "value", "std. error", "uncertainty", "unit");
+        const auto figure = [](const std::optional<double>& v) {
+            return v ? fmt::format("{:.3g}", *v) : std::string("—");
+        };
         for (const auto& p : r.parameters) {
             if (p.estimate.value) {
-                const std::string error =
-                    p.estimate.standard_error ? fmt::format("{:.3g}", *p.estimate.standard_error) : std::string("—");
-                fmt::print("  {:<6} {:>14.6g} ± {:<12} {:<10}\n", p.symbol, *p.estimate.value, error, p.unit);
+                fmt::print("  {:<6} {:>14.6g} ± {:<12} {:<12} {:<10}\n", p.symbol, *p.estimate.value,
+                           figure(p.estimate.standard_error), figure(p.estimate.uncertainty), p.unit);
             } else {
-                fmt::print("  {:<6} {:>14}   {:<12} {:<10}\n", p.symbol, "—", "", p.unit);
+                fmt::print("  {:<6} {:>14}   {:<12} {:<12} {:<10}\n", p.symbol, "—", "", "", p.unit);
             }
         }
         fmt::print("\n");
         for (const auto& line : scan_verdicts(s)) fmt::print("  {}\n", terminal_message(line));
+        // the findings the verdicts above have not said already
+        const auto said = [&s](const std::string& line) {
+            return line == s.online.mass_reason || line == s.online.friction_reason || line == s.online.stribeck_reason;
+        };
+        bool heading = false;
+        for (const auto& line : r.diagnostics) {
+            if (said(line)) continue;
+            if (!heading) fmt::print("  diagnostics:\n");
+            heading = true;
+            fmt::print("    - {}\n", terminal_message(line));
+        }
     }
 };
 

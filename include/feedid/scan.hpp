@@ -39,9 +39,11 @@ struct ScanResult {
 };
 
 /// Pushes the trace's time, position and `force` [N] (drive_force()) through an OnlineIdentifier in blocks of
-/// `block` samples; `use` (empty = all) is the --only-when gate. InputError for a trace without a position.
+/// `block` samples; `use` (empty = all) is the --only-when gate. InputError for a trace without a position. With
+/// `systematic`, a second identifier runs with the split speed doubled: each parameter's systematic part is how far it
+/// moves (Estimate::set_systematic), with a finding where that exceeds twice its standard error.
 ScanResult scan(const Trace& trace, std::span<const double> force, std::span<const char> use,
-                const OnlineOptions& options, std::size_t block = 65536);
+                const OnlineOptions& options, std::size_t block = 65536, bool systematic = true);
 
 /// The same over a CSV file read in blocks of `block_rows` lines, for files larger than memory: the first block goes
 /// through the importer as a whole file would (header, units, roles, constants), and every later block is parsed with
@@ -51,7 +53,7 @@ ScanResult scan(const Trace& trace, std::span<const double> force, std::span<con
 /// a block cannot apply (--join, --tare, --invert, a time base from --sample-time): read the file whole for those.
 ScanResult scan_csv_stream(const std::filesystem::path& path, const ImportOptions& import, const DriveConstants& drive,
                            std::span<const GateCondition> gates, const OnlineOptions& options, std::size_t block_rows,
-                           std::vector<std::string>& findings);
+                           std::vector<std::string>& findings, bool systematic = true);
 
 /// The result document: identify's keys plus "kind": "scan", "windows" {total, qualified, rejected: {reason: n}}
 /// and "information" {key: {"inverse_variance": 1/var [1/unit^2]}, "eigenvalues": [...] (of the information matrix
