@@ -398,7 +398,11 @@ std::vector<FrictionZone> read_friction_zones(const nlohmann::json& list, const 
 }  // namespace
 
 SynthSpec spec_from_json(const nlohmann::json& document, const std::string& source) {
-    SynthSpec spec = demo_spec();
+    return spec_from_json(document, source, demo_spec());
+}
+
+SynthSpec spec_from_json(const nlohmann::json& document, const std::string& source, const SynthSpec& base) {
+    SynthSpec spec = base;
     Section top(document, "", source);
     if (top.has("axis")) read_axis(document["axis"], source, spec);
     top.accept("axis");

@@ -16,21 +16,6 @@
 
 namespace {
 
-std::filesystem::path find_rs274() {
-    for (const char* candidate : {"/usr/bin/rs274", "/usr/local/bin/rs274"}) {
-        if (std::filesystem::exists(candidate)) return candidate;
-    }
-    if (const char* path = std::getenv("PATH")) {
-        std::stringstream folders(path);
-        std::string folder;
-        while (std::getline(folders, folder, ':')) {
-            const auto candidate = std::filesystem::path(folder) / "rs274";
-            if (!folder.empty() && std::filesystem::exists(candidate)) return candidate;
-        }
-    }
-    return {};
-}
-
 struct Canonical {
     enum Kind { feed, dwell } kind;
     double value;  // target [mm] or dwell [s]
@@ -38,7 +23,7 @@ struct Canonical {
 };
 
 void check_plan_through_rs274(const feedid::TestPlan& plan) {
-    const auto rs274 = find_rs274();
+    const auto rs274 = feedid::testing::find_rs274();
     if (rs274.empty())
         GTEST_SKIP() << "LinuxCNC's rs274 interpreter not found (install Debian's linuxcnc-uspace: scripts/setup.sh "
                         "--extra); the .ngc check is skipped";
@@ -46,9 +31,7 @@ void check_plan_through_rs274(const feedid::TestPlan& plan) {
     const auto program = dir / "test.ngc";
     feedid::testing::write_text(program, feedid::emit_part_program(plan, feedid::Dialect::linuxcnc));
     // rs274 may look for its var file in the working directory: run it in ours.
-    const std::string command = "cd '" + dir.string() + "' && '" + rs274.string() + "' -g '" + program.string() +
-                                "' >out.txt 2>err.txt </dev/null";
-    const int status = std::system(command.c_str());
+    const int status = feedid::testing::run_rs274(rs274, program, dir);
     const auto out = feedid::testing::read_text(dir / "out.txt");
     const auto err = feedid::testing::read_text(dir / "err.txt");
     ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "rs274 failed:\n" << err << "\n" << out;

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <cstdlib>
@@ -43,6 +44,32 @@ inline std::filesystem::path temp_dir() {
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
     return dir;
+}
+
+/// LinuxCNC's rs274 interpreter (Debian's linuxcnc-uspace: /usr/bin/rs274, or on PATH); empty when absent.
+inline std::filesystem::path find_rs274() {
+    for (const char* candidate : {"/usr/bin/rs274", "/usr/local/bin/rs274"}) {
+        if (std::filesystem::exists(candidate)) return candidate;
+    }
+    if (const char* path = std::getenv("PATH")) {
+        std::string folders(path);
+        for (std::size_t start = 0, end; start <= folders.size(); start = end + 1) {
+            end = std::min(folders.find(':', start), folders.size());
+            const auto candidate = std::filesystem::path(folders.substr(start, end - start)) / "rs274";
+            if (end > start && std::filesystem::exists(candidate)) return candidate;
+        }
+    }
+    return {};
+}
+
+/// Runs `rs274 -g PROGRAM` in `dir` (out.txt, err.txt there) and returns its wait status. HOME is `dir` too: rs274
+/// maps its tool table at $HOME/.tool.mmap, truncated by every run, so two at once in one HOME kill each other with
+/// a bus error (ctest runs tests in parallel processes).
+inline int run_rs274(const std::filesystem::path& rs274, const std::filesystem::path& program,
+                     const std::filesystem::path& dir) {
+    const std::string command = "cd '" + dir.string() + "' && HOME='" + dir.string() + "' '" + rs274.string() +
+                                "' -g '" + program.string() + "' >out.txt 2>err.txt </dev/null";
+    return std::system(command.c_str());
 }
 
 /// A folder for files a test suite shares between its tests, of this process only: ctest runs each test in its own

@@ -7,7 +7,9 @@
 
 #include "cli.hpp"
 #include "feedid/error.hpp"
+#include "feedid/gcode_reader.hpp"
 #include "feedid/io/csv.hpp"
+#include "feedid/production.hpp"
 #include "feedid/synth.hpp"
 
 namespace feedid::cli {
@@ -72,8 +74,43 @@ struct SynthCommand {
     bool print_drive{false};
     bool rotary{false};
     std::string preset;
+    std::string program_path;
+    std::string machine_path;
+    std::optional<double> cutting_force;
+
+    // --program: the machine runs a part program; one multi-axis trace.
+    int run_program() const {
+        require_separate_outputs({{"--out", out_path}},
+                                 {{"the --program file", program_path}, {"the --machine file", machine_path}});
+        for (const auto& [given, option] :
+             {std::pair{!drive_path.empty(), "--drive"}, std::pair{!reference_path.empty(), "--reference"},
+              std::pair{!injection.empty(), "--injection"}, std::pair{no_slow_passes, "--no-slow-passes"},
+              std::pair{print_drive, "--print-drive"}, std::pair{rotary, "--rotary"},
+              std::pair{!preset.empty(), "--preset"}}) {
+            if (given)
+                throw InputError(
+                    fmt::format("synth --program: {} does not apply (give the drives in --machine)", option));
+        }
+        if (out_path.empty()) throw InputError("synth: --out FILE is required (where to write the trace)");
+        const MachineSpec machine = machine_path.empty() ? default_machine() : read_machine(machine_path);
+        ProductionOptions options;
+        if (seed) options.seed = *seed;
+        if (cutting_force) options.cutting_force_fraction = *cutting_force;
+        if (auto problem = options.validate(); !problem.empty()) throw InputError("--cutting-force: " + problem);
+        const GcodeProgram program = read_gcode_file(program_path);
+        for (const auto& note : program.notes) fmt::print(stderr, "feedid: {}\n", note);
+        const Trace trace = synthesize_production(program, machine, options);
+        write_output(out_path, write_csv(trace));
+        const auto base = trace.time_base();
+        fmt::print(stderr, "feedid: wrote {} ({} samples, {:.4g} s at {:.4g} ms; axes X, Y, Z; seed {})\n", out_path,
+                   trace.samples(), base.duration_s, base.sample_time_s * 1e3, options.seed);
+        return 0;
+    }
 
     int run() const {
+        if (!program_path.empty()) return run_program();
+        if (!machine_path.empty() || cutting_force)
+            throw InputError("synth: --machine and --cutting-force go with --program (a part program to run)");
         require_separate_outputs({{"--out", out_path}},
                                  {{"the --drive file", drive_path}, {"the --reference file", reference_path}});
         SynthSpec spec = rotary ? rotary_demo_spec() : demo_spec();
@@ -127,6 +164,16 @@ Action add_synth_command(CLI::App& app) {
                     "300 N for the first half of each period, 0 N for the second), logged as the channel 'injection' "
                     "in the drive signal's unit (A; N or N*m with --preset sinumerik's torque); read it back with "
                     "--channel injection=injection");
+    sub->add_option("--program", command->program_path,
+                    "Run a LinuxCNC part program (G-code) on a 3-axis machine instead of the test: one trace with "
+                    "t, X_x_ref, X_x, X_i, Y_..., Z_..., spindle_load [%], spindle_speed [rpm]; cutting forces act on "
+                    "cutting moves");
+    sub->add_option("--machine", command->machine_path,
+                    "With --program: the machine file (JSON or TOML: limits, per-axis drives, cutting; see the "
+                    "README); default: the built-in machining centre");
+    sub->add_option("--cutting-force", command->cutting_force,
+                    "With --program: the peak cutting force as a fraction of the drive force (default 0.3; 0 = no "
+                    "cutting force)");
     sub->add_flag("--no-slow-passes", command->no_slow_passes,
                   "Leave out the slow passes: the paper's feedrate ladder (1250..9350 mm/min) alone");
     sub->add_flag("--print-drive", command->print_drive, "Print the drive file in use (every key) as JSON");
@@ -163,6 +210,8 @@ Action add_synth_command(CLI::App& app) {
         "      tn_ms = 15.0\n"
         "  feedid identify synth.csv --force-constant force_constant_N_per_A\n"
         "  feedid synth --rotary --preset sinumerik --out rotary.csv      # deg, rpm, N*m; 2 ms and 4 ms signals\n"
+        "  feedid synth --program examples/programs/pocket.ngc --seed 3 --out pocket.csv\n"
+        "  feedid identify pocket.csv --axis X --force-constant X_force_constant_N_per_A\n"
         "  feedid identify rotary.csv");
     return [command] { return command->run(); };
 }

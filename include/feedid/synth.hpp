@@ -126,6 +126,8 @@ Trace in_recording_units(const Trace& trace, const RecordingModel& recording);
 /// Reads a drive file (JSON; see `feedid synth --help` and the README for the keys); unspecified fields keep the
 /// demo values. InputError naming `source` and the key on a bad value.
 SynthSpec spec_from_json(const nlohmann::json& document, const std::string& source);
+/// The same starting from `base` instead of the demo (a machine file's axis over the machine's default drive).
+SynthSpec spec_from_json(const nlohmann::json& document, const std::string& source, const SynthSpec& base);
 /// The same from TOML text (the same keys; tables for the sections). InputError with the line on a syntax error.
 SynthSpec spec_from_toml(std::string_view text, const std::string& source);
 /// Reads a drive file: TOML when the name ends in .toml, JSON otherwise.

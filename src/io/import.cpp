@@ -68,8 +68,11 @@ bool is_common_name(std::string_view key) {
 }
 
 // The CNC axis prefix of a channel name, as drive and NC logs write it: letters then digits, then '_'
-// ("X1_ActualPosition" -> "X1"); "" when there is none.
+// ("X1_ActualPosition" -> "X1"), or one capital axis letter then '_' ("X_x_ref", as feedid synth --program writes;
+// lower-case "x_ref" stays a name of its own); "" when there is none.
 std::string_view axis_prefix(std::string_view name) {
+    if (name.size() > 2 && name[1] == '_' && std::string_view("XYZABCUVW").find(name[0]) != std::string_view::npos)
+        return name.substr(0, 1);
     std::size_t k = 0;
     while (k < name.size() && std::isalpha(static_cast<unsigned char>(name[k]))) ++k;
     const std::size_t letters = k;

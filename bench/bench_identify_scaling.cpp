@@ -1,0 +1,125 @@
+// identify's memory and time against the trace's length (issue 14: at most ~100 bytes per sample end to end, time
+// within 10 % of linear from 1M to 16M samples). Each measurement runs in a child process of its own, so that its
+// peak resident set (wait4's ru_maxrss) is identify's alone: the child builds the trace's three columns (time,
+// position, current: bench_stages' drive, sinusoidal strokes at nine speeds, 1 kHz, 50 nm encoder), imports them as
+// the Python module does, runs identify with its default options (the preprocessing family included) and reports
+// identify's wall time through a pipe. Counters: bytes per sample (peak resident set over samples, the columns
+// included) and seconds per million samples.
+#include <benchmark/benchmark.h>
+
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <numbers>
+#include <vector>
+
+#include "feedid/identify.hpp"
+#include "feedid/io/import.hpp"
+
+namespace {
+
+feedid::Trace make_trace(std::size_t samples) {
+    std::vector<double> time(samples), position(samples), current(samples);
+    const double dt = 1e-3;
+    const double feeds[] = {0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2};
+    double x = 0.0;
+    std::uint32_t state = 12345;
+    for (std::size_t k = 0; k < samples; ++k) {
+        const double t = static_cast<double>(k) * dt;
+        const double feed = feeds[(k / 10000) % 9];
+        const double w = 2.0 * std::numbers::pi / 2.0;
+        const double v = feed * std::sin(w * t), a = feed * w * std::cos(w * t);
+        x += v * dt;
+        const double speed = std::abs(v);
+        const double friction = speed > 0 ? 54.0 * speed + 740.0 + 200.0 * std::exp(-speed / 0.005) : 0.0;
+        state = state * 1664525u + 1013904223u;
+        time[k] = t;
+        position[k] = 50e-9 * std::round(x / 50e-9);
+        current[k] = (69.0 * a + std::copysign(friction, v)) / 450.0 +
+                     (static_cast<double>(state >> 8) / 16777216.0 - 0.5) * 0.02;
+    }
+    feedid::Trace trace;
+    // moved in: the trace holds the only copy of each column, as the Python module's import does
+    trace.set("time", feedid::Role::other, "", std::move(time));
+    trace.set("position", feedid::Role::other, "", std::move(position));
+    trace.set("current", feedid::Role::other, "", std::move(current));
+    feedid::ImportOptions options;
+    options.channels = {
+        {feedid::Role::time, "time"}, {feedid::Role::position, "position"}, {feedid::Role::current, "current"}};
+    feedid::prepare_trace(trace, options);
+    return trace;
+}
+
+struct ChildFigures {
+    double identify_s{0.0};
+    long peak_kB{0};
+    bool ok{false};
+};
+
+// identify on `samples` in a child process; its wall time and the child's peak resident set.
+ChildFigures run_in_child(std::size_t samples, unsigned threads) {
+    int fds[2];
+    if (pipe(fds) != 0) return {};
+    const pid_t pid = fork();
+    if (pid == 0) {
+        close(fds[0]);
+        const feedid::Trace trace = make_trace(samples);
+        feedid::IdentifyOptions options;
+        options.drive.force_constant = 450.0;
+        options.threads = threads;
+        const auto start = std::chrono::steady_clock::now();
+        const auto result = feedid::identify(trace, options);
+        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        benchmark::DoNotOptimize(result.parameters.data());
+        const ssize_t written = write(fds[1], &seconds, sizeof seconds);
+        _exit(written == sizeof seconds ? 0 : 1);
+    }
+    close(fds[1]);
+    ChildFigures figures;
+    const ssize_t got = read(fds[0], &figures.identify_s, sizeof figures.identify_s);
+    close(fds[0]);
+    int status = 0;
+    rusage usage{};
+    wait4(pid, &status, 0, &usage);
+    figures.peak_kB = usage.ru_maxrss;
+    figures.ok = got == sizeof figures.identify_s && WIFEXITED(status) && WEXITSTATUS(status) == 0;
+    return figures;
+}
+
+void BM_IdentifyScaling(benchmark::State& state) {
+    const auto samples = static_cast<std::size_t>(state.range(0));
+    ChildFigures last;
+    double seconds = 0.0;
+    for (auto _ : state) {
+        last = run_in_child(samples, static_cast<unsigned>(state.range(1)));
+        if (!last.ok) {
+            state.SkipWithError("the child process failed");
+            return;
+        }
+        state.SetIterationTime(last.identify_s);
+        seconds += last.identify_s;
+    }
+    const double n = static_cast<double>(samples);
+    state.counters["bytes_per_sample"] = static_cast<double>(last.peak_kB) * 1024.0 / n;
+    state.counters["peak_MB"] = static_cast<double>(last.peak_kB) / 1024.0;
+    state.counters["s_per_M_samples"] = seconds / static_cast<double>(state.iterations()) / (n / 1e6);
+}
+BENCHMARK(BM_IdentifyScaling)
+    ->ArgNames({"samples", "threads"})
+    ->Args({1'000'000, 0})
+    ->Args({4'000'000, 0})
+    ->Args({16'000'000, 0})
+    ->Args({1'000'000, 1})
+    ->Args({16'000'000, 1})
+    ->UseManualTime()
+    ->Iterations(2)
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();
