@@ -1,0 +1,337 @@
+// feedid watch against a real mosquitto (issue 16's acceptance, scaled to two cores; see the README): machines x 3
+// axes of synthetic production traces replayed by feedid publish at 20x real time, the broker stopped and started
+// again mid-run, malformed messages interleaved; a drift scenario through the history; bad configurations.
+// Skipped with a message where /usr/sbin/mosquitto or libmosquitto is absent.
+#ifdef FEEDID_HAVE_MQTT
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <fmt/core.h>
+#include <gtest/gtest.h>
+
+#include "feedid/drive.hpp"
+#include "feedid/io/import.hpp"
+#include "feedid/online.hpp"
+#include "feedid/watch/payload.hpp"
+#include "mqtt_testing.hpp"
+
+namespace feedid::testing {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+const fs::path programs = fs::path(FEEDID_TEST_SOURCE_DIR) / ".." / "examples" / "programs";
+const std::vector<std::string> axes = {"X", "Y", "Z"};
+
+bool have_mosquitto() {
+    return fs::exists(mosquitto_path);
+}
+
+struct Library {
+    Library() { mosquitto_lib_init(); }
+    ~Library() { mosquitto_lib_cleanup(); }
+};
+
+template <typename Predicate>
+bool wait_until(Predicate predicate, double seconds) {
+    const auto end = Clock::now() + std::chrono::milliseconds(static_cast<int>(seconds * 1000));
+    while (Clock::now() < end) {
+        if (predicate()) return true;
+        std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return predicate();
+}
+
+/// What a clean, uninterrupted stream of the axis gives: the CSV read as publish reads it, straight into an
+/// identifier.
+OnlineEstimate direct_estimate(const fs::path& csv, const std::string& axis) {
+    ImportOptions options;
+    options.axis = axis;
+    const Trace trace = read_trace(csv, options);
+    DriveConstants drive;
+    drive.force_constant = trace.constants.at(axis + "_force_constant_N_per_A");
+    const auto force = drive_force(trace, drive);
+    OnlineIdentifier online({});
+    online.push(trace.column(Role::time), trace.column(Role::position), force);
+    online.flush();
+    return online.estimate();
+}
+
+/// Malformed payloads of the kinds the issue names, cycling: bad JSON, wrong units, NaN, huge arrays, wrong types.
+std::string malformed(std::size_t k) {
+    const std::string units = R"("units": {"position": "mm", "current": "A"})";
+    switch (k % 8) {
+        case 0: return "{\"t0\": 1, \"dt\": 0.001, \"position\": [1, 2";  // cut off
+        case 1:
+            return R"({"t0": 1, "dt": 0.001, "position": [1], "current": [1], "units": {"position": "kg", "current": "A"}})";
+        case 2: return R"({"t0": 1, "dt": 0.001, "position": [NaN], "current": [1], )" + units + "}";
+        case 3: {
+            watch::Batch b;
+            b.t0 = 1;
+            b.dt = 0.001;
+            b.position = {1.0, std::numeric_limits<double>::quiet_NaN()};
+            b.drive = {1.0, 2.0};
+            b.force_constant = 10.0;
+            return watch::encode_binary(b);
+        }
+        case 4: return R"({"t0": 1, "dt": 0.001, "position": "1", "current": [1], )" + units + "}";
+        case 5: return R"({"t0": [1], "dt": 0.001, "position": [1], "current": [1], )" + units + "}";
+        case 6: {
+            if (k % 80 != 6) return R"({"t0": 1, "dt": 0.001, "position": [1], "current": [true], )" + units + "}";
+            std::string huge = R"({"t0": 1, "dt": 0.001, "current": [1], )" + units + R"(, "position": [0)";
+            for (int i = 0; i < 1'000'000; ++i) huge += ",0";
+            return huge + "]}";
+        }
+        default: return "\x01\x02 not a batch";
+    }
+}
+
+struct Relative {
+    double mass, viscous, coulomb;
+};
+
+TEST(WatchMqtt, MachinesTimesThreeAxesAt20xSurviveABrokerRestartAndAThousandMalformedMessages) {
+    if (!have_mosquitto()) GTEST_SKIP() << "no " << mosquitto_path << " (apt install mosquitto)";
+    Library library;
+    const auto dir = temp_dir();
+    const int port = free_port();
+    Broker broker(dir, port);
+    ASSERT_TRUE(broker_answers(port)) << read_text(dir / "mosquitto.err");
+    constexpr int machines = 10;
+    const std::vector<std::string> names = {"pocket.ngc", "contour.ngc", "drilling.ngc"};
+    for (int m = 1; m <= machines; ++m) {
+        const auto program = programs / names[static_cast<std::size_t>(m - 1) % names.size()];
+        const auto synth = run_cli(fmt::format("synth --program '{}' --seed {} --out '{}'", program.string(), m,
+                                               (dir / fmt::format("M{}.csv", m)).string()));
+        ASSERT_EQ(synth.exit_code, 0) << synth.err;
+    }
+    write_text(dir / "watch.toml", "[service]\nestimate_interval_s = 0.5\n");
+    Listener listener(port);
+    Process watch({FEEDID_CLI, "watch", "--broker", broker.url(), "--config", (dir / "watch.toml").string()},
+                  dir / "watch.out", dir / "watch.err");
+    const auto online_count = [&] {
+        std::size_t n = 0;
+        for (const auto& s : listener.status()) n += s == "online";
+        return n;
+    };
+    ASSERT_TRUE(wait_until([&] { return online_count() >= 1; }, 10)) << read_text(dir / "watch.err");
+    std::vector<Process> publishers;
+    for (int m = 1; m <= machines; ++m) {
+        for (const auto& axis : axes) {
+            std::vector<std::string> arguments = {FEEDID_CLI,
+                                                  "publish",
+                                                  (dir / fmt::format("M{}.csv", m)).string(),
+                                                  "--axis",
+                                                  axis,
+                                                  "--force-constant",
+                                                  axis + "_force_constant_N_per_A",
+                                                  "--broker",
+                                                  broker.url(),
+                                                  "--topic",
+                                                  fmt::format("plant/M{}/{}/axis", m, axis),
+                                                  "--rate",
+                                                  "20x",
+                                                  "--batch",
+                                                  "0.25",
+                                                  "--qos",
+                                                  "1"};
+            if (m % 2 == 0) arguments.push_back("--binary");
+            publishers.emplace_back(arguments, dir / fmt::format("publish_M{}_{}.out", m, axis),
+                                    dir / fmt::format("publish_M{}_{}.err", m, axis));
+        }
+    }
+    Sender sender(port);
+    std::size_t sent = 0;
+    const auto send_malformed = [&](std::size_t count) {
+        for (std::size_t i = 0; i < count; ++i, ++sent) {
+            const std::string topic = fmt::format("plant/M{}/{}/axis", 1 + sent % machines, axes[sent % 3]);
+            ASSERT_TRUE(sender.send(topic, malformed(sent)));
+            std::this_thread::sleep_for(std::chrono::milliseconds(2));
+        }
+    };
+    send_malformed(500);
+    // the broker goes away mid-run and comes back on the same port
+    EXPECT_EQ(broker.stop(), 0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    broker.start();
+    ASSERT_TRUE(broker_answers(port));
+    EXPECT_TRUE(wait_until([&] { return online_count() >= 2; }, 40)) << "feedid watch did not reconnect";
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the test's own clients reconnect too
+    send_malformed(500);
+    for (auto& p : publishers) EXPECT_EQ(p.wait(), 0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+    EXPECT_EQ(watch.terminate(), 0) << read_text(dir / "watch.err");  // SIGTERM: flush, publish, exit 0
+    ASSERT_TRUE(wait_until([&] { return !listener.status().empty() && listener.status().back() == "offline"; }, 5));
+    const std::string watch_err = read_text(dir / "watch.err");
+    std::cout << watch_err;
+    // every malformed message counted and reported on the error topic
+    EXPECT_NE(watch_err.find("1000 malformed"), std::string::npos) << watch_err;
+    EXPECT_EQ(listener.errors().size(), 1000u);
+    // every axis's estimate: the truth within the production-traces tolerances, and the uninterrupted stream's
+    // estimate within one standard error
+    const auto estimates = listener.estimates();
+    EXPECT_EQ(estimates.size(), 3u * machines);
+    std::size_t within_sigma = 0, compared = 0;
+    for (int m = 1; m <= machines; ++m) {
+        const fs::path csv = dir / fmt::format("M{}.csv", m);
+        for (const auto& axis : axes) {
+            const std::string topic = fmt::format("plant/M{}/{}/feedid/estimate", m, axis);
+            ASSERT_TRUE(estimates.count(topic)) << topic;
+            const auto& p = estimates.at(topic)["parameters"];
+            ImportOptions options;
+            options.axis = axis;
+            const auto constants = read_trace(csv, options).constants;
+            const OnlineEstimate clean = direct_estimate(csv, axis);
+            const auto check = [&](const char* key, const char* truth_key, double tolerance,
+                                   const Estimate& reference) {
+                ASSERT_TRUE(p[key]["value"].is_number()) << topic << " " << key;
+                const double value = p[key]["value"].get<double>();
+                const double truth = constants.at(axis + "_" + truth_key);
+                EXPECT_LT(std::abs(value - truth), tolerance * std::abs(truth))
+                    << topic << " " << key << " " << value << " truth " << truth;
+                if (reference.value && reference.standard_error) {
+                    ++compared;
+                    within_sigma += std::abs(value - *reference.value) <= *reference.standard_error;
+                }
+            };
+            check("mass_kg", "true_mass_kg", 0.03, clean.mass);
+            check("viscous_Ns_per_m", "true_viscous_forward_Ns_per_m", 0.10, clean.viscous);
+            check("coulomb_N", "true_coulomb_forward_N", 0.03, clean.coulomb);
+        }
+    }
+    std::cout << fmt::format("{} of {} parameters within 1 sigma of the uninterrupted stream's\n", within_sigma,
+                             compared);
+    EXPECT_EQ(within_sigma, compared);
+}
+
+// Coulomb friction of X constant for 10 simulated days, then rising 1 % a day (as tests/test_history_drift.cpp's
+// runs): each day's recording is one completed identification (the day's pause ends it), recorded in the history;
+// the alarm must come where the history test allows it (run 11 to 16) and only on X.
+TEST(WatchMqtt, DriftingCoulombFrictionAlarmsOnThatAxisOnly) {
+    if (!have_mosquitto()) GTEST_SKIP() << "no " << mosquitto_path << " (apt install mosquitto)";
+    Library library;
+    const auto dir = temp_dir();
+    const int port = free_port();
+    Broker broker(dir, port);
+    ASSERT_TRUE(broker_answers(port));
+    constexpr int days = 20;
+    constexpr double coulomb_X = 210.0;  // production.hpp's default machine
+    write_text(dir / "watch.toml", "[run]\ngap_s = 600\n[service]\nestimate_interval_s = 0.5\n");
+    Listener listener(port);
+    Process watch({FEEDID_CLI, "watch", "--broker", broker.url(), "--config", (dir / "watch.toml").string(), "--db",
+                   (dir / "history.db").string(), "--quiet"},
+                  dir / "watch.out", dir / "watch.err");
+    ASSERT_TRUE(wait_until([&] { return !listener.status().empty(); }, 10)) << read_text(dir / "watch.err");
+    for (int day = 1; day <= days + 1; ++day) {  // day 21's recording ends day 20's run
+        const double coulomb = coulomb_X * (1.0 + 0.01 * std::max(0, day - 10));
+        write_text(
+            dir / "machine.json",
+            fmt::format(R"({{"axes": {{"X": {{"axis": {{"coulomb_forward_N": {0}, "coulomb_reverse_N": {0}}}}}}}}})",
+                        coulomb));
+        const auto trace = dir / fmt::format("day{}.csv", day);
+        const auto synth = run_cli(fmt::format("synth --program '{}' --machine '{}' --seed {} --out '{}'",
+                                               (programs / "pocket.ngc").string(), (dir / "machine.json").string(),
+                                               100 + day, trace.string()));
+        ASSERT_EQ(synth.exit_code, 0) << synth.err;
+        std::vector<Process> publishers;
+        for (const auto& axis : axes) {
+            publishers.emplace_back(std::vector<std::string>{FEEDID_CLI,
+                                                             "publish",
+                                                             trace.string(),
+                                                             "--axis",
+                                                             axis,
+                                                             "--force-constant",
+                                                             axis + "_force_constant_N_per_A",
+                                                             "--broker",
+                                                             broker.url(),
+                                                             "--topic",
+                                                             "plant/M1/" + axis + "/axis",
+                                                             "--rate",
+                                                             "max",
+                                                             "--batch",
+                                                             "1",
+                                                             "--binary",
+                                                             "--qos",
+                                                             "1",
+                                                             "--time-offset",
+                                                             std::to_string(86400 * day)},
+                                    dir / ("publish_" + axis + ".out"), dir / ("publish_" + axis + ".err"));
+        }
+        for (auto& p : publishers) ASSERT_EQ(p.wait(), 0) << read_text(dir / "publish_X.err");
+        fs::remove(trace);
+    }
+    ASSERT_TRUE(wait_until([&] { return listener.runs().size() >= 3u * days; }, 120))
+        << listener.runs().size() << " runs recorded\n"
+        << read_text(dir / "watch.err");
+    EXPECT_EQ(watch.terminate(), 0);
+    // the runs of X in order: the day of a run is its place in that list
+    std::vector<std::int64_t> x_runs;
+    for (const auto& run : listener.runs())
+        if (run["result"]["trace"]["path"].get<std::string>().find("/M1/X#") != std::string::npos)
+            x_runs.push_back(run["run"].get<std::int64_t>());
+    ASSERT_EQ(x_runs.size(), static_cast<std::size_t>(days));
+    int first_alarm_day = 0;
+    for (const auto& alarm : listener.alarms()) {
+        EXPECT_EQ(alarm["axis"], "X") << alarm.dump();
+        EXPECT_EQ(alarm["parameter"], "coulomb_N") << alarm.dump();
+        EXPECT_EQ(alarm["direction"], "up") << alarm.dump();
+        const auto at = std::find(x_runs.begin(), x_runs.end(), alarm["run"].get<std::int64_t>());
+        const int day = static_cast<int>(at - x_runs.begin()) + 1;
+        if (first_alarm_day == 0 || day < first_alarm_day) first_alarm_day = day;
+    }
+    std::cout << fmt::format("first alarm on day {}; {} alarm message(s)\n", first_alarm_day, listener.alarms().size());
+    EXPECT_GE(first_alarm_day, 11);
+    EXPECT_LE(first_alarm_day, 16) << "no alarm by day 16";
+    // the history holds what was published, and its own check agrees
+    const auto check = run_cli("history '" + (dir / "history.db").string() + "' --check");
+    EXPECT_EQ(check.exit_code, 1) << check.out << check.err;
+    EXPECT_NE(check.out.find("axis 'X' parameter coulomb_N"), std::string::npos) << check.out;
+    EXPECT_EQ(check.out.find("axis 'Y'"), std::string::npos) << check.out;
+    EXPECT_EQ(check.out.find("axis 'Z'"), std::string::npos) << check.out;
+}
+
+TEST(WatchMqtt, BadConfigurationIsExit2WithOneLineNamingIt) {
+    const auto dir = temp_dir();
+    const int nobody = free_port();  // nothing listens there
+    const auto unreachable = run_cli(fmt::format("watch --broker mqtt://127.0.0.1:{}", nobody));
+    EXPECT_EQ(unreachable.exit_code, 2);
+    EXPECT_NE(unreachable.err.find(fmt::format("cannot reach the MQTT broker at mqtt://127.0.0.1:{}", nobody)),
+              std::string::npos)
+        << unreachable.err;
+    EXPECT_EQ(count_lines(unreachable.err), 1) << unreachable.err;
+    const auto filter = run_cli(fmt::format("watch --broker mqtt://127.0.0.1:{} --topic 'plant/#/x'", nobody));
+    EXPECT_EQ(filter.exit_code, 2);
+    EXPECT_NE(filter.err.find("--topic 'plant/#/x'"), std::string::npos) << filter.err;
+    EXPECT_EQ(count_lines(filter.err), 1) << filter.err;
+    const auto database = run_cli(fmt::format("watch --broker mqtt://127.0.0.1:{} --db /proc/feedid-watch.db", nobody));
+    EXPECT_EQ(database.exit_code, 2);
+    EXPECT_NE(database.err.find("/proc/feedid-watch.db"), std::string::npos) << database.err;
+    EXPECT_EQ(count_lines(database.err), 1) << database.err;
+    write_text(dir / "watch.toml", "[run]\nwindowz = 3\n");
+    const auto config =
+        run_cli(fmt::format("watch --broker mqtt://127.0.0.1:{} --config '{}'", nobody, (dir / "watch.toml").string()));
+    EXPECT_EQ(config.exit_code, 2);
+    EXPECT_NE(config.err.find("unknown key 'windowz' in [run]"), std::string::npos) << config.err;
+    const auto url = run_cli("watch --broker http://127.0.0.1:1883");
+    EXPECT_EQ(url.exit_code, 2);
+    EXPECT_NE(url.err.find("--broker 'http://127.0.0.1:1883'"), std::string::npos) << url.err;
+    const auto publish =
+        run_cli(fmt::format("publish /nonexistent.csv --broker mqtt://127.0.0.1:{} --topic plant/M1/X/axis", nobody));
+    EXPECT_EQ(publish.exit_code, 2);
+}
+
+}  // namespace
+}  // namespace feedid::testing
+
+#else
+#include <gtest/gtest.h>
+TEST(WatchMqtt, Skipped) {
+    GTEST_SKIP() << "feedid was built without libmosquitto (apt install libmosquitto-dev)";
+}
+#endif
