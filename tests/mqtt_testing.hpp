@@ -11,6 +11,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <map>
@@ -65,6 +66,13 @@ public:
     Process(const Process&) = delete;
     Process& operator=(const Process&) = delete;
     Process(Process&& other) noexcept : pid_(std::exchange(other.pid_, -1)) {}
+    Process& operator=(Process&& other) noexcept {
+        if (this != &other) {
+            if (pid_ > 0) terminate();
+            pid_ = std::exchange(other.pid_, -1);
+        }
+        return *this;
+    }
     ~Process() {
         if (pid_ > 0) {
             ::kill(pid_, SIGKILL);
@@ -97,13 +105,15 @@ inline bool broker_answers(int port) {
     return ok;
 }
 
-/// A mosquitto of the test's own.
+/// A mosquitto of the test's own. `persistent`: it saves sessions and queued messages in the test's folder when
+/// stopped and loads them when started (as a production broker does), else it forgets them.
 class Broker {
 public:
-    Broker(const std::filesystem::path& dir, int port) : dir_(dir), port_(port) {
-        write_text(dir / "mosquitto.conf", "listener " + std::to_string(port) +
-                                               " 127.0.0.1\nallow_anonymous true\npersistence false\n"
-                                               "max_queued_messages 100000\n");
+    Broker(const std::filesystem::path& dir, int port, bool persistent = false) : dir_(dir), port_(port) {
+        const std::string persistence =
+            persistent ? "persistence true\npersistence_location " + dir.string() + "/\n" : "persistence false\n";
+        write_text(dir / "mosquitto.conf", "listener " + std::to_string(port) + " 127.0.0.1\nallow_anonymous true\n" +
+                                               persistence + "max_queued_messages 100000\n");
         start();
     }
     void start() {
@@ -127,8 +137,9 @@ class Listener {
 public:
     explicit Listener(int port) {
         client_ = mosquitto_new(nullptr, true, this);
-        mosquitto_connect_callback_set(client_, [](mosquitto* c, void*, int code) {
+        mosquitto_connect_callback_set(client_, [](mosquitto* c, void* self, int code) {
             if (code == 0) mosquitto_subscribe(c, nullptr, "plant/#", 1);
+            if (code == 0) ++static_cast<Listener*>(self)->connections_;
         });
         mosquitto_message_callback_set(
             client_, [](mosquitto*, void* self, const mosquitto_message* m) { static_cast<Listener*>(self)->keep(m); });
@@ -160,6 +171,8 @@ public:
         std::lock_guard lock(mutex_);
         return runs_;
     }
+    /// Connections made (a reconnect after a broker restart counts).
+    [[nodiscard]] std::size_t connections() const { return connections_; }
     std::vector<std::string> status() {
         std::lock_guard lock(mutex_);
         return status_;
@@ -186,6 +199,7 @@ private:
     }
 
     mosquitto* client_{nullptr};
+    std::atomic<std::size_t> connections_{0};
     std::mutex mutex_;
     std::map<std::string, nlohmann::json> estimates_;
     std::vector<nlohmann::json> errors_, alarms_, runs_;

@@ -15,10 +15,13 @@
 #include <gtest/gtest.h>
 
 #include "feedid/drive.hpp"
+#include "feedid/io/csv.hpp"
 #include "feedid/io/import.hpp"
 #include "feedid/online.hpp"
+#include "feedid/synth.hpp"
 #include "feedid/watch/payload.hpp"
 #include "mqtt_testing.hpp"
+#include "production_traces.hpp"
 
 namespace feedid::testing {
 namespace {
@@ -26,7 +29,6 @@ namespace {
 namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
-const fs::path programs = fs::path(FEEDID_TEST_SOURCE_DIR) / ".." / "examples" / "programs";
 const std::vector<std::string> axes = {"X", "Y", "Z"};
 
 bool have_mosquitto() {
@@ -48,14 +50,25 @@ bool wait_until(Predicate predicate, double seconds) {
     return predicate();
 }
 
+/// A production-like trace of the demo drive (production_traces.hpp: moves at many speeds, cutting forces on some)
+/// with its Coulomb friction scaled, written as an NC's CSV; the force constant to publish it with.
+double write_production_csv(const fs::path& path, std::uint64_t seed, double duration_s, double coulomb_factor = 1.0) {
+    ProductionOptions options;
+    options.duration_s = duration_s;
+    SynthSpec spec = demo_spec();
+    spec.seed = seed;
+    for (auto* branch : {&spec.axis.friction.forward, &spec.axis.friction.reverse}) branch->coulomb *= coulomb_factor;
+    const ProductionTrace p = production_trace(seed, options);
+    write_text(path, write_csv(synthesize(spec, p.reference, p.cutting_force)));
+    return spec.force_constant_N_per_A();
+}
+
 /// What a clean, uninterrupted stream of the axis gives: the CSV read as publish reads it, straight into an
 /// identifier.
-OnlineEstimate direct_estimate(const fs::path& csv, const std::string& axis) {
-    ImportOptions options;
-    options.axis = axis;
-    const Trace trace = read_trace(csv, options);
+OnlineEstimate direct_estimate(const fs::path& csv, double force_constant) {
+    const Trace trace = read_trace(csv);
     DriveConstants drive;
-    drive.force_constant = trace.constants.at(axis + "_force_constant_N_per_A");
+    drive.force_constant = force_constant;
     const auto force = drive_force(trace, drive);
     OnlineIdentifier online({});
     online.push(trace.column(Role::time), trace.column(Role::position), force);
@@ -101,19 +114,20 @@ TEST(WatchMqtt, MachinesTimesThreeAxesAt20xSurviveABrokerRestartAndAThousandMalf
     Library library;
     const auto dir = temp_dir();
     const int port = free_port();
-    Broker broker(dir, port);
+    Broker broker(dir, port, true);  // it keeps watch's session and queued messages over its restart
     ASSERT_TRUE(broker_answers(port)) << read_text(dir / "mosquitto.err");
     constexpr int machines = 10;
-    const std::vector<std::string> names = {"pocket.ngc", "contour.ngc", "drilling.ngc"};
-    for (int m = 1; m <= machines; ++m) {
-        const auto program = programs / names[static_cast<std::size_t>(m - 1) % names.size()];
-        const auto synth = run_cli(fmt::format("synth --program '{}' --seed {} --out '{}'", program.string(), m,
-                                               (dir / fmt::format("M{}.csv", m)).string()));
-        ASSERT_EQ(synth.exit_code, 0) << synth.err;
-    }
+    constexpr double duration_s = 240.0;  // as test_online's accuracy test: the tolerances were set for 4 minutes
+    std::map<std::string, double> force_constants;  // by "M<m>_<axis>"
+    for (int m = 1; m <= machines; ++m)
+        for (std::size_t a = 0; a < axes.size(); ++a) {
+            const std::string name = fmt::format("M{}_{}", m, axes[a]);
+            force_constants[name] = write_production_csv(dir / (name + ".csv"), 10 * m + a, duration_s);
+        }
     write_text(dir / "watch.toml", "[service]\nestimate_interval_s = 0.5\n");
     Listener listener(port);
-    Process watch({FEEDID_CLI, "watch", "--broker", broker.url(), "--config", (dir / "watch.toml").string()},
+    Process watch({FEEDID_CLI, "watch", "--broker", broker.url(), "--config", (dir / "watch.toml").string(),
+                   "--client-id", "feedid-watch-test"},
                   dir / "watch.out", dir / "watch.err");
     const auto online_count = [&] {
         std::size_t n = 0;
@@ -124,13 +138,12 @@ TEST(WatchMqtt, MachinesTimesThreeAxesAt20xSurviveABrokerRestartAndAThousandMalf
     std::vector<Process> publishers;
     for (int m = 1; m <= machines; ++m) {
         for (const auto& axis : axes) {
+            const std::string name = fmt::format("M{}_{}", m, axis);
             std::vector<std::string> arguments = {FEEDID_CLI,
                                                   "publish",
-                                                  (dir / fmt::format("M{}.csv", m)).string(),
-                                                  "--axis",
-                                                  axis,
+                                                  (dir / (name + ".csv")).string(),
                                                   "--force-constant",
-                                                  axis + "_force_constant_N_per_A",
+                                                  fmt::format("{:.17g}", force_constants.at(name)),
                                                   "--broker",
                                                   broker.url(),
                                                   "--topic",
@@ -151,20 +164,28 @@ TEST(WatchMqtt, MachinesTimesThreeAxesAt20xSurviveABrokerRestartAndAThousandMalf
     const auto send_malformed = [&](std::size_t count) {
         for (std::size_t i = 0; i < count; ++i, ++sent) {
             const std::string topic = fmt::format("plant/M{}/{}/axis", 1 + sent % machines, axes[sent % 3]);
-            ASSERT_TRUE(sender.send(topic, malformed(sent)));
+            // the sender's own client may still be reconnecting after the restart
+            ASSERT_TRUE(wait_until([&] { return sender.send(topic, malformed(sent)); }, 10));
             std::this_thread::sleep_for(std::chrono::milliseconds(2));
         }
     };
     send_malformed(500);
+    // their errors are out before the broker goes (published while it is away, they would be lost: QoS 0)
+    EXPECT_TRUE(wait_until([&] { return listener.errors().size() >= 500u; }, 30)) << listener.errors().size();
     // the broker goes away mid-run and comes back on the same port
     EXPECT_EQ(broker.stop(), 0);
     std::this_thread::sleep_for(std::chrono::milliseconds(300));
     broker.start();
     ASSERT_TRUE(broker_answers(port));
     EXPECT_TRUE(wait_until([&] { return online_count() >= 2; }, 40)) << "feedid watch did not reconnect";
-    std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the test's own clients reconnect too
+    EXPECT_TRUE(wait_until([&] { return listener.connections() >= 2; }, 40)) << "the listener did not reconnect";
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the sender reconnects too
     send_malformed(500);
     for (auto& p : publishers) EXPECT_EQ(p.wait(), 0);
+    const auto published = Clock::now();
+    wait_until([&] { return listener.errors().size() >= 1000u; }, 10);
+    std::cout << fmt::format("errors {} after {:.1f} s\n", listener.errors().size(),
+                             std::chrono::duration<double>(Clock::now() - published).count());
     std::this_thread::sleep_for(std::chrono::milliseconds(1500));
     EXPECT_EQ(watch.terminate(), 0) << read_text(dir / "watch.err");  // SIGTERM: flush, publish, exit 0
     ASSERT_TRUE(wait_until([&] { return !listener.status().empty() && listener.status().back() == "offline"; }, 5));
@@ -177,36 +198,53 @@ TEST(WatchMqtt, MachinesTimesThreeAxesAt20xSurviveABrokerRestartAndAThousandMalf
     // estimate within one standard error
     const auto estimates = listener.estimates();
     EXPECT_EQ(estimates.size(), 3u * machines);
-    std::size_t within_sigma = 0, compared = 0;
+    std::size_t within_sigma = 0, compared = 0, undetermined = 0, repeated = 0;
+    double largest_sigma = 0.0;
+    const AxisModel truth = demo_spec().axis;
     for (int m = 1; m <= machines; ++m) {
-        const fs::path csv = dir / fmt::format("M{}.csv", m);
         for (const auto& axis : axes) {
+            const std::string name = fmt::format("M{}_{}", m, axis);
             const std::string topic = fmt::format("plant/M{}/{}/feedid/estimate", m, axis);
             ASSERT_TRUE(estimates.count(topic)) << topic;
             const auto& p = estimates.at(topic)["parameters"];
-            ImportOptions options;
-            options.axis = axis;
-            const auto constants = read_trace(csv, options).constants;
-            const OnlineEstimate clean = direct_estimate(csv, axis);
-            const auto check = [&](const char* key, const char* truth_key, double tolerance,
-                                   const Estimate& reference) {
+            const OnlineEstimate clean = direct_estimate(dir / (name + ".csv"), force_constants.at(name));
+            // every sample identified once: none lost over the restart, none of the redelivered ones twice
+            EXPECT_EQ(estimates.at(topic)["stream"]["samples"].get<std::size_t>(), clean.samples) << topic;
+            repeated += estimates.at(topic)["stream"]["repeated_samples"].get<std::size_t>();
+            const auto check = [&](const char* key, double true_value, double tolerance, const Estimate& reference) {
+                if (!reference.standard_error) {
+                    // the identifier cannot say how good its value is on this stream (too few windows qualify):
+                    // the watch publishes null, with the reason
+                    ++undetermined;
+                    EXPECT_TRUE(p[key]["value"].is_null()) << topic << " " << key << " " << p[key].dump();
+                    EXPECT_FALSE(estimates.at(topic)["diagnostics"].empty()) << topic;
+                    return;
+                }
                 ASSERT_TRUE(p[key]["value"].is_number()) << topic << " " << key;
                 const double value = p[key]["value"].get<double>();
-                const double truth = constants.at(axis + "_" + truth_key);
-                EXPECT_LT(std::abs(value - truth), tolerance * std::abs(truth))
-                    << topic << " " << key << " " << value << " truth " << truth;
-                if (reference.value && reference.standard_error) {
-                    ++compared;
-                    within_sigma += std::abs(value - *reference.value) <= *reference.standard_error;
-                }
+                EXPECT_LT(std::abs(value - true_value), tolerance * std::abs(true_value))
+                    << topic << " " << key << " " << value << " truth " << true_value;
+                ++compared;
+                const bool within = std::abs(value - *reference.value) <= *reference.standard_error;
+                largest_sigma = std::max(largest_sigma, std::abs(value - *reference.value) / *reference.standard_error);
+                within_sigma += within;
+                if (!within)
+                    std::cout << fmt::format("{} {}: {} against {} ± {} uninterrupted ({:+.2f} sigma)\n", topic, key,
+                                             value, *reference.value, *reference.standard_error,
+                                             (value - *reference.value) / *reference.standard_error);
             };
-            check("mass_kg", "true_mass_kg", 0.03, clean.mass);
-            check("viscous_Ns_per_m", "true_viscous_forward_Ns_per_m", 0.10, clean.viscous);
-            check("coulomb_N", "true_coulomb_forward_N", 0.03, clean.coulomb);
+            // the tolerances of the production-traces issue (tests/test_online.cpp)
+            check("mass_kg", truth.mass, 0.03, clean.mass);
+            check("viscous_Ns_per_m", truth.friction.forward.viscous, 0.10, clean.viscous);
+            check("coulomb_N", truth.friction.forward.coulomb, 0.03, clean.coulomb);
         }
     }
-    std::cout << fmt::format("{} of {} parameters within 1 sigma of the uninterrupted stream's\n", within_sigma,
-                             compared);
+    std::cout << fmt::format(
+        "{} of {} parameters within 1 sigma of the uninterrupted stream's and within tolerance of the truth; {} that "
+        "the identifier cannot determine on its stream published as null; largest difference {:.2g} sigma; {} "
+        "redelivered samples skipped\n",
+        within_sigma, compared, undetermined, largest_sigma, repeated);
+    EXPECT_GE(compared, 3u * 3u * (machines - 1));
     EXPECT_EQ(within_sigma, compared);
 }
 
@@ -221,7 +259,7 @@ TEST(WatchMqtt, DriftingCoulombFrictionAlarmsOnThatAxisOnly) {
     Broker broker(dir, port);
     ASSERT_TRUE(broker_answers(port));
     constexpr int days = 20;
-    constexpr double coulomb_X = 210.0;  // production.hpp's default machine
+    constexpr double day_s = 120.0;  // stream time of each day's recording [s]
     write_text(dir / "watch.toml", "[run]\ngap_s = 600\n[service]\nestimate_interval_s = 0.5\n");
     Listener listener(port);
     Process watch({FEEDID_CLI, "watch", "--broker", broker.url(), "--config", (dir / "watch.toml").string(), "--db",
@@ -229,42 +267,20 @@ TEST(WatchMqtt, DriftingCoulombFrictionAlarmsOnThatAxisOnly) {
                   dir / "watch.out", dir / "watch.err");
     ASSERT_TRUE(wait_until([&] { return !listener.status().empty(); }, 10)) << read_text(dir / "watch.err");
     for (int day = 1; day <= days + 1; ++day) {  // day 21's recording ends day 20's run
-        const double coulomb = coulomb_X * (1.0 + 0.01 * std::max(0, day - 10));
-        write_text(
-            dir / "machine.json",
-            fmt::format(R"({{"axes": {{"X": {{"axis": {{"coulomb_forward_N": {0}, "coulomb_reverse_N": {0}}}}}}}}})",
-                        coulomb));
-        const auto trace = dir / fmt::format("day{}.csv", day);
-        const auto synth = run_cli(fmt::format("synth --program '{}' --machine '{}' --seed {} --out '{}'",
-                                               (programs / "pocket.ngc").string(), (dir / "machine.json").string(),
-                                               100 + day, trace.string()));
-        ASSERT_EQ(synth.exit_code, 0) << synth.err;
         std::vector<Process> publishers;
-        for (const auto& axis : axes) {
-            publishers.emplace_back(std::vector<std::string>{FEEDID_CLI,
-                                                             "publish",
-                                                             trace.string(),
-                                                             "--axis",
-                                                             axis,
-                                                             "--force-constant",
-                                                             axis + "_force_constant_N_per_A",
-                                                             "--broker",
-                                                             broker.url(),
-                                                             "--topic",
-                                                             "plant/M1/" + axis + "/axis",
-                                                             "--rate",
-                                                             "max",
-                                                             "--batch",
-                                                             "1",
-                                                             "--binary",
-                                                             "--qos",
-                                                             "1",
-                                                             "--time-offset",
-                                                             std::to_string(86400 * day)},
-                                    dir / ("publish_" + axis + ".out"), dir / ("publish_" + axis + ".err"));
+        for (std::size_t a = 0; a < axes.size(); ++a) {
+            const auto trace = dir / fmt::format("day{}_{}.csv", day, axes[a]);
+            const double factor = a == 0 ? 1.0 + 0.01 * std::max(0, day - 10) : 1.0;
+            const double force_constant = write_production_csv(trace, 1000 * day + a, day_s, factor);
+            publishers.emplace_back(
+                std::vector<std::string>{FEEDID_CLI, "publish", trace.string(), "--force-constant",
+                                         fmt::format("{:.17g}", force_constant), "--broker", broker.url(), "--topic",
+                                         "plant/M1/" + axes[a] + "/axis", "--rate", "max", "--batch", "1", "--binary",
+                                         "--qos", "1", "--time-offset", std::to_string(86400 * day)},
+                dir / ("publish_" + axes[a] + ".out"), dir / ("publish_" + axes[a] + ".err"));
         }
         for (auto& p : publishers) ASSERT_EQ(p.wait(), 0) << read_text(dir / "publish_X.err");
-        fs::remove(trace);
+        for (const auto& axis : axes) fs::remove(dir / fmt::format("day{}_{}.csv", day, axis));
     }
     ASSERT_TRUE(wait_until([&] { return listener.runs().size() >= 3u * days; }, 120))
         << listener.runs().size() << " runs recorded\n"

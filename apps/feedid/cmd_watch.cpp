@@ -180,7 +180,9 @@ Action add_watch_command(CLI::App& app) {
                     "max_samples");
     sub->add_option("--status-topic", command->options.status_topic,
                     "Where online/offline (the last will) goes (default: <first level>/feedid/status)");
-    sub->add_option("--client-id", command->options.client_id, "MQTT client id (default feedid-watch-PID)");
+    sub->add_option("--client-id", command->options.client_id,
+                    "MQTT client id: a persistent session under it (the broker keeps QoS 1 messages while watch is "
+                    "away); default feedid-watch-PID with a clean session");
     sub->add_option("--idle-exit", command->idle_exit_s,
                     "Stop as on SIGTERM after this many seconds without a message (tests, demos) [s]")
         ->check(allowed_range(0.01, 1e6, "s"));
@@ -202,6 +204,10 @@ Action add_publish_command(CLI::App& app) {
         ->check(allowed_range(1e-4, 60.0, "s"));
     sub->add_option("--duration", command->duration_s, "Publish only the first this many seconds of the trace [s]")
         ->check(allowed_range(1e-3, 1e9, "s"));
+    sub->add_option("--buffer", command->options.buffer_s,
+                    "Stream time held while the broker is away, sent when it is back [s]")
+        ->default_val(60.0)
+        ->check(allowed_range(0.0, 1e6, "s"));
     sub->add_flag("--binary", command->options.binary, "The binary payload (default JSON)");
     sub->add_option("--qos", command->options.qos, "MQTT QoS of the data messages")
         ->default_val(0)

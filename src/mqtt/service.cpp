@@ -106,10 +106,9 @@ std::string prefix_of(const std::string& topic, const std::string& machine, cons
     return machine.empty() ? first : first + "/" + machine + "/" + axis;
 }
 
-Client make_client(const std::string& client_id, void* user) {
-    Client client(mosquitto_new(client_id.c_str(), true, user));
+Client make_client(const std::string& client_id, void* user, bool clean_session = true) {
+    Client client(mosquitto_new(client_id.c_str(), clean_session, user));
     if (!client) throw InputError("cannot create an MQTT client (out of memory)");
-    mosquitto_reconnect_delay_set(client.get(), 1, 32, true);
     return client;
 }
 
@@ -258,6 +257,50 @@ private:
     std::unique_ptr<history::HistoryStore> store_;
 };
 
+/// Messages the broker did not take while it was away, held (at most `limit`; beyond, the oldest is dropped and
+/// counted) and sent in order once it is back: store and forward, as an NC's gateway does.
+class Outbox {
+public:
+    Outbox(mosquitto* client, const PublishOptions& options, std::size_t limit)
+        : client_(client), options_(options), limit_(limit) {}
+
+    void send(std::string payload) {
+        flush();
+        if (held_.empty() && publish(payload)) {
+            ++sent_;
+            return;
+        }
+        held_.push_back(std::move(payload));
+        ++held_total_;
+        if (held_.size() > limit_) {
+            held_.pop_front();
+            ++lost_;
+        }
+    }
+    /// Sends what is held; true when nothing is left.
+    bool flush() {
+        while (!held_.empty() && publish(held_.front())) {
+            held_.pop_front();
+            ++sent_;
+        }
+        return held_.empty();
+    }
+    [[nodiscard]] std::size_t sent() const { return sent_; }
+    [[nodiscard]] std::size_t lost() const { return lost_ + held_.size(); }
+    [[nodiscard]] std::size_t held_total() const { return held_total_; }
+
+private:
+    bool publish(const std::string& payload) {
+        return mosquitto_publish(client_, nullptr, options_.topic.c_str(), static_cast<int>(payload.size()),
+                                 payload.data(), options_.qos, false) == MOSQ_ERR_SUCCESS;
+    }
+    mosquitto* client_;
+    const PublishOptions& options_;
+    std::size_t limit_;
+    std::deque<std::string> held_;
+    std::size_t sent_{0}, lost_{0}, held_total_{0};
+};
+
 }  // namespace
 
 bool mqtt_available() {
@@ -276,7 +319,10 @@ int run_watch(const ServiceOptions& options) {
     shared.status_topic = !options.status_topic.empty()    ? options.status_topic
                           : (first == "+" || first == "#") ? std::string("feedid/status")
                                                            : first + "/feedid/status";
-    Client client = make_client(options.client_id.empty() ? default_client_id("watch") : options.client_id, &shared);
+    // a client id of the user's: a persistent session (the broker keeps QoS 1 messages while feedid watch is away)
+    Client client = make_client(options.client_id.empty() ? default_client_id("watch") : options.client_id, &shared,
+                                options.client_id.empty());
+    mosquitto_reconnect_delay_set(client.get(), 1, 32, true);  // 1, 2, 4, ... 32 s
     mosquitto_will_set(client.get(), shared.status_topic.c_str(), 7, "offline", 1, true);
     mosquitto_connect_callback_set(client.get(), on_connect);
     mosquitto_disconnect_callback_set(client.get(), on_disconnect);
@@ -334,6 +380,7 @@ int run_publish(const Batch& stream, const PublishOptions& options) {
     Library library;
     Shared shared;
     Client client = make_client(options.client_id.empty() ? default_client_id("publish") : options.client_id, &shared);
+    mosquitto_reconnect_delay_set(client.get(), 1, 1, false);  // an NC's gateway retries every second
     mosquitto_disconnect_callback_set(client.get(), on_disconnect);
     mosquitto_publish_callback_set(client.get(),
                                    [](mosquitto*, void* user, int) { ++static_cast<Shared*>(user)->delivered; });
@@ -354,7 +401,9 @@ int run_publish(const Batch& stream, const PublishOptions& options) {
     part.drive_is_force = stream.drive_is_force;
     part.force_constant = stream.force_constant;
     const auto start = Clock::now();
-    std::size_t sent = 0, lost = 0;
+    Outbox outbox(
+        client.get(), options,
+        static_cast<std::size_t>(std::ceil(options.buffer_s / (static_cast<double>(per_message) * stream.dt))));
     for (std::size_t first = 0; first < n && !stop_requested; first += per_message) {
         const std::size_t count = std::min(per_message, n - first);
         part.t0 = stream.t0 + static_cast<double>(first) * stream.dt;
@@ -367,24 +416,18 @@ int run_publish(const Batch& stream, const PublishOptions& options) {
             std::this_thread::sleep_until(
                 start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(due)));
         }
-        const std::string payload = options.binary ? encode_binary(part) : encode_json(part);
-        const int code = mosquitto_publish(client.get(), nullptr, options.topic.c_str(),
-                                           static_cast<int>(payload.size()), payload.data(), options.qos, false);
-        if (code == MOSQ_ERR_SUCCESS)
-            ++sent;
-        else
-            ++lost;
+        outbox.send(options.binary ? encode_binary(part) : encode_json(part));
     }
-    // what the library still holds (QoS 1 awaiting acknowledgement, or queued while the broker was away) leaves first
+    // what is held, and what the library holds (QoS 1 awaiting acknowledgement), leaves first
     const auto give_up = Clock::now() + std::chrono::seconds(60);
-    while (shared.delivered < sent && Clock::now() < give_up && !stop_requested)
+    while ((!outbox.flush() || shared.delivered < outbox.sent()) && Clock::now() < give_up && !stop_requested)
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
     mosquitto_disconnect(client.get());
     mosquitto_loop_stop(client.get(), false);
     std::signal(SIGTERM, SIG_DFL);
     std::signal(SIGINT, SIG_DFL);
-    fmt::print(stderr, "feedid publish: {} messages sent to {} on {} ({} delivered), {} not taken (broker away)\n",
-               sent, options.topic, options.broker.url(), shared.delivered.load(), lost);
+    fmt::print(stderr, "feedid publish: {} messages sent to {} on {} ({} held while the broker was away), {} lost\n",
+               outbox.sent(), options.topic, options.broker.url(), outbox.held_total(), outbox.lost());
     return 0;
 }
 

@@ -185,6 +185,8 @@ nlohmann::json online_result_document(const OnlineEstimate& e, const OnlineOptio
     result.trace.duration_s = duration_s;
     result.trace.sample_time_s = e.samples > 0 ? duration_s / static_cast<double>(e.samples) : 0.0;
     result.parameters = model_parameters(result.model, result.offset, false);
+    for (const auto* reason : {&e.mass_reason, &e.friction_reason, &e.stribeck_reason})
+        if (!reason->empty()) result.diagnostics.push_back(*reason);
     for (auto& p : result.parameters) {
         switch (p.term) {
             case Term::mass: p.estimate = e.mass; break;
@@ -194,11 +196,17 @@ nlohmann::json online_result_document(const OnlineEstimate& e, const OnlineOptio
             case Term::breakaway: p.estimate = e.breakaway; break;
             case Term::stribeck_velocity: p.estimate = e.stribeck_velocity; break;
         }
+        // a value without a standard error is not published (nor recorded): nothing says how far off it may be
+        if (p.estimate.value && !p.estimate.standard_error) {
+            p.estimate = {};
+            result.diagnostics.push_back(p.key + " is null: the identifier gives no standard error for it");
+        }
     }
-    const bool all = e.mass.value && e.viscous.value && e.coulomb.value;
-    result.status = !e.coulomb.value ? Status::failed : (all && e.breakaway.value ? Status::ok : Status::partial);
-    for (const auto* reason : {&e.mass_reason, &e.friction_reason, &e.stribeck_reason})
-        if (!reason->empty()) result.diagnostics.push_back(*reason);
+    const auto value = [&](const char* key) { return result.find(key) && result.find(key)->estimate.value; };
+    const bool determined = value("mass_kg") && value("viscous_Ns_per_m") && value("coulomb_N");
+    result.status = !value("coulomb_N")                  ? Status::failed
+                    : determined && value("breakaway_N") ? Status::ok
+                                                         : Status::partial;
     nlohmann::json document = result;
     document["kind"] = "watch";
     nlohmann::json rejected = nlohmann::json::object();

@@ -61,12 +61,15 @@ struct PublishOptions {
     double batch_s{0.1};  ///< stream time per message [s]
     bool binary{false};
     int qos{0};
+    /// Stream time held while the broker is away [s], sent in order when it is back (beyond: the oldest is lost)
+    double buffer_s{60.0};
     std::string client_id;
 };
 
 /// Streams a batch's samples (t0, dt, position [m], drive [A] or [N]) as messages of batch_s each, paced to
-/// `rate` times real time. Messages the broker does not take while it is away are counted and skipped (a control
-/// does not buffer forever either); reconnects in the background. Returns the exit code.
+/// `rate` times real time. Messages the broker does not take while it is away are held (buffer_s of stream) and sent
+/// in order when it is back; beyond that they are lost and counted (a control does not buffer forever either).
+/// Reconnects every second in the background. Returns the exit code.
 int run_publish(const Batch& stream, const PublishOptions& options);
 
 }  // namespace feedid::watch
