@@ -46,6 +46,7 @@ const char* verdict_name(WindowVerdict verdict) {
         case WindowVerdict::saturation: return "saturation";
         case WindowVerdict::gap: return "gap";
         case WindowVerdict::gated_out: return "gated_out";
+        case WindowVerdict::inconsistent: return "inconsistent";
         case WindowVerdict::pending: return "pending";
     }
     return "?";
@@ -164,7 +165,9 @@ void OnlineIdentifier::process_window(std::size_t count) {
     ++counts_.total;
     const auto verdict = [&](WindowVerdict v) { ++counts_.by_verdict[static_cast<std::size_t>(v)]; };
     for (std::size_t k = 1; k < count; ++k) {
-        if (t_[k] - t_[k - 1] > 1.5 * dt_ || !(t_[k] > t_[k - 1])) return verdict(WindowVerdict::gap);
+        // a gap, time running backwards, or a value that is not a number: the window is not used
+        if (t_[k] - t_[k - 1] > 1.5 * dt_ || !(t_[k] > t_[k - 1]) || !std::isfinite(x_[k]) || !std::isfinite(f_[k]))
+            return verdict(WindowVerdict::gap);
     }
     filter(x_, xf_, count);
     filter(f_, ff_, count);
@@ -196,27 +199,7 @@ WindowVerdict OnlineIdentifier::judge_window(std::size_t first, std::size_t last
     }
     if (static_cast<double>(moving) < options_.minimum_moving_fraction * static_cast<double>(n))
         return WindowVerdict::at_rest;
-    // stick-slip: brief stops inside slow motion, restarting in the same direction
-    int stops = 0;
-    int direction = 0;
-    std::size_t stopped_at = 0;
-    double peak = 0.0;
-    for (std::size_t k = first; k < last; ++k) {
-        const double speed = std::abs(v_[k]);
-        if (direction != 0 && speed < options_.stick_stop_fraction * peak) {
-            if (stopped_at == 0) stopped_at = k;
-        } else if (speed > options_.moving_threshold) {
-            const int d = v_[k] > 0.0 ? 1 : -1;
-            if (stopped_at != 0 && d == direction && peak < 2.0 * options_.split_velocity &&
-                static_cast<double>(k - stopped_at) * dt_ < 0.2)
-                ++stops;
-            if (d != direction || stopped_at != 0) peak = 0.0;
-            direction = d;
-            stopped_at = 0;
-            peak = std::max(peak, speed);
-        }
-    }
-    if (stops >= options_.stick_slip_stops) return WindowVerdict::stick_slip;
+    if (stick_slips(first, last)) return WindowVerdict::stick_slip;
     const std::size_t rows = build_rows(first, last);
     if (static_cast<double>(rows) < options_.minimum_row_fraction * static_cast<double>(window_)) {
         std::size_t ungated = 0;
@@ -226,6 +209,40 @@ WindowVerdict OnlineIdentifier::judge_window(std::size_t first, std::size_t last
                    : WindowVerdict::low_excitation;
     }
     return fit_window(rows);
+}
+
+// Stick-slip without a reference (stick_slip.hpp's rule for traces without one, on the window): a slow pass that
+// stops and restarts in the same direction, each burst and each stop brief, at least stick_slip_stops times.
+bool OnlineIdentifier::stick_slips(std::size_t first, std::size_t last) const {
+    const auto brief = [&](std::size_t samples) { return static_cast<double>(samples) * dt_ < options_.max_stick_s; };
+    int stops = 0;
+    int direction = 0;
+    std::size_t burst_start = first;
+    std::size_t stopped_at = 0;
+    std::size_t burst = 0;
+    double peak = 0.0;
+    for (std::size_t k = first; k < last; ++k) {
+        const double speed = std::abs(v_[k]);
+        if (direction != 0 && speed < options_.stick_stop_fraction * peak) {
+            if (stopped_at == 0) {
+                stopped_at = k;
+                burst = k - burst_start;
+            }
+        } else if (speed > options_.moving_threshold) {
+            const int d = v_[k] > 0.0 ? 1 : -1;
+            if (stopped_at != 0 || d != direction) {
+                if (stopped_at != 0 && d == direction && peak < 2.0 * options_.split_velocity && brief(burst) &&
+                    brief(k - stopped_at))
+                    ++stops;
+                burst_start = k;
+                peak = 0.0;
+            }
+            direction = d;
+            stopped_at = 0;
+            peak = std::max(peak, speed);
+        }
+    }
+    return stops >= options_.stick_slip_stops;
 }
 
 std::size_t OnlineIdentifier::build_rows(std::size_t first, std::size_t last) {
@@ -278,10 +295,28 @@ WindowVerdict OnlineIdentifier::fit_window(std::size_t rows) {
         for (std::size_t r = 0; r < rows; ++r) sum += residual_[r] * residual_[r];
         return admit(rows, std::sqrt(sum / static_cast<double>(rows)));
     }
-    // Tukey's biweight from several starts, keeping the fit with the smallest robust scale (the S-estimator's rule):
-    // least squares, the pooled estimate, and the fastest third of the rows (rapid moves, which do not cut)
+    // Tukey's biweight: settled, from the pooled estimate with the clean windows' scale, so that a cutting force on
+    // most of the window's rows is what gets rejected (a fit of smallest scale would follow the majority); before,
+    // from several starts (independent_fit)
     Vec best = least_squares;
-    double best_scale = std::numeric_limits<double>::max();
+    double best_scale = 0.0;
+    if (have_pooled_)
+        best = tukey_fit(pooled_theta(), rows, best_scale);
+    else
+        best = independent_fit(rows, least_squares, fast, best_scale);
+    const WindowVerdict verdict =
+        settle_weights(rows, best, best_scale) ? admit(rows, best_scale) : WindowVerdict::process_force;
+    if (verdict == WindowVerdict::qualified) inconsistent_run_ = 0;
+    if (verdict != WindowVerdict::process_force || !have_pooled_) return verdict;
+    return judge_change(rows, least_squares, fast);
+}
+
+OnlineIdentifier::Vec OnlineIdentifier::independent_fit(std::size_t rows, const Vec& least_squares, double fast,
+                                                        double& best_scale) {
+    // Tukey's biweight from least squares and from the fastest third of the rows (rapid moves, which do not cut),
+    // keeping the fit of smallest robust scale (the S-estimator's rule)
+    Vec best = least_squares;
+    best_scale = std::numeric_limits<double>::max();
     const auto attempt = [&](const Vec& start) {
         double scale = 0.0;
         const Vec theta = tukey_fit(start, rows, scale);
@@ -290,49 +325,112 @@ WindowVerdict OnlineIdentifier::fit_window(std::size_t rows) {
             best_scale = scale;
         }
     };
-    if (have_pooled_) {
-        // settled: from the pooled estimate, with the clean windows' scale, so that a cutting force on most of the
-        // window's rows is what gets rejected (a fit of smallest scale would follow the majority)
-        attempt(pooled_theta());
-    } else {
-        attempt(least_squares);
-        for (std::size_t r = 0; r < rows; ++r)
-            weights_[r] = std::abs(rows_(static_cast<Eigen::Index>(r), 1)) >= fast ? 1.0 : 0.0;
-        const Vec fastest = solve_weighted(rows);
-        if (fastest.allFinite()) attempt(fastest);
-    }
-    // the weights of the chosen fit
-    residuals(best, rows);
-    std::size_t rejected = 0;
-    for (std::size_t r = 0; r < rows; ++r) {
-        weights_[r] = tukey_weight(residual_[r], options_.tukey_c * best_scale);
-        rejected += weights_[r] == 0.0 ? 1 : 0;
-    }
-    if (static_cast<double>(rejected) > options_.maximum_outlier_fraction * static_cast<double>(rows))
-        return WindowVerdict::process_force;
-    return admit(rows, best_scale);
+    attempt(least_squares);
+    for (std::size_t r = 0; r < rows; ++r)
+        weights_[r] = std::abs(rows_(static_cast<Eigen::Index>(r), 1)) >= fast ? 1.0 : 0.0;
+    const Vec fastest = solve_weighted(rows);
+    if (fastest.allFinite()) attempt(fastest);
+    return best;
 }
 
-OnlineIdentifier::Vec OnlineIdentifier::solve_weighted(std::size_t rows) const {
+bool OnlineIdentifier::settle_weights(std::size_t rows, const Vec& theta, double scale) {
+    residuals(theta, rows);
+    std::size_t rejected = 0;
+    for (std::size_t r = 0; r < rows; ++r) {
+        weights_[r] = tukey_weight(residual_[r], options_.tukey_c * scale);
+        rejected += weights_[r] == 0.0 ? 1 : 0;
+    }
+    last_outlier_fraction_ = static_cast<double>(rejected) / static_cast<double>(rows);
+    return last_outlier_fraction_ <= options_.maximum_outlier_fraction;
+}
+
+WindowVerdict OnlineIdentifier::judge_change(std::size_t rows, const Vec& least_squares, double fast) {
+    // A window the pool rejects but that fits the model on its own (small scale, few outliers) and disagrees with the
+    // pooled estimate: the axis may have changed (a heavier workpiece, worn guides). Many in a row, with forgetting,
+    // start the pool again from them; without forgetting they are counted and said.
+    // A cutting force shows in the least-squares fit's own scale: only a window that least squares fits well is
+    // fitted again robustly (the IRLS runs for few rejected windows)
+    residuals(least_squares, rows);
+    const double plain_scale = 1.4826 * median_absolute(std::span<const double>(residual_.data(), rows), scratch_);
+    if (!(plain_scale <= options_.maximum_scale_ratio * reference_scale_)) return WindowVerdict::process_force;
+    double scale = 0.0;
+    const Vec theta = independent_fit(rows, least_squares, fast, scale);
+    if (!settle_weights(rows, theta, scale) || last_outlier_fraction_ > options_.clean_outlier_fraction ||
+        scale > options_.maximum_scale_ratio * reference_scale_)
+        return WindowVerdict::process_force;
+    if (consistent(information(rows, scale), pooled_theta())) return WindowVerdict::process_force;
+    if (++inconsistent_run_ >= options_.change_windows && options_.forgetting < 1.0) {
+        reset_pool();
+        ++changes_;
+        inconsistent_run_ = 0;
+    }
+    return WindowVerdict::inconsistent;
+}
+
+OnlineIdentifier::WindowInformation OnlineIdentifier::information(std::size_t rows, double scale) const {
     const auto p = static_cast<Eigen::Index>(p_);
-    Mat hw = Mat::Zero(p, p);
-    Vec cw = Vec::Zero(p);
+    WindowInformation window;
+    window.h = Mat::Zero(p, p);
+    window.c = Vec::Zero(p);
+    window.scale = scale;
     for (std::size_t k = 0; k < rows; ++k) {
         const double w = weights_[k];
         if (w == 0.0) continue;
-        const auto row = rows_.row(static_cast<Eigen::Index>(k)).head(p);
-        hw.noalias() += w * row.transpose() * row;
-        cw.noalias() += w * rows_(static_cast<Eigen::Index>(k), p) * row.transpose();
+        const auto r = static_cast<Eigen::Index>(k);
+        window.h.noalias() += w * rows_.row(r).head(p).transpose() * rows_.row(r).head(p);
+        window.c.noalias() += w * rows_(r, p) * rows_.row(r).head(p).transpose();
+        ++window.rows;
     }
-    const Mat hs = column_scale_.asDiagonal() * hw * column_scale_.asDiagonal();
-    return column_scale_.asDiagonal() * hs.ldlt().solve(Vec(column_scale_.asDiagonal() * cw));
+    return window;
+}
+
+void OnlineIdentifier::reset_pool() {
+    r_z_.setZero();
+    sum_cc_.setZero();
+    for (auto& m : sum_cH_) m.setZero();
+    for (auto& row : sum_HH_)
+        for (auto& m : row) m.setZero();
+    forgotten_windows_ = 0.0;
+    sum_scale_sq_ = 0.0;
+    have_pooled_ = false;
+    pending_count_ = 0;
+}
+
+OnlineIdentifier::Vec OnlineIdentifier::solve_weighted(std::size_t rows) const {
+    // the normal equations of the weighted rows, in plain loops over the contiguous rows (the IRLS's inner loop)
+    const std::size_t p = p_;
+    std::array<double, max_p * max_p> h{};
+    std::array<double, max_p> c{};
+    for (std::size_t k = 0; k < rows; ++k) {
+        const double w = weights_[k];
+        if (w == 0.0) continue;
+        const double* row = rows_.data() + k * (max_p + 1);
+        for (std::size_t i = 0; i < p; ++i) {
+            const double wi = w * row[i];
+            c[i] += wi * row[p];
+            for (std::size_t j = 0; j <= i; ++j) h[i * max_p + j] += wi * row[j];
+        }
+    }
+    const auto n = static_cast<Eigen::Index>(p);
+    Mat hs(n, n);
+    Vec cs(n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+        cs(i) = column_scale_(i) * c[static_cast<std::size_t>(i)];
+        for (Eigen::Index j = 0; j <= i; ++j) {
+            hs(i, j) = column_scale_(i) * h[static_cast<std::size_t>(i * max_p + j)] * column_scale_(j);
+            hs(j, i) = hs(i, j);
+        }
+    }
+    return column_scale_.asDiagonal() * hs.ldlt().solve(cs);
 }
 
 void OnlineIdentifier::residuals(const Vec& theta, std::size_t rows) {
-    const auto p = static_cast<Eigen::Index>(p_);
+    const std::size_t p = p_;
     for (std::size_t k = 0; k < rows; ++k) {
-        const auto r = static_cast<Eigen::Index>(k);
-        residual_[k] = rows_(r, p) - rows_.row(r).head(p).dot(theta);
+        const double* row = rows_.data() + k * (max_p + 1);
+        double fitted = 0.0;
+        for (std::size_t i = 0; i < p; ++i) fitted += row[i] * theta(static_cast<Eigen::Index>(i));
+        residual_[k] = row[p] - fitted;
     }
 }
 
@@ -357,19 +455,7 @@ OnlineIdentifier::Vec OnlineIdentifier::tukey_fit(const Vec& start, std::size_t 
 }
 
 WindowVerdict OnlineIdentifier::admit(std::size_t rows, double scale) {
-    const auto p = static_cast<Eigen::Index>(p_);
-    WindowInformation window;
-    window.h = Mat::Zero(p, p);
-    window.c = Vec::Zero(p);
-    window.scale = scale;
-    for (std::size_t k = 0; k < rows; ++k) {
-        const double w = weights_[k];
-        if (w == 0.0) continue;
-        const auto r = static_cast<Eigen::Index>(k);
-        window.h.noalias() += w * rows_.row(r).head(p).transpose() * rows_.row(r).head(p);
-        window.c.noalias() += w * rows_(r, p) * rows_.row(r).head(p).transpose();
-        ++window.rows;
-    }
+    const WindowInformation window = information(rows, scale);
     if (!options_.robust) {
         pool(window);
         return WindowVerdict::qualified;
@@ -534,6 +620,7 @@ struct BinPoint {
 OnlineEstimate OnlineIdentifier::estimate() const {
     OnlineEstimate e;
     e.windows = counts_;
+    e.changes = changes_;
     e.samples = pushed_;
     e.rows_used = rows_used_;
     const auto p = static_cast<Eigen::Index>(p_);
@@ -581,16 +668,23 @@ OnlineEstimate OnlineIdentifier::estimate() const {
         e.offset.standard_error.reset();
         e.friction_reason = why;
     }
-    // Stribeck from the bins
+    estimate_stribeck(theta, se(2), e);
+    return e;
+}
+
+void OnlineIdentifier::estimate_stribeck(const Vec& theta, double coulomb_standard_error, OnlineEstimate& e) const {
+    // the quasi-static bins: F_stri = friction - B |v| - F_C per bin, eq. (13) on those above their noise
     std::array<BinPoint, 2 * bins_per_direction> points{};
     std::size_t used = 0;
     const double correlation = std::max(1.0, 1.0 / (dt_ * options_.cutoff_hz.value_or(std::min(100.0, 0.1 / dt_))));
     std::size_t slow_samples = 0;
+    std::size_t populated = 0;
     for (std::size_t direction = 0; direction < 2; ++direction) {
         const double sg = direction == 0 ? 1.0 : -1.0;
         for (const auto& bin : bins_[direction]) {
             slow_samples += static_cast<std::size_t>(bin.n);
             if (bin.n < static_cast<double>(options_.minimum_bin_samples)) continue;
+            ++populated;
             const double speed = bin.speed / bin.n;
             const double friction = bin.force / bin.n - theta(0) * bin.acceleration / bin.n;
             double stribeck = friction - theta(1) * speed - theta(2);
@@ -602,16 +696,17 @@ OnlineEstimate OnlineIdentifier::estimate() const {
     }
     if (used < options_.minimum_stribeck_bins) {
         e.stribeck_reason =
-            slow_samples == 0
+            populated < options_.minimum_stribeck_bins
                 ? fmt::format(
-                      "no quasi-static moves slower than {:.3g} mm/s: the trace has no moves slow enough "
-                      "to determine F_B and v_s",
-                      options_.split_velocity * 1e3)
+                      "the trace has no moves slow enough to determine F_B and v_s: its quasi-static samples "
+                      "below {:.3g} mm/s ({}) fill {} speed bin(s) of {} or more; {} needed",
+                      options_.split_velocity * 1e3, slow_samples, populated, options_.minimum_bin_samples,
+                      options_.minimum_stribeck_bins)
                 : fmt::format(
                       "the slow moves ({} quasi-static samples below {:.3g} mm/s) show a friction rise above "
                       "F_C in only {} speed bin(s); {} needed",
                       slow_samples, options_.split_velocity * 1e3, used, options_.minimum_stribeck_bins);
-        return e;
+        return;
     }
     Eigen::Matrix2d normal = Eigen::Matrix2d::Zero();
     Eigen::Vector2d right = Eigen::Vector2d::Zero();
@@ -621,26 +716,33 @@ OnlineEstimate OnlineIdentifier::estimate() const {
         normal += w * phi * phi.transpose();
         right += w * std::log(points[k].stribeck) * phi;
     }
-    const Eigen::Matrix2d cov = normal.inverse();
-    const Eigen::Vector2d fit = cov * right;
+    const Eigen::Vector2d fit = normal.inverse() * right;
+    // the bins' scatter about the fitted line beyond their own noise (the log-linear law's misfit, bins correlated by
+    // the filter) widens the covariance: reduced chi^2, when above 1
+    double chi2 = 0.0;
+    for (std::size_t k = 0; k < used; ++k) {
+        const double w = std::pow(points[k].stribeck / points[k].standard_error, 2);
+        chi2 += w * std::pow(std::log(points[k].stribeck) - fit(0) - fit(1) * points[k].speed, 2);
+    }
+    const double inflation = used > 2 ? std::max(1.0, chi2 / static_cast<double>(used - 2)) : 1.0;
+    const Eigen::Matrix2d cov = inflation * normal.inverse();
     if (!(fit(1) < 0.0)) {
         e.stribeck_reason = "the slow moves' friction does not fall with speed: no Stribeck term to determine";
-        return e;
+        return;
     }
     const double rise = std::exp(fit(0));
     const double vs = -1.0 / fit(1);
     const double vs_se = std::sqrt(cov(1, 1)) / (fit(1) * fit(1));
-    const double fb_se = std::hypot(se(2), rise * std::sqrt(cov(0, 0)));
+    const double fb_se = std::hypot(coulomb_standard_error, rise * std::sqrt(cov(0, 0)));
     if (!(vs_se < 0.3 * vs)) {
         e.stribeck_reason =
             fmt::format("v_s = {:.3g} mm/s is not determined by the slow moves (standard error {:.0f} %)", vs * 1e3,
                         100.0 * vs_se / vs);
-        return e;
+        return;
     }
     e.breakaway = Estimate::of(theta(2) + rise, fb_se);
     e.stribeck_velocity = Estimate::of(vs, vs_se);
     e.stribeck_bins_used = used;
-    return e;
 }
 
 }  // namespace feedid

@@ -137,6 +137,27 @@ TEST(Online, WithoutRobustWeightingTheSameScansAreVisiblyBiased) {
     EXPECT_GT(plain_error, 5.0 * robust_error);
 }
 
+TEST(Online, BreakawayAndStribeckNeedSlowMovesAndSayWhyWithout) {
+    const AxisModel truth = demo_spec().axis;
+    const OnlineEstimate& with = seed_runs()[0].robust;
+    ASSERT_TRUE(with.breakaway.value && with.stribeck_velocity.value) << with.stribeck_reason;
+    fmt::print("F_B {:.1f} +- {:.2f} N (truth {:.1f}), v_s {:.3f} +- {:.3f} mm/s (truth {:.1f})\n",
+               *with.breakaway.value, *with.breakaway.standard_error, *truth.friction.forward.breakaway,
+               1e3 * *with.stribeck_velocity.value, 1e3 * *with.stribeck_velocity.standard_error,
+               1e3 * *truth.friction.forward.stribeck_velocity);
+    EXPECT_NEAR(*with.breakaway.value, *truth.friction.forward.breakaway, 0.03 * *truth.friction.forward.breakaway);
+    EXPECT_NEAR(*with.stribeck_velocity.value, *truth.friction.forward.stribeck_velocity,
+                0.1 * *truth.friction.forward.stribeck_velocity);
+    testing::ProductionOptions o;
+    o.slow_moves = false;
+    const OnlineEstimate without = run(columns(testing::production_synth(1, o)), {});
+    ASSERT_TRUE(without.mass.value);
+    EXPECT_FALSE(without.breakaway.value);
+    EXPECT_FALSE(without.stribeck_velocity.value);
+    EXPECT_NE(without.stribeck_reason.find("slow"), std::string::npos) << without.stribeck_reason;
+    fmt::print("without slow moves: {}\n", without.stribeck_reason);
+}
+
 TEST(Online, AnAxisStandingStillQualifiesNothingAndSaysWhy) {
     Columns c;
     for (std::size_t k = 0; k < 20000; ++k) {
@@ -198,6 +219,43 @@ TEST(Online, AllocatesNothingPerSample) {
     const OnlineEstimate e = online.estimate();
     EXPECT_EQ(during, 0U) << "over " << c.t.size() - warm << " samples and " << e.windows.total << " windows";
     EXPECT_GT(e.windows.qualified(), 10U);
+}
+
+// A mass that changes (a heavier workpiece clamped): with forgetting the pool starts again from the windows that
+// disagree with it and follows the change; without, it keeps the first mass and counts the windows as inconsistent.
+TEST(Online, ForgettingFollowsAChangedMass) {
+    testing::ProductionOptions o;
+    o.duration_s = 240.0;
+    SynthSpec heavy = demo_spec();
+    heavy.axis.mass = 90.0;
+    heavy.seed = 22;
+    const testing::ProductionTrace second = testing::production_trace(22, o);
+    const Columns before = columns(testing::production_synth(21, o));
+    Columns after = columns(synthesize(heavy, second.reference, second.cutting_force));
+    const double shift = before.t.back() + 1e-3;
+    const double offset = before.x.back() - after.x.front();
+    for (auto& t : after.t) t += shift;
+    for (auto& x : after.x) x += offset;
+    const auto scan = [&](double forgetting) {
+        OnlineOptions options;
+        options.forgetting = forgetting;
+        OnlineIdentifier online(options);
+        online.push(before.t, before.x, before.force);
+        online.push(after.t, after.x, after.force);
+        online.flush();
+        return online.estimate();
+    };
+    const OnlineEstimate forgetting = scan(0.9);
+    const OnlineEstimate none = scan(1.0);
+    fmt::print(
+        "M after the change (truth 69.1 -> 90): forgetting 0.9 per window {:.2f} kg ({} change), none {:.2f} kg "
+        "({} windows inconsistent)\n",
+        *forgetting.mass.value, forgetting.changes, *none.mass.value, none.windows.count(WindowVerdict::inconsistent));
+    EXPECT_NEAR(*forgetting.mass.value, 90.0, 0.03 * 90.0);
+    EXPECT_GE(forgetting.changes, 1U);
+    EXPECT_NEAR(*none.mass.value, 69.1, 0.03 * 69.1);
+    EXPECT_EQ(none.changes, 0U);
+    EXPECT_GT(none.windows.count(WindowVerdict::inconsistent), 20U);
 }
 
 TEST(Online, OptionsAreChecked) {

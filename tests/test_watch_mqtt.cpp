@@ -198,7 +198,7 @@ TEST(WatchMqtt, MachinesTimesThreeAxesAt20xSurviveABrokerRestartAndAThousandMalf
     // estimate within one standard error
     const auto estimates = listener.estimates();
     EXPECT_EQ(estimates.size(), 3u * machines);
-    std::size_t within_sigma = 0, compared = 0, undetermined = 0, repeated = 0;
+    std::size_t within_sigma = 0, compared = 0, undetermined = 0, repeated = 0, missing_total = 0, axes_missing = 0;
     double largest_sigma = 0.0;
     const AxisModel truth = demo_spec().axis;
     for (int m = 1; m <= machines; ++m) {
@@ -208,8 +208,14 @@ TEST(WatchMqtt, MachinesTimesThreeAxesAt20xSurviveABrokerRestartAndAThousandMalf
             ASSERT_TRUE(estimates.count(topic)) << topic;
             const auto& p = estimates.at(topic)["parameters"];
             const OnlineEstimate clean = direct_estimate(dir / (name + ".csv"), force_constants.at(name));
-            // every sample identified once: none lost over the restart, none of the redelivered ones twice
-            EXPECT_EQ(estimates.at(topic)["stream"]["samples"].get<std::size_t>(), clean.samples) << topic;
+            // every sample identified once, or counted missing (a message the broker acknowledged to the publisher
+            // as it shut down, and did not keep); none of the redelivered ones twice
+            const auto& stream = estimates.at(topic)["stream"];
+            const auto missing = stream["missing_samples"].get<std::size_t>();
+            EXPECT_EQ(stream["samples"].get<std::size_t>() + missing, clean.samples) << topic << " " << stream.dump();
+            EXPECT_LT(missing, clean.samples / 100) << topic << " " << stream.dump();
+            missing_total += missing;
+            axes_missing += missing > 0;
             repeated += estimates.at(topic)["stream"]["repeated_samples"].get<std::size_t>();
             const auto check = [&](const char* key, double true_value, double tolerance, const Estimate& reference) {
                 if (!reference.standard_error) {
@@ -242,8 +248,8 @@ TEST(WatchMqtt, MachinesTimesThreeAxesAt20xSurviveABrokerRestartAndAThousandMalf
     std::cout << fmt::format(
         "{} of {} parameters within 1 sigma of the uninterrupted stream's and within tolerance of the truth; {} that "
         "the identifier cannot determine on its stream published as null; largest difference {:.2g} sigma; {} "
-        "redelivered samples skipped\n",
-        within_sigma, compared, undetermined, largest_sigma, repeated);
+        "redelivered samples skipped; {} samples missing on {} axes\n",
+        within_sigma, compared, undetermined, largest_sigma, repeated, missing_total, axes_missing);
     EXPECT_GE(compared, 3u * 3u * (machines - 1));
     EXPECT_EQ(within_sigma, compared);
 }

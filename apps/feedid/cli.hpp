@@ -81,6 +81,7 @@ Action add_synth_command(CLI::App& app);
 Action add_plan_command(CLI::App& app);
 Action add_history_command(CLI::App& app);
 Action add_report_command(CLI::App& app);
+Action add_scan_command(CLI::App& app);
 Action add_watch_command(CLI::App& app);
 Action add_publish_command(CLI::App& app);
 

@@ -208,6 +208,9 @@ Action add_publish_command(CLI::App& app) {
                     "Stream time held while the broker is away, sent when it is back [s]")
         ->default_val(60.0)
         ->check(allowed_range(0.0, 1e6, "s"));
+    sub->add_option("--copies", command->options.copies,
+                    "Publish the stream on N topics at once, '{n}' in --topic replaced by 1..N (a benchmark's load)")
+        ->check(CLI::Range(1, 100000));
     sub->add_flag("--binary", command->options.binary, "The binary payload (default JSON)");
     sub->add_option("--qos", command->options.qos, "MQTT QoS of the data messages")
         ->default_val(0)

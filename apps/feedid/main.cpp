@@ -28,6 +28,7 @@ int main(int argc, char** argv) {
     };
     add(add_info_command);
     add(add_identify_command);
+    add(add_scan_command);
     add(add_gains_command);
     add(add_simulate_command);
     add(add_synth_command);

@@ -6,7 +6,8 @@
 // too little excitation, ill-conditioned), fitted robustly (Tukey's biweight by IRLS from several starts, the one of
 // smallest robust scale kept, so that the rows a cutting force pushes off the model weigh nothing) and, when it
 // qualifies, pooled by its information:
-//   R, z  <-  QR of [sqrt(lambda) R, sqrt(lambda) z ; sqrt(W) Phi_w, sqrt(W) y_w]   (square-root information, Givens)
+//   [R z]  <-  QR of [sqrt(lambda) [R z] ; L_w^T, L_w^-1 c_w]   (square-root information by Givens rotations,
+//   L_w L_w^T = H_w the window's information: the same as rotating its weighted rows in)
 // theta = R^-1 z. Standard errors treat windows as clusters (they are long against the filter's correlation length):
 //   Cov = H^-1 (sum_w g_w g_w^T) H^-1,  g_w = c_w - H_w theta,  H_w = Phi_w^T W Phi_w,  c_w = Phi_w^T W y_w,
 // whose meat is kept as fixed-size moment sums (sum c c^T, sum c (x) H, sum H (x) H) and evaluated at the final theta.
@@ -59,10 +60,15 @@ struct OnlineOptions {
     /// ... or when its own estimate lies farther than this chi^2 (p degrees of freedom) from the pooled one, in its
     /// own information (the first windows: from their consensus, the median of their estimates)
     double consistency_chi2{25.0};
-    double scale_cap{1.5};              ///< the IRLS scale is at most this multiple of the clean windows' scale
+    double scale_cap{1.5};
+    /// A rejected window fits the model on its own when its own fit rejects at most this fraction of its rows ...
+    double clean_outlier_fraction{0.1};
+    /// ... and this many such windows in a row that disagree with the pooled estimate are a change of the axis.
+    std::size_t change_windows{8};      ///< the IRLS scale is at most this multiple of the clean windows' scale
     std::optional<double> force_limit;  ///< saturation: |F_d| at or above 0.99 of it in a window [N]
     double stick_stop_fraction{0.2};    ///< stick-slip: |x'| falls below this fraction of the pass's speed ...
     int stick_slip_stops{2};            ///< ... and restarts in the same direction this often in a window
+    double max_stick_s{0.15};           ///< ... each stop and each burst between them shorter than this [s]
     // Stribeck bins: log-spaced speed bins from stribeck_lowest_speed to split_velocity, per direction.
     double stribeck_lowest_speed{1e-4};  ///< [m/s]
     std::size_t minimum_bin_samples{20};
@@ -83,9 +89,12 @@ enum class WindowVerdict {
     saturation,
     gap,
     gated_out,
+    /// fits the model on its own but not the pooled estimate: the axis changed? (with forgetting, change_windows of
+    /// them in a row start the pool again)
+    inconsistent,
     pending,  ///< one of the first windows, held until the clean windows' residual scale is known (not counted)
 };
-constexpr std::size_t window_verdicts = 9;
+constexpr std::size_t window_verdicts = 10;
 /// "qualified", "at_rest", "low_excitation", ...
 const char* verdict_name(WindowVerdict verdict);
 
@@ -100,15 +109,14 @@ struct WindowCounts {
 struct OnlineEstimate {
     Estimate mass, viscous, coulomb, offset, breakaway, stribeck_velocity;
     std::string mass_reason, friction_reason, stribeck_reason;  ///< why null ("" when determined)
-    /// Information of each step-1 parameter alone: diag(H) in 1/(parameter unit)^2 per unit residual variance; and
-    /// the eigenvalues of the pooled information scaled to the parameters' units, i.e. of D^-1 H D^-1 with
-    /// D = diag(standard errors)^-1 ... see information_eigenvalues.
+    /// What the data says of each step-1 parameter (M, B, F_C (, F_0)), from the cluster covariance.
     Eigen::VectorXd information;  ///< 1 / variance of each parameter (from the cluster covariance) [1/unit^2]
     /// Eigenvalues of the correlation-scaled information (the information matrix with every parameter in units of
     /// its standard error): all 1 for uncorrelated parameters; a small one names a poorly separated combination.
     Eigen::VectorXd information_eigenvalues;
     Eigen::MatrixXd covariance;  ///< of M, B, F_C (, F_0)
     WindowCounts windows;
+    std::size_t changes{0};    ///< times the pool started again after a change of the axis (with forgetting)
     std::size_t samples{0};    ///< pushed
     std::size_t rows_used{0};  ///< step-1 rows pooled (weighted rows count once)
     double residual_std{0.0};  ///< robust scale of the pooled windows' residuals [N]
@@ -158,12 +166,19 @@ private:
     WindowVerdict admit(std::size_t rows, double scale);
     void pool(const WindowInformation& window);
     void update_reference_scale();
+    Vec independent_fit(std::size_t rows, const Vec& least_squares, double fast, double& best_scale);
+    bool settle_weights(std::size_t rows, const Vec& theta, double scale);
+    WindowVerdict judge_change(std::size_t rows, const Vec& least_squares, double fast);
+    [[nodiscard]] WindowInformation information(std::size_t rows, double scale) const;
+    void reset_pool();
     void settle_pending();
     [[nodiscard]] bool consistent(const WindowInformation& window, const Vec& reference) const;
     void bin_slow_samples(std::size_t first, std::size_t last);
     void filter(std::span<const double> in, std::span<double> out, std::size_t count);
+    [[nodiscard]] bool stick_slips(std::size_t first, std::size_t last) const;
     std::size_t build_rows(std::size_t first, std::size_t last);
     [[nodiscard]] Vec pooled_theta() const;
+    void estimate_stribeck(const Vec& theta, double coulomb_standard_error, OnlineEstimate& e) const;
 
     OnlineOptions options_;
     std::size_t p_{3};
@@ -179,7 +194,8 @@ private:
     std::vector<double> t_, x_, f_, xf_, ff_, v_, a_, s_, sf_, workspace_;
     std::vector<char> use_;
     // the window's rows (step-1 samples), allocated once
-    Eigen::MatrixXd rows_;  ///< [x'', x', filtered sgn x' (, 1)], y in the last column
+    /// [x'', x', filtered sgn x' (, 1)], y after them; row-major, so that a row is contiguous
+    Eigen::Matrix<double, Eigen::Dynamic, max_p + 1, Eigen::RowMajor> rows_;
     std::vector<double> weights_, residual_, scratch_;
     // pooled square-root information: R (p x p upper), z (p), and the cluster moments
     Eigen::Matrix<double, max_p, max_p + 1> r_z_;
@@ -196,6 +212,9 @@ private:
     double reference_scale_{0.0};  ///< 0 until the first windows are settled
     std::array<WindowInformation, 8> pending_;
     std::size_t pending_count_{0};
+    std::size_t inconsistent_run_{0};
+    std::size_t changes_{0};
+    double last_outlier_fraction_{0.0};
     WindowCounts counts_;
     std::array<std::vector<StribeckBin>, 2> bins_;  ///< forward, reverse
 };

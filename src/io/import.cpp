@@ -68,16 +68,15 @@ bool is_common_name(std::string_view key) {
 }
 
 // The CNC axis prefix of a channel name, as drive and NC logs write it: letters then digits, then '_'
-// ("X1_ActualPosition" -> "X1"), or one capital axis letter then '_' ("X_x_ref", as feedid synth --program writes;
-// lower-case "x_ref" stays a name of its own); "" when there is none.
+// ("X1_ActualPosition" -> "X1"), or one upper-case axis letter then '_' (a multi-axis production trace's "X_x",
+// "Y_i"; a lower-case "x_ref" is no prefix); "" when there is none.
 std::string_view axis_prefix(std::string_view name) {
-    if (name.size() > 2 && name[1] == '_' && std::string_view("XYZABCUVW").find(name[0]) != std::string_view::npos)
-        return name.substr(0, 1);
     std::size_t k = 0;
     while (k < name.size() && std::isalpha(static_cast<unsigned char>(name[k]))) ++k;
     const std::size_t letters = k;
     while (k < name.size() && std::isdigit(static_cast<unsigned char>(name[k]))) ++k;
-    if (letters == 0 || k == letters || k >= name.size() || name[k] != '_') return {};
+    const bool axis_letter = letters == 1 && k == 1 && std::isupper(static_cast<unsigned char>(name[0]));
+    if (letters == 0 || (k == letters && !axis_letter) || k >= name.size() || name[k] != '_') return {};
     return name.substr(0, k);
 }
 

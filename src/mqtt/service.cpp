@@ -264,13 +264,13 @@ public:
     Outbox(mosquitto* client, const PublishOptions& options, std::size_t limit)
         : client_(client), options_(options), limit_(limit) {}
 
-    void send(std::string payload) {
+    void send(const std::string& topic, std::string payload) {
         flush();
-        if (held_.empty() && publish(payload)) {
+        if (held_.empty() && publish(topic, payload)) {
             ++sent_;
             return;
         }
-        held_.push_back(std::move(payload));
+        held_.emplace_back(topic, std::move(payload));
         ++held_total_;
         if (held_.size() > limit_) {
             held_.pop_front();
@@ -279,7 +279,7 @@ public:
     }
     /// Sends what is held; true when nothing is left.
     bool flush() {
-        while (!held_.empty() && publish(held_.front())) {
+        while (!held_.empty() && publish(held_.front().first, held_.front().second)) {
             held_.pop_front();
             ++sent_;
         }
@@ -290,14 +290,14 @@ public:
     [[nodiscard]] std::size_t held_total() const { return held_total_; }
 
 private:
-    bool publish(const std::string& payload) {
-        return mosquitto_publish(client_, nullptr, options_.topic.c_str(), static_cast<int>(payload.size()),
-                                 payload.data(), options_.qos, false) == MOSQ_ERR_SUCCESS;
+    bool publish(const std::string& topic, const std::string& payload) {
+        return mosquitto_publish(client_, nullptr, topic.c_str(), static_cast<int>(payload.size()), payload.data(),
+                                 options_.qos, false) == MOSQ_ERR_SUCCESS;
     }
     mosquitto* client_;
     const PublishOptions& options_;
     std::size_t limit_;
-    std::deque<std::string> held_;
+    std::deque<std::pair<std::string, std::string>> held_;  ///< topic, payload
     std::size_t sent_{0}, lost_{0}, held_total_{0};
 };
 
@@ -377,6 +377,9 @@ int run_watch(const ServiceOptions& options) {
 int run_publish(const Batch& stream, const PublishOptions& options) {
     if (options.topic.empty() || options.topic.find_first_of("+#") != std::string::npos)
         throw InputError(fmt::format("--topic '{}': a topic to publish to has no wildcards", options.topic));
+    if (options.copies > 1 && options.topic.find("{n}") == std::string::npos)
+        throw InputError(fmt::format("--copies {}: the topic '{}' needs a '{{n}}' to tell the copies apart",
+                                     options.copies, options.topic));
     Library library;
     Shared shared;
     Client client = make_client(options.client_id.empty() ? default_client_id("publish") : options.client_id, &shared);
@@ -400,6 +403,13 @@ int run_publish(const Batch& stream, const PublishOptions& options) {
     part.dt = stream.dt;
     part.drive_is_force = stream.drive_is_force;
     part.force_constant = stream.force_constant;
+    // --copies N: the same stream on N topics, '{n}' in the topic replaced by 1..N (a load for the benchmark)
+    std::vector<std::string> topics;
+    for (std::size_t c = 1; c <= options.copies; ++c) {
+        std::string topic = options.topic;
+        if (const auto at = topic.find("{n}"); at != std::string::npos) topic.replace(at, 3, std::to_string(c));
+        topics.push_back(std::move(topic));
+    }
     const auto start = Clock::now();
     Outbox outbox(
         client.get(), options,
@@ -416,7 +426,8 @@ int run_publish(const Batch& stream, const PublishOptions& options) {
             std::this_thread::sleep_until(
                 start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(due)));
         }
-        outbox.send(options.binary ? encode_binary(part) : encode_json(part));
+        const std::string payload = options.binary ? encode_binary(part) : encode_json(part);
+        for (const std::string& topic : topics) outbox.send(topic, payload);
     }
     // what is held, and what the library holds (QoS 1 awaiting acknowledgement), leaves first
     const auto give_up = Clock::now() + std::chrono::seconds(60);
@@ -427,7 +438,8 @@ int run_publish(const Batch& stream, const PublishOptions& options) {
     std::signal(SIGTERM, SIG_DFL);
     std::signal(SIGINT, SIG_DFL);
     fmt::print(stderr, "feedid publish: {} messages sent to {} on {} ({} held while the broker was away), {} lost\n",
-               outbox.sent(), options.topic, options.broker.url(), outbox.held_total(), outbox.lost());
+               outbox.sent(), topics.size() == 1 ? topics[0] : options.topic, options.broker.url(), outbox.held_total(),
+               outbox.lost());
     return 0;
 }
 

@@ -8,6 +8,7 @@
 
 #include "feedid/identify.hpp"
 #include "feedid/result_document.hpp"
+#include "feedid/scan.hpp"
 #include "feedid/version.hpp"
 
 namespace feedid::watch {
@@ -87,6 +88,8 @@ std::string Watcher::push(Axis& axis, const Batch& batch) {
             return fmt::format("dt = {} s, but {}/{} streams at {} s", batch.dt, axis.machine, axis.axis, axis.dt);
         const double ahead = batch.t0 - axis.next_t;  // > 0: a pause; < 0: a repeat
         if (ahead < -0.5 * axis.dt) {
+            if (batch.t0 >= axis.hole_start - 0.5 * axis.dt && batch.t0 < axis.hole_end - 0.5 * axis.dt)
+                ++axis.counters.late_batches;  // it belonged in a hole: it came after later samples
             skip =
                 static_cast<std::size_t>(std::min<double>(static_cast<double>(n), std::ceil(-ahead / axis.dt - 0.5)));
             axis.counters.repeated_samples += skip;
@@ -94,6 +97,10 @@ std::string Watcher::push(Axis& axis, const Batch& batch) {
         } else if (ahead > options_.run_gap_s) {
             ++axis.counters.recordings;
             if (axis.run_samples > 0) complete_run(axis);
+        } else if (ahead > 0.5 * axis.dt) {
+            axis.counters.missing_samples += static_cast<std::size_t>(std::llround(ahead / axis.dt));
+            axis.hole_start = axis.next_t;
+            axis.hole_end = batch.t0;
         }
     } else {
         axis.dt = batch.dt;
@@ -207,19 +214,12 @@ nlohmann::json online_result_document(const OnlineEstimate& e, const OnlineOptio
     result.status = !value("coulomb_N")                  ? Status::failed
                     : determined && value("breakaway_N") ? Status::ok
                                                          : Status::partial;
-    nlohmann::json document = result;
+    // the scan's document (windows, information per parameter), marked as the watch's
+    ScanResult scan;
+    scan.result = std::move(result);
+    scan.online = e;
+    nlohmann::json document = scan_document(scan);
     document["kind"] = "watch";
-    nlohmann::json rejected = nlohmann::json::object();
-    for (std::size_t v = 1; v < window_verdicts; ++v)
-        rejected[verdict_name(static_cast<WindowVerdict>(v))] = e.windows.by_verdict[v];
-    document["windows"] = {{"total", e.windows.total}, {"qualified", e.windows.qualified()}, {"rejected", rejected}};
-    nlohmann::json information = nlohmann::json::object();
-    const std::size_t step1 = static_cast<std::size_t>(e.information.size());
-    for (std::size_t i = 0; i < step1 && i < result.parameters.size(); ++i) {
-        const double value = e.information[static_cast<Eigen::Index>(i)];
-        information[result.parameters[i].key] = std::isfinite(value) ? nlohmann::json(value) : nlohmann::json();
-    }
-    document["information"] = information;
     return document;
 }
 
@@ -235,6 +235,8 @@ nlohmann::json Watcher::estimate_document(const std::string& machine, const std:
     document["stream"] = {{"batches", axis.counters.batches},
                           {"samples", axis.counters.samples},
                           {"repeated_samples", axis.counters.repeated_samples},
+                          {"missing_samples", axis.counters.missing_samples},
+                          {"late_batches", axis.counters.late_batches},
                           {"recordings", axis.counters.recordings},
                           {"time_s", axis.next_t}};
     document["run"] = {

@@ -63,6 +63,8 @@ struct PublishOptions {
     int qos{0};
     /// Stream time held while the broker is away [s], sent in order when it is back (beyond: the oldest is lost)
     double buffer_s{60.0};
+    /// The same stream on this many topics, '{n}' in the topic replaced by 1..copies (a load for benchmarks)
+    std::size_t copies{1};
     std::string client_id;
 };
 

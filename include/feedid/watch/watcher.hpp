@@ -54,6 +54,8 @@ struct AxisCounters {
     std::size_t batches{0};
     std::size_t samples{0};           ///< pushed into the identifier
     std::size_t repeated_samples{0};  ///< skipped: their time was already covered
+    std::size_t missing_samples{0};   ///< not received in order: holes in the stream shorter than run_gap_s
+    std::size_t late_batches{0};      ///< batches that came after later ones, into a hole (skipped: too late)
     std::size_t recordings{0};        ///< streams after a pause longer than run_gap_s (1 for one recording)
     std::size_t runs{0};              ///< completed identifications
 };
@@ -88,8 +90,9 @@ private:
         std::string machine, axis;
         std::unique_ptr<OnlineIdentifier> online;
         double dt{0.0};
-        double next_t{0.0};       ///< time of the next expected sample [s]
-        double run_start_t{0.0};  ///< [s]
+        double next_t{0.0};                     ///< time of the next expected sample [s]
+        double run_start_t{0.0};                ///< [s]
+        double hole_start{0.0}, hole_end{0.0};  ///< the last hole in the stream [s]
         std::size_t run_samples{0};
         std::size_t checked_windows{0};  ///< window count at the last run check
         AxisCounters counters;
@@ -108,8 +111,9 @@ private:
     std::size_t messages_{0}, malformed_{0};
 };
 
-/// The identify result document of an online estimate (symmetric model; the offset when the options estimate it),
-/// as a scan run records it: parameters with value and stderr, status, trace summary and diagnostics.
+/// The result document of an online estimate as feedid scan writes it (scan_document: identify's keys, windows,
+/// information), "kind": "watch"; symmetric model, the offset when the options estimate it. A value the identifier
+/// gives without a standard error is null, with a diagnostic.
 nlohmann::json online_result_document(const OnlineEstimate& estimate, const OnlineOptions& options,
                                       const std::string& source, double duration_s);
 

@@ -1,0 +1,182 @@
+// feedid scan FILE: mass and friction from a production trace, no test needed (issue 15): the online identifier
+// run over the file, windows that carry information pooled, the others counted by why.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <vector>
+
+#include <fmt/core.h>
+
+#include "cli.hpp"
+#include "feedid/error.hpp"
+#include "feedid/scan.hpp"
+#include "feedid/terminal_text.hpp"
+#include "record_arguments.hpp"
+
+namespace feedid::cli {
+
+namespace {
+
+struct ScanCommand {
+    TraceArguments trace_arguments;
+    DriveArguments drive_arguments;
+    OnlineOptions options;
+    bool no_robust{false};
+    std::vector<std::string> only_when;
+    std::string json_path;
+    std::size_t block_rows{0};
+    RecordArguments record;
+
+    void add_to(CLI::App& sub) {
+        trace_arguments.add_to(sub);
+        drive_arguments.add_to(sub);
+        sub.add_option("--window", options.window_s, "Window length [s]")
+            ->capture_default_str()
+            ->check(allowed_range(0.01, 3600, "s"));
+        sub.add_flag("--no-robust", no_robust,
+                     "Plain least squares in every window (no Tukey weights, no window rejected for its residual): "
+                     "to see what the process forces do to the estimate");
+        sub.add_option("--only-when", only_when,
+                       "Use only the samples where another channel meets a condition, e.g. 'spindle_load<5' (also >, "
+                       "<=, >=; in the channel's units as read); repeat it for several, which are ANDed")
+            ->take_all()
+            ->allow_extra_args(false);
+        sub.add_option("--forgetting", options.forgetting,
+                       "Forgetting factor per window (1 = none): older windows weigh lambda^age, for slow drift")
+            ->capture_default_str()
+            ->check(allowed_range(1e-6, 1.0, ""));
+        sub.add_flag("--offset", options.offset, "Also estimate a constant force offset (gravity, sensor offset)");
+        sub.add_option("--cutoff", options.cutoff_hz, "Butterworth cut-off [Hz] (default: min(100 Hz, fs / 10))")
+            ->check(allowed_range(1e-3, 1e6, "Hz"));
+        sub.add_option("--split-velocity", options.split_velocity,
+                       "Step 1 uses |v| above, the Stribeck bins the quasi-static samples below [m/s]")
+            ->capture_default_str()
+            ->check(allowed_range(1e-6, 1e4, "m/s"));
+        sub.add_option("--force-limit", options.force_limit,
+                       "The drive's force limit [N]: a window reaching 99 % of it is rejected as saturated")
+            ->check(allowed_range(1e-6, 1e9, "N"));
+        sub.add_option("--block-rows", block_rows,
+                       "Read a CSV file in blocks of this many lines (memory of one block; the same estimate). "
+                       "Default: blocks of 500000 for CSV files above 256 MB, the whole file otherwise")
+            ->check(allowed_range(1000, 1e9, "lines"));
+        sub.add_option("--json", json_path, "Write the result document to PATH ('-' for stdout)");
+        record.add_to(sub);
+    }
+
+    int run() const {
+        OnlineOptions o = options;
+        o.robust = !no_robust;
+        if (const auto problem = o.validate(); !problem.empty()) throw InputError(problem);
+        std::vector<GateCondition> gates;
+        for (const auto& text : only_when) gates.push_back(parse_gate_condition(text));
+        std::vector<GuardedFile> inputs = trace_arguments.inputs();
+        inputs.push_back({"the --record history database", record.database, true});
+        require_separate_outputs({{"--json", json_path}}, inputs);
+        record.check(trace_arguments.axis);
+        ScanResult result = streamed() ? scan_streamed(o, gates) : scan_whole(o, gates);
+        result.result.options = options_document(o);
+        const nlohmann::json document = scan_document(result);
+        if (!json_path.empty()) write_json(document, json_path);
+        if (json_path != "-") print_table(result);
+        if (result.result.status == Status::failed) {
+            fmt::print(stderr, "feedid: no window qualified: {}\n", counts_text(result.online.windows));
+            return 1;
+        }
+        if (record.enabled()) record.record(document, trace_arguments.file, trace_arguments.axis, document["options"]);
+        return 0;
+    }
+
+    bool streamed() const {
+        if (block_rows > 0) return true;
+        std::error_code error;
+        const auto size = std::filesystem::file_size(trace_arguments.file, error);
+        const bool csv = trace_arguments.format.empty() ? detect_format(trace_arguments.file) == "csv"
+                                                        : trace_arguments.format == "csv";
+        return !error && csv && size > (std::uintmax_t{256} << 20) && trace_arguments.join.empty() &&
+               trace_arguments.tare.empty() && trace_arguments.invert.empty() && !trace_arguments.sample_time_s;
+    }
+
+    ScanResult scan_whole(const OnlineOptions& o, const std::vector<GateCondition>& gates) const {
+        const Trace trace = read_trace_for_drive(trace_arguments, drive_arguments);
+        const std::vector<double> force = drive_force(trace, drive_arguments.constants());
+        const std::vector<char> use = gate_samples(trace, gates);
+        return scan(trace, force, use, o);
+    }
+
+    ScanResult scan_streamed(const OnlineOptions& o, const std::vector<GateCondition>& gates) const {
+        TraceArguments arguments = trace_arguments;
+        if (!arguments.lead_mm) arguments.lead_mm = drive_arguments.lead_mm;
+        if (!arguments.gear_ratio) arguments.gear_ratio = drive_arguments.gear_ratio;
+        std::vector<std::string> findings;
+        ScanResult result = scan_csv_stream(arguments.file, arguments.import_options(), drive_arguments.constants(),
+                                            gates, o, block_rows > 0 ? block_rows : 500000, findings);
+        for (const auto& finding : findings) fmt::print(stderr, "feedid: {}\n", terminal_message(finding));
+        return result;
+    }
+
+    nlohmann::json options_document(const OnlineOptions& o) const {
+        return {{"kind", "scan"},
+                {"window_s", o.window_s},
+                {"robust", o.robust},
+                {"forgetting", o.forgetting},
+                {"offset", o.offset},
+                {"cutoff_hz", o.cutoff_hz ? nlohmann::json(*o.cutoff_hz) : nlohmann::json()},
+                {"split_velocity", o.split_velocity},
+                {"only_when", only_when},
+                {"channels", trace_arguments.channel_assignments},
+                {"units", trace_arguments.unit_assignments},
+                {"axis", trace_arguments.axis},
+                {"drive",
+                 {{"kt_Nm_per_A", drive_arguments.kt ? nlohmann::json(*drive_arguments.kt) : nlohmann::json()},
+                  {"lead_mm", drive_arguments.lead_mm ? nlohmann::json(*drive_arguments.lead_mm) : nlohmann::json()},
+                  {"gear_ratio", drive_arguments.gear_ratio},
+                  {"force_constant", drive_arguments.force_constant}}}};
+    }
+
+    static std::string counts_text(const WindowCounts& counts) {
+        std::string text = fmt::format("{} windows, {} qualified", counts.total, counts.qualified());
+        for (std::size_t v = 1; v < window_verdicts; ++v)
+            if (counts.by_verdict[v] > 0)
+                text += fmt::format(", {} {}", counts.by_verdict[v], verdict_name(static_cast<WindowVerdict>(v)));
+        return text;
+    }
+
+    static void print_table(const ScanResult& s) {
+        const IdentifyResult& r = s.result;
+        fmt::print("{} ({} samples, {:.6g} s): production scan\n", terminal_text(r.trace.path), r.trace.samples,
+                   r.trace.duration_s);
+        fmt::print("windows: {}\n\n", counts_text(s.online.windows));
+        fmt::print("  {:<6} {:>14}   {:<12} {:<10}\n", "", "value", "std. error", "unit");
+        for (const auto& p : r.parameters) {
+            if (p.estimate.value) {
+                const std::string error =
+                    p.estimate.standard_error ? fmt::format("{:.3g}", *p.estimate.standard_error) : std::string("—");
+                fmt::print("  {:<6} {:>14.6g} ± {:<12} {:<10}\n", p.symbol, *p.estimate.value, error, p.unit);
+            } else {
+                fmt::print("  {:<6} {:>14}   {:<12} {:<10}\n", p.symbol, "—", "", p.unit);
+            }
+        }
+        fmt::print("\n");
+        for (const auto& line : scan_verdicts(s)) fmt::print("  {}\n", terminal_message(line));
+    }
+};
+
+}  // namespace
+
+Action add_scan_command(CLI::App& app) {
+    auto command = std::make_shared<ScanCommand>();
+    auto* sub = app.add_subcommand("scan",
+                                   "Identify an axis from the trace of ordinary production (no test): windows with "
+                                   "information pooled, cutting forces weighed out");
+    command->add_to(*sub);
+    sub->footer(
+        "Examples:\n"
+        "  feedid scan shift.csv --axis X --kt 1.45 --lead 10 --only-when 'spindle_load<5'\n"
+        "  feedid scan shift.csv --axis X --kt 1.45 --lead 10 --record shop.db --machine DMU50\n"
+        "Exit codes: 0 identified (F_B and v_s may be null: see the verdicts), 1 no window qualified (the rejection "
+        "counts say why), 2 bad usage or bad input.");
+    return [command] { return command->run(); };
+}
+
+}  // namespace feedid::cli
