@@ -22,7 +22,7 @@ sleep 0.5
 # the demo drive's synthetic test trace, replayed in a loop (each pass a later recording)
 "$feedid" synth --out "$dir/trace.csv" > /dev/null 2>&1
 printf '[service]\nestimate_interval_s = 5\n' > "$dir/watch.toml"
-taskset -c "$core" "$feedid" watch --broker "mqtt://127.0.0.1:$port" --config "$dir/watch.toml" --quiet \
+taskset -c "$core" "$feedid" watch --broker "mqtt://127.0.0.1:$port" --config "$dir/watch.toml" --topic 'bench/+/+/axis/#' --quiet \
   > "$dir/watch.out" 2> "$dir/watch.err" &
 watch=$!
 pids+=($watch)
