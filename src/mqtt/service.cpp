@@ -162,7 +162,11 @@ public:
     void publish_estimates(bool all) {
         (void)all;
         for (const auto& [machine, axis] : watcher_.take_changed()) {
-            const nlohmann::json document = watcher_.estimate_document(machine, axis);
+            nlohmann::json document = watcher_.estimate_document(machine, axis);
+            // the service's counts, so that drops are visible where the estimates are read
+            document["service"] = {{"messages", watcher_.messages()},
+                                   {"malformed", watcher_.malformed()},
+                                   {"dropped_queue_full", dropped()}};
             publish(fmt::format("{}/feedid/estimate", prefix_for(machine, axis)), document.dump(), 1, true);
             if (options_.print) fmt::print("{}\n", estimate_line(machine, axis, document));
         }
