@@ -318,6 +318,55 @@ TEST(WatchMqtt, DriftingCoulombFrictionAlarmsOnThatAxisOnly) {
     EXPECT_EQ(check.out.find("axis 'Z'"), std::string::npos) << check.out;
 }
 
+// A flood: the queue between the network thread and the identifiers holds at most queue_mb; what does not fit is
+// dropped and counted, and every message is either taken or counted as dropped.
+TEST(WatchMqtt, AFloodFillsTheBoundedQueueAndTheDropsAreCounted) {
+    if (!have_mosquitto()) GTEST_SKIP() << "no " << mosquitto_path << " (apt install mosquitto)";
+    Library library;
+    const auto dir = temp_dir();
+    const int port = free_port();
+    Broker broker(dir, port);
+    ASSERT_TRUE(broker_answers(port));
+    write_text(dir / "watch.toml", "[service]\nqueue_mb = 1\nestimate_interval_s = 0.2\n");
+    Listener listener(port);
+    Process watch({FEEDID_CLI, "watch", "--broker", broker.url(), "--config", (dir / "watch.toml").string(), "--quiet"},
+                  dir / "watch.out", dir / "watch.err");
+    ASSERT_TRUE(wait_until([&] { return !listener.status().empty(); }, 10)) << read_text(dir / "watch.err");
+    // 400 JSON batches of 10,000 samples (about 400 kB each, 160 MB in all) as fast as the broker takes them
+    watch::Batch b;
+    b.dt = 1e-3;
+    b.force_constant = 50.0;
+    for (int k = 0; k < 10000; ++k) {
+        b.position.push_back(0.1 * std::sin(1e-3 * k));
+        b.drive.push_back(std::cos(1e-3 * k));
+    }
+    Sender sender(port);
+    constexpr std::size_t flood = 400;
+    for (std::size_t m = 0; m < flood; ++m) {
+        b.t0 = 10.0 * static_cast<double>(m);
+        const std::string payload = watch::encode_json(b);
+        ASSERT_TRUE(wait_until([&] { return sender.send("plant/F1/X/axis", payload); }, 10));
+    }
+    const auto counts = [&] {
+        const auto e = listener.estimates();
+        return e.count("plant/F1/X/feedid/estimate") ? e.at("plant/F1/X/feedid/estimate")["service"] : nlohmann::json();
+    };
+    EXPECT_TRUE(wait_until(
+        [&] {
+            const auto c = counts();
+            return c.is_object() &&
+                   c["messages"].get<std::size_t>() + c["dropped_queue_full"].get<std::size_t>() == flood;
+        },
+        60))
+        << counts().dump();
+    const auto c = counts();
+    std::cout << fmt::format("{} messages taken, {} dropped by the full queue\n", c["messages"].get<std::size_t>(),
+                             c["dropped_queue_full"].get<std::size_t>());
+    EXPECT_GT(c["dropped_queue_full"].get<std::size_t>(), 0u);
+    EXPECT_EQ(watch.terminate(), 0);
+    EXPECT_NE(read_text(dir / "watch.err").find("dropped by the full queue"), std::string::npos);
+}
+
 TEST(WatchMqtt, BadConfigurationIsExit2WithOneLineNamingIt) {
     const auto dir = temp_dir();
     const int nobody = free_port();  // nothing listens there
