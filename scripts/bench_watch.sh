@@ -11,7 +11,11 @@ core=${4:-0}
 [ -x /usr/sbin/mosquitto ] || { echo "bench_watch: no /usr/sbin/mosquitto (apt install mosquitto)" >&2; exit 77; }
 dir=$(mktemp -d)
 pids=()
-cleanup() { for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done; wait 2>/dev/null || true; rm -rf "$dir"; }
+cleanup() {
+  for p in "${pids[@]}"; do pkill -P "$p" 2>/dev/null || true; kill "$p" 2>/dev/null || true; done
+  wait 2>/dev/null || true
+  rm -rf "$dir"
+}
 trap cleanup EXIT
 port=$(/usr/bin/python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 printf 'listener %s 127.0.0.1\nallow_anonymous true\npersistence false\nmax_queued_messages 100000\n' "$port" \
@@ -27,11 +31,12 @@ taskset -c "$core" "$feedid" watch --broker "mqtt://127.0.0.1:$port" --config "$
 watch=$!
 pids+=($watch)
 sleep 0.5
-# the trace replayed in a loop, AXES copies, real time
+# the trace replayed in a loop, AXES copies, real time; each pass continues the time of the last (one stream)
+samples=$(($(grep -vc '^#' "$dir/trace.csv") - 1))
 (
   for ((k = 0; ; k++)); do
     "$feedid" publish "$dir/trace.csv" --broker "mqtt://127.0.0.1:$port" --topic 'bench/B{n}/X/axis' \
-      --copies "$axes" --binary --batch 0.1 --rate 1x --time-offset $((k * 100000)) \
+      --copies "$axes" --binary --batch 0.1 --rate 1x --time-offset "$(awk -v k=$k -v n=$samples 'BEGIN { print k * n / 1000 }')" \
       --force-constant force_constant_N_per_A 2>> "$dir/publish.err" || exit 0
   done
 ) &
