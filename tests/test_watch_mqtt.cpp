@@ -65,13 +65,20 @@ double write_production_csv(const fs::path& path, std::uint64_t seed, double dur
 
 /// What a clean, uninterrupted stream of the axis gives: the CSV read as publish reads it, straight into an
 /// identifier.
-OnlineEstimate direct_estimate(const fs::path& csv, double force_constant) {
+OnlineEstimate direct_estimate(const fs::path& csv, double force_constant,
+                               const nlohmann::json& holes = nlohmann::json::array()) {
     const Trace trace = read_trace(csv);
     DriveConstants drive;
     drive.force_constant = force_constant;
     const auto force = drive_force(trace, drive);
+    const auto t = trace.column(Role::time), x = trace.column(Role::position);
     OnlineIdentifier online({});
-    online.push(trace.column(Role::time), trace.column(Role::position), force);
+    for (std::size_t k = 0; k < t.size(); ++k) {
+        bool in_hole = false;  // samples the watch reported it never received
+        for (const auto& hole : holes)
+            in_hole = in_hole || (t[k] >= hole[0].get<double>() - 5e-4 && t[k] < hole[1].get<double>() - 5e-4);
+        if (!in_hole) online.push(t[k], x[k], force[k]);
+    }
     online.flush();
     return online.estimate();
 }
@@ -155,6 +162,7 @@ TEST(WatchMqtt, MachinesTimesThreeAxesAt20xSurviveABrokerRestartAndAThousandMalf
                                                   "--qos",
                                                   "1"};
             if (m % 2 == 0) arguments.push_back("--binary");
+            for (const std::string& a : {std::string("--client-id"), "publish-" + name}) arguments.push_back(a);
             publishers.emplace_back(arguments, dir / fmt::format("publish_M{}_{}.out", m, axis),
                                     dir / fmt::format("publish_M{}_{}.err", m, axis));
         }
@@ -208,6 +216,17 @@ TEST(WatchMqtt, MachinesTimesThreeAxesAt20xSurviveABrokerRestartAndAThousandMalf
             ASSERT_TRUE(estimates.count(topic)) << topic;
             const auto& p = estimates.at(topic)["parameters"];
             const OnlineEstimate clean = direct_estimate(dir / (name + ".csv"), force_constants.at(name));
+            // the identifier's state survived the restart: the estimate is the identifier's on the samples received
+            const auto& holes = estimates.at(topic)["stream"]["holes_s"];
+            const OnlineEstimate received =
+                holes.empty() ? clean : direct_estimate(dir / (name + ".csv"), force_constants.at(name), holes);
+            for (const auto& [key, e] :
+                 {std::pair{"mass_kg", received.mass}, std::pair{"viscous_Ns_per_m", received.viscous},
+                  std::pair{"coulomb_N", received.coulomb}}) {
+                if (!e.value || !e.standard_error || !p[key]["value"].is_number()) continue;
+                EXPECT_LT(std::abs(p[key]["value"].get<double>() - *e.value), 0.1 * *e.standard_error)
+                    << topic << " " << key << ": not the identifier's estimate of the samples received";
+            }
             // every sample identified once, or counted missing (a message the broker acknowledged to the publisher
             // as it shut down, and did not keep); none of the redelivered ones twice
             const auto& stream = estimates.at(topic)["stream"];
@@ -232,6 +251,11 @@ TEST(WatchMqtt, MachinesTimesThreeAxesAt20xSurviveABrokerRestartAndAThousandMalf
                     << topic << " " << key << " " << value << " truth " << true_value;
                 ++compared;
                 const bool within = std::abs(value - *reference.value) <= *reference.standard_error;
+                // a message lost at the broker's shutdown moves the identifier's windows (up to 1.3 sigma measured):
+                // asserted within 1 sigma where nothing was lost, reported where something was
+                if (holes.empty()) {
+                    EXPECT_TRUE(within) << topic << " " << key;
+                }
                 largest_sigma = std::max(largest_sigma, std::abs(value - *reference.value) / *reference.standard_error);
                 within_sigma += within;
                 if (!within)
@@ -251,7 +275,6 @@ TEST(WatchMqtt, MachinesTimesThreeAxesAt20xSurviveABrokerRestartAndAThousandMalf
         "redelivered samples skipped; {} samples missing on {} axes\n",
         within_sigma, compared, undetermined, largest_sigma, repeated, missing_total, axes_missing);
     EXPECT_GE(compared, 3u * 3u * (machines - 1));
-    EXPECT_EQ(within_sigma, compared);
 }
 
 // Coulomb friction of X constant for 10 simulated days, then rising 1 % a day (as tests/test_history_drift.cpp's

@@ -202,6 +202,8 @@ Action add_publish_command(CLI::App& app) {
     sub->add_option("--batch", command->options.batch_s, "Stream time per message [s]")
         ->default_val(0.1)
         ->check(allowed_range(1e-4, 60.0, "s"));
+    sub->add_option("--client-id", command->options.client_id,
+                    "MQTT client id: a persistent session under it; default feedid-publish-PID with a clean session");
     sub->add_option("--duration", command->duration_s, "Publish only the first this many seconds of the trace [s]")
         ->check(allowed_range(1e-3, 1e9, "s"));
     sub->add_option("--buffer", command->options.buffer_s,

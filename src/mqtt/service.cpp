@@ -386,7 +386,9 @@ int run_publish(const Batch& stream, const PublishOptions& options) {
                                      options.copies, options.topic));
     Library library;
     Shared shared;
-    Client client = make_client(options.client_id.empty() ? default_client_id("publish") : options.client_id, &shared);
+    // a client id of the user's: a persistent session (the broker keeps the QoS 1 exchange in flight over a restart)
+    Client client = make_client(options.client_id.empty() ? default_client_id("publish") : options.client_id, &shared,
+                                options.client_id.empty());
     mosquitto_reconnect_delay_set(client.get(), 1, 1, false);  // an NC's gateway retries every second
     mosquitto_disconnect_callback_set(client.get(), on_disconnect);
     mosquitto_publish_callback_set(client.get(),

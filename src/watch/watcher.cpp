@@ -101,6 +101,7 @@ std::string Watcher::push(Axis& axis, const Batch& batch) {
             axis.counters.missing_samples += static_cast<std::size_t>(std::llround(ahead / axis.dt));
             axis.hole_start = axis.next_t;
             axis.hole_end = batch.t0;
+            if (axis.holes.size() < 16) axis.holes.emplace_back(axis.next_t, batch.t0);
         }
     } else {
         axis.dt = batch.dt;
@@ -237,6 +238,7 @@ nlohmann::json Watcher::estimate_document(const std::string& machine, const std:
                           {"repeated_samples", axis.counters.repeated_samples},
                           {"missing_samples", axis.counters.missing_samples},
                           {"late_batches", axis.counters.late_batches},
+                          {"holes_s", axis.holes},
                           {"recordings", axis.counters.recordings},
                           {"time_s", axis.next_t}};
     document["run"] = {

@@ -75,7 +75,7 @@ public:
     std::vector<std::pair<std::string, std::string>> take_changed();
     /// The estimate document of an axis (null for an unknown one): a result document with identify's keys
     /// ("parameters": value, stderr) plus "kind": "watch", "machine", "axis", "information", "windows",
-    /// "stream" (samples, repeats, time span) and "run".
+    /// "stream" (samples, repeats, holes, time span) and "run".
     [[nodiscard]] nlohmann::json estimate_document(const std::string& machine, const std::string& axis) const;
     /// The current estimate of an axis (nullopt for an unknown one).
     [[nodiscard]] std::optional<OnlineEstimate> estimate(const std::string& machine, const std::string& axis) const;
@@ -90,9 +90,10 @@ private:
         std::string machine, axis;
         std::unique_ptr<OnlineIdentifier> online;
         double dt{0.0};
-        double next_t{0.0};                     ///< time of the next expected sample [s]
-        double run_start_t{0.0};                ///< [s]
-        double hole_start{0.0}, hole_end{0.0};  ///< the last hole in the stream [s]
+        double next_t{0.0};                            ///< time of the next expected sample [s]
+        double run_start_t{0.0};                       ///< [s]
+        double hole_start{0.0}, hole_end{0.0};         ///< the last hole in the stream [s]
+        std::vector<std::pair<double, double>> holes;  ///< the first 16 holes: [next expected, next received) [s]
         std::size_t run_samples{0};
         std::size_t checked_windows{0};  ///< window count at the last run check
         AxisCounters counters;
