@@ -112,4 +112,45 @@ if [ -s "$out/demo-result.json" ] && [ -s "$out/demo-gains.json" ]; then
     [ $failed -eq 0 ] && failed=$status
   fi
 fi
+
+# Second part, when this feedid has MQTT and the mosquitto broker is installed: feedid watch live over MQTT. A broker
+# on a free local port, three synthetic machines (the example part programs) replayed at 20x real time by feedid
+# publish, feedid watch printing each axis's estimate as it converges; then everything is stopped by its PID.
+if [ -x /usr/sbin/mosquitto ] && ! "$feedid" watch --broker mqtt://127.0.0.1:1 2>&1 | grep -q "built without MQTT"; then
+  echo
+  mqtt=$out/mqtt
+  mkdir -p "$mqtt"
+  port=$(/usr/bin/python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+  printf 'listener %s 127.0.0.1\nallow_anonymous true\npersistence false\n' "$port" > "$mqtt/mosquitto.conf"
+  /usr/sbin/mosquitto -c "$mqtt/mosquitto.conf" > "$mqtt/mosquitto.log" 2>&1 &
+  broker=$!
+  programs=$(dirname "$0")/../examples/programs
+  m=0
+  for program in pocket contour drilling; do
+    m=$((m + 1))
+    "$feedid" synth --program "$programs/$program.ngc" --seed "$m" --out "$mqtt/M$m.csv" 2> /dev/null || exit $?
+  done
+  echo "== feedid watch --broker mqtt://127.0.0.1:$port, three machines (pocket, contour, drilling) at 20x"
+  grep -h "^# [XYZ]_true_\(mass_kg\|viscous_forward_Ns_per_m\|coulomb_forward_N\) " "$mqtt/M1.csv" |
+    awk '{ v[substr($2, 1, 1)] = v[substr($2, 1, 1)] sprintf(" %s %s", $2, $4) }
+         END { for (a in v) print "   true (every machine):" v[a] }' | sort
+  printf '[service]\nestimate_interval_s = 3\n' > "$mqtt/watch.toml"
+  "$feedid" watch --broker "mqtt://127.0.0.1:$port" --config "$mqtt/watch.toml" --idle-exit 3 2> "$mqtt/watch.err" &
+  watch=$!
+  sleep 0.5
+  publishers=()
+  for m in 1 2 3; do
+    for axis in X Y Z; do
+      "$feedid" publish "$mqtt/M$m.csv" --axis "$axis" --force-constant "${axis}_force_constant_N_per_A" \
+        --broker "mqtt://127.0.0.1:$port" --topic "plant/M$m/$axis/axis" --rate 20x --binary \
+        2>> "$mqtt/publish.err" &
+      publishers+=($!)
+    done
+  done
+  for p in "${publishers[@]}"; do wait "$p"; done
+  wait "$watch"
+  tail -1 "$mqtt/watch.err"
+  kill "$broker"
+  wait "$broker" 2> /dev/null
+fi
 exit $failed

@@ -82,5 +82,7 @@ Action add_plan_command(CLI::App& app);
 Action add_history_command(CLI::App& app);
 Action add_report_command(CLI::App& app);
 Action add_scan_command(CLI::App& app);
+Action add_watch_command(CLI::App& app);
+Action add_publish_command(CLI::App& app);
 
 }  // namespace feedid::cli

@@ -35,6 +35,8 @@ int main(int argc, char** argv) {
     add(add_plan_command);
     add(add_history_command);
     add(add_report_command);
+    add(add_watch_command);
+    add(add_publish_command);
 
     try {
         app.parse(argc, argv);

@@ -1,0 +1,452 @@
+// feedid watch / publish over MQTT with libmosquitto (its threaded network loop; see service.hpp).
+#include "feedid/watch/service.hpp"
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <csignal>
+#include <cstring>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include <mosquitto.h>
+#include <unistd.h>
+
+#include <fmt/core.h>
+
+#include "feedid/error.hpp"
+#include "feedid/history/sha256.hpp"
+#include "feedid/history/store.hpp"
+#include "feedid/history/trend.hpp"
+#include "feedid/version.hpp"
+
+namespace feedid::watch {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::atomic<bool> stop_requested{false};
+extern "C" void request_stop(int) {
+    stop_requested = true;
+}
+
+/// mosquitto_lib_init / cleanup around one command.
+struct Library {
+    Library() { mosquitto_lib_init(); }
+    ~Library() { mosquitto_lib_cleanup(); }
+    Library(const Library&) = delete;
+    Library& operator=(const Library&) = delete;
+};
+
+struct ClientDeleter {
+    void operator()(mosquitto* client) const { mosquitto_destroy(client); }
+};
+using Client = std::unique_ptr<mosquitto, ClientDeleter>;
+
+struct Message {
+    std::string topic;
+    std::string payload;
+};
+
+/// What the network thread and the service thread share.
+struct Shared {
+    std::mutex mutex;
+    std::condition_variable arrived;
+    std::deque<Message> queue;
+    std::size_t queued_bytes{0};
+    std::size_t queue_limit{0};
+    std::size_t dropped{0};
+    std::string filter;
+    std::string status_topic;
+    std::atomic<std::size_t> connects{0};
+    std::atomic<bool> connected{false};
+    std::atomic<std::size_t> delivered{0};  ///< publications the library has handed over (QoS 0) or had acknowledged
+};
+
+void on_connect(mosquitto* client, void* user, int code) {
+    auto* shared = static_cast<Shared*>(user);
+    if (code != 0) return;
+    mosquitto_subscribe(client, nullptr, shared->filter.c_str(), 1);
+    mosquitto_publish(client, nullptr, shared->status_topic.c_str(), 6, "online", 1, true);
+    ++shared->connects;
+    shared->connected = true;
+}
+
+void on_disconnect(mosquitto*, void* user, int) {
+    static_cast<Shared*>(user)->connected = false;
+}
+
+void on_message(mosquitto*, void* user, const mosquitto_message* message) {
+    auto* shared = static_cast<Shared*>(user);
+    const std::string_view topic = message->topic;
+    if (topic.find("/feedid/") != std::string_view::npos || topic.starts_with("feedid/")) return;  // our own
+    const auto bytes = static_cast<std::size_t>(std::max(0, message->payloadlen));
+    {
+        std::lock_guard lock(shared->mutex);
+        if (shared->queued_bytes + bytes + topic.size() > shared->queue_limit) {
+            ++shared->dropped;
+            return;
+        }
+        shared->queue.push_back({std::string(topic), std::string(static_cast<const char*>(message->payload), bytes)});
+        shared->queued_bytes += bytes + topic.size();
+    }
+    shared->arrived.notify_one();
+}
+
+std::string default_client_id(const char* role) {
+    return fmt::format("feedid-{}-{}", role, ::getpid());
+}
+
+/// '<first level>/<machine>/<axis>' of a data topic, or the topic's first level alone.
+std::string prefix_of(const std::string& topic, const std::string& machine, const std::string& axis) {
+    const std::string first = topic.substr(0, topic.find('/'));
+    return machine.empty() ? first : first + "/" + machine + "/" + axis;
+}
+
+Client make_client(const std::string& client_id, void* user, bool clean_session = true) {
+    Client client(mosquitto_new(client_id.c_str(), clean_session, user));
+    if (!client) throw InputError("cannot create an MQTT client (out of memory)");
+    return client;
+}
+
+void connect_or_throw(mosquitto* client, const BrokerAddress& broker) {
+    const int code = mosquitto_connect(client, broker.host.c_str(), broker.port, 30);
+    if (code != MOSQ_ERR_SUCCESS) {
+        const std::string reason = code == MOSQ_ERR_ERRNO ? std::strerror(errno) : mosquitto_strerror(code);
+        throw InputError(fmt::format("cannot reach the MQTT broker at {}: {}", broker.url(), reason));
+    }
+}
+
+std::string estimate_line(const std::string& machine, const std::string& axis, const nlohmann::json& document) {
+    std::string line = fmt::format("{}/{}:", machine, axis);
+    const auto& p = document["parameters"];
+    for (const auto& [key, symbol, unit] :
+         {std::tuple{"mass_kg", "M", "kg"}, std::tuple{"viscous_Ns_per_m", "B", "N*s/m"},
+          std::tuple{"coulomb_N", "F_C", "N"}}) {
+        const auto& e = p[key];
+        if (e["value"].is_number() && e["stderr"].is_number())
+            line += fmt::format("  {} {:.4g} ± {:.2g} {}", symbol, e["value"].get<double>(), e["stderr"].get<double>(),
+                                unit);
+        else
+            line += fmt::format("  {} -", symbol);
+    }
+    line +=
+        fmt::format("  ({} of {} windows, {} samples)", document["windows"]["qualified"].get<std::size_t>(),
+                    document["windows"]["total"].get<std::size_t>(), document["stream"]["samples"].get<std::size_t>());
+    return line;
+}
+
+/// The service: the watcher, the history, and what it publishes.
+class Service {
+public:
+    Service(const ServiceOptions& options, Shared& shared, mosquitto* client)
+        : options_(options), shared_(shared), client_(client), watcher_(options.watch) {
+        if (!options.database.empty()) store_ = history::open_sqlite_store(options.database);
+    }
+
+    void handle(const Message& message) {
+        const std::string error = watcher_.ingest(message.topic, std::as_bytes(std::span(message.payload)));
+        if (error.empty()) return;
+        const auto names = machine_axis_of_topic(message.topic);
+        const std::string topic =
+            prefix_of(message.topic, names ? names->first : "", names ? names->second : "") + "/feedid/error";
+        const nlohmann::json report = {{"topic", message.topic}, {"error", error}, {"malformed", watcher_.malformed()}};
+        publish(topic, report.dump(), 0, false);
+        if (watcher_.malformed() <= 10)
+            fmt::print(stderr, "feedid watch: dropped a message on {}: {}\n", message.topic, error);
+    }
+
+    void publish_estimates(bool all) {
+        (void)all;
+        for (const auto& [machine, axis] : watcher_.take_changed()) {
+            nlohmann::json document = watcher_.estimate_document(machine, axis);
+            // the service's counts, so that drops are visible where the estimates are read
+            document["service"] = {{"messages", watcher_.messages()},
+                                   {"malformed", watcher_.malformed()},
+                                   {"dropped_queue_full", dropped()}};
+            publish(fmt::format("{}/feedid/estimate", prefix_for(machine, axis)), document.dump(), 1, true);
+            if (options_.print) fmt::print("{}\n", estimate_line(machine, axis, document));
+        }
+        if (options_.print) std::fflush(stdout);
+    }
+
+    void record_runs() {
+        for (const CompletedRun& run : watcher_.take_completed_runs()) record(run);
+    }
+
+    void finish() {
+        watcher_.flush();
+        publish_estimates(true);
+        fmt::print(stderr,
+                   "feedid watch: {} messages, {} malformed (dropped), {} dropped by the full queue, {} axes, {} "
+                   "connections\n",
+                   watcher_.messages(), watcher_.malformed(), dropped(), watcher_.axes(), shared_.connects.load());
+    }
+
+    [[nodiscard]] std::size_t dropped() {
+        std::lock_guard lock(shared_.mutex);
+        return shared_.dropped;
+    }
+
+private:
+    std::string prefix_for(const std::string& machine, const std::string& axis) const {
+        const std::string first = options_.topic_filter.substr(0, options_.topic_filter.find('/'));
+        return (first == "+" || first == "#" ? std::string("feedid") : first) + "/" + machine + "/" + axis;
+    }
+
+    void publish(const std::string& topic, const std::string& payload, int qos, bool retain) {
+        mosquitto_publish(client_, nullptr, topic.c_str(), static_cast<int>(payload.size()), payload.data(), qos,
+                          retain);
+    }
+
+    void record(const CompletedRun& run) {
+        const std::string prefix = prefix_for(run.machine, run.axis);
+        if (!store_) return;
+        const std::string source = fmt::format("{}/{}#run{}", options_.broker.url(), prefix, run.sequence);
+        if (run.estimate.windows.qualified() == 0) {
+            fmt::print(stderr, "feedid watch: {}/{} run {} not recorded: no window qualified\n", run.machine, run.axis,
+                       run.sequence);
+            return;
+        }
+        const nlohmann::json document =
+            online_result_document(run.estimate, options_.watch.online, source, run.t_end - run.t_start);
+        history::RunRecord record = history::run_from_result(document, source);
+        record.machine = run.machine;
+        record.axis = run.axis;
+        record.recorded_at = history::now_utc();
+        record.trace_path = source;
+        record.trace_sha256 = history::sha256_hex(
+            fmt::format("{}/{}/{:.17g}/{:.17g}/{}", run.machine, run.axis, run.t_start, run.t_end, run.samples));
+        record.options = {{"kind", "watch"},
+                          {"window_s", options_.watch.online.window_s},
+                          {"offset", options_.watch.online.offset},
+                          {"robust", options_.watch.online.robust}};
+        if (record.feedid_version.empty()) record.feedid_version = feedid::version;
+        try {
+            const history::AddOutcome outcome = store_->add_run(record);
+            publish(prefix + "/feedid/run",
+                    nlohmann::json{{"run", outcome.id}, {"inserted", outcome.inserted}, {"result", document}}.dump(), 1,
+                    false);
+            if (!outcome.inserted) return;
+            history::RunFilter filter;
+            filter.machine = run.machine;
+            filter.axis = run.axis;
+            history::TrendOptions trend;
+            trend.keep_points = false;
+            for (const auto& series : history::analyse_trends(store_->series(filter), store_->pins(), trend)) {
+                for (const history::Alarm& alarm : series.alarms) {
+                    if (alarm.run_id != outcome.id) continue;
+                    const nlohmann::json message = {{"machine", alarm.machine},       {"axis", alarm.axis},
+                                                    {"parameter", alarm.parameter},   {"run", alarm.run_id},
+                                                    {"direction", alarm.direction},   {"change", alarm.change},
+                                                    {"change_pct", alarm.change_pct}, {"z", alarm.z},
+                                                    {"cusum", alarm.cusum},           {"message", alarm.message()}};
+                    publish(prefix + "/feedid/alarm", message.dump(), 1, false);
+                    if (options_.print) fmt::print("ALARM {}\n", alarm.message());
+                }
+            }
+        } catch (const std::exception& e) {  // a full disk, a locked file: said, and the service goes on
+            fmt::print(stderr, "feedid watch: {}/{} run {} not recorded: {}\n", run.machine, run.axis, run.sequence,
+                       e.what());
+        }
+    }
+
+    const ServiceOptions& options_;
+    Shared& shared_;
+    mosquitto* client_;
+    Watcher watcher_;
+    std::unique_ptr<history::HistoryStore> store_;
+};
+
+/// Messages the broker did not take while it was away, held (at most `limit`; beyond, the oldest is dropped and
+/// counted) and sent in order once it is back: store and forward, as an NC's gateway does.
+class Outbox {
+public:
+    Outbox(mosquitto* client, const PublishOptions& options, std::size_t limit)
+        : client_(client), options_(options), limit_(limit) {}
+
+    void send(const std::string& topic, std::string payload) {
+        flush();
+        if (held_.empty() && publish(topic, payload)) {
+            ++sent_;
+            return;
+        }
+        held_.emplace_back(topic, std::move(payload));
+        ++held_total_;
+        if (held_.size() > limit_) {
+            held_.pop_front();
+            ++lost_;
+        }
+    }
+    /// Sends what is held; true when nothing is left.
+    bool flush() {
+        while (!held_.empty() && publish(held_.front().first, held_.front().second)) {
+            held_.pop_front();
+            ++sent_;
+        }
+        return held_.empty();
+    }
+    [[nodiscard]] std::size_t sent() const { return sent_; }
+    [[nodiscard]] std::size_t lost() const { return lost_ + held_.size(); }
+    [[nodiscard]] std::size_t held_total() const { return held_total_; }
+
+private:
+    bool publish(const std::string& topic, const std::string& payload) {
+        return mosquitto_publish(client_, nullptr, topic.c_str(), static_cast<int>(payload.size()), payload.data(),
+                                 options_.qos, false) == MOSQ_ERR_SUCCESS;
+    }
+    mosquitto* client_;
+    const PublishOptions& options_;
+    std::size_t limit_;
+    std::deque<std::pair<std::string, std::string>> held_;  ///< topic, payload
+    std::size_t sent_{0}, lost_{0}, held_total_{0};
+};
+
+}  // namespace
+
+bool mqtt_available() {
+    return true;
+}
+
+int run_watch(const ServiceOptions& options) {
+    if (auto e = check_topic_filter(options.topic_filter); !e.empty())
+        throw InputError(fmt::format("--topic '{}': {}", options.topic_filter, e));
+    if (auto e = options.watch.validate(); !e.empty()) throw InputError(e);
+    Library library;
+    Shared shared;
+    shared.queue_limit = options.queue_bytes;
+    shared.filter = options.topic_filter;
+    const std::string first = options.topic_filter.substr(0, options.topic_filter.find('/'));
+    shared.status_topic = !options.status_topic.empty()    ? options.status_topic
+                          : (first == "+" || first == "#") ? std::string("feedid/status")
+                                                           : first + "/feedid/status";
+    // a client id of the user's: a persistent session (the broker keeps QoS 1 messages while feedid watch is away)
+    Client client = make_client(options.client_id.empty() ? default_client_id("watch") : options.client_id, &shared,
+                                options.client_id.empty());
+    mosquitto_reconnect_delay_set(client.get(), 1, 32, true);  // 1, 2, 4, ... 32 s
+    mosquitto_will_set(client.get(), shared.status_topic.c_str(), 7, "offline", 1, true);
+    mosquitto_connect_callback_set(client.get(), on_connect);
+    mosquitto_disconnect_callback_set(client.get(), on_disconnect);
+    mosquitto_message_callback_set(client.get(), on_message);
+    Service service(options, shared, client.get());  // opens the history: exit 2 before connecting when it cannot
+    connect_or_throw(client.get(), options.broker);
+    stop_requested = false;
+    std::signal(SIGTERM, request_stop);
+    std::signal(SIGINT, request_stop);
+    mosquitto_loop_start(client.get());
+    const auto interval = std::chrono::duration<double>(options.estimate_interval_s);
+    auto next_estimate = Clock::now() + std::chrono::duration_cast<Clock::duration>(interval);
+    auto last_message = Clock::now();
+    std::deque<Message> batch;
+    const auto drain = [&] {
+        {
+            std::lock_guard lock(shared.mutex);
+            batch.swap(shared.queue);
+            shared.queued_bytes = 0;
+        }
+        if (!batch.empty()) last_message = Clock::now();
+        for (const Message& message : batch) service.handle(message);
+        batch.clear();
+        service.record_runs();
+    };
+    while (!stop_requested) {
+        {
+            std::unique_lock lock(shared.mutex);
+            shared.arrived.wait_for(lock, std::chrono::milliseconds(50), [&] { return !shared.queue.empty(); });
+        }
+        drain();
+        if (Clock::now() >= next_estimate) {
+            service.publish_estimates(false);
+            next_estimate = Clock::now() + std::chrono::duration_cast<Clock::duration>(interval);
+        }
+        if (options.idle_exit_s &&
+            std::chrono::duration<double>(Clock::now() - last_message).count() > *options.idle_exit_s)
+            break;
+    }
+    drain();
+    service.finish();
+    service.record_runs();
+    mosquitto_publish(client.get(), nullptr, shared.status_topic.c_str(), 7, "offline", 1, true);
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));  // let the QoS 1 messages leave
+    mosquitto_disconnect(client.get());
+    mosquitto_loop_stop(client.get(), false);
+    std::signal(SIGTERM, SIG_DFL);
+    std::signal(SIGINT, SIG_DFL);
+    return 0;
+}
+
+int run_publish(const Batch& stream, const PublishOptions& options) {
+    if (options.topic.empty() || options.topic.find_first_of("+#") != std::string::npos)
+        throw InputError(fmt::format("--topic '{}': a topic to publish to has no wildcards", options.topic));
+    if (options.copies > 1 && options.topic.find("{n}") == std::string::npos)
+        throw InputError(fmt::format("--copies {}: the topic '{}' needs a '{{n}}' to tell the copies apart",
+                                     options.copies, options.topic));
+    Library library;
+    Shared shared;
+    // a client id of the user's: a persistent session (the broker keeps the QoS 1 exchange in flight over a restart)
+    Client client = make_client(options.client_id.empty() ? default_client_id("publish") : options.client_id, &shared,
+                                options.client_id.empty());
+    mosquitto_reconnect_delay_set(client.get(), 1, 1, false);  // an NC's gateway retries every second
+    mosquitto_disconnect_callback_set(client.get(), on_disconnect);
+    mosquitto_publish_callback_set(client.get(),
+                                   [](mosquitto*, void* user, int) { ++static_cast<Shared*>(user)->delivered; });
+    mosquitto_connect_callback_set(client.get(), [](mosquitto*, void* user, int code) {
+        if (code == 0) static_cast<Shared*>(user)->connected = true;
+    });
+    connect_or_throw(client.get(), options.broker);
+    mosquitto_loop_start(client.get());
+    stop_requested = false;
+    std::signal(SIGTERM, request_stop);
+    std::signal(SIGINT, request_stop);
+    const std::size_t n = stream.samples();
+    const auto per_message = static_cast<std::size_t>(std::max(1.0, std::round(options.batch_s / stream.dt)));
+    Batch part;
+    part.machine = stream.machine;
+    part.axis = stream.axis;
+    part.dt = stream.dt;
+    part.drive_is_force = stream.drive_is_force;
+    part.force_constant = stream.force_constant;
+    // --copies N: the same stream on N topics, '{n}' in the topic replaced by 1..N (a load for the benchmark)
+    std::vector<std::string> topics;
+    for (std::size_t c = 1; c <= options.copies; ++c) {
+        std::string topic = options.topic;
+        if (const auto at = topic.find("{n}"); at != std::string::npos) topic.replace(at, 3, std::to_string(c));
+        topics.push_back(std::move(topic));
+    }
+    const auto start = Clock::now();
+    Outbox outbox(
+        client.get(), options,
+        static_cast<std::size_t>(std::ceil(options.buffer_s / (static_cast<double>(per_message) * stream.dt))));
+    for (std::size_t first = 0; first < n && !stop_requested; first += per_message) {
+        const std::size_t count = std::min(per_message, n - first);
+        part.t0 = stream.t0 + static_cast<double>(first) * stream.dt;
+        part.position.assign(stream.position.begin() + static_cast<std::ptrdiff_t>(first),
+                             stream.position.begin() + static_cast<std::ptrdiff_t>(first + count));
+        part.drive.assign(stream.drive.begin() + static_cast<std::ptrdiff_t>(first),
+                          stream.drive.begin() + static_cast<std::ptrdiff_t>(first + count));
+        if (options.rate > 0.0) {  // the message leaves when its last sample would have been recorded
+            const double due = static_cast<double>(first + count) * stream.dt / options.rate;
+            std::this_thread::sleep_until(
+                start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(due)));
+        }
+        const std::string payload = options.binary ? encode_binary(part) : encode_json(part);
+        for (const std::string& topic : topics) outbox.send(topic, payload);
+    }
+    // what is held, and what the library holds (QoS 1 awaiting acknowledgement), leaves first
+    const auto give_up = Clock::now() + std::chrono::seconds(60);
+    while ((!outbox.flush() || shared.delivered < outbox.sent()) && Clock::now() < give_up && !stop_requested)
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    mosquitto_disconnect(client.get());
+    mosquitto_loop_stop(client.get(), false);
+    std::signal(SIGTERM, SIG_DFL);
+    std::signal(SIGINT, SIG_DFL);
+    fmt::print(stderr, "feedid publish: {} messages sent to {} on {} ({} held while the broker was away), {} lost\n",
+               outbox.sent(), topics.size() == 1 ? topics[0] : options.topic, options.broker.url(), outbox.held_total(),
+               outbox.lost());
+    return 0;
+}
+
+}  // namespace feedid::watch
