@@ -802,6 +802,17 @@ OnlineEstimate OnlineIdentifier::estimate() const {
         e.stribeck_reason = e.mass_reason;
         return e;
     }
+    if (counts_.qualified() < 2) {
+        // one window is checked against no other: its robust fit may have followed a process force over most of it
+        // (seen: M 33 % high and B -806 N*s/m from the one window of a trace, with a small model-based error)
+        e.mass_reason = fmt::format(
+            "only {} window qualified (of {}): one window cannot be checked against another, and a process force "
+            "over most of it would pass for the axis; 2 or more needed",
+            counts_.qualified(), counts_.total);
+        e.friction_reason = e.mass_reason;
+        e.stribeck_reason = e.mass_reason;
+        return e;
+    }
     e.residual_std = std::sqrt(sum_scale_sq_ / forgotten_windows_);
     const Mat r = r_z_.topLeftCorner(p, p);
     const Vec theta = pooled_theta();

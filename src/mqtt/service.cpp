@@ -144,7 +144,7 @@ class Service {
 public:
     Service(const ServiceOptions& options, Shared& shared, mosquitto* client)
         : options_(options), shared_(shared), client_(client), watcher_(options.watch) {
-        if (!options.database.empty()) store_ = history::open_sqlite_store(options.database);
+        if (!options.database.empty()) store_ = history::open_store(options.database);
     }
 
     void handle(const Message& message) {
