@@ -20,29 +20,12 @@
 
 #include "feedid/identify.hpp"
 #include "feedid/io/import.hpp"
+#include "stribeck_trace.hpp"
 
 namespace {
 
 feedid::Trace make_trace(std::size_t samples) {
-    std::vector<double> time(samples), position(samples), current(samples);
-    const double dt = 1e-3;
-    const double feeds[] = {0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2};
-    double x = 0.0;
-    std::uint32_t state = 12345;
-    for (std::size_t k = 0; k < samples; ++k) {
-        const double t = static_cast<double>(k) * dt;
-        const double feed = feeds[(k / 10000) % 9];
-        const double w = 2.0 * std::numbers::pi / 2.0;
-        const double v = feed * std::sin(w * t), a = feed * w * std::cos(w * t);
-        x += v * dt;
-        const double speed = std::abs(v);
-        const double friction = speed > 0 ? 54.0 * speed + 740.0 + 200.0 * std::exp(-speed / 0.005) : 0.0;
-        state = state * 1664525u + 1013904223u;
-        time[k] = t;
-        position[k] = 50e-9 * std::round(x / 50e-9);
-        current[k] = (69.0 * a + std::copysign(friction, v)) / 450.0 +
-                     (static_cast<double>(state >> 8) / 16777216.0 - 0.5) * 0.02;
-    }
+    auto [time, position, current] = feedid::bench::stribeck_columns(samples);
     feedid::Trace trace;
     // moved in: the trace holds the only copy of each column, as the Python module's import does
     trace.set("time", feedid::Role::other, "", std::move(time));

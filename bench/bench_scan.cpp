@@ -22,8 +22,9 @@ const fs::path& long_trace() {
         if (fs::exists(out)) return out;
         const fs::path base = folder / "scan-base.csv";
         const auto synth = feedid::bench::run({FEEDID_CLI, "synth", "--seed", "1", "--out", base.string()});
-        const auto repeat = feedid::bench::run({"/usr/bin/python3", std::string(FEEDID_SOURCE_DIR) + "/bench/long_trace.py",
-                                                base.string(), out.string(), "--hours", "8"});
+        const auto repeat =
+            feedid::bench::run({"/usr/bin/python3", std::string(FEEDID_SOURCE_DIR) + "/bench/long_trace.py",
+                                base.string(), out.string(), "--hours", "8"});
         if (synth.exit_code != 0 || repeat.exit_code != 0) fs::remove(out);
         return out;
     }();

@@ -45,7 +45,9 @@ inline Outcome run(const std::vector<std::string>& argv) {
     ::wait4(pid, &status, 0, &usage);
     Outcome outcome;
     outcome.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    const auto seconds = [](const timeval& t) { return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec); };
+    const auto seconds = [](const timeval& t) {
+        return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec);
+    };
     outcome.cpu_seconds = seconds(usage.ru_utime) + seconds(usage.ru_stime);
     outcome.peak_megabytes = static_cast<double>(usage.ru_maxrss) / 1024.0;
     outcome.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);

@@ -64,16 +64,7 @@ std::vector<char> gate_samples(const Trace& trace, std::span<const GateCondition
 namespace {
 
 void set_parameters(ScanResult& s, const OnlineEstimate& e) {
-    for (auto& p : s.result.parameters) {
-        switch (p.term) {
-            case Term::mass: p.estimate = e.mass; break;
-            case Term::viscous: p.estimate = e.viscous; break;
-            case Term::coulomb: p.estimate = e.coulomb; break;
-            case Term::offset: p.estimate = e.offset; break;
-            case Term::breakaway: p.estimate = e.breakaway; break;
-            case Term::stribeck_velocity: p.estimate = e.stribeck_velocity; break;
-        }
-    }
+    for (auto& p : s.result.parameters) p.estimate = e.of(p.term);
 }
 
 }  // namespace
@@ -95,8 +86,8 @@ struct Identifiers {
     }
 };
 
-void push_trace(Identifiers& identifiers, const Trace& trace, std::span<const double> force,
-                std::span<const char> use, std::size_t block) {
+void push_trace(Identifiers& identifiers, const Trace& trace, std::span<const double> force, std::span<const char> use,
+                std::size_t block) {
     const auto t = trace.column(Role::time);
     const auto x = trace.column(Role::position);
     for (std::size_t k = 0; k < t.size(); k += block) {

@@ -205,7 +205,8 @@ TEST(WatchMqtt, MachinesTimesThreeAxesAt20xSurviveABrokerRestartAndAThousandMalf
     for (auto [last, since] = std::pair{samples_estimated(), Clock::now()};
          Clock::now() - since < std::chrono::seconds(2) && Clock::now() - published < std::chrono::seconds(60);) {
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
-        if (const std::size_t now = samples_estimated(); now != last) std::tie(last, since) = std::pair{now, Clock::now()};
+        if (const std::size_t now = samples_estimated(); now != last)
+            std::tie(last, since) = std::pair{now, Clock::now()};
     }
     EXPECT_EQ(watch.terminate(), 0) << read_text(dir / "watch.err");  // SIGTERM: flush, publish, exit 0
     ASSERT_TRUE(wait_until([&] { return !listener.status().empty() && listener.status().back() == "offline"; }, 5));

@@ -114,8 +114,7 @@ struct ScanCommand {
         if (!arguments.gear_ratio) arguments.gear_ratio = drive_arguments.gear_ratio;
         std::vector<std::string> findings;
         ScanResult result = scan_csv_stream(arguments.file, arguments.import_options(), drive_arguments.constants(),
-                                            gates, o, block_rows > 0 ? block_rows : 500000, findings,
-                                            !no_systematic);
+                                            gates, o, block_rows > 0 ? block_rows : 500000, findings, !no_systematic);
         for (const auto& finding : findings) fmt::print(stderr, "feedid: {}\n", terminal_message(finding));
         return result;
     }

@@ -172,9 +172,10 @@ Action add_watch_command(CLI::App& app) {
            "--topic", command->options.topic_filter,
            "Topic filter of the data; machine and axis are the 2nd and 3rd levels (plant/<machine>/<axis>/...)")
         ->default_val("plant/+/+/axis/#");
-    sub->add_option("--db", command->options.database,
-                    "History (a SQLite file or a postgresql:// database) to record each completed identification in, and to "
-                    "check for drift");
+    sub->add_option(
+        "--db", command->options.database,
+        "History (a SQLite file or a postgresql:// database) to record each completed identification in, and to "
+        "check for drift");
     sub->add_option("--config", command->config,
                     "watch.toml: [online] window_s offset robust cutoff_hz, [force_constants] X = 52.0 or "
                     "\"M1/X\" = 52.0 [N/A], [run] windows period_s gap_s, [service] estimate_interval_s queue_mb "

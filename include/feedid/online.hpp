@@ -25,6 +25,7 @@
 #include <Eigen/Core>
 
 #include "feedid/estimate.hpp"
+#include "feedid/parameters.hpp"
 #include "feedid/signal.hpp"
 
 namespace feedid {
@@ -114,6 +115,18 @@ struct WindowCounts {
 /// The estimate at one moment. Keys M, B, F_C (, F_0), F_B, v_s; a null value carries its reason.
 struct OnlineEstimate {
     Estimate mass, viscous, coulomb, offset, breakaway, stribeck_velocity;
+    /// The estimate of a parameter's term (the model is symmetric: one per term).
+    [[nodiscard]] const Estimate& of(Term term) const {
+        switch (term) {
+            case Term::mass: return mass;
+            case Term::viscous: return viscous;
+            case Term::coulomb: return coulomb;
+            case Term::offset: return offset;
+            case Term::breakaway: return breakaway;
+            case Term::stribeck_velocity: return stribeck_velocity;
+        }
+        return mass;  // unreachable: every term is listed
+    }
     std::string mass_reason, friction_reason, stribeck_reason;  ///< why null ("" when determined)
     /// What the data says of each step-1 parameter (M, B, F_C (, F_0)), from the cluster covariance.
     Eigen::VectorXd information;  ///< 1 / variance of each parameter (from the cluster covariance) [1/unit^2]

@@ -196,14 +196,7 @@ nlohmann::json online_result_document(const OnlineEstimate& e, const OnlineOptio
     for (const auto* reason : {&e.mass_reason, &e.friction_reason, &e.stribeck_reason})
         if (!reason->empty()) result.diagnostics.push_back(*reason);
     for (auto& p : result.parameters) {
-        switch (p.term) {
-            case Term::mass: p.estimate = e.mass; break;
-            case Term::viscous: p.estimate = e.viscous; break;
-            case Term::coulomb: p.estimate = e.coulomb; break;
-            case Term::offset: p.estimate = e.offset; break;
-            case Term::breakaway: p.estimate = e.breakaway; break;
-            case Term::stribeck_velocity: p.estimate = e.stribeck_velocity; break;
-        }
+        p.estimate = e.of(p.term);
         // a value without a standard error is not published (nor recorded): nothing says how far off it may be
         if (p.estimate.value && !p.estimate.standard_error) {
             p.estimate = {};
