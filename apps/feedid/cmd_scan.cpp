@@ -1,8 +1,10 @@
 // feedid scan FILE: mass and friction from a production trace, no test needed (issue 15): the online identifier
 // run over the file, windows that carry information pooled, the others counted by why.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <initializer_list>
 #include <memory>
 #include <vector>
 
@@ -167,10 +169,19 @@ struct ScanCommand {
         }
         fmt::print("\n");
         for (const auto& line : scan_verdicts(s)) fmt::print("  {}\n", terminal_message(line));
-        // the findings the verdicts above have not said already
-        const auto said = [&s](const std::string& line) {
-            return line == s.online.mass_reason || line == s.online.friction_reason || line == s.online.stribeck_reason;
+        // the findings the verdicts above have not said already (they say the reasons of the null parameters)
+        const auto null_reason = [&r](const std::string& reason, std::initializer_list<Term> terms) {
+            return std::any_of(terms.begin(), terms.end(),
+                               [&](Term term) {
+                                   const Parameter* p = r.find(term);
+                                   return p != nullptr && !p->estimate.value;
+                               })
+                       ? reason
+                       : std::string();
         };
+        const std::string mass = null_reason(s.online.mass_reason, {Term::mass, Term::viscous, Term::coulomb});
+        const std::string stribeck = null_reason(s.online.stribeck_reason, {Term::breakaway, Term::stribeck_velocity});
+        const auto said = [&](const std::string& line) { return line == mass || line == stribeck; };
         bool heading = false;
         for (const auto& line : r.diagnostics) {
             if (said(line)) continue;
