@@ -244,22 +244,16 @@ public:
 
     AddOutcome add_run(const RunRecord& run) override {
         require_writable();
-        const StoredTextLimits limits;
-        const std::string options_json = run.options.dump();
-        const std::string result_json = run.result.is_object() ? run.result.dump() : std::string("{}");
-        if (result_json.size() > limits.document_bytes || options_json.size() > limits.options_bytes)
-            throw InputError(
-                fmt::format("{}: the run's result document or options are larger than a run may store", shown_));
-        const std::string stored_at = run.stored_at.empty() ? now_utc() : run.stored_at;
+        const StoredText text = stored_text_of(run, shown_);
         const std::string axis_kind = run.axis_kind.empty() ? axis_kind_of(run.parameters) : run.axis_kind;
-        const std::string options_sha256 = sha256_hex(options_json);
+        const std::string options_sha256 = sha256_hex(text.options_json);
         return guarded([&] {
             return write_transaction([&](bool retried) {
                 query("SELECT pg_advisory_xact_lock(hashtextextended($1, 0))",
                       Parameters{}.add(run.machine + '\x1f' + run.axis));
                 const auto existing = find_run(run.trace_sha256, options_sha256);
                 // A retry after a lost connection may find the run its first attempt committed: still "inserted".
-                if (existing) return AddOutcome{existing->first, retried && existing->second == stored_at};
+                if (existing) return AddOutcome{existing->first, retried && existing->second == text.stored_at};
                 require_same_axis_kind(run, axis_kind);
                 const Result inserted = write(
                     "INSERT INTO runs (machine, axis, location, recorded_at, trace_path, trace_sha256, "
@@ -267,11 +261,11 @@ public:
                     "relative_error_pct, condition_number, samples_used) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, "
                     "$10, $11, $12, $13, $14, $15, $16, $17) ON CONFLICT (trace_sha256, options_sha256) DO NOTHING "
                     "RETURNING id",
-                    run_parameters(run, axis_kind, options_json, options_sha256, stored_at));
+                    run_parameters(run, axis_kind, text, options_sha256));
                 if (inserted.rows() == 0) return AddOutcome{find_run(run.trace_sha256, options_sha256)->first, false};
                 const std::int64_t id = inserted.integer(0, 0);
                 write("INSERT INTO documents (run_id, result_json, diagnostics_json) VALUES ($1, $2, $3)",
-                      Parameters{}.add(id).add(result_json).add(nlohmann::json(run.diagnostics).dump()));
+                      Parameters{}.add(id).add(text.result_json).add(text.diagnostics_json));
                 insert_parameters(id, run);
                 return AddOutcome{id, true};
             });
@@ -515,15 +509,14 @@ private:
         return std::pair{existing.integer(0, 0), existing.text(0, 1)};
     }
 
-    static Parameters run_parameters(const RunRecord& run, const std::string& axis_kind,
-                                     const std::string& options_json, const std::string& options_sha256,
-                                     const std::string& stored_at) {
+    static Parameters run_parameters(const RunRecord& run, const std::string& axis_kind, const StoredText& text,
+                                     const std::string& options_sha256) {
         const FitFigures figures = fit_figures_of(run);
         Parameters parameters;
         parameters.add(run.machine).add(run.axis).add(run.location).add(run.recorded_at).add(run.trace_path);
         parameters.add(run.trace_sha256).add(options_sha256).add(run.feedid_version).add(run.model).add(run.status);
-        parameters.add(axis_kind).add(options_json).add(run.fit.is_object() ? run.fit.dump() : std::string("{}"));
-        parameters.add(stored_at).add(figures.relative_error_pct).add(figures.condition_number);
+        parameters.add(axis_kind).add(text.options_json).add(text.fit_json);
+        parameters.add(text.stored_at).add(figures.relative_error_pct).add(figures.condition_number);
         parameters.add(figures.samples_used);
         return parameters;
     }

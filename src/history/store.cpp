@@ -152,18 +152,10 @@ public:
 
     AddOutcome add_run(const RunRecord& run) override {
         require_writable();
-        const StoredTextLimits limits;
-        const std::string options_json = run.options.dump();
-        const std::string result_json = run.result.is_object() ? run.result.dump() : std::string("{}");
-        if (result_json.size() > limits.document_bytes || options_json.size() > limits.options_bytes)
-            throw InputError(
-                fmt::format("{}: the run's result document or options are larger than a run may store", path_));
-        const StoredText text{options_json, run.fit.is_object() ? run.fit.dump() : std::string("{}"),
-                              nlohmann::json(run.diagnostics).dump(), result_json,
-                              run.stored_at.empty() ? now_utc() : run.stored_at};
+        const StoredText text = stored_text_of(run, path_);
         return write_transaction([&] {
             Statement existing(db_, "SELECT id FROM runs WHERE trace_sha256 = ?1 AND options_json = ?2", path_);
-            existing.bind(1, run.trace_sha256).bind(2, options_json);
+            existing.bind(1, run.trace_sha256).bind(2, text.options_json);
             if (existing.step()) return AddOutcome{existing.integer(0), false};
 
             const std::string axis_kind = run.axis_kind.empty() ? axis_kind_of(run.parameters) : run.axis_kind;
@@ -178,8 +170,7 @@ public:
 
     std::vector<RunRecord> runs(const RunFilter& filter, RunDetail detail) const override {
         std::vector<RunRecord> result;
-        exec("BEGIN");  // one snapshot for both queries
-        try {
+        snapshot([&] {  // one snapshot for both queries
             std::unordered_map<std::int64_t, std::size_t> index;
             read_run_rows(
                 std::string(filter_clause) + " ORDER BY r.recorded_at, r.id",
@@ -191,18 +182,13 @@ public:
                 if (const auto found = index.find(id); found != index.end())
                     result[found->second].parameters.emplace(std::string(key), estimate);
             });
-            exec("COMMIT");
-        } catch (...) {
-            sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
-            throw;
-        }
+        });
         return result;
     }
 
     std::vector<RunRecord> runs_in_storage_order(std::int64_t after_id, std::size_t limit) const override {
         std::vector<RunRecord> result;
-        exec("BEGIN");  // one snapshot for both queries
-        try {
+        snapshot([&] {  // one snapshot for both queries
             std::unordered_map<std::int64_t, std::size_t> index;
             read_run_rows(
                 " WHERE r.id > ?1 ORDER BY r.id LIMIT ?2",
@@ -220,18 +206,13 @@ public:
                     result[index.at(select.integer(0))].parameters.emplace(
                         select.text(1), StoredEstimate{select.real(2), select.real(3), select.real(4), select.real(5)});
             }
-            exec("COMMIT");
-        } catch (...) {
-            sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
-            throw;
-        }
+        });
         return result;
     }
 
     std::vector<SeriesRuns> series(const RunFilter& filter) const override {
         std::vector<SeriesRuns> result;
-        exec("BEGIN");  // one snapshot for both queries
-        try {
+        snapshot([&] {  // one snapshot for both queries
             // where each run lives: (series, position)
             std::unordered_map<std::int64_t, std::pair<std::uint32_t, std::uint32_t>> where;
             read_series_rows(filter, result, where);
@@ -249,11 +230,7 @@ public:
                 }
                 series.estimates[slot->second][found->second.second] = estimate;
             });
-            exec("COMMIT");
-        } catch (...) {
-            sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
-            throw;
-        }
+        });
         for (auto& series : result) sort_keys(series);
         return result;
     }
@@ -302,14 +279,18 @@ public:
     int schema_version() const override { return schema_version_; }
 
 private:
-    /// A run's JSON columns and its storage time, as written.
-    struct StoredText {
-        std::string options_json;
-        std::string fit_json;
-        std::string diagnostics_json;
-        std::string result_json;
-        std::string stored_at;
-    };
+    /// Runs `read` in one read transaction, so that its queries see one snapshot of the file.
+    template <typename Read>
+    void snapshot(Read&& read) const {
+        exec("BEGIN");
+        try {
+            read();
+            exec("COMMIT");
+        } catch (...) {
+            sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+            throw;
+        }
+    }
 
     /// One axis holds runs of one kind: a rotary run on an axis of linear runs (or the reverse) is refused. Since
     /// every run of an axis is of its kind, one run (the first the index gives) tells it: a search for a run of the
@@ -595,17 +576,12 @@ void SqliteStore::check_and_migrate(int target_version) {
     // Read-only checks first: nothing below writes until the file is known to be a feedid history (or empty).
     // One snapshot for the three: another process may be creating the tables right now.
     const auto [found_application, version, tables] = reading_the_file([&] {
-        exec("BEGIN");
-        try {
-            const std::array<int, 3> header{pragma_integer("PRAGMA application_id"),
-                                            pragma_integer("PRAGMA user_version"),
-                                            pragma_integer("SELECT count(*) FROM sqlite_master")};
-            exec("COMMIT");
-            return header;
-        } catch (...) {
-            sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
-            throw;
-        }
+        std::array<int, 3> header{};
+        snapshot([&] {
+            header = {pragma_integer("PRAGMA application_id"), pragma_integer("PRAGMA user_version"),
+                      pragma_integer("SELECT count(*) FROM sqlite_master")};
+        });
+        return header;
     });
     schema_version_ = version;
     std::string check = check_tables(read_only_ ? "PRAGMA quick_check" : "PRAGMA integrity_check");

@@ -7,6 +7,10 @@
 #include <string_view>
 #include <unordered_map>
 
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include "feedid/error.hpp"
 #include "feedid/history/store.hpp"
 
 namespace feedid::history {
@@ -20,6 +24,29 @@ inline FitFigures fit_figures_of(const RunRecord& run) {
         return std::nullopt;
     };
     return {number("relative_error_pct"), number("condition_number"), number("samples_used")};
+}
+
+/// A run's JSON columns and its storage time, as written.
+struct StoredText {
+    std::string options_json;
+    std::string fit_json;
+    std::string diagnostics_json;
+    std::string result_json;
+    std::string stored_at;
+};
+
+/// The text a run is stored as; a run larger than the store takes is refused (InputError naming `where`) before
+/// anything is written.
+inline StoredText stored_text_of(const RunRecord& run, std::string_view where) {
+    const StoredTextLimits limits;
+    StoredText text{run.options.dump(), run.fit.is_object() ? run.fit.dump() : std::string("{}"),
+                    nlohmann::json(run.diagnostics).dump(),
+                    run.result.is_object() ? run.result.dump() : std::string("{}"),
+                    run.stored_at.empty() ? now_utc() : run.stored_at};
+    if (text.result_json.size() > limits.document_bytes || text.options_json.size() > limits.options_bytes)
+        throw InputError(
+            fmt::format("{}: the run's result document or options are larger than a run may store", where));
+    return text;
 }
 
 /// Numbers each distinct options text of one listing: runs with equal options get equal groups.
