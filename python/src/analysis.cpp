@@ -148,7 +148,8 @@ std::string result_failure(const IdentifyResult& r) {
     return lines;
 }
 
-void bind_records(py::module_& m) {
+// The records of what the pipeline read and which samples it kept.
+void bind_input_records(py::module_& m) {
     py::class_<TraceSummary>(m, "TraceSummary",
                              "The trace a result came from: path, format, samples, sample_time_s [s], duration_s [s]")
         .def_readonly("path", &TraceSummary::path)
@@ -186,6 +187,10 @@ void bind_records(py::module_& m) {
         .def_readonly("moving_threshold", &SelectionReport::moving_threshold)
         .def_readonly("split_velocity", &SelectionReport::split_velocity)
         .def_readonly("notes", &SelectionReport::notes);
+}
+
+// The records of the two steps: the batch fit and RLS of step 1, the Stribeck fits of step 2.
+void bind_step_records(py::module_& m) {
     py::class_<Step1Report>(m, "Step1Report",
                             "Step 1's batch QR fit: batch (key -> Estimate [SI]), relative_error_pct [%], "
                             "condition_number, samples_used, residual_std [N or N*m], r_diagonal (|diag R|)")
@@ -276,6 +281,10 @@ void bind_records(py::module_& m) {
                                })
         .def_property_readonly("nonlinear",
                                [](py::object self) { return optional_record(self, &StribeckReport::nonlinear); });
+}
+
+// The records around the estimates: the friction curve, the preprocessing family, the friction-only fallback.
+void bind_friction_records(py::module_& m) {
     py::class_<FrictionCurvePoints>(m, "FrictionCurvePoints",
                                     "Quasi-static friction binned by speed: speed [m/s or rad/s], force (friction "
                                     "magnitude) [N or N*m], fitted (the identified curve at speed)")
@@ -314,6 +323,12 @@ void bind_records(py::module_& m) {
         .def_readonly("samples_used", &FrictionOnlyReport::samples_used)
         .def_readonly("relative_error_pct", &FrictionOnlyReport::relative_error_pct)
         .def_readonly("residual_std", &FrictionOnlyReport::residual_std);
+}
+
+void bind_records(py::module_& m) {
+    bind_input_records(m);
+    bind_step_records(m);
+    bind_friction_records(m);
 }
 
 void bind_result(py::module_& m) {
