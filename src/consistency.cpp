@@ -7,7 +7,9 @@
 #include <optional>
 
 #include <fmt/core.h>
+#include <fmt/ranges.h>
 
+#include "feedid/error.hpp"
 #include "feedid/native_interval.hpp"
 #include "feedid/signal.hpp"
 
@@ -147,6 +149,13 @@ std::vector<std::string> unit_inconsistencies(const Trace& trace, const Consiste
         }
     }
     return problems;
+}
+
+void require_consistent_units(const Trace& trace, const ConsistencyOptions& options) {
+    if (const auto problems = unit_inconsistencies(trace, options); !problems.empty()) {
+        throw InputError(fmt::format("{}: {}", trace.source_path.empty() ? std::string("trace") : trace.source_path,
+                                     fmt::join(problems, "; ")));
+    }
 }
 
 }  // namespace feedid

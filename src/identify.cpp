@@ -8,7 +8,6 @@
 #include <thread>
 
 #include <fmt/core.h>
-#include <fmt/ranges.h>
 
 #include "feedid/consistency.hpp"
 #include "feedid/error.hpp"
@@ -593,10 +592,7 @@ const Channel* signal_without_force_constant(const Trace& trace, const DriveCons
 
 IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
-    if (const auto problems = unit_inconsistencies(trace); !problems.empty()) {
-        throw InputError(fmt::format("{}: {}", trace.source_path.empty() ? std::string("trace") : trace.source_path,
-                                     fmt::join(problems, "; ")));
-    }
+    require_consistent_units(trace);
     if (const Channel* signal = signal_without_force_constant(trace, options.drive)) {
         // Whether the data can identify anything at all does not depend on the force constant: find out in signal
         // units first, so that a trace that cannot identify a mass says so (exit 1) instead of asking for a constant

@@ -6,6 +6,7 @@
 
 #include <fmt/core.h>
 
+#include "feedid/consistency.hpp"
 #include "feedid/error.hpp"
 #include "feedid/io/csv.hpp"
 #include "feedid/parameters.hpp"
@@ -167,6 +168,7 @@ ScanResult scan(const Trace& trace, std::span<const double> force, std::span<con
     if (const auto problem = options.validate(); !problem.empty()) throw InputError("scan: " + problem);
     if (!trace.has(Role::position))
         throw InputError(fmt::format("{}: scan needs a position channel (--channel position=NAME)", trace.source_path));
+    require_consistent_units(trace);
     Identifiers identifiers(options, systematic);
     push_trace(identifiers, trace, force, use, block);
     const TimeBase base = trace.samples() >= 2 ? trace.time_base() : TimeBase{};
@@ -199,6 +201,7 @@ Trace parse_block(const std::string& text, const std::filesystem::path& path, co
     prepare_trace(trace, import);
     if (!trace.has(Role::position))
         throw InputError(fmt::format("{}: scan needs a position channel (--channel position=NAME)", path.string()));
+    require_consistent_units(trace);  // block by block: a unit mix-up shows in any block that moves
     return trace;
 }
 

@@ -1,6 +1,6 @@
 // feedid scan (issue 15): the identify document's parameters plus windows and information, the online identifier's
 // estimate to 1e-9, exit 1 with the counts when nothing qualifies, --only-when, --axis on a multi-axis file,
-// --record into the history.
+// --record into the history, a unit mix-up refused as identify refuses it.
 #include <cmath>
 #include <filesystem>
 
@@ -150,6 +150,25 @@ TEST(Scan, ABadConditionOrChannelIsBadInput) {
     r = testing::run_cli(fmt::format("scan {} {} --only-when 'spindle<5'", production_csv().string(), drive));
     EXPECT_EQ(r.exit_code, 2);
     EXPECT_NE(r.err.find("no channel 'spindle'"), std::string::npos) << r.err;
+}
+
+TEST(Scan, APositionInMillimetresLabelledMetresIsBadInputWholeAndInBlocks) {
+    // the same check as identify's: a unit mix-up would scale B by 1000 with exit 0
+    const Trace trace = read_trace(production_csv());
+    const auto file = testing::temp_dir() / "millimetres.csv";
+    std::string text = "t [s],x [m],i [A]\n";
+    for (std::size_t k = 0; k < trace.samples(); ++k)
+        text += fmt::format("{:.4f},{:.9g},{:.6g}\n", trace.column(Role::time)[k],
+                            1e3 * trace.column(Role::position)[k], trace.column(Role::current)[k]);
+    testing::write_text(file, text);
+    for (const char* blocks : {"", " --block-rows 10007"}) {
+        const auto r = testing::run_cli(fmt::format("scan {}{} {} --channel time=t --channel position=x "
+                                                    "--channel current=i",
+                                                    file.string(), blocks, drive));
+        EXPECT_EQ(r.exit_code, 2) << blocks << r.err;
+        EXPECT_NE(r.err.find("the position 'x' [m] moves at up to"), std::string::npos) << r.err;
+        EXPECT_NE(r.err.find("is its unit right?"), std::string::npos) << r.err;
+    }
 }
 
 TEST(Scan, AxisSelectsOneAxisOfAMultiAxisFile) {

@@ -30,4 +30,8 @@ struct ConsistencyOptions {
 /// factor; empty when none.
 std::vector<std::string> unit_inconsistencies(const Trace& trace, const ConsistencyOptions& options = {});
 
+/// The check identify and scan run before anything else: an InputError naming the trace and every inconsistency
+/// unit_inconsistencies finds; nothing when there is none.
+void require_consistent_units(const Trace& trace, const ConsistencyOptions& options = {});
+
 }  // namespace feedid
