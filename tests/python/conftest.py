@@ -83,3 +83,16 @@ def assert_documents_equal(actual, expected, relative: float, where: str = "docu
         assert isinstance(actual, (int, float)) and not isinstance(actual, bool), f"{where}: {actual!r}"
         assert math.isclose(actual, expected, rel_tol=relative, abs_tol=0.0) or actual == expected, \
             f"{where}: {actual!r} != {expected!r} (relative {relative})"
+
+
+@pytest.fixture(scope="module")
+def postgres(request):
+    """A PostgreSQL server of this test module's own (postgres_server.py); the test is skipped where none can run."""
+    from postgres_server import PostgresServer
+    server = PostgresServer(TEST_TMP / f"{request.module.__name__}-postgres-{os.getpid()}")
+    why_not = server.start()
+    if why_not:
+        server.stop()
+        pytest.skip(why_not)
+    yield server
+    server.stop()

@@ -71,3 +71,41 @@ def test_pin_starts_a_new_baseline(folder):
         assert history.trends()[0]["pinned_run"] == ids[1]
     listed = json.loads(run_cli("history", database, "--json", "-").stdout)
     assert listed["trends"][0]["pinned_run"] == ids[1]
+
+
+def test_a_postgresql_history_holds_what_a_sqlite_file_holds(folder, postgres):
+    """The same runs recorded through Python into PostgreSQL and into SQLite list, trend and check alike, and the
+    command line reads the PostgreSQL history as Python wrote it."""
+    location = postgres.create_database("python_history")
+    sqlite = folder / "shop.db"
+    results = []
+    for run in range(10):
+        path = folder / f"run{run:02d}.csv"
+        feedid.synth(drive_with_coulomb(1.0 + 0.04 * max(0, run - 6)), seed=run + 1, slow_passes=False, out=path)
+        results.append(feedid.identify(str(path), force_constant=FORCE))
+    for where in (location, sqlite):
+        with feedid.History(where) as history:
+            for run, result in enumerate(results):
+                _, inserted = history.record(result, machine="DMU50", axis="X",
+                                             recorded_at=f"2026-03-{run + 1:02d}T08:00:00Z")
+                assert inserted
+    with feedid.History(location, read_only=True) as on_postgres, feedid.History(sqlite) as on_sqlite:
+        assert on_postgres.path == location
+        listed = on_postgres.runs(axis="X")
+        assert len(listed) == len(results)
+        strip = lambda runs: [{k: v for k, v in r.items() if k not in ("id", "stored_at")} for r in runs]
+        assert strip(listed) == strip(on_sqlite.runs(axis="X"))
+        alarms = on_postgres.check()
+        assert alarms == on_sqlite.check()
+        assert any("coulomb_N" in alarm for alarm in alarms)
+        assert on_postgres.to_pandas()["coulomb_N"].tolist() == on_sqlite.to_pandas()["coulomb_N"].tolist()
+        with pytest.raises(feedid.InputError):
+            on_postgres.record(results[0], machine="DMU50", axis="Y")  # read only
+    cli = json.loads(run_cli("history", location, "--json", "-").stdout)
+    assert [r["id"] for r in cli["runs"]] == [r["id"] for r in listed]
+    assert run_cli("history", location, "--check", expect=1).stdout.strip().splitlines() == alarms
+
+
+def test_an_unreachable_postgresql_history_is_an_input_error(postgres):
+    with pytest.raises(feedid.InputError, match="127.0.0.1"):
+        feedid.History(f"postgresql://feedid_admin@127.0.0.1:{postgres.port}/no_such_database")
