@@ -979,6 +979,45 @@ TEST_F(ReportEndToEnd, PartialAndFailedResultsAreWarnedAbout) {
     EXPECT_NE(html_of(document).find("The identification failed"), std::string::npos);
 }
 
+// A production scan's report says what the scan found out: the windows, why the others were left out, and the
+// information per parameter, from a real scan of a production-like trace.
+TEST(ReportScan, AScanReportShowsItsWindowsAndTheInformationPerParameter) {
+    const auto folder = temp_dir();
+    const auto trace = folder / "pocket.csv";
+    const auto document = folder / "scan.json";
+    auto r =
+        run_shell(fmt::format("{} synth --program {} --seed 2 --out {}", cli(),
+                              quoted(fs::path(FEEDID_TEST_SOURCE_DIR) / ".." / "examples" / "programs" / "pocket.ngc"),
+                              quoted(trace)),
+                  folder);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    r = run_shell(fmt::format("{} scan {} --axis X --force-constant X_force_constant_N_per_A --json {}", cli(),
+                              quoted(trace), quoted(document)),
+                  folder);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto scan = nlohmann::json::parse(read_text(document));
+    const std::string html = report::result_report_html(scan, document.string());
+    EXPECT_NE(html.find("feedid production-scan report: pocket.csv"), std::string::npos);
+    const auto& windows = scan["windows"];
+    EXPECT_NE(html.find(fmt::format("cut into {} windows of 2 s; <b>{}</b> qualified", windows["total"].get<int>(),
+                                    windows["qualified"].get<int>())),
+              std::string::npos)
+        << html;
+    const int process_force = windows["rejected"]["process_force"].get<int>();
+    ASSERT_GT(process_force, 0) << "the pocket's cutting moves";
+    EXPECT_NE(html.find(fmt::format("a process (cutting) force, not the axis</td><td>{}</td>", process_force)),
+              std::string::npos);
+    const double mass_information = scan["information"]["mass_kg"]["inverse_variance"].get<double>();
+    EXPECT_NE(html.find(fmt::format("<td class=\"text\">Mass M</td><td>{:.4g}</td><td>{:.3g}</td>", mass_information,
+                                    1.0 / std::sqrt(mass_information))),
+              std::string::npos);
+    expect_self_contained(html);
+    // a document that is not a scan's has no such section
+    auto identify_like = scan;
+    identify_like.erase("kind");
+    EXPECT_EQ(report::result_report_html(identify_like, "r.json").find("<h2>Windows</h2>"), std::string::npos);
+}
+
 // The paper's Fig. 6 from a real run: EMPS identified, simulated in closed loop with the gains identified from the
 // trace, and reported with --simulation.
 TEST(ReportSimulation, EmpsReportHasTrackingAndModellingErrorPlots) {

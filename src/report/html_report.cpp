@@ -856,6 +856,60 @@ std::string parameter_table(const nlohmann::json& result) {
     return table + "</table>\n";
 }
 
+// A production scan's windows: how many the trace gave, how many were pooled, why the others were not, and the
+// information each parameter got from them ("" for an identify result).
+std::string scan_windows_section(const nlohmann::json& result) {
+    const auto& windows = member(result, "windows");
+    if (member(result, "kind") != "scan" || !windows.is_object()) return {};
+    static constexpr std::array<std::pair<const char*, const char*>, 9> reasons{{
+        {"at_rest", "the axis stood still"},
+        {"low_excitation", "too little excitation (one speed, hardly any acceleration)"},
+        {"ill_conditioned", "mass and friction not separable within the window"},
+        {"process_force", "the residual had outliers: a process (cutting) force, not the axis"},
+        {"stick_slip", "stick-slip"},
+        {"saturation", "the drive at its force limit"},
+        {"gap", "a gap in the time stamps"},
+        {"gated_out", "left out by --only-when"},
+        {"inconsistent", "fitted the model on its own but not the pooled estimate"},
+    }};
+    const auto count = [](const nlohmann::json& object, const char* key) {
+        const auto n = number_at(object, key);
+        return n ? fmt::format("{:.0f}", *n) : std::string("—");
+    };
+    const auto window_s = number_at(member(result, "options"), "window_s");
+    std::string html = "<h2>Windows</h2>\n";
+    html += fmt::format(
+        "<p>The trace was cut into {} windows{}; <b>{}</b> qualified and were pooled ({} rows, residual standard "
+        "deviation {}). The others were left out:</p>\n",
+        count(windows, "total"), window_s ? fmt::format(" of {:.3g} s", *window_s) : std::string(),
+        count(windows, "qualified"), count(windows, "rows_used"),
+        number_at(windows, "residual_std") ? fmt::format("{:.3g} {}", *number_at(windows, "residual_std"),
+                                                         member(result, "rotary") == true ? "N·m" : "N")
+                                           : "—");
+    html += "<table>\n<tr><th class=\"text\">left out because</th><th>windows</th></tr>\n";
+    const auto& rejected = member(windows, "rejected");
+    for (const auto& [key, meaning] : reasons)
+        if (const auto n = number_at(rejected, key); n && *n > 0)
+            html += fmt::format("<tr><td class=\"text\">{}</td><td>{:.0f}</td></tr>\n", meaning, *n);
+    html += "</table>\n";
+    const auto& information = member(result, "information");
+    if (!information.is_object()) return html;
+    html +=
+        "<p>The information each parameter got from the pooled windows (the inverse of its variance; the "
+        "standard error it alone would give is 1/&radic;information):</p>\n<table>\n<tr><th "
+        "class=\"text\">parameter</th><th>information</th><th>1/&radic;information</th><th "
+        "class=\"text\">unit</th></tr>\n";
+    for (const auto& [key, entry] : information.items()) {
+        const auto inverse_variance = number_at(entry, "inverse_variance");
+        if (!inverse_variance || *inverse_variance <= 0.0) continue;
+        const auto label = parameter_label(key);
+        html += fmt::format(
+            "<tr><td class=\"text\">{}</td><td>{:.4g}</td><td>{:.3g}</td><td class=\"text\">{}</td></tr>\n",
+            escape_xml(label.name), *inverse_variance, 1.0 / std::sqrt(*inverse_variance), escape_xml(label.unit));
+    }
+    return html + "</table>\n";
+}
+
 std::string plot_caption(const nlohmann::json& result, const Plot& plot) {
     if (plot.id.rfind("rls-", 0) != 0)
         return "Quasi-static friction binned by speed, per direction, with the fitted model (viscous, Coulomb and, "
@@ -900,6 +954,7 @@ std::string result_report_html(const nlohmann::json& result, const std::string& 
             number_at(fit, "condition_number") ? fmt::format("{:.3g}", *number_at(fit, "condition_number")) : "—",
             number_at(fit, "samples_used") ? fmt::format("{:.0f}", *number_at(fit, "samples_used")) : "—");
     }
+    body += scan_windows_section(result);
     if (const auto& diagnostics = member(result, "diagnostics"); diagnostics.is_array() && !diagnostics.empty()) {
         body += "<h2>Diagnostics</h2>\n<ul>\n";
         for (const auto& line : diagnostics)
@@ -907,7 +962,11 @@ std::string result_report_html(const nlohmann::json& result, const std::string& 
         body += "</ul>\n";
     }
     body += "<h2>Plots</h2>\n";
-    if (plots.empty()) body += "<p class=\"note\">The result holds neither an RLS history nor a friction curve.</p>\n";
+    if (plots.empty())
+        body += member(result, "kind") == "scan"
+                    ? "<p class=\"note\">A scan pools windows and keeps neither an RLS history nor a friction curve: "
+                      "those plots come from an identify run of a dedicated test (feedid plan).</p>\n"
+                    : "<p class=\"note\">The result holds neither an RLS history nor a friction curve.</p>\n";
     for (const auto& plot : plots) body += figure(plot, plot_caption(result, plot));
     if (simulation)
         body += validation_section(*simulation, trace_path, validation_plots);
@@ -915,7 +974,9 @@ std::string result_report_html(const nlohmann::json& result, const std::string& 
         body +=
             "<p class=\"note\">Tracking-error plots (the paper's Fig. 6) need a simulation: give its document with "
             "--simulation (feedid simulate --json).</p>\n";
-    return page(fmt::format("feedid identification report: {}", std::filesystem::path(trace_path).filename().string()),
+    const bool scan = member(result, "kind") == "scan";
+    return page(fmt::format("feedid {} report: {}", scan ? "production-scan" : "identification",
+                            std::filesystem::path(trace_path).filename().string()),
                 body);
 }
 
