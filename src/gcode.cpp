@@ -11,7 +11,8 @@
 //   comments    ISO, LinuxCNC: ( ... ) without nested parentheses; SINUMERIK: ; to the end of the line
 //   end         ISO, SINUMERIK: M30; LinuxCNC: M2
 // Positions are written with a decimal point always (a Fanuc control without decimal-point programming reads X10 as
-// 10 increments, not 10 mm).
+// 10 increments, not 10 mm). A rotary axis (A, B, C) is programmed in degrees and deg/min: with G94 a block that
+// moves a rotary axis alone runs at F degrees per minute on all three controls.
 #include "feedid/gcode.hpp"
 
 #include <cctype>
@@ -30,16 +31,13 @@ namespace feedid {
 
 namespace {
 
-constexpr double mm = 1e-3;
-constexpr double mm_per_min = 1e-3 / 60.0;
-
-// Precision of the blocks' words. Positions to 0.1 um, four decimals in mm: the input increment of the finest ISO
-// increment system (IS-C; a coarser control rounds), and exact for the plan's centres and 0.01 mm strokes.
+// Precision of the blocks' words. Positions to 0.1 um (0.0001 deg), four decimals in mm: the input increment of the
+// finest ISO increment system (IS-C; a coarser control rounds), and exact for the plan's centres and 0.01 mm strokes.
 // Feedrates to 0.001 mm/min, so that the log-spaced slow feeds keep their two significant digits down to
 // 0.1 mm/min. Dwells to 1 ms.
 constexpr int position_decimals = 4;
 constexpr int feed_decimals = 3;
-constexpr double feed_steps_per_mm_per_min = 1000.0;  // 10^feed_decimals
+constexpr double feed_steps_per_unit = 1000.0;  // 10^feed_decimals
 constexpr int dwell_decimals = 3;
 
 // Fixed-point with up to `decimals` decimals, trailing zeros trimmed but one decimal kept ("1250.0", "21.5").
@@ -54,40 +52,44 @@ std::string number(double value, int decimals) {
     return text;
 }
 
-std::string position_word(double metres) {
+std::string position_word(double si, const PlanUnits& units) {
     static const std::string negative_zero = fmt::format("-{:.{}f}", 0.0, position_decimals);
-    std::string text = fmt::format("{:.{}f}", metres / mm, position_decimals);
+    std::string text = fmt::format("{:.{}f}", si / units.length(), position_decimals);
     if (text == negative_zero) text.erase(0, 1);
     return text;
 }
 
-std::string feed_list(const std::vector<double>& feeds) {
+std::string feed_list(const std::vector<double>& feeds, const PlanUnits& units) {
     if (feeds.empty()) return "none";
     std::string text;
-    for (const double feed : feeds) text += (text.empty() ? "" : ", ") + number(feed / mm_per_min, 3);
-    return text + " mm/min";
+    for (const double feed : feeds) text += (text.empty() ? "" : ", ") + number(feed / units.feed(), 3);
+    return text + " " + units.feed_unit();
 }
 
 std::vector<std::string> header_lines(const TestPlan& plan, Dialect dialect) {
     const auto& o = plan.options;
+    const PlanUnits u = o.units();
+    const auto length = [&](double si) { return number(si / u.length(), 3); };
+    const char* l = u.length_unit();
     std::vector<std::string> lines;
-    lines.push_back(
-        fmt::format("feedid {} axis test for axis {} ({} dialect)", version, o.axis, dialect_name(dialect)));
+    lines.push_back(fmt::format("feedid {} axis test for {} axis {} ({} dialect)", version,
+                                u.rotary ? "rotary" : "linear", o.axis, dialect_name(dialect)));
     lines.push_back("constant-velocity back-and-forth strokes at rising feedrates, every move ends at rest");
-    lines.push_back(fmt::format("travel {} .. {} mm", number(o.travel_min / mm, 3), number(o.travel_max / mm, 3)));
+    lines.push_back(fmt::format("travel {} .. {} {}", length(o.travel_min), length(o.travel_max), l));
     std::string centers;
-    for (const double c : o.centers) centers += (centers.empty() ? "" : ", ") + number(c / mm, 3);
-    lines.push_back(fmt::format("centres {} mm", centers));
-    lines.push_back(fmt::format("stroke {} mm, slow passes shortened to at most {} s each", number(o.stroke / mm, 3),
+    for (const double c : o.centers) centers += (centers.empty() ? "" : ", ") + length(c);
+    lines.push_back(fmt::format("centres {} {}", centers, l));
+    lines.push_back(fmt::format("stroke {} {}, slow passes shortened to at most {} s each", length(o.stroke), l,
                                 number(o.max_pass_time, 3)));
-    lines.push_back(fmt::format("ladder feeds {}", feed_list(o.feeds)));
-    lines.push_back(fmt::format("slow feeds {}", feed_list(o.slow_feeds)));
+    lines.push_back(fmt::format("ladder feeds {}", feed_list(o.feeds, u)));
+    lines.push_back(fmt::format("slow feeds {}", feed_list(o.slow_feeds, u)));
     lines.push_back(fmt::format("cycles per feedrate {}, dwell at reversals {} s", o.cycles, number(o.dwell, 3)));
-    lines.push_back(fmt::format("positioning feed {} mm/min", number(o.positioning_feed / mm_per_min, 3)));
+    lines.push_back(fmt::format("positioning feed {} {}", number(o.positioning_feed / u.feed(), 3), u.feed_unit()));
     lines.push_back(
-        fmt::format("acceleration {} m/s^2 and jerk {} as set in the machine data; the reference "
-                    "trajectory assumes them",
-                    number(o.acceleration, 4), o.jerk ? number(*o.jerk, 3) + " m/s^3" : "unlimited"));
+        fmt::format("acceleration {} {} and jerk {} as set in the machine data; the reference trajectory "
+                    "assumes them",
+                    number(o.acceleration / u.acceleration(), 4), u.acceleration_unit(),
+                    o.jerk ? number(*o.jerk / u.acceleration(), 3) + " " + u.jerk_unit() : "unlimited"));
     lines.push_back(fmt::format("trace sample time {} ms; predicted duration {} s; {} blocks",
                                 number(o.sample_time * 1e3, 4), number(plan.duration, 1), plan.moves.size()));
     return lines;
@@ -127,6 +129,7 @@ std::optional<Dialect> parse_dialect(std::string_view name) {
 
 std::string emit_part_program(const TestPlan& plan, Dialect dialect) {
     const auto& o = plan.options;
+    const PlanUnits u = o.units();
     if (dialect != Dialect::sinumerik && !is_single_letter_axis(o.axis)) {
         throw InputError(
             fmt::format("part program: axis '{}' is not an axis letter of the {} dialect (X, Y, Z, A, B, "
@@ -165,10 +168,10 @@ std::string emit_part_program(const TestPlan& plan, Dialect dialect) {
     for (const auto& move : plan.moves) {
         if (move.pass != last_pass && move.pass >= 0) {
             const auto& pass = plan.passes[static_cast<std::size_t>(move.pass)];
-            comment(fmt::format("pass {}: centre {} at {} mm, {} mm/min, stroke {} mm, {} cycles{}", move.pass + 1,
-                                pass.center + 1, number(pass.center_position / mm, 3),
-                                number(pass.feed / mm_per_min, 3), number(pass.stroke / mm, 3), o.cycles,
-                                pass.slow ? " (slow pass)" : ""));
+            comment(fmt::format("pass {}: centre {} at {} {}, {} {}, stroke {} {}, {} cycles{}", move.pass + 1,
+                                pass.center + 1, number(pass.center_position / u.length(), 3), u.length_unit(),
+                                number(pass.feed / u.feed(), 3), u.feed_unit(), number(pass.stroke / u.length(), 3),
+                                u.length_unit(), o.cycles, pass.slow ? " (slow pass)" : ""));
         }
         last_pass = move.pass;
         if (move.kind == MoveKind::dwell) {
@@ -179,12 +182,11 @@ std::string emit_part_program(const TestPlan& plan, Dialect dialect) {
             }
             continue;
         }
-        std::string block = fmt::format("G1 {}{}", axis_word, position_word(move.target));
-        const double feed_mm_per_min =
-            std::round(move.feed / mm_per_min * feed_steps_per_mm_per_min) / feed_steps_per_mm_per_min;
-        if (feed_mm_per_min != last_feed) {
-            block += " F" + number(feed_mm_per_min, feed_decimals);
-            last_feed = feed_mm_per_min;
+        std::string block = fmt::format("G1 {}{}", axis_word, position_word(move.target, u));
+        const double feed_per_min = std::round(move.feed / u.feed() * feed_steps_per_unit) / feed_steps_per_unit;
+        if (feed_per_min != last_feed) {
+            block += " F" + number(feed_per_min, feed_decimals);
+            last_feed = feed_per_min;
         }
         out += block + "\n";
     }

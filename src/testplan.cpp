@@ -13,6 +13,7 @@
 
 #include "feedid/error.hpp"
 #include "feedid/parameters.hpp"
+#include "feedid/synth.hpp"
 #include "feedid/version.hpp"
 #include "testplan_profile.hpp"
 
@@ -20,16 +21,14 @@ namespace feedid {
 
 namespace {
 
-constexpr double mm = 1e-3;
-constexpr double mm_per_min = 1e-3 / 60.0;
-
-// The paper's feedrate ladder (METHOD.md step 5): 1250 mm/min up to about 9350 mm/min; 1250 + 6 * 1350 = 9350.
-constexpr double ladder_first_mm_per_min = 1250.0;
-constexpr double ladder_step_mm_per_min = 1350.0;
+// The paper's feedrate ladder (METHOD.md step 5): 1250 mm/min up to about 9350 mm/min; 1250 + 6 * 1350 = 9350. A
+// rotary axis runs the same numbers in deg/min.
+constexpr double ladder_first_per_min = 1250.0;
+constexpr double ladder_step_per_min = 1350.0;
 constexpr int ladder_steps = 6;
-// Slow strokes are multiples of 0.01 mm, so that the part program (positions to 0.1 um) carries them exactly; a slow
-// stroke below one step cannot be run.
-constexpr double slow_stroke_step = 0.01 * mm;
+// Slow strokes are multiples of 0.01 mm (or 0.01 deg), so that the part program (positions to 0.1 um or 0.0001 deg)
+// carries them exactly; a slow stroke below one step cannot be run.
+constexpr double slow_stroke_steps_per_unit = 100.0;
 // Halvings of the bisection for the slow stroke: 2^-100 of a stroke is far below double precision.
 constexpr int stroke_bisections = 100;
 // Two positions [m] or feedrates [m/s] this close are the same: only the rounding of the arithmetic separates them.
@@ -39,19 +38,20 @@ constexpr double same_feed_tolerance = 1e-12;
 // the feedrate limit by a relative 1e-12 (a feedrate equal to the limit in mm/min but computed another way, as the
 // log-spaced feeds are, differs from it by rounding only).
 constexpr double travel_tolerance = 1e-9;
-// What the command line allows (past any machine, short of nonsense): travel limits within +-1 km, feedrates from
-// 0.001 to 1e6 mm/min, at most 100 log-spaced slow feeds.
-constexpr double max_travel_mm = 1e6;
-constexpr double min_feed_mm_per_min = 1e-3;
-constexpr double max_feed_mm_per_min = 1e6;
+// What the command line allows (past any machine, short of nonsense): travel limits within +-1 km (or 1e6 degrees),
+// feedrates from 0.001 to 1e6 mm/min (or deg/min), at most 100 log-spaced slow feeds.
+constexpr double max_travel_units = 1e6;
+constexpr double min_feed_per_min = 1e-3;
+constexpr double max_feed_per_min = 1e6;
 constexpr double max_slow_feeds = 100.0;
 constexpr double feed_limit_relative_tolerance = 1e-12;
 
-double to_mm(double metres) {
-    return metres / mm;
+// A length [m or rad] in mm or degrees, a feedrate [m/s or rad/s] in mm/min or deg/min.
+double shown_length(double si, const PlanUnits& units) {
+    return si / units.length();
 }
-double to_mm_per_min(double metres_per_second) {
-    return metres_per_second / mm_per_min;
+double shown_feed(double si, const PlanUnits& units) {
+    return si / units.feed();
 }
 
 bool all_finite(const std::vector<double>& values) {
@@ -59,9 +59,9 @@ bool all_finite(const std::vector<double>& values) {
 }
 
 // Longest stroke s <= longest whose pass (2*cycles strokes, each followed by a dwell) fits in max_time:
-// 2*cycles*(move_duration(s) + dwell) <= max_time. move_duration grows with s, so bisect.
+// 2*cycles*(move_duration(s) + dwell) <= max_time, a whole number of `step`s. move_duration grows with s, so bisect.
 double stroke_for_time(double longest, double feed, int cycles, double dwell, double max_time, double acceleration,
-                       std::optional<double> jerk) {
+                       std::optional<double> jerk, double step) {
     const double per_stroke = max_time / (2.0 * cycles) - dwell;
     if (per_stroke <= 0.0) return 0.0;
     if (move_duration(longest, feed, acceleration, jerk) <= per_stroke) return longest;
@@ -71,7 +71,7 @@ double stroke_for_time(double longest, double feed, int cycles, double dwell, do
         const double middle = 0.5 * (low + high);
         (move_duration(middle, feed, acceleration, jerk) <= per_stroke ? low : high) = middle;
     }
-    return std::floor(low / slow_stroke_step) * slow_stroke_step;
+    return std::floor(low / step) * step;
 }
 
 // A number as the command line writes it: decimal, finite, nothing before or after.
@@ -108,8 +108,8 @@ bool is_none(const std::vector<std::string>& entries) {
     return entries.size() == 1 && entries.front() == "none";
 }
 
-std::string describe_center(int index, double position) {
-    return fmt::format("centre {} at {:.3f} mm", index + 1, to_mm(position));
+std::string describe_center(int index, double position, const PlanUnits& units) {
+    return fmt::format("centre {} at {:.3f} {}", index + 1, shown_length(position, units), units.length_unit());
 }
 
 }  // namespace
@@ -118,36 +118,45 @@ double move_duration(double distance, double feed, double acceleration, std::opt
     return detail::make_profile(std::abs(distance), feed, acceleration, jerk).duration;
 }
 
-std::vector<double> paper_feed_ladder() {
+bool is_rotary_axis(std::string_view axis) {
+    if (axis.empty()) return false;
+    const char letter = static_cast<char>(std::toupper(static_cast<unsigned char>(axis.front())));
+    return (letter == 'A' || letter == 'B' || letter == 'C') && std::all_of(axis.begin() + 1, axis.end(), [](char c) {
+               return std::isdigit(static_cast<unsigned char>(c));
+           });
+}
+
+std::vector<double> paper_feed_ladder(const PlanUnits& units) {
     std::vector<double> feeds;
     for (int step = 0; step <= ladder_steps; ++step)
-        feeds.push_back((ladder_first_mm_per_min + ladder_step_mm_per_min * step) * mm_per_min);
+        feeds.push_back((ladder_first_per_min + ladder_step_per_min * step) * units.feed());
     return feeds;
 }
 
-std::vector<double> log_spaced_feeds(double lowest, double highest, int count) {
+std::vector<double> log_spaced_feeds(double lowest, double highest, int count, const PlanUnits& units) {
     std::vector<double> feeds;
     if (count <= 0 || !(lowest > 0.0) || !(highest >= lowest)) return feeds;
     for (int k = 0; k < count; ++k) {
         const double fraction = count == 1 ? 0.0 : static_cast<double>(k) / (count - 1);
-        const double value = to_mm_per_min(lowest) * std::pow(highest / lowest, fraction);
-        // Two significant digits in mm/min.
+        const double value = shown_feed(lowest, units) * std::pow(highest / lowest, fraction);
+        // Two significant digits in mm/min (deg/min).
         const double scale = std::pow(10.0, std::floor(std::log10(value)) - 1.0);
-        const double rounded = std::round(value / scale) * scale * mm_per_min;
+        const double rounded = std::round(value / scale) * scale * units.feed();
         if (feeds.empty() || std::abs(rounded - feeds.back()) > same_feed_tolerance) feeds.push_back(rounded);
     }
     return feeds;
 }
 
-std::pair<double, double> parse_travel(std::string_view text) {
+std::pair<double, double> parse_travel(std::string_view text, const PlanUnits& units) {
     const auto limits = split(text, ':');
-    if (limits.size() != 2) throw InputError(fmt::format("--travel: '{}' is not MIN:MAX [mm].", text));
+    if (limits.size() != 2)
+        throw InputError(fmt::format("--travel: '{}' is not MIN:MAX [{}].", text, units.length_unit()));
     const double low = parse_number(limits[0], "--travel");
     const double high = parse_number(limits[1], "--travel");
-    if (std::max(std::abs(low), std::abs(high)) > max_travel_mm)
-        throw InputError(fmt::format("--travel: '{}' reaches past the allowed range -{:g} to {:g} mm.", text,
-                                     max_travel_mm, max_travel_mm));
-    return {low * mm, high * mm};
+    if (std::max(std::abs(low), std::abs(high)) > max_travel_units)
+        throw InputError(fmt::format("--travel: '{}' reaches past the allowed range -{:g} to {:g} {}.", text,
+                                     max_travel_units, max_travel_units, units.length_unit()));
+    return {low * units.length(), high * units.length()};
 }
 
 std::vector<double> parse_number_list(const std::vector<std::string>& entries, std::string_view option, double scale) {
@@ -159,41 +168,40 @@ std::vector<double> parse_number_list(const std::vector<std::string>& entries, s
     return values;
 }
 
-std::vector<double> parse_feeds(const std::vector<std::string>& entries) {
+std::vector<double> parse_feeds(const std::vector<std::string>& entries, const PlanUnits& units) {
     if (is_none(entries)) return {};
-    return parse_number_list(entries, "--feeds", mm_per_min);
+    return parse_number_list(entries, "--feeds", units.feed());
 }
 
-std::vector<double> parse_slow_feeds(const std::vector<std::string>& entries) {
+std::vector<double> parse_slow_feeds(const std::vector<std::string>& entries, const PlanUnits& units) {
     if (is_none(entries)) return {};
+    const char* unit = units.feed_unit();
     if (entries.size() != 1 || entries.front().find(':') == std::string::npos) {
-        const auto feeds = parse_number_list(entries, "--slow-feeds", mm_per_min);
+        const auto feeds = parse_number_list(entries, "--slow-feeds", units.feed());
         for (const double feed : feeds) {
-            if (!(feed >= min_feed_mm_per_min * mm_per_min && feed <= max_feed_mm_per_min * mm_per_min))
-                throw InputError(
-                    fmt::format("--slow-feeds: {:g} mm/min is outside the allowed range {:g} to {:g} "
-                                "mm/min.",
-                                to_mm_per_min(feed), min_feed_mm_per_min, max_feed_mm_per_min));
+            if (!(feed >= min_feed_per_min * units.feed() && feed <= max_feed_per_min * units.feed()))
+                throw InputError(fmt::format("--slow-feeds: {:g} {} is outside the allowed range {:g} to {:g} {}.",
+                                             shown_feed(feed, units), unit, min_feed_per_min, max_feed_per_min, unit));
         }
         return feeds;
     }
     const std::string_view text = entries.front();
     const auto parts = split(text, ':');
     if (parts.size() < 2 || parts.size() > 3)
-        throw InputError(fmt::format("--slow-feeds: '{}' is not LO:HI or LO:HI:N (mm/min).", text));
+        throw InputError(fmt::format("--slow-feeds: '{}' is not LO:HI or LO:HI:N ({}).", text, unit));
     const double low = parse_number(parts[0], "--slow-feeds");
     const double high = parse_number(parts[1], "--slow-feeds");
     const double count = parts.size() == 3 ? parse_number(parts[2], "--slow-feeds") : 7.0;
-    if (!(low >= min_feed_mm_per_min) || !(high >= low) || !(high <= max_feed_mm_per_min) || !(count >= 1.0) ||
+    if (!(low >= min_feed_per_min) || !(high >= low) || !(high <= max_feed_per_min) || !(count >= 1.0) ||
         !(count <= max_slow_feeds) || count != std::floor(count))
         throw InputError(
-            fmt::format("--slow-feeds: '{}' needs {:g} <= LO <= HI <= {:g} mm/min and a whole N from 1 "
-                        "to {:g}.",
-                        text, min_feed_mm_per_min, max_feed_mm_per_min, max_slow_feeds));
-    return log_spaced_feeds(low * mm_per_min, high * mm_per_min, static_cast<int>(count));
+            fmt::format("--slow-feeds: '{}' needs {:g} <= LO <= HI <= {:g} {} and a whole N from 1 to {:g}.", text,
+                        min_feed_per_min, max_feed_per_min, unit, max_slow_feeds));
+    return log_spaced_feeds(low * units.feed(), high * units.feed(), static_cast<int>(count), units);
 }
 
-AxisModel nominal_demo_drive() {
+AxisModel nominal_demo_drive(bool rotary) {
+    if (rotary) return rotary_demo_spec().axis;
     AxisModel model;
     model.mass = 69.1;
     FrictionBranch branch;
@@ -205,6 +213,22 @@ AxisModel nominal_demo_drive() {
     return model;
 }
 
+TestPlanOptions default_plan_options(const std::string& axis) {
+    TestPlanOptions options;
+    options.axis = axis;
+    const PlanUnits units = options.units();
+    if (!units.rotary) return options;
+    // every length and feed of the linear defaults, read in degrees instead of mm
+    const PlanUnits linear;
+    const double scale = units.length() / linear.length();
+    options.stroke *= scale;
+    for (auto* feeds : {&options.feeds, &options.slow_feeds})
+        for (double& feed : *feeds) feed *= scale;
+    options.positioning_feed *= scale;
+    options.acceleration *= 1000.0 * units.acceleration();  // 1 m/s^2 = 1000 mm/s^2 -> 1000 deg/s^2
+    return options;
+}
+
 std::string TestPlanOptions::validate() const {
     if (axis.empty() || !std::isalpha(static_cast<unsigned char>(axis.front())))
         return fmt::format("axis '{}' is not an axis name (a letter such as X, Y, Z, A, or X1)", axis);
@@ -212,33 +236,28 @@ std::string TestPlanOptions::validate() const {
         if (!std::isalnum(static_cast<unsigned char>(c)))
             return fmt::format("axis '{}' is not an axis name (letters and digits only)", axis);
     }
-    // A, B and C (A1, C2 on SINUMERIK) turn about X, Y, Z (DIN 66025 / ISO 6983): the test below is in mm and mm/min
-    // through a ball screw, which on a rotary axis would be degrees taken for millimetres.
-    if (const char letter = static_cast<char>(std::toupper(static_cast<unsigned char>(axis.front())));
-        (letter == 'A' || letter == 'B' || letter == 'C') &&
-        std::all_of(axis.begin() + 1, axis.end(), [](char c) { return std::isdigit(static_cast<unsigned char>(c)); })) {
-        return fmt::format(
-            "axis '{}' is a rotary axis (A, B, C turn about X, Y, Z): feedid plan designs tests of "
-            "linear axes in mm and mm/min and does not plan rotary axes",
-            axis);
-    }
+    const PlanUnits u = units();
+    const char* length = u.length_unit();
     if (!std::isfinite(travel_min) || !std::isfinite(travel_max) || !(travel_min < travel_max))
-        return fmt::format("travel {:.3f}:{:.3f} mm is not a range MIN:MAX with MIN < MAX", to_mm(travel_min),
-                           to_mm(travel_max));
+        return fmt::format("travel {:.3f}:{:.3f} {} is not a range MIN:MAX with MIN < MAX", shown_length(travel_min, u),
+                           shown_length(travel_max, u), length);
     if (centers.empty()) return "no centres given: state where along the axis to test (--centers C1,C2,...)";
     if (!all_finite(centers)) return "a centre is not a finite number";
-    if (!(stroke > 0.0) || !std::isfinite(stroke)) return fmt::format("stroke {} mm must be positive", to_mm(stroke));
+    if (!(stroke > 0.0) || !std::isfinite(stroke))
+        return fmt::format("stroke {} {} must be positive", shown_length(stroke, u), length);
     if (feeds.empty() && slow_feeds.empty()) return "no feedrates: give ladder feeds (--feeds) or slow feeds";
     for (const auto* list : {&feeds, &slow_feeds}) {
         for (const double feed : *list) {
             if (!(feed > 0.0) || !std::isfinite(feed))
-                return fmt::format("feedrate {} mm/min must be positive", to_mm_per_min(feed));
+                return fmt::format("feedrate {} {} must be positive", shown_feed(feed, u), u.feed_unit());
         }
     }
     if (cycles < 1) return fmt::format("cycles {} must be at least 1", cycles);
     if (!(acceleration > 0.0) || !std::isfinite(acceleration))
-        return fmt::format("acceleration {} m/s^2 must be positive", acceleration);
-    if (jerk && (!(*jerk > 0.0) || !std::isfinite(*jerk))) return fmt::format("jerk {} m/s^3 must be positive", *jerk);
+        return fmt::format("acceleration {} {} must be positive", acceleration / u.acceleration(),
+                           u.acceleration_unit());
+    if (jerk && (!(*jerk > 0.0) || !std::isfinite(*jerk)))
+        return fmt::format("jerk {} {} must be positive", *jerk / u.acceleration(), u.jerk_unit());
     if (!(dwell >= 0.0) || !std::isfinite(dwell)) return fmt::format("dwell {} s must not be negative", dwell);
     if (!(sample_time > 0.0) || !std::isfinite(sample_time))
         return fmt::format("sample time {} s must be positive", sample_time);
@@ -272,8 +291,8 @@ double limited_positioning_feed(const TestPlanOptions& options, std::vector<std:
     double positioning_feed = options.positioning_feed;
     if (options.max_feed && positioning_feed > *options.max_feed) {
         positioning_feed = *options.max_feed;
-        notes.push_back(
-            fmt::format("positioning moves run at the feedrate limit {:.0f} mm/min", to_mm_per_min(positioning_feed)));
+        notes.push_back(fmt::format("positioning moves run at the feedrate limit {:.0f} {}",
+                                    shown_feed(positioning_feed, options.units()), options.units().feed_unit()));
     }
     return positioning_feed;
 }
@@ -287,22 +306,24 @@ Pass design_pass(const TestPlanOptions& options, int center, const PlannedFeed& 
     pass.slow = feed.slow;
     pass.stroke = options.stroke;
     if (feed.slow) {
+        const PlanUnits units = options.units();
+        const double step = units.length() / slow_stroke_steps_per_unit;
         pass.stroke = stroke_for_time(options.stroke, feed.value, options.cycles, options.dwell, options.max_pass_time,
-                                      options.acceleration, options.jerk);
-        if (pass.stroke < slow_stroke_step) {
-            throw InputError(
-                fmt::format("test plan: at {:.4g} mm/min a stroke that fits the maximum pass time {} s is shorter than "
-                            "0.01 mm; allow a longer pass (--max-pass-time) or fewer cycles.",
-                            to_mm_per_min(feed.value), options.max_pass_time));
+                                      options.acceleration, options.jerk, step);
+        if (pass.stroke < step) {
+            throw InputError(fmt::format(
+                "test plan: at {:.4g} {} a stroke that fits the maximum pass time {} s is shorter than "
+                "0.01 {}; allow a longer pass (--max-pass-time) or fewer cycles.",
+                shown_feed(feed.value, units), units.feed_unit(), options.max_pass_time, units.length_unit()));
         }
     }
     return pass;
 }
 
 // "centre 2 at -300.000 mm, 1250 mm/min": how the moves and notes name a pass.
-std::string describe_pass(const Pass& pass) {
-    return fmt::format("{}, {:.4g} mm/min", describe_center(pass.center, pass.center_position),
-                       to_mm_per_min(pass.feed));
+std::string describe_pass(const Pass& pass, const PlanUnits& units) {
+    return fmt::format("{}, {:.4g} {}", describe_center(pass.center, pass.center_position, units),
+                       shown_feed(pass.feed, units), units.feed_unit());
 }
 
 // The blocks of the next pass (index plan.passes.size()): a move to its start unless the axis stands there (at
@@ -313,7 +334,7 @@ void append_pass_moves(TestPlan& plan, const Pass& pass, double positioning_feed
     const int pass_index = static_cast<int>(plan.passes.size());
     const double low = pass.center_position - pass.stroke / 2.0;
     const double high = pass.center_position + pass.stroke / 2.0;
-    const std::string what = describe_pass(pass);
+    const std::string what = describe_pass(pass, options.units());
     if (!(std::abs(position - low) < same_position_tolerance)) {
         plan.moves.push_back({MoveKind::feed, low, positioning_feed, 0.0, center, -1,
                               fmt::format("{}: move to the start of the pass", what)});
@@ -342,23 +363,28 @@ void time_pass(const TestPlanOptions& options, Pass& pass, std::vector<std::stri
     pass.duration = 2.0 * options.cycles * (profile.duration + options.dwell);
     pass.cruise_time = 2.0 * options.cycles * profile.cruise_time;
     if (profile.cruise_time <= 0.0) {
-        notes.push_back(fmt::format(
-            "{}: the {:.3f} mm stroke is too short to reach the feedrate at {} m/s^2 (peak {:.4g} mm/min); "
-            "this pass holds no constant-velocity data",
-            describe_pass(pass), to_mm(pass.stroke), options.acceleration, to_mm_per_min(profile.peak_speed)));
+        const PlanUnits u = options.units();
+        notes.push_back(
+            fmt::format("{}: the {:.3f} {} stroke is too short to reach the feedrate at {} {} (peak {:.4g} {}); "
+                        "this pass holds no constant-velocity data",
+                        describe_pass(pass, u), shown_length(pass.stroke, u), u.length_unit(),
+                        options.acceleration / u.acceleration(), u.acceleration_unit(),
+                        shown_feed(profile.peak_speed, u), u.feed_unit()));
     }
 }
 
 // One note per distinct slow feedrate whose stroke was shortened.
 void note_shortened_slow_strokes(TestPlan& plan) {
     const auto& options = plan.options;
+    const PlanUnits u = options.units();
     for (const auto& feed : options.slow_feeds) {
         for (const auto& pass : plan.passes) {
             if (pass.slow && pass.feed == feed && pass.stroke < options.stroke) {
                 plan.notes.push_back(
-                    fmt::format("slow pass at {:.4g} mm/min: stroke shortened to {:.2f} mm to keep "
-                                "the pass within {} s",
-                                to_mm_per_min(feed), to_mm(pass.stroke), options.max_pass_time));
+                    fmt::format("slow pass at {:.4g} {}: stroke shortened to {:.2f} {} to keep the "
+                                "pass within {} s",
+                                shown_feed(feed, u), u.feed_unit(), shown_length(pass.stroke, u), u.length_unit(),
+                                options.max_pass_time));
                 break;
             }
         }
@@ -369,32 +395,37 @@ void note_shortened_slow_strokes(TestPlan& plan) {
 // first offender.
 void check_travel_and_feed_limits(const TestPlan& plan) {
     const auto& options = plan.options;
+    const PlanUnits u = options.units();
+    const auto length = [&](double si) { return shown_length(si, u); };
+    const auto feed = [&](double si) { return shown_feed(si, u); };
+    const char* l = u.length_unit();
+    const char* f = u.feed_unit();
     if (options.start_position && (*options.start_position < options.travel_min - travel_tolerance ||
                                    *options.start_position > options.travel_max + travel_tolerance)) {
         throw InputError(
-            fmt::format("test plan: the start position {:.3f} mm lies outside the travel {:.3f}:{:.3f} mm.",
-                        to_mm(*options.start_position), to_mm(options.travel_min), to_mm(options.travel_max)));
+            fmt::format("test plan: the start position {:.3f} {} lies outside the travel {:.3f}:{:.3f} {}.",
+                        length(*options.start_position), l, length(options.travel_min), length(options.travel_max), l));
     }
     for (std::size_t k = 0; k < plan.moves.size(); ++k) {
         const auto& move = plan.moves[k];
         if (move.kind != MoveKind::feed) continue;
         if (move.target > options.travel_max + travel_tolerance) {
             throw InputError(
-                fmt::format("test plan: move {} ({}) goes to {:.3f} mm, {:.3f} mm beyond the travel maximum {:.3f} mm.",
-                            k + 1, move.description, to_mm(move.target), to_mm(move.target - options.travel_max),
-                            to_mm(options.travel_max)));
+                fmt::format("test plan: move {} ({}) goes to {:.3f} {}, {:.3f} {} beyond the travel maximum {:.3f} {}.",
+                            k + 1, move.description, length(move.target), l, length(move.target - options.travel_max),
+                            l, length(options.travel_max), l));
         }
         if (move.target < options.travel_min - travel_tolerance) {
             throw InputError(
-                fmt::format("test plan: move {} ({}) goes to {:.3f} mm, {:.3f} mm beyond the travel minimum {:.3f} mm.",
-                            k + 1, move.description, to_mm(move.target), to_mm(options.travel_min - move.target),
-                            to_mm(options.travel_min)));
+                fmt::format("test plan: move {} ({}) goes to {:.3f} {}, {:.3f} {} beyond the travel minimum {:.3f} {}.",
+                            k + 1, move.description, length(move.target), l, length(options.travel_min - move.target),
+                            l, length(options.travel_min), l));
         }
         if (options.max_feed && move.feed > *options.max_feed * (1.0 + feed_limit_relative_tolerance)) {
-            throw InputError(fmt::format(
-                "test plan: move {} ({}) runs at {:.4g} mm/min, {:.4g} mm/min above the feedrate limit {:.4g} mm/min.",
-                k + 1, move.description, to_mm_per_min(move.feed), to_mm_per_min(move.feed - *options.max_feed),
-                to_mm_per_min(*options.max_feed)));
+            throw InputError(
+                fmt::format("test plan: move {} ({}) runs at {:.4g} {}, {:.4g} {} above the feedrate limit {:.4g} {}.",
+                            k + 1, move.description, feed(move.feed), f, feed(move.feed - *options.max_feed), f,
+                            feed(*options.max_feed), f));
         }
     }
 }
@@ -435,8 +466,9 @@ Trace reference_trajectory(const TestPlan& plan) {
     }
     Trace trace;
     trace.format = "reference";
+    trace.rotary = plan.options.units().rotary;
     trace.set("t", Role::time, "s", std::move(time));
-    trace.set("x_ref", Role::reference_position, "m", std::move(position));
+    trace.set("x_ref", Role::reference_position, trace.rotary ? "rad" : "m", std::move(position));
     return trace;
 }
 
@@ -530,9 +562,10 @@ Eigen::Vector3d predict_step1(const TestPlan& plan, double split, double sigma, 
             step1_error = covariance.diagonal().cwiseSqrt();
         }
     } else {
+        const ParameterNaming naming{plan.options.units().rotary};
         prediction.diagnostics.push_back(fmt::format(
-            "no samples above the split speed {:.4g} mm/s: M, B and F_C cannot be identified (add ladder passes)",
-            split / mm));
+            "no samples above the split speed {:.4g} {}: M, B and F_C cannot be identified (add ladder passes)",
+            split * naming.display_velocity_scale(), naming.display_velocity_unit()));
     }
     return step1_error;
 }
@@ -578,10 +611,9 @@ Eigen::Vector4d predict_step2(const TestPlan& plan, const NominalDrive& drive, d
     return step2_relative;
 }
 
-/// A predicted parameter, keyed as identify's result (a plan is for a linear axis, symmetric model).
-void add_parameter(IdentifiabilityPrediction& prediction, Term term, double value, double error,
-                   double identifiable_relative_error) {
-    const ParameterNaming naming{false};
+/// A predicted parameter, keyed as identify's result of the axis (symmetric model).
+void add_parameter(IdentifiabilityPrediction& prediction, const ParameterNaming& naming, Term term, double value,
+                   double error, double identifiable_relative_error) {
     ParameterPrediction parameter;
     parameter.key = naming.key(term);
     parameter.symbol = ParameterNaming::symbol(term, Direction::both);
@@ -593,18 +625,22 @@ void add_parameter(IdentifiabilityPrediction& prediction, Term term, double valu
 }
 
 // What the plan misses: slow passes for the Stribeck curve, and each parameter it does not identify and why.
-void add_diagnostics(IdentifiabilityPrediction& prediction, double stribeck_velocity,
+void add_diagnostics(IdentifiabilityPrediction& prediction, const TestPlan& plan, double stribeck_velocity,
                      double identifiable_relative_error) {
+    const PlanUnits units = plan.options.units();
+    const ParameterNaming naming{units.rotary};
+    const double speed = naming.display_velocity_scale();
     if (!std::isfinite(prediction.slowest_cruise_speed)) {
         prediction.diagnostics.push_back("no pass reaches a constant velocity: the friction curve is not sampled");
     } else if (prediction.slowest_cruise_speed > stribeck_visible_below_speeds * stribeck_velocity) {
         prediction.diagnostics.push_back(fmt::format(
-            "the slowest constant-velocity pass runs at {:.3g} mm/s = {:.3g} v_s (nominal v_s {:.3g} mm/s): the "
-            "Stribeck "
+            "the slowest constant-velocity pass runs at {:.3g} {} = {:.3g} v_s (nominal v_s {:.3g} {}): the Stribeck "
             "term is below {:.2g} % of F_B - F_C there, so F_B and v_s are not identifiable; add slow passes "
-            "(e.g. --slow-feeds 10:1000 mm/min)",
-            prediction.slowest_cruise_speed / mm, prediction.slowest_cruise_speed / stribeck_velocity,
-            stribeck_velocity / mm, 100.0 * std::exp(-prediction.slowest_cruise_speed / stribeck_velocity)));
+            "(e.g. --slow-feeds 10:1000 {})",
+            prediction.slowest_cruise_speed * speed, naming.display_velocity_unit(),
+            prediction.slowest_cruise_speed / stribeck_velocity, stribeck_velocity * speed,
+            naming.display_velocity_unit(), 100.0 * std::exp(-prediction.slowest_cruise_speed / stribeck_velocity),
+            units.feed_unit()));
     }
     for (const auto& parameter : prediction.parameters) {
         if (parameter.identifiable) continue;
@@ -623,6 +659,11 @@ void add_diagnostics(IdentifiabilityPrediction& prediction, double stribeck_velo
 
 IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const PredictionOptions& options) {
     IdentifiabilityPrediction prediction;
+    const ParameterNaming naming{plan.options.units().rotary};
+    if (options.drive.rotary != naming.rotary)
+        throw InputError(fmt::format("identifiability prediction: axis '{}' is {} but the nominal drive is {}.",
+                                     plan.options.axis, naming.rotary ? "rotary" : "linear",
+                                     options.drive.rotary ? "rotary" : "linear"));
     const NominalDrive drive = nominal_drive(options);
     const double split =
         options.split_velocity.value_or(split_velocity_per_stribeck_velocity * drive.stribeck_velocity);
@@ -631,24 +672,28 @@ IdentifiabilityPrediction predict_identifiability(const TestPlan& plan, const Pr
     const Eigen::Vector4d step2_relative = predict_step2(plan, drive, sigma, options.level_error, prediction);
 
     const double limit = options.identifiable_relative_error;
-    add_parameter(prediction, Term::mass, drive.mass, step1_error(0), limit);
-    add_parameter(prediction, Term::viscous, drive.viscous, step1_error(1), limit);
-    add_parameter(prediction, Term::coulomb, drive.coulomb, step1_error(2), limit);
-    add_parameter(prediction, Term::breakaway, drive.breakaway, step2_relative(2) * drive.breakaway, limit);
-    add_parameter(prediction, Term::stribeck_velocity, drive.stribeck_velocity,
+    add_parameter(prediction, naming, Term::mass, drive.mass, step1_error(0), limit);
+    add_parameter(prediction, naming, Term::viscous, drive.viscous, step1_error(1), limit);
+    add_parameter(prediction, naming, Term::coulomb, drive.coulomb, step1_error(2), limit);
+    add_parameter(prediction, naming, Term::breakaway, drive.breakaway, step2_relative(2) * drive.breakaway, limit);
+    add_parameter(prediction, naming, Term::stribeck_velocity, drive.stribeck_velocity,
                   step2_relative(3) * drive.stribeck_velocity, limit);
-    add_diagnostics(prediction, drive.stribeck_velocity, limit);
+    add_diagnostics(prediction, plan, drive.stribeck_velocity, limit);
     return prediction;
 }
 
 nlohmann::json plan_document(const TestPlan& plan, const IdentifiabilityPrediction& prediction) {
+    // SI keys as identify's documents name them: m on a linear axis, rad on a rotary one
+    const PlanUnits units = plan.options.units();
+    const std::string length = units.rotary ? "rad" : "m";
+    const std::string speed = units.rotary ? "rad_per_s" : "m_per_s";
     nlohmann::json passes = nlohmann::json::array();
     for (const auto& pass : plan.passes) {
         passes.push_back({{"center", pass.center + 1},
-                          {"center_m", pass.center_position},
-                          {"feed_m_per_s", pass.feed},
-                          {"feed_mm_per_min", pass.feed / mm_per_min},
-                          {"stroke_m", pass.stroke},
+                          {"center_" + length, pass.center_position},
+                          {"feed_" + speed, pass.feed},
+                          {units.rotary ? "feed_deg_per_min" : "feed_mm_per_min", shown_feed(pass.feed, units)},
+                          {"stroke_" + length, pass.stroke},
                           {"slow", pass.slow},
                           {"duration_s", pass.duration},
                           {"cruise_time_s", pass.cruise_time}});
@@ -663,8 +708,9 @@ nlohmann::json plan_document(const TestPlan& plan, const IdentifiabilityPredicti
     const auto& o = plan.options;
     return {{"feedid_version", version},
             {"axis", o.axis},
-            {"travel_m", {o.travel_min, o.travel_max}},
-            {"centers_m", o.centers},
+            {"rotary", units.rotary},
+            {"travel_" + length, {o.travel_min, o.travel_max}},
+            {"centers_" + length, o.centers},
             {"duration_s", plan.duration},
             {"blocks", plan.moves.size()},
             {"sample_time_s", o.sample_time},
@@ -676,9 +722,9 @@ nlohmann::json plan_document(const TestPlan& plan, const IdentifiabilityPredicti
                                              : nlohmann::json()},
               {"step1_samples", prediction.step1_samples},
               {"step2_levels", prediction.step2_levels},
-              {"slowest_cruise_speed_m_per_s", std::isfinite(prediction.slowest_cruise_speed)
-                                                   ? nlohmann::json(prediction.slowest_cruise_speed)
-                                                   : nlohmann::json()},
+              {"slowest_cruise_speed_" + speed, std::isfinite(prediction.slowest_cruise_speed)
+                                                    ? nlohmann::json(prediction.slowest_cruise_speed)
+                                                    : nlohmann::json()},
               {"parameters", parameters},
               {"diagnostics", prediction.diagnostics}}}};
 }

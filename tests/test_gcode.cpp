@@ -1,5 +1,5 @@
 // Part-program emitters: the ISO and SINUMERIK (and LinuxCNC) programs, read back by a small G-code parser, hold the
-// plan's move list block for block: targets [mm], feedrates [mm/min], dwells [s].
+// plan's move list block for block: targets [mm, or deg on a rotary axis], feedrates [mm/min or deg/min], dwells [s].
 #include <gtest/gtest.h>
 
 #include <cctype>
@@ -21,8 +21,8 @@ using feedid::MoveKind;
 
 struct ParsedMove {
     MoveKind kind{MoveKind::feed};
-    double target_mm{0.0};
-    double feed_mm_per_min{0.0};
+    double target{0.0};        // [mm or deg]
+    double feed_per_min{0.0};  // [mm/min or deg/min]
     double dwell_s{0.0};
 };
 
@@ -147,15 +147,16 @@ feedid::TestPlanOptions multi_center_options() {
 }
 
 void expect_same_moves(const feedid::TestPlan& plan, const ParsedProgram& program) {
+    const feedid::PlanUnits units = plan.options.units();
     ASSERT_EQ(program.moves.size(), plan.moves.size());
     for (std::size_t k = 0; k < plan.moves.size(); ++k) {
         const auto& expected = plan.moves[k];
         const auto& parsed = program.moves[k];
         ASSERT_EQ(static_cast<int>(parsed.kind), static_cast<int>(expected.kind)) << "block " << k + 1;
         if (expected.kind == MoveKind::feed) {
-            EXPECT_NEAR(parsed.target_mm, expected.target * 1e3, 5e-5)
+            EXPECT_NEAR(parsed.target, expected.target / units.length(), 5e-5)
                 << "block " << k + 1 << ": " << expected.description;
-            EXPECT_NEAR(parsed.feed_mm_per_min, expected.feed * 60000.0, 5e-4) << "block " << k + 1;
+            EXPECT_NEAR(parsed.feed_per_min, expected.feed / units.feed(), 5e-4) << "block " << k + 1;
         } else {
             EXPECT_NEAR(parsed.dwell_s, expected.dwell, 5e-4) << "block " << k + 1;
         }
@@ -227,6 +228,29 @@ TEST(Gcode, HeaderRecordsThePlanParameters) {
                                  "slow feeds 10.0, 46.0, 220.0, 1000.0 mm/min", "cycles per feedrate 2",
                                  "dwell at reversals 0.25 s", "acceleration 1.0 m/s^2", "trace sample time 1.0 ms"}) {
         EXPECT_NE(text.find(fragment), std::string::npos) << fragment;
+    }
+}
+
+// A rotary table: positions in degrees, feeds in deg/min, in all three dialects.
+TEST(Gcode, ARotaryAxisIsProgrammedInDegreesAndDegreesPerMinute) {
+    constexpr double deg = M_PI / 180.0;
+    for (const auto& [dialect, axis] :
+         {std::pair{Dialect::iso, "B"}, std::pair{Dialect::linuxcnc, "A"}, std::pair{Dialect::sinumerik, "C1"}}) {
+        auto options = feedid::default_plan_options(axis);
+        options.travel_min = -200.0 * deg;
+        options.travel_max = 200.0 * deg;
+        options.centers = {-90.0 * deg, 45.0 * deg};
+        options.slow_feeds = feedid::log_spaced_feeds(10.0 * deg / 60.0, 1000.0 * deg / 60.0, 3, options.units());
+        const auto plan = feedid::make_test_plan(options);
+        const auto text = feedid::emit_part_program(plan, dialect);
+        const auto program = parse_program(text, dialect, axis);
+        expect_same_moves(plan, program);
+        EXPECT_TRUE(program.ended);
+        for (const auto* fragment : {"for rotary axis", "centres -90.0, 45.0 deg", "stroke 30.0 deg",
+                                     "1250.0, 2600.0, 3950.0, 5300.0, 6650.0, 8000.0, 9350.0 deg/min",
+                                     "slow feeds 10.0, 100.0, 1000.0 deg/min", "acceleration 1000.0 deg/s^2"})
+            EXPECT_NE(text.find(fragment), std::string::npos) << fragment << " in\n" << text.substr(0, 800);
+        EXPECT_EQ(text.find(" mm"), std::string::npos) << "no millimetres on a rotary axis";
     }
 }
 

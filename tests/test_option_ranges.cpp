@@ -231,10 +231,13 @@ TEST(OptionRanges, CompoundOptionsRefuseAbsurdNumbersToo) {
     EXPECT_TRUE(contains(slow.err, "frequency must lie from 0.001 to")) << slow.err;
     // plan's lists of numbers, item by item
     for (const auto& [option, message] :
-         {std::pair{"--centers=0,nan", "feedid: --centers: nan is not a finite number (allowed: -1e+06 to 1e+06 mm)\n"},
-          std::pair{"--feeds=1000,1e300", "feedid: --feeds: 1e300 is outside the allowed range 0.001 to 1e+06 mm/min\n"},
-          std::pair{"--slow-feeds=10:1000:1e12", "feedid: --slow-feeds: '10:1000:1e12' needs 0.001 <= LO <= HI <= "
-                                                 "1e+06 mm/min and a whole N from 1 to 100.\n"}}) {
+         {std::pair{"--centers=0,nan",
+                    "feedid: --centers: nan is not a finite number (allowed: -1e+06 to 1e+06 mm or deg)\n"},
+          std::pair{"--feeds=1000,1e300",
+                    "feedid: --feeds: 1e300 is outside the allowed range 0.001 to 1e+06 mm/min or deg/min\n"},
+          std::pair{"--slow-feeds=10:1000:1e12",
+                    "feedid: --slow-feeds: '10:1000:1e12' needs 0.001 <= LO <= HI <= "
+                    "1e+06 mm/min and a whole N from 1 to 100.\n"}}) {
         const auto plan = run_cli(std::string("plan --travel=-400:400 --centers=0 -o /dev/null ") + option);
         EXPECT_EQ(plan.exit_code, 2) << option;
         EXPECT_EQ(plan.err, message) << option;

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <map>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -102,6 +103,43 @@ TEST(PlanCli, PapersLadderAlonePredictsNoStribeck) {
     EXPECT_FALSE(parameters.at("stribeck_velocity_m_per_s").at("identifiable").get<bool>());
     EXPECT_NE(result.err.find("F_B and v_s are not identifiable"), std::string::npos) << result.err;
     EXPECT_NE(result.err.find("NOT identifiable"), std::string::npos);
+}
+
+// A rotary table end to end: the plan in degrees, its reference run by the rotary demo drive (feedid synth --rotary),
+// and identify finds the drive the plan predicted identifiable, each parameter within 0.5 % of the truth (v_s 1 %).
+// Not within 4 combined uncertainties: on this well-excited table identify reports F_C to 0.002 % and B to 0.014 %,
+// and finds F_C 0.02 % high and B 0.17 % low (10 and 12 uncertainties) from the acceleration phases, where the
+// synthetic drive's current and position are offset in time (the steady-speed samples alone give B = 5.00); the
+// preprocessing family does not vary that offset yet.
+TEST(PlanCli, ARotaryTablePlannedInDegreesIsIdentifiedFromItsReference) {
+    const auto dir = feedid::testing::temp_dir();
+    const auto reference = dir / "c.csv";
+    auto result =
+        run_cli("plan --axis C --travel=-360:360 --centers=0,120 --dialect linuxcnc -o " + quoted(dir / "c.ngc") +
+                " --reference " + quoted(reference) + " --json " + quoted(dir / "c.json"));
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    EXPECT_NE(result.out.find("v_s 0.05 rad/s; torque noise 0.04 N*m"), std::string::npos) << result.out;
+    EXPECT_EQ(feedid::testing::read_text(dir / "c.ngc").find(" mm"), std::string::npos);
+    const auto plan = nlohmann::json::parse(feedid::testing::read_text(dir / "c.json"));
+    const auto& predicted = plan.at("prediction").at("parameters");
+    const auto trace = dir / "c-synth.csv";
+    result = run_cli("synth --rotary --reference " + quoted(reference) + " --out " + quoted(trace));
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    result = run_cli("identify " + quoted(trace) + " --kt 2 --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto identified = nlohmann::json::parse(result.out);
+    EXPECT_EQ(identified.at("status"), "ok");
+    const std::map<std::string, double> truth{{"inertia_kgm2", 2.0},
+                                              {"viscous_Nms_per_rad", 5.0},
+                                              {"coulomb_Nm", 20.0},
+                                              {"breakaway_Nm", 26.0},
+                                              {"stribeck_velocity_rad_per_s", 0.05}};
+    for (const auto& [key, value] : truth) {
+        ASSERT_TRUE(predicted.at(key).at("identifiable").get<bool>()) << key;
+        const auto& estimate = identified.at("parameters").at(key);
+        const double tolerance = key == "stribeck_velocity_rad_per_s" ? 0.01 : 0.005;
+        EXPECT_NEAR(estimate.at("value").get<double>(), value, tolerance * value) << key;
+    }
 }
 
 }  // namespace

@@ -238,10 +238,17 @@ TEST(RotaryAxis, SimulateAndReportInRotaryUnits) {
                 1e-6 * linear_mae * s);
 }
 
-TEST(RotaryAxis, PlanRefusesARotaryAxisWord) {
-    const auto result = run_cli("plan --axis C --travel=-400:400 --centers=0 -o -");
-    EXPECT_EQ(result.exit_code, 2) << result.out;
-    EXPECT_NE(result.err.find("axis 'C' is a rotary axis"), std::string::npos) << result.err;
+// plan takes a rotary axis in degrees (test_plan_cli has the whole chain); its degrees are checked against the travel.
+TEST(RotaryAxis, PlanTakesARotaryAxisInDegrees) {
+    auto result = run_cli("plan --axis C --travel=-400:400 --centers=0 -o -");
+    EXPECT_EQ(result.exit_code, 0) << result.err;
+    EXPECT_NE(result.out.find("(feedid "), std::string::npos);
+    EXPECT_NE(result.out.find("for rotary axis C"), std::string::npos);
+    result = run_cli("plan --axis C --travel=-10:10 --centers=0 -o /dev/null");
+    EXPECT_EQ(result.exit_code, 2);
+    EXPECT_NE(result.err.find("goes to -14.860 deg, 4.860 deg beyond the travel minimum -10.000 deg"),
+              std::string::npos)
+        << result.err;
     EXPECT_EQ(feedid::testing::count_lines(result.err), 1) << result.err;
 }
 

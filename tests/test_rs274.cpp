@@ -1,8 +1,10 @@
 // The LinuxCNC program runs through LinuxCNC's own interpreter (`rs274 -g FILE`, Debian package linuxcnc-uspace,
 // installed by `scripts/setup.sh --extra`) without error, and the canonical commands it prints match the plan move
-// for move: STRAIGHT_FEED targets [mm, as the program is G21], SET_FEED_RATE [mm/min], DWELL [s].
+// for move: STRAIGHT_FEED targets [mm, as the program is G21; degrees on a rotary axis], SET_FEED_RATE [mm/min or
+// deg/min], DWELL [s].
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <regex>
@@ -18,8 +20,8 @@ namespace {
 
 struct Canonical {
     enum Kind { feed, dwell } kind;
-    double value;  // target [mm] or dwell [s]
-    double feed_mm_per_min;
+    double value;  // target [mm or deg] or dwell [s]
+    double feed_per_min;
 };
 
 void check_plan_through_rs274(const feedid::TestPlan& plan) {
@@ -70,13 +72,15 @@ void check_plan_through_rs274(const feedid::TestPlan& plan) {
     }
     EXPECT_TRUE(metric) << "the program must select millimetres (G21)";
     ASSERT_EQ(canonical.size(), plan.moves.size()) << out;
+    const feedid::PlanUnits units = plan.options.units();
     for (std::size_t k = 0; k < plan.moves.size(); ++k) {
         const auto& move = plan.moves[k];
         const auto& c = canonical[k];
         if (move.kind == feedid::MoveKind::feed) {
             ASSERT_EQ(c.kind, Canonical::feed) << "block " << k + 1 << ": " << move.description;
-            EXPECT_NEAR(c.value, move.target * 1e3, 5e-5) << "block " << k + 1 << ": " << move.description;
-            EXPECT_NEAR(c.feed_mm_per_min, move.feed * 60000.0, 5e-4) << "block " << k + 1 << ": " << move.description;
+            EXPECT_NEAR(c.value, move.target / units.length(), 5e-5) << "block " << k + 1 << ": " << move.description;
+            EXPECT_NEAR(c.feed_per_min, move.feed / units.feed(), 5e-4)
+                << "block " << k + 1 << ": " << move.description;
         } else {
             ASSERT_EQ(c.kind, Canonical::dwell) << "block " << k + 1 << ": " << move.description;
             EXPECT_NEAR(c.value, move.dwell, 5e-5) << "block " << k + 1;
@@ -102,6 +106,16 @@ TEST(Rs274, PapersLadderOnTheZAxisWithoutDwells) {
     options.slow_feeds.clear();
     options.cycles = 3;
     options.dwell = 0.0;  // no dwell blocks at all
+    check_plan_through_rs274(feedid::make_test_plan(options));
+}
+
+// A rotary axis: rs274 reads A in degrees and its feedrate in deg/min (a move of a rotary axis alone).
+TEST(Rs274, ARotaryTableInDegrees) {
+    constexpr double deg = M_PI / 180.0;
+    auto options = feedid::default_plan_options("A");
+    options.travel_min = -360.0 * deg;
+    options.travel_max = 360.0 * deg;
+    options.centers = {0.0, 120.0 * deg, 240.0 * deg};
     check_plan_through_rs274(feedid::make_test_plan(options));
 }
 

@@ -287,4 +287,67 @@ TEST(TestPlan, DocumentHoldsEveryPassAndNullForUndeterminedErrors) {
     EXPECT_EQ(parameters.at("breakaway_N").at("identifiable"), false);
 }
 
+// A rotary axis (A, B, C): the same test in degrees and deg/min, every quantity in rad inside, and the prediction for
+// the rotary demo table keyed as identify keys a rotary result.
+TEST(TestPlan, ARotaryAxisIsPlannedInDegreesWithRadiansInside) {
+    constexpr double deg = M_PI / 180.0;
+    auto options = feedid::default_plan_options("C");
+    ASSERT_TRUE(options.units().rotary);
+    EXPECT_FALSE(feedid::default_plan_options("X").units().rotary);
+    EXPECT_TRUE(feedid::is_rotary_axis("A1"));
+    EXPECT_FALSE(feedid::is_rotary_axis("X1"));
+    EXPECT_NEAR(options.stroke, 30.0 * deg, 1e-15);
+    EXPECT_NEAR(options.feeds.front(), 1250.0 * deg / 60.0, 1e-15);
+    EXPECT_NEAR(options.feeds.back(), 9350.0 * deg / 60.0, 1e-15);
+    EXPECT_NEAR(options.acceleration, 1000.0 * deg, 1e-12);
+    options.travel_min = -M_PI;
+    options.travel_max = M_PI;
+    options.centers = {0.0, 120.0 * deg};
+    const auto plan = feedid::make_test_plan(options);
+    ASSERT_FALSE(plan.moves.empty());
+    EXPECT_NE(plan.moves.front().description.find("centre 1 at 0.000 deg"), std::string::npos)
+        << plan.moves.front().description;
+    EXPECT_NE(plan.moves.front().description.find("deg/min"), std::string::npos);
+    for (const auto& note : plan.notes) EXPECT_EQ(note.find("mm"), std::string::npos) << note;
+    // a slow stroke is a whole number of 0.01 deg
+    for (const auto& pass : plan.passes) {
+        if (!pass.slow) continue;
+        EXPECT_NEAR(pass.stroke / (0.01 * deg), std::round(pass.stroke / (0.01 * deg)), 1e-6);
+    }
+
+    const auto reference = feedid::reference_trajectory(plan);
+    EXPECT_TRUE(reference.rotary);
+    EXPECT_EQ(reference.find(feedid::Role::reference_position)->unit, "rad");
+
+    feedid::PredictionOptions nominal;
+    nominal.drive = feedid::nominal_demo_drive(true);
+    nominal.force_noise = 0.04;
+    nominal.level_error = 0.135;
+    nominal.position_resolution = 1e-3 * deg;
+    const auto prediction = feedid::predict_identifiability(plan, nominal);
+    for (const auto* key :
+         {"inertia_kgm2", "viscous_Nms_per_rad", "coulomb_Nm", "breakaway_Nm", "stribeck_velocity_rad_per_s"}) {
+        const auto* p = prediction.find(key);
+        ASSERT_NE(p, nullptr) << key;
+        EXPECT_TRUE(p->identifiable) << key << " +- " << p->standard_error;
+    }
+    // the linear demo drive is not a nominal for a rotary axis
+    EXPECT_NE(parse_message([&] { (void)feedid::predict_identifiability(plan); }).find("nominal drive is linear"),
+              std::string::npos);
+
+    const auto document = feedid::plan_document(plan, prediction);
+    EXPECT_EQ(document.at("rotary"), true);
+    EXPECT_EQ(document.at("centers_rad").size(), 2u);
+    EXPECT_FALSE(document.contains("centers_m"));
+    const auto& first = document.at("passes").at(0);
+    EXPECT_NEAR(first.at("feed_deg_per_min").get<double>(), 10.0, 1e-9);
+    EXPECT_NEAR(first.at("feed_rad_per_s").get<double>(), 10.0 * deg / 60.0, 1e-15);
+    EXPECT_TRUE(document.at("prediction").contains("slowest_cruise_speed_rad_per_s"));
+
+    // refusals speak degrees
+    options.travel_max = 100.0 * deg;
+    EXPECT_NE(message_of(options).find("deg beyond the travel maximum 100.000 deg"), std::string::npos)
+        << message_of(options);
+}
+
 }  // namespace

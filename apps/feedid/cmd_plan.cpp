@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <numbers>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -13,14 +14,21 @@
 #include "feedid/error.hpp"
 #include "feedid/gcode.hpp"
 #include "feedid/io/csv.hpp"
+#include "feedid/parameters.hpp"
 #include "feedid/testplan.hpp"
 
 namespace feedid::cli {
 
 namespace {
 
-constexpr double mm = 1e-3;
-constexpr double mm_per_min = 1e-3 / 60.0;
+// The nominal drive's noise where the options give none: the demo drives' (feedid synth): 0.02 A of current noise
+// through 453.6 N/A, or through 2 N*m/A on the rotary table; one pass's level error 0.67 % of F_C.
+constexpr double linear_force_noise_N = 10.0;
+constexpr double rotary_torque_noise_Nm = 0.04;
+constexpr double linear_level_error_N = 5.0;
+constexpr double rotary_level_error_Nm = 0.135;
+// An encoder of 1 um, or of 1 millidegree on a rotary axis.
+constexpr double resolution_um_or_mdeg = 1.0;
 
 // A comma-separated list option, one value per occurrence (write --centers=-300,0,300): CLI11 splits it.
 CLI::Option* add_list_option(CLI::App& app, const std::string& name, std::vector<std::string>& entries,
@@ -35,6 +43,7 @@ CLI::Option* add_list_option(CLI::App& app, const std::string& name, std::vector
 void print_summary(std::FILE* out, const TestPlan& plan, const IdentifiabilityPrediction& prediction,
                    const PredictionOptions& nominal) {
     const auto& o = plan.options;
+    const ParameterNaming naming{o.units().rotary};
     std::size_t slow = 0;
     for (const auto& pass : plan.passes) slow += pass.slow ? 1 : 0;
     fmt::print(out,
@@ -43,20 +52,23 @@ void print_summary(std::FILE* out, const TestPlan& plan, const IdentifiabilityPr
                o.axis, o.centers.size(), plan.passes.size(), slow, plan.moves.size(), plan.duration,
                plan.duration / 60.0);
     const auto& branch = nominal.drive.friction.forward;
+    const std::string force = naming.unit(Term::coulomb);
     fmt::print(out,
-               "identifiability from a nominal drive (M {} kg, B {} N*s/m, F_C {} N, F_B {} N, v_s {} mm/s; force "
-               "noise {} N):\n",
-               nominal.drive.mass, branch.viscous, branch.coulomb, branch.breakaway.value_or(0.0),
-               branch.stribeck_velocity.value_or(0.0) / mm, nominal.force_noise);
+               "identifiability from a nominal drive (M {} {}, B {} {}, F_C {} {}, F_B {} {}, v_s {} {}; {} noise {} "
+               "{}):\n",
+               nominal.drive.mass, naming.unit(Term::mass), branch.viscous, naming.unit(Term::viscous), branch.coulomb,
+               force, branch.breakaway.value_or(0.0), force,
+               branch.stribeck_velocity.value_or(0.0) * naming.display_velocity_scale(), naming.display_velocity_unit(),
+               naming.rotary ? "torque" : "force", nominal.force_noise, force);
     fmt::print(out, "  step 1: condition number {:.3g} over {} samples; step 2: {} constant-velocity friction levels\n",
                prediction.step1_condition_number, prediction.step1_samples, prediction.step2_levels);
     for (const auto& p : prediction.parameters) {
         if (std::isfinite(p.standard_error)) {
-            fmt::print(out, "  {:<4} {:>10.4g} {:<6} +- {:<10.3g} ({:6.3g} %)  {}\n", p.symbol, p.nominal, p.unit,
+            fmt::print(out, "  {:<4} {:>10.4g} {:<11} +- {:<10.3g} ({:6.3g} %)  {}\n", p.symbol, p.nominal, p.unit,
                        p.standard_error, 100.0 * p.standard_error / std::abs(p.nominal),
                        p.identifiable ? "identifiable" : "NOT identifiable");
         } else {
-            fmt::print(out, "  {:<4} {:>10.4g} {:<6} +- {:<10}            {}\n", p.symbol, p.nominal, p.unit, "inf",
+            fmt::print(out, "  {:<4} {:>10.4g} {:<11} +- {:<10}            {}\n", p.symbol, p.nominal, p.unit, "inf",
                        "NOT identifiable");
         }
     }
@@ -66,52 +78,58 @@ void print_summary(std::FILE* out, const TestPlan& plan, const IdentifiabilityPr
 
 }  // namespace
 
-/// The options of `feedid plan`, as given; the library turns them into a plan and a prediction.
+/// The options of `feedid plan`, as given; the library turns them into a plan and a prediction. Lengths and feeds are
+/// in mm and mm/min, or in degrees and deg/min on a rotary axis (A, B, C); the nominal drive in the SI units of the
+/// axis's parameters (kg or kg*m^2, N or N*m), its Stribeck velocity in mm/s or rad/s as identify prints it.
 struct PlanArguments {
     std::string axis{"X"};
     std::string travel;
     std::vector<std::string> centers;
-    double stroke_mm{30.0};
+    double stroke{30.0};
     std::vector<std::string> feeds;
     std::vector<std::string> slow_feeds{"10:1000:7"};
     double max_pass_time_s{8.0};
     int cycles{2};
-    double acceleration{1.0};
+    std::optional<double> acceleration;
     std::optional<double> jerk;
     double dwell_s{0.2};
     double sample_time_s{0.001};
-    std::optional<double> max_feed_mm_per_min;
-    double positioning_feed_mm_per_min{5000.0};
-    std::optional<double> start_mm;
+    std::optional<double> max_feed;
+    double positioning_feed{5000.0};
+    std::optional<double> start;
     std::string dialect{"iso"};
     std::string output;
     std::string reference;
     std::string json;
-    // nominal drive
-    double mass{69.1};
-    double viscous{54.2};
-    double coulomb{742.8};
-    double breakaway{946.2};
-    double stribeck_mm_per_s{5.0};
-    double force_noise{10.0};
-    double level_error{5.0};
-    double resolution_um{1.0};
+    // nominal drive: the demo drive of the axis's kind where not given
+    std::optional<double> mass;
+    std::optional<double> viscous;
+    std::optional<double> coulomb;
+    std::optional<double> breakaway;
+    std::optional<double> stribeck_velocity;
+    std::optional<double> force_noise;
+    std::optional<double> level_error;
+    double resolution{resolution_um_or_mdeg};
 
     void add_to(CLI::App& sub) {
-        sub.add_option("--axis", axis, "Axis name as the NC knows it (X, Y, Z, A, ...; X1 on SINUMERIK)")
+        sub.add_option("--axis", axis,
+                       "Axis name as the NC knows it (X, Y, Z, A, ...; X1 on SINUMERIK); A, B and C are rotary: their "
+                       "lengths in deg, feeds in deg/min")
             ->default_val("X");
-        sub.add_option("--travel", travel, "Travel limits MIN:MAX [mm] (write --travel=-400:400)")->required();
-        add_list_option(sub, "--centers", centers, "Centres of the strokes C1,C2,... [mm] (write --centers=-300,0,300)")
+        sub.add_option("--travel", travel, "Travel limits MIN:MAX [mm; deg] (write --travel=-400:400)")->required();
+        add_list_option(sub, "--centers", centers,
+                        "Centres of the strokes C1,C2,... [mm; deg] (write --centers=-300,0,300)")
             ->required()
-            ->check(allowed_range(-1e6, 1e6, "mm"));
-        sub.add_option("--stroke", stroke_mm, "Stroke of the ladder passes [mm]")
+            ->check(allowed_range(-1e6, 1e6, "mm or deg"));
+        sub.add_option("--stroke", stroke, "Stroke of the ladder passes [mm; deg]")
             ->default_val(30.0)
-            ->check(allowed_range(0.01, 1e5, "mm"));
+            ->check(allowed_range(0.01, 1e5, "mm or deg"));
         add_list_option(sub, "--feeds", feeds,
-                        "Ladder feedrates F1,F2,... [mm/min]; default the paper's 1250,2600,3950,5300,6650,8000,9350")
-            ->check(allowed_range(1e-3, 1e6, "mm/min"));
+                        "Ladder feedrates F1,F2,... [mm/min; deg/min]; default the paper's "
+                        "1250,2600,3950,5300,6650,8000,9350")
+            ->check(allowed_range(1e-3, 1e6, "mm/min or deg/min"));
         add_list_option(sub, "--slow-feeds", slow_feeds,
-                        "Slow Stribeck passes: LO:HI[:N] log-spaced, F1,F2,... [mm/min], or none")
+                        "Slow Stribeck passes: LO:HI[:N] log-spaced, F1,F2,... [mm/min; deg/min], or none")
             ->default_val("10:1000:7");
         sub.add_option("--max-pass-time", max_pass_time_s, "Longest slow pass; its stroke is shortened to fit [s]")
             ->default_val(8.0)
@@ -119,88 +137,90 @@ struct PlanArguments {
         sub.add_option("--cycles", cycles, "Back-and-forth cycles per feedrate")
             ->default_val(2)
             ->check(allowed_range(1, 100, "cycles"));
-        sub.add_option("--acceleration", acceleration, "Axis acceleration (machine data) [m/s^2]")
-            ->default_val(1.0)
-            ->check(allowed_range(1e-3, 1e3, "m/s^2"));
-        sub.add_option("--jerk", jerk, "Jerk limit [m/s^3] (SINUMERIK SOFT); default none (BRISK)")
-            ->check(allowed_range(1e-3, 1e6, "m/s^3"));
+        sub.add_option("--acceleration", acceleration,
+                       "Axis acceleration (machine data) [m/s^2; deg/s^2]; default 1 m/s^2, 1000 deg/s^2")
+            ->check(allowed_range(1e-3, 1e6, "m/s^2 or deg/s^2"));
+        sub.add_option("--jerk", jerk, "Jerk limit [m/s^3; deg/s^3] (SINUMERIK SOFT); default none (BRISK)")
+            ->check(allowed_range(1e-3, 1e9, "m/s^3 or deg/s^3"));
         sub.add_option("--dwell", dwell_s, "Dwell at every reversal [s]")
             ->default_val(0.2)
             ->check(allowed_range(0.0, 60.0, "s"));
         sub.add_option("--sample-time", sample_time_s, "Trace sample time [s] (the reference file's step)")
             ->default_val(0.001)
             ->check(allowed_range(1e-6, 1.0, "s"));
-        sub.add_option("--max-feed", max_feed_mm_per_min, "Feedrate limit of the axis [mm/min]; refuse moves above it")
-            ->check(allowed_range(1e-3, 1e6, "mm/min"));
-        sub.add_option("--positioning-feed", positioning_feed_mm_per_min, "Feedrate between passes [mm/min]")
+        sub.add_option("--max-feed", max_feed, "Feedrate limit of the axis [mm/min; deg/min]; refuse moves above it")
+            ->check(allowed_range(1e-3, 1e6, "mm/min or deg/min"));
+        sub.add_option("--positioning-feed", positioning_feed, "Feedrate between passes [mm/min; deg/min]")
             ->default_val(5000.0)
-            ->check(allowed_range(1e-3, 1e6, "mm/min"));
-        sub.add_option("--start", start_mm, "Where the axis stands at the program start [mm]; default the first pass")
-            ->check(allowed_range(-1e6, 1e6, "mm"));
+            ->check(allowed_range(1e-3, 1e6, "mm/min or deg/min"));
+        sub.add_option("--start", start, "Where the axis stands at the program start [mm; deg]; default the first pass")
+            ->check(allowed_range(-1e6, 1e6, "mm or deg"));
         sub.add_option("--dialect", dialect, "Part-program dialect")
             ->check(CLI::IsMember({"iso", "sinumerik", "linuxcnc"}))
             ->default_val("iso");
         sub.add_option("-o,--out", output, "Write the part program here ('-' for stdout)");
-        sub.add_option("--reference", reference, "Write the reference trajectory (CSV: t [s], x_ref [m]) here");
+        sub.add_option("--reference", reference,
+                       "Write the reference trajectory (CSV: t [s], x_ref [m; rad on a rotary axis]) here");
         sub.add_option("--json", json, "Write the plan and its prediction as JSON ('-' for stdout)");
-        sub.add_option("--mass", mass, "Nominal mass for the prediction [kg]")
-            ->default_val(69.1)
-            ->check(allowed_range(1e-3, 1e6, "kg"));
-        sub.add_option("--viscous", viscous, "Nominal viscous friction [N*s/m]")
-            ->default_val(54.2)
-            ->check(allowed_range(0.0, 1e7, "N*s/m"));
-        sub.add_option("--coulomb", coulomb, "Nominal Coulomb friction [N]")
-            ->default_val(742.8)
-            ->check(allowed_range(0.0, 1e7, "N"));
-        sub.add_option("--breakaway", breakaway, "Nominal breakaway friction [N]")
-            ->default_val(946.2)
-            ->check(allowed_range(0.0, 1e7, "N"));
-        sub.add_option("--stribeck-velocity", stribeck_mm_per_s, "Nominal Stribeck velocity [mm/s]")
-            ->default_val(5.0)
-            ->check(allowed_range(1e-3, 1e4, "mm/s"));
-        sub.add_option("--force-noise", force_noise, "Expected force noise per sample [N]")
-            ->default_val(10.0)
-            ->check(allowed_range(1e-9, 1e9, "N"));
-        sub.add_option("--level-error", level_error, "Expected error of one pass's friction level [N]")
-            ->default_val(5.0)
-            ->check(allowed_range(1e-9, 1e9, "N"));
-        sub.add_option("--position-resolution", resolution_um, "Position measurement resolution [um]")
+        sub.add_option("--mass", mass, "Nominal mass [kg; inertia kg*m^2]; default the demo drive's 69.1 kg, 2 kg*m^2")
+            ->check(allowed_range(1e-6, 1e6, "kg or kg*m^2"));
+        sub.add_option("--viscous", viscous, "Nominal viscous friction [N*s/m; N*m*s/rad]; default 54.2, 5")
+            ->check(allowed_range(0.0, 1e7, "N*s/m or N*m*s/rad"));
+        sub.add_option("--coulomb", coulomb, "Nominal Coulomb friction [N; N*m]; default 742.8 N, 20 N*m")
+            ->check(allowed_range(0.0, 1e7, "N or N*m"));
+        sub.add_option("--breakaway", breakaway, "Nominal breakaway friction [N; N*m]; default 946.2 N, 26 N*m")
+            ->check(allowed_range(0.0, 1e7, "N or N*m"));
+        sub.add_option("--stribeck-velocity", stribeck_velocity,
+                       "Nominal Stribeck velocity [mm/s; rad/s]; default 5 mm/s, 0.05 rad/s")
+            ->check(allowed_range(1e-6, 1e4, "mm/s or rad/s"));
+        sub.add_option("--force-noise", force_noise, "Expected force noise per sample [N; N*m]; default 10 N, 0.04 N*m")
+            ->check(allowed_range(1e-9, 1e9, "N or N*m"));
+        sub.add_option("--level-error", level_error,
+                       "Expected error of one pass's friction level [N; N*m]; default 5 N, 0.135 N*m")
+            ->check(allowed_range(1e-9, 1e9, "N or N*m"));
+        sub.add_option("--position-resolution", resolution, "Position measurement resolution [um; millidegree]")
             ->default_val(1.0)
-            ->check(allowed_range(1e-6, 1e4, "um"));
+            ->check(allowed_range(1e-6, 1e4, "um or mdeg"));
     }
 
+    [[nodiscard]] PlanUnits units() const { return {is_rotary_axis(axis)}; }
+
     [[nodiscard]] TestPlanOptions plan_options() const {
-        TestPlanOptions options;
-        options.axis = axis;
-        std::tie(options.travel_min, options.travel_max) = parse_travel(travel);
-        options.centers = parse_number_list(centers, "--centers", mm);
-        options.stroke = stroke_mm * mm;
-        if (!feeds.empty()) options.feeds = parse_feeds(feeds);
-        options.slow_feeds = parse_slow_feeds(slow_feeds);
+        const PlanUnits u = units();
+        TestPlanOptions options = default_plan_options(axis);
+        std::tie(options.travel_min, options.travel_max) = parse_travel(travel, u);
+        options.centers = parse_number_list(centers, "--centers", u.length());
+        options.stroke = stroke * u.length();
+        options.feeds = feeds.empty() ? paper_feed_ladder(u) : parse_feeds(feeds, u);
+        options.slow_feeds = parse_slow_feeds(slow_feeds, u);
         options.max_pass_time = max_pass_time_s;
         options.cycles = cycles;
-        options.acceleration = acceleration;
-        options.jerk = jerk;
+        if (acceleration) options.acceleration = *acceleration * u.acceleration();
+        if (jerk) options.jerk = *jerk * u.acceleration();
         options.dwell = dwell_s;
         options.sample_time = sample_time_s;
-        if (max_feed_mm_per_min) options.max_feed = *max_feed_mm_per_min * mm_per_min;
-        options.positioning_feed = positioning_feed_mm_per_min * mm_per_min;
-        if (start_mm) options.start_position = *start_mm * mm;
+        if (max_feed) options.max_feed = *max_feed * u.feed();
+        options.positioning_feed = positioning_feed * u.feed();
+        if (start) options.start_position = *start * u.length();
         return options;
     }
 
     [[nodiscard]] PredictionOptions prediction_options() const {
+        const bool rotary = units().rotary;
+        const ParameterNaming naming{rotary};
         PredictionOptions nominal;
-        FrictionBranch branch;
-        branch.viscous = viscous;
-        branch.coulomb = coulomb;
-        branch.breakaway = breakaway;
-        branch.stribeck_velocity = stribeck_mm_per_s * mm;
-        nominal.drive.mass = mass;
+        nominal.drive = nominal_demo_drive(rotary);
+        FrictionBranch branch = nominal.drive.friction.forward;
+        if (viscous) branch.viscous = *viscous;
+        if (coulomb) branch.coulomb = *coulomb;
+        if (breakaway) branch.breakaway = *breakaway;
+        if (stribeck_velocity) branch.stribeck_velocity = *stribeck_velocity / naming.display_velocity_scale();
+        if (mass) nominal.drive.mass = *mass;
         nominal.drive.friction = Friction::symmetric(branch);
-        nominal.force_noise = force_noise;
-        nominal.level_error = level_error;
-        nominal.position_resolution = resolution_um * 1e-6;
+        nominal.force_noise = force_noise.value_or(rotary ? rotary_torque_noise_Nm : linear_force_noise_N);
+        nominal.level_error = level_error.value_or(rotary ? rotary_level_error_Nm : linear_level_error_N);
+        // um -> m; millidegree -> rad
+        nominal.position_resolution = rotary ? resolution * 1e-3 * std::numbers::pi / 180.0 : resolution * 1e-6;
         return nominal;
     }
 
@@ -233,7 +253,10 @@ Action add_plan_command(CLI::App& app) {
         "  feedid synth --reference ref.csv --out synth.csv        # a dry run of the test\n"
         "  feedid identify synth.csv --force-constant force_constant_N_per_A --by-location\n"
         "The paper's ladder alone (no slow passes; F_B and v_s come out not identifiable):\n"
-        "  feedid plan --travel=-400:400 --centers=-300 --slow-feeds none --dialect sinumerik -o TEST.MPF");
+        "  feedid plan --travel=-400:400 --centers=-300 --slow-feeds none --dialect sinumerik -o TEST.MPF\n"
+        "A rotary table (degrees, deg/min; the rotary demo drive as the nominal):\n"
+        "  feedid plan --axis C --travel=-360:360 --centers=0,120,240 --dialect linuxcnc -o c.ngc --reference c.csv\n"
+        "  feedid synth --rotary --reference c.csv --out c-synth.csv && feedid identify c-synth.csv --kt 2");
 
     auto arguments = std::make_shared<PlanArguments>();
     arguments->add_to(*sub);

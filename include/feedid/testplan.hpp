@@ -5,8 +5,10 @@
 // come the part program (ISO, SINUMERIK 840D, LinuxCNC; gcode.hpp), the reference trajectory an ideal NC would
 // command, the predicted duration and a prediction of which parameters the data will identify and how well.
 //
-// All quantities in SI (m, m/s, m/s^2, s); the emitters convert to mm and mm/min.
+// All quantities in SI (m, m/s, m/s^2, s; on a rotary axis rad, rad/s, rad/s^2); the options' text, the messages and
+// the emitters use mm and mm/min, or degrees and deg/min on a rotary axis (PlanUnits).
 
+#include <numbers>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -20,27 +22,50 @@
 
 namespace feedid {
 
-/// The paper's feedrate ladder: 1250 to 9350 mm/min in six equal steps of 1350 mm/min [m/s].
-std::vector<double> paper_feed_ladder();
+/// The units a plan is written in: mm and mm/min on a linear axis; degrees and deg/min on a rotary axis, as NCs program
+/// rotary axes (G94: a move of the rotary axis alone runs at F deg/min). Accelerations in m/s^2 or deg/s^2.
+struct PlanUnits {
+    bool rotary{false};
 
-/// `count` feedrates log-spaced from `lowest` to `highest` [m/s], each rounded to two significant digits in mm/min
-/// (10, 22, 46, 100, ... mm/min) so that the part program reads well; duplicates after rounding are dropped.
-std::vector<double> log_spaced_feeds(double lowest, double highest, int count);
+    /// SI per length unit: m per mm, or rad per degree.
+    [[nodiscard]] double length() const { return rotary ? std::numbers::pi / 180.0 : 1e-3; }
+    /// SI per feed unit: m/s per mm/min, or rad/s per deg/min.
+    [[nodiscard]] double feed() const { return length() / 60.0; }
+    /// SI per acceleration unit (and per jerk unit): 1 (m/s^2), or rad/s^2 per deg/s^2.
+    [[nodiscard]] double acceleration() const { return rotary ? std::numbers::pi / 180.0 : 1.0; }
+    [[nodiscard]] const char* length_unit() const { return rotary ? "deg" : "mm"; }
+    [[nodiscard]] const char* feed_unit() const { return rotary ? "deg/min" : "mm/min"; }
+    [[nodiscard]] const char* acceleration_unit() const { return rotary ? "deg/s^2" : "m/s^2"; }
+    [[nodiscard]] const char* jerk_unit() const { return rotary ? "deg/s^3" : "m/s^3"; }
+};
 
-// ---- the plan's options as the command line writes them (mm, mm/min) ----
+/// A, B and C turn about X, Y and Z (DIN 66025 / ISO 6983); on SINUMERIK with a number (A1, C2).
+bool is_rotary_axis(std::string_view axis);
+
+/// The paper's feedrate ladder: 1250 to 9350 mm/min (deg/min on a rotary axis) in six equal steps of 1350 [m/s or
+/// rad/s].
+std::vector<double> paper_feed_ladder(const PlanUnits& units = {});
+
+/// `count` feedrates log-spaced from `lowest` to `highest` [m/s or rad/s], each rounded to two significant digits in
+/// mm/min or deg/min (10, 22, 46, 100, ...) so that the part program reads well; duplicates after rounding are dropped.
+std::vector<double> log_spaced_feeds(double lowest, double highest, int count, const PlanUnits& units = {});
+
+// ---- the plan's options as the command line writes them (mm, mm/min; deg, deg/min on a rotary axis) ----
 // Each parser reads the text of one option (a comma-separated option as its entries, split by the command line) and
 // throws InputError naming the option for a malformed value; TestPlanOptions::validate checks the ranges.
 
-/// --travel "MIN:MAX" [mm] -> {travel_min, travel_max} [m].
-std::pair<double, double> parse_travel(std::string_view text);
+/// --travel "MIN:MAX" [mm or deg] -> {travel_min, travel_max} [m or rad].
+std::pair<double, double> parse_travel(std::string_view text, const PlanUnits& units = {});
 /// The entries of a comma-separated option (--centers C1,C2,...) as numbers, each times `scale` (1e-3: mm -> m).
 std::vector<double> parse_number_list(const std::vector<std::string>& entries, std::string_view option, double scale);
-/// --feeds: F1,F2,... [mm/min], or "none" -> ladder feedrates [m/s].
-std::vector<double> parse_feeds(const std::vector<std::string>& entries);
-/// --slow-feeds: "LO:HI" or "LO:HI:N" [mm/min] (N log-spaced feedrates, default 7; see log_spaced_feeds),
-/// F1,F2,... [mm/min], or "none" -> slow feedrates [m/s].
-std::vector<double> parse_slow_feeds(const std::vector<std::string>& entries);
+/// --feeds: F1,F2,... [mm/min or deg/min], or "none" -> ladder feedrates [m/s or rad/s].
+std::vector<double> parse_feeds(const std::vector<std::string>& entries, const PlanUnits& units = {});
+/// --slow-feeds: "LO:HI" or "LO:HI:N" [mm/min or deg/min] (N log-spaced feedrates, default 7; see log_spaced_feeds),
+/// F1,F2,... [mm/min or deg/min], or "none" -> slow feedrates [m/s or rad/s].
+std::vector<double> parse_slow_feeds(const std::vector<std::string>& entries, const PlanUnits& units = {});
 
+/// The defaults are a linear axis's; a rotary axis (A, B, C) takes every length in rad (its options' text in degrees:
+/// PlanUnits) and needs its own values.
 struct TestPlanOptions {
     std::string axis{"X"};        ///< axis letter as the NC knows it (X, Y, Z, A, ..., X1 on SINUMERIK)
     double travel_min{0.0};       ///< lower travel limit (software limit switch) [m]
@@ -62,9 +87,17 @@ struct TestPlanOptions {
     /// then begins there).
     std::optional<double> start_position;
 
+    /// mm or degrees: the axis's kind, from its name.
+    [[nodiscard]] PlanUnits units() const { return {is_rotary_axis(axis)}; }
+
     /// What is wrong with these options ("" when nothing). Does not check the travel (make_test_plan does, per move).
     [[nodiscard]] std::string validate() const;
 };
+
+/// The defaults for an axis: a linear axis's as TestPlanOptions has them (travel and centres still to be set); a
+/// rotary axis's the same numbers in degrees (30 deg strokes, the ladder and the slow feeds in deg/min, 5000 deg/min
+/// between passes, 1000 deg/s^2: a degree of the one is a mm of the other, as `feedid synth --rotary` has it), in SI.
+TestPlanOptions default_plan_options(const std::string& axis);
 
 enum class MoveKind { feed, dwell };
 
@@ -113,13 +146,14 @@ Trace reference_trajectory(const TestPlan& plan);
 // ---- identifiability prediction ----
 
 /// The demo drive used as the nominal model: M 69.1 kg, B 54.2 N*s/m, F_C 742.8 N, F_B 946.2 N (the paper's
-/// values) with a ball-screw Stribeck velocity v_s = 5 mm/s instead of the paper's 0.864 m/s.
-AxisModel nominal_demo_drive();
+/// values) with a ball-screw Stribeck velocity v_s = 5 mm/s instead of the paper's 0.864 m/s. Rotary: the rotary demo
+/// table of `feedid synth --rotary` (J 2 kg*m^2, B 5 N*m*s/rad, F_C 20 N*m, F_B 26 N*m, v_s 0.05 rad/s).
+AxisModel nominal_demo_drive(bool rotary = false);
 
 struct PredictionOptions {
-    AxisModel drive{nominal_demo_drive()};  ///< nominal drive model
+    AxisModel drive{nominal_demo_drive()};  ///< nominal drive model (drive.rotary: the prediction's keys and units)
     double force_noise{10.0};               ///< white noise on the drive force per sample (current noise * K) [N]
-    double position_resolution{1e-6};       ///< position quantisation [m]
+    double position_resolution{1e-6};       ///< position quantisation [m or rad]
     /// Error of one pass's friction level beyond white noise (friction varying along the stroke, force ripple) [N]:
     /// what limits the Stribeck fit, which sees each constant-velocity pass as one point of the friction curve.
     double level_error{5.0};

@@ -461,6 +461,12 @@ void plan_feeds(const OptionReader& o, TestPlanOptions& options) {
 TestPlanOptions plan_options(const OptionReader& o) {
     TestPlanOptions options;
     options.axis = o.text("axis").value_or("X");
+    // The keywords name mm and mm/min; a rotary axis's test is planned in degrees by the command line.
+    if (is_rotary_axis(options.axis))
+        throw InputError(
+            fmt::format("axis '{}' is a rotary axis: feedid.plan takes mm and mm/min (travel_mm, ...); "
+                        "plan it with `feedid plan --axis {}` (degrees, deg/min)",
+                        options.axis, options.axis));
     const py::object travel = o.object("travel_mm");
     if (py::isinstance<py::str>(travel)) {
         std::tie(options.travel_min, options.travel_max) = parse_travel(travel.cast<std::string>());
@@ -475,8 +481,8 @@ TestPlanOptions plan_options(const OptionReader& o) {
     plan_feeds(o, options);
     options.max_pass_time = o.number("max_pass_time_s", {0.01, 3600.0, "s"}).value_or(8.0);
     options.cycles = static_cast<int>(o.integer("cycles", {1, 100, "cycles"}).value_or(2));
-    options.acceleration = o.number("acceleration_m_per_s2", {1e-3, 1e3, "m/s^2"}).value_or(1.0);
-    options.jerk = o.number("jerk_m_per_s3", {1e-3, 1e6, "m/s^3"});
+    options.acceleration = o.number("acceleration_m_per_s2", {1e-3, 1e6, "m/s^2"}).value_or(1.0);
+    options.jerk = o.number("jerk_m_per_s3", {1e-3, 1e9, "m/s^3"});
     options.dwell = o.number("dwell_s", {0.0, 60.0, "s"}).value_or(0.2);
     options.sample_time = o.number("sample_time_s", {1e-6, 1.0, "s"}).value_or(0.001);
     if (const auto feed = o.number("max_feed_mm_per_min", feed_range)) options.max_feed = *feed * mm_per_min;
@@ -491,8 +497,8 @@ PredictionOptions prediction_options(const OptionReader& o) {
     branch.viscous = o.number("viscous_Ns_per_m", {0.0, 1e7, "N*s/m"}).value_or(54.2);
     branch.coulomb = o.number("coulomb_N", {0.0, 1e7, "N"}).value_or(742.8);
     branch.breakaway = o.number("breakaway_N", {0.0, 1e7, "N"}).value_or(946.2);
-    branch.stribeck_velocity = o.number("stribeck_velocity_mm_per_s", {1e-3, 1e4, "mm/s"}).value_or(5.0) * mm;
-    nominal.drive.mass = o.number("mass_kg", {1e-3, 1e6, "kg"}).value_or(69.1);
+    branch.stribeck_velocity = o.number("stribeck_velocity_mm_per_s", {1e-6, 1e4, "mm/s"}).value_or(5.0) * mm;
+    nominal.drive.mass = o.number("mass_kg", {1e-6, 1e6, "kg"}).value_or(69.1);
     nominal.drive.friction = Friction::symmetric(branch);
     nominal.force_noise = o.number("force_noise_N", {1e-9, 1e9, "N"}).value_or(10.0);
     nominal.level_error = o.number("level_error_N", {1e-9, 1e9, "N"}).value_or(5.0);

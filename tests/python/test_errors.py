@@ -196,6 +196,8 @@ def test_synth_and_plan_refuse(folder):
         feedid.plan(travel_mm=(-100, 0, 100), centers_mm=[0])
     with pytest.raises(feedid.InputError, match="centers_mm: 'a' is not a number"):
         feedid.plan(travel_mm=(-100, 100), centers_mm=["a"])
+    with pytest.raises(feedid.InputError, match=r"^axis 'C' is a rotary axis: feedid.plan takes mm .* --axis C"):
+        feedid.plan(axis="C", travel_mm=(-100, 100), centers_mm=[0])
     with pytest.raises(feedid.InputError, match="dialect='heidenhain'"):
         feedid.plan(travel_mm=(-400, 400), centers_mm=[0]).part_program("heidenhain")
 
@@ -361,13 +363,14 @@ def test_options_have_the_command_lines_ranges(ladder, folder):
             whole = "int" in str(parameter.annotation)
             for value in ((10**9 + 7, -10**9 - 7) if whole else (1e300, -1e300)):
                 refused = run_cli(*base[command], option, str(value), expect=None)
-                cli = re.search(r"is outside the allowed range (.*)$", refused.stderr.strip())
+                # plan's ranges name both units of an option (mm or deg); Python's keywords are the linear ones
+                cli = re.search(r"is outside the allowed range (.*?)(?: or \S+)?$", refused.stderr.strip())
                 if refused.returncode != 2 or not cli:
                     continue
                 extra = {"lead_mm": 10} if keyword == "kt_Nm_per_A" else {}
                 with pytest.raises(feedid.InputError) as error:
                     python[command](**{keyword: value, **extra})
-                ours = re.search(r"is outside the allowed range (.*)$", str(error.value))
+                ours = re.search(r"is outside the allowed range (.*?)(?: or \S+)?$", str(error.value))
                 assert ours and ours.group(1) == cli.group(1), (command, keyword, value, str(error.value))
                 compared += 1
     assert compared >= 70
