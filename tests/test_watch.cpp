@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include <fmt/core.h>
 #include <gtest/gtest.h>
 
 #include "feedid/watch/payload.hpp"
@@ -30,7 +31,7 @@ Batch small_batch() {
     b.axis = "X";
     b.t0 = 12.5;
     b.dt = 1e-3;
-    b.position = {0.1, 0.1000125, 0.1000251, -0.25};
+    b.position = {-0.1, -0.0999875, -0.0999749, -0.0999623};
     b.drive = {1.5, -2.25, 3.125, 1e-7};
     b.force_constant = 52.5;
     return b;
@@ -99,6 +100,15 @@ std::vector<std::pair<std::string, std::string>> malformed_payloads() {
         {R"({"t0": 0, "dt": 0.001, "position": [], "current": [], )" + units + "}", "no samples"},
         {R"({"t0": 0, "dt": 0.001, "position": [1], "current": [1], "machine": "a/b", )" + units + "}", "machine"},
     };
+    // millimetres sent as metres: a 100 mm/s move at 1 kHz would be 100 m/s
+    std::string millimetres = R"({"t0": 0, "dt": 0.001, "current": [)";
+    std::string positions;
+    for (int k = 0; k < 200; ++k) {
+        millimetres += (k == 0 ? "" : ",") + std::string("1");
+        positions += fmt::format("{}{:.1f}", k == 0 ? "" : ",", 0.1 * k);
+    }
+    cases.emplace_back(millimetres + "], \"position\": [" + positions + "], " + units + "}",
+                       "units.position: the position moves at up to 100 m/s in 199 of 199 steps");
     // a huge array: more samples than the limit (PayloadLimits::max_samples, 1,000,000)
     std::string huge = R"({"t0": 0, "dt": 0.001, "current": [1], )" + units + R"(, "position": [0)";
     for (int k = 0; k < 1'000'000; ++k) huge += ",0";

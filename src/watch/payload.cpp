@@ -1,5 +1,6 @@
 #include "feedid/watch/payload.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -8,6 +9,7 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
+#include "feedid/consistency.hpp"
 #include "feedid/units.hpp"
 
 namespace feedid::watch {
@@ -203,6 +205,24 @@ void store(std::string& out, T value) {
     out.append(bytes, sizeof(T));
 }
 
+// A position unit mix-up (mm sent as m) makes the axis move at a speed no feed drive reaches, as identify and scan find
+// in a file (consistency.hpp): more than 1 % of the batch's steps above it refuse the batch, naming the unit.
+std::string implausible_speed(const Batch& batch) {
+    const double limit = ConsistencyOptions{}.max_linear_speed;
+    std::size_t fast = 0;
+    double fastest = 0.0;
+    for (std::size_t k = 1; k < batch.samples(); ++k) {
+        const double speed = std::abs(batch.position[k] - batch.position[k - 1]) / batch.dt;
+        fastest = std::max(fastest, speed);
+        if (speed > limit) ++fast;
+    }
+    if (100 * fast <= batch.samples() - (batch.samples() > 0 ? 1 : 0)) return {};
+    return fmt::format(
+        "units.position: the position moves at up to {:.4g} m/s in {} of {} steps: no feed drive moves "
+        "faster than {:g} m/s; is its unit right?",
+        fastest, fast, batch.samples() - 1, limit);
+}
+
 }  // namespace
 
 std::optional<std::uint8_t> binary_unit_code(std::string_view unit) {
@@ -212,9 +232,10 @@ std::optional<std::uint8_t> binary_unit_code(std::string_view unit) {
 }
 
 std::string decode_batch(std::span<const std::byte> payload, Batch& batch, const PayloadLimits& limits) {
-    if (payload.size() >= 4 && std::memcmp(payload.data(), binary_magic, 4) == 0)
-        return decode_binary(payload, batch, limits);
-    return decode_json(payload, batch, limits);
+    std::string error = payload.size() >= 4 && std::memcmp(payload.data(), binary_magic, 4) == 0
+                            ? decode_binary(payload, batch, limits)
+                            : decode_json(payload, batch, limits);
+    return error.empty() ? implausible_speed(batch) : error;
 }
 
 std::string encode_json(const Batch& batch) {
