@@ -105,13 +105,15 @@ inline bool broker_answers(int port) {
     return ok;
 }
 
-/// A mosquitto of the test's own. `persistent`: it saves sessions and queued messages in the test's folder when
-/// stopped and loads them when started (as a production broker does), else it forgets them.
+/// A mosquitto of the test's own. `persistent`: it saves sessions, subscriptions and queued messages in the test's
+/// folder every second and when stopped, and loads them when started (as a production broker with persistence
+/// does; killed, it loses what changed since its last save), else it forgets them.
 class Broker {
 public:
     Broker(const std::filesystem::path& dir, int port, bool persistent = false) : dir_(dir), port_(port) {
         const std::string persistence =
-            persistent ? "persistence true\npersistence_location " + dir.string() + "/\n" : "persistence false\n";
+            persistent ? "persistence true\npersistence_location " + dir.string() + "/\nautosave_interval 1\n"
+                       : "persistence false\n";
         write_text(dir / "mosquitto.conf", "listener " + std::to_string(port) + " 127.0.0.1\nallow_anonymous true\n" +
                                                persistence + "max_queued_messages 100000\n");
         start();
@@ -123,6 +125,11 @@ public:
             std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
     int stop() { return process_.terminate(); }
+    /// SIGKILL: no shutdown, no last save (a crash, the OOM killer, a power cut of its host).
+    int kill() {
+        ::kill(process_.pid(), SIGKILL);
+        return process_.wait();
+    }
     [[nodiscard]] std::string url() const { return "mqtt://127.0.0.1:" + std::to_string(port_); }
     [[nodiscard]] int port() const { return port_; }
 
