@@ -118,9 +118,12 @@ public:
                                                persistence + "max_queued_messages 100000\n");
         start();
     }
+    /// Starts it (again): its output in mosquitto.out.N and mosquitto.err.N for the Nth start.
     void start() {
-        process_ = Process({mosquitto_path, "-c", (dir_ / "mosquitto.conf").string()}, dir_ / "mosquitto.out",
-                           dir_ / "mosquitto.err");
+        ++starts_;
+        process_ = Process({mosquitto_path, "-c", (dir_ / "mosquitto.conf").string()},
+                           dir_ / ("mosquitto.out." + std::to_string(starts_)),
+                           dir_ / ("mosquitto.err." + std::to_string(starts_)));
         for (int attempt = 0; attempt < 100 && !broker_answers(port_); ++attempt)
             std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
@@ -136,6 +139,7 @@ public:
 private:
     std::filesystem::path dir_;
     int port_;
+    int starts_{0};
     Process process_;
 };
 

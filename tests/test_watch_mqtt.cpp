@@ -128,7 +128,7 @@ protected:
 
     void start() {
         broker_.emplace(dir_, port_, true);  // persistence: it saves its sessions every second
-        ASSERT_TRUE(broker_answers(port_)) << read_text(dir_ / "mosquitto.err");
+        ASSERT_TRUE(broker_answers(port_)) << read_text(dir_ / "mosquitto.err.1");
         for (int m = 1; m <= machines; ++m)
             for (std::size_t a = 0; a < axes.size(); ++a) {
                 Axis axis;
@@ -175,6 +175,9 @@ protected:
         }
         sender_.emplace(port_);
         send_malformed(500);
+        // every stream under way (the publishers read their traces first), so that each spans the broker's kill
+        EXPECT_TRUE(wait_until([&] { return listener_->estimates().size() == axes_.size(); }, 30))
+            << listener_->estimates().size() << " axes streaming";
         // their errors are out before the broker goes (published while it is away, they would be lost: QoS 0)
         EXPECT_TRUE(wait_until([&] { return listener_->errors().size() >= 500u; }, 30)) << listener_->errors().size();
     }
@@ -193,8 +196,14 @@ protected:
     }
 
     void finish() {
-        for (std::size_t i = 0; i < publishers_.size(); ++i)
+        for (std::size_t i = 0; i < publishers_.size(); ++i) {
             EXPECT_EQ(publishers_[i].wait(), 0) << read_text(dir_ / ("publish_" + axes_[i].name + ".err"));
+            // its stream spanned the kill: it held messages while the broker was away
+            const std::string err = read_text(dir_ / ("publish_" + axes_[i].name + ".err"));
+            const auto held = err.find(" held while the broker was away");
+            ASSERT_NE(held, std::string::npos) << err;
+            EXPECT_GT(std::stoul(err.substr(err.rfind('(', held) + 1)), 0u) << err;
+        }
         const auto published = Clock::now();
         // every publisher had each of its messages acknowledged: the watch has every sample when each axis's
         // estimate accounts for all of them (pushed, or given up as missing)
@@ -228,7 +237,7 @@ protected:
         EXPECT_EQ(listener_->errors().size(), 1000u);
         const auto estimates = listener_->estimates();
         EXPECT_EQ(estimates.size(), axes_.size());
-        std::size_t compared = 0, undetermined = 0, repeated = 0, reordered = 0;
+        std::size_t compared = 0, undetermined = 0, repeated = 0, reordered = 0, missing = 0, axes_missing = 0;
         double largest_sigma = 0.0;
         const AxisModel truth = demo_spec().axis;
         for (const Axis& axis : axes_) {
@@ -240,12 +249,16 @@ protected:
             const auto& stream = document["stream"];
             EXPECT_EQ(stream["samples"].get<std::size_t>(), axis.uninterrupted.samples)
                 << axis.estimate_topic << " " << stream.dump();
-            EXPECT_EQ(stream["missing_samples"].get<std::size_t>(), 0u) << axis.estimate_topic << " " << stream.dump();
+            EXPECT_EQ(stream["missing_samples"].get<std::size_t>(), 0u)
+                << axis.estimate_topic << " " << stream.dump() << "\n"
+                << read_text(dir_ / ("publish_" + axis.name + ".err"));
             EXPECT_TRUE(stream["holes_s"].empty()) << axis.estimate_topic << " " << stream.dump();
             EXPECT_EQ(stream["held_samples"].get<std::size_t>(), 0u) << axis.estimate_topic;
             EXPECT_EQ(document["service"]["dropped_queue_full"].get<std::size_t>(), 0u) << axis.estimate_topic;
             repeated += stream["repeated_samples"].get<std::size_t>();
             reordered += stream["reordered_batches"].get<std::size_t>();
+            missing += stream["missing_samples"].get<std::size_t>();
+            axes_missing += stream["missing_samples"].get<std::size_t>() > 0;
             const auto check = [&](const char* key, double true_value, double tolerance, const Estimate& reference) {
                 if (!reference.standard_error) {
                     // the identifier cannot say how good its value is on this stream (too few windows qualify):
@@ -275,8 +288,9 @@ protected:
         std::cout << fmt::format(
             "broker killed, watch online again after {:.1f} s; {} parameters within tolerance of the truth and within "
             "1 sigma of the uninterrupted stream's (largest difference {:.2g} sigma), {} that the identifier cannot "
-            "determine on its stream published as null; {} repeated samples skipped, {} batches put back in order\n",
-            reconnected_s_, compared, largest_sigma, undetermined, repeated, reordered);
+            "determine on its stream published as null; {} repeated samples skipped, {} batches put back in order, "
+            "{} samples missing on {} axes\n",
+            reconnected_s_, compared, largest_sigma, undetermined, repeated, reordered, missing, axes_missing);
         EXPECT_GE(compared, 3u * 3u * (machines - 1));
     }
 

@@ -52,6 +52,44 @@ struct Message {
     std::string payload;
 };
 
+/// A publishing side of a connection (network thread and publishing thread): whether it is up, how often it came up,
+/// and the message ids the library holds until the broker acknowledges them.
+struct Link {
+    std::mutex mutex;
+    std::atomic<bool> connected{false};
+    std::atomic<std::size_t> connects{0};
+    std::multiset<int> unacknowledged;  ///< mids handed to the library and not acknowledged (QoS 0: not written) yet
+    std::multiset<int> early;           ///< mids acknowledged before mosquitto_publish returned them
+    bool at_most_once{false};           ///< QoS 0: what is not written when the connection drops is gone
+    std::size_t dropped_unwritten{0};   ///< QoS 0 messages gone that way
+
+    void handed(int mid) {
+        std::lock_guard lock(mutex);
+        if (const auto it = early.find(mid); it != early.end())
+            early.erase(it);
+        else
+            unacknowledged.insert(mid);
+    }
+    void acknowledged(int mid) {
+        std::lock_guard lock(mutex);
+        if (const auto it = unacknowledged.find(mid); it != unacknowledged.end())
+            unacknowledged.erase(it);
+        else
+            early.insert(mid);
+    }
+    void disconnected() {
+        connected = false;
+        std::lock_guard lock(mutex);
+        if (!at_most_once) return;  // QoS 1: the library keeps them and sends them again
+        dropped_unwritten += unacknowledged.size();
+        unacknowledged.clear();
+    }
+    [[nodiscard]] std::size_t pending() {
+        std::lock_guard lock(mutex);
+        return unacknowledged.size();
+    }
+};
+
 /// What the network thread and the service thread share.
 struct Shared {
     std::mutex mutex;
@@ -64,6 +102,8 @@ struct Shared {
     std::string status_topic;
     std::atomic<std::size_t> connects{0};
     std::atomic<bool> connected{false};
+    std::atomic<bool> closing{false};
+    Link last;  ///< the final estimates and "offline", waited for before the disconnect
 };
 
 void on_connect(mosquitto* client, void* user, int code) {
@@ -77,6 +117,11 @@ void on_connect(mosquitto* client, void* user, int code) {
 
 void on_disconnect(mosquitto*, void* user, int) {
     static_cast<Shared*>(user)->connected = false;
+}
+
+void on_publish(mosquitto*, void* user, int mid) {
+    auto* shared = static_cast<Shared*>(user);
+    if (shared->closing) shared->last.acknowledged(mid);
 }
 
 void on_message(mosquitto*, void* user, const mosquitto_message* message) {
@@ -198,8 +243,11 @@ private:
     }
 
     void publish(const std::string& topic, const std::string& payload, int qos, bool retain) {
-        mosquitto_publish(client_, nullptr, topic.c_str(), static_cast<int>(payload.size()), payload.data(), qos,
-                          retain);
+        int mid = 0;
+        const int code = mosquitto_publish(client_, &mid, topic.c_str(), static_cast<int>(payload.size()),
+                                           payload.data(), qos, retain);
+        if (shared_.closing && qos > 0 && (code == MOSQ_ERR_SUCCESS || code == MOSQ_ERR_NO_CONN))
+            shared_.last.handed(mid);
     }
 
     void record(const CompletedRun& run) {
@@ -259,44 +307,6 @@ private:
     mosquitto* client_;
     Watcher watcher_;
     std::unique_ptr<history::HistoryStore> store_;
-};
-
-/// The publisher's side of a connection (network thread and publishing thread): whether it is up, how often it came
-/// up, and the message ids the library holds until the broker acknowledges them.
-struct Link {
-    std::mutex mutex;
-    std::atomic<bool> connected{false};
-    std::atomic<std::size_t> connects{0};
-    std::multiset<int> unacknowledged;  ///< mids handed to the library and not acknowledged (QoS 0: not written) yet
-    std::multiset<int> early;           ///< mids acknowledged before mosquitto_publish returned them
-    bool at_most_once{false};           ///< QoS 0: what is not written when the connection drops is gone
-    std::size_t dropped_unwritten{0};   ///< QoS 0 messages gone that way
-
-    void handed(int mid) {
-        std::lock_guard lock(mutex);
-        if (const auto it = early.find(mid); it != early.end())
-            early.erase(it);
-        else
-            unacknowledged.insert(mid);
-    }
-    void acknowledged(int mid) {
-        std::lock_guard lock(mutex);
-        if (const auto it = unacknowledged.find(mid); it != unacknowledged.end())
-            unacknowledged.erase(it);
-        else
-            early.insert(mid);
-    }
-    void disconnected() {
-        connected = false;
-        std::lock_guard lock(mutex);
-        if (!at_most_once) return;  // QoS 1: the library keeps them and sends them again
-        dropped_unwritten += unacknowledged.size();
-        unacknowledged.clear();
-    }
-    [[nodiscard]] std::size_t pending() {
-        std::lock_guard lock(mutex);
-        return unacknowledged.size();
-    }
 };
 
 /// Store and forward, as an NC's gateway does. While the broker is away, messages are held (at most `limit`; beyond,
@@ -412,6 +422,7 @@ int run_watch(const ServiceOptions& options) {
     mosquitto_connect_callback_set(client.get(), on_connect);
     mosquitto_disconnect_callback_set(client.get(), on_disconnect);
     mosquitto_message_callback_set(client.get(), on_message);
+    mosquitto_publish_callback_set(client.get(), on_publish);
     Service service(options, shared, client.get());  // opens the history: exit 2 before connecting when it cannot
     connect_or_throw(client.get(), options.broker);
     stop_requested = false;
@@ -448,12 +459,22 @@ int run_watch(const ServiceOptions& options) {
             break;
     }
     drain();
+    shared.closing = true;
     service.finish();
     service.record_runs();
-    mosquitto_publish(client.get(), nullptr, shared.status_topic.c_str(), 7, "offline", 1, true);
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));  // let the QoS 1 messages leave
+    int mid = 0;
+    if (const int code = mosquitto_publish(client.get(), &mid, shared.status_topic.c_str(), 7, "offline", 1, true);
+        code == MOSQ_ERR_SUCCESS || code == MOSQ_ERR_NO_CONN)
+        shared.last.handed(mid);
+    // the final estimates and "offline" acknowledged by the broker (at most 5 s: a broker away keeps its last will)
+    for (const auto until = Clock::now() + std::chrono::seconds(5);
+         (shared.last.pending() > 0 || !shared.connected) && Clock::now() < until;)
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
     mosquitto_disconnect(client.get());
     mosquitto_loop_stop(client.get(), false);
+    // libmosquitto acknowledges a message as it takes it: what came after the last drain is gone, and said
+    if (const std::size_t late = shared.queue.size(); late > 0)
+        fmt::print(stderr, "feedid watch: {} messages came after the final estimates and were not identified\n", late);
     std::signal(SIGTERM, SIG_DFL);
     std::signal(SIGINT, SIG_DFL);
     return 0;
