@@ -105,30 +105,41 @@ inline bool broker_answers(int port) {
     return ok;
 }
 
-/// A mosquitto of the test's own. `persistent`: it saves sessions and queued messages in the test's folder when
-/// stopped and loads them when started (as a production broker does), else it forgets them.
+/// A mosquitto of the test's own. `persistent`: it saves sessions, subscriptions and queued messages in the test's
+/// folder every second and when stopped, and loads them when started (as a production broker with persistence
+/// does; killed, it loses what changed since its last save), else it forgets them.
 class Broker {
 public:
     Broker(const std::filesystem::path& dir, int port, bool persistent = false) : dir_(dir), port_(port) {
         const std::string persistence =
-            persistent ? "persistence true\npersistence_location " + dir.string() + "/\n" : "persistence false\n";
+            persistent ? "persistence true\npersistence_location " + dir.string() + "/\nautosave_interval 1\n"
+                       : "persistence false\n";
         write_text(dir / "mosquitto.conf", "listener " + std::to_string(port) + " 127.0.0.1\nallow_anonymous true\n" +
                                                persistence + "max_queued_messages 100000\n");
         start();
     }
+    /// Starts it (again): its output in mosquitto.out.N and mosquitto.err.N for the Nth start.
     void start() {
-        process_ = Process({mosquitto_path, "-c", (dir_ / "mosquitto.conf").string()}, dir_ / "mosquitto.out",
-                           dir_ / "mosquitto.err");
+        ++starts_;
+        process_ = Process({mosquitto_path, "-c", (dir_ / "mosquitto.conf").string()},
+                           dir_ / ("mosquitto.out." + std::to_string(starts_)),
+                           dir_ / ("mosquitto.err." + std::to_string(starts_)));
         for (int attempt = 0; attempt < 100 && !broker_answers(port_); ++attempt)
             std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
     int stop() { return process_.terminate(); }
+    /// SIGKILL: no shutdown, no last save (a crash, the OOM killer, a power cut of its host).
+    int kill() {
+        ::kill(process_.pid(), SIGKILL);
+        return process_.wait();
+    }
     [[nodiscard]] std::string url() const { return "mqtt://127.0.0.1:" + std::to_string(port_); }
     [[nodiscard]] int port() const { return port_; }
 
 private:
     std::filesystem::path dir_;
     int port_;
+    int starts_{0};
     Process process_;
 };
 

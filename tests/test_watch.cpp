@@ -1,7 +1,8 @@
 // feedid watch without the network (issue 16): the payload formats (JSON and binary, units converted once), the
 // malformed messages each refused with a reason while the others go on, and the routing of interleaved messages of
 // several machines and axes to one online identifier each, which must give exactly what the identifier gives when
-// fed the axis's samples directly, repeats (a publisher resending after a reconnect) included.
+// fed the axis's samples directly, repeats (a publisher resending after a reconnect) included; batches out of order
+// held and put back in order; a hole nobody fills counted missing, ending the identifier's window.
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -258,6 +259,96 @@ TEST(WatchRouting, InterleavedMachinesAndAxesEachGiveTheDirectIdentifiersEstimat
             EXPECT_EQ(document["windows"]["qualified"].get<std::size_t>(), expected.windows.qualified());
         }
     }
+}
+
+/// The axis's batches of `per_message` samples as the watch's messages, in the order given by `order` (indexes of
+/// batches; a repeat sends one again, a missing one is lost).
+void send_in_order(Watcher& watcher, const AxisColumns& c, std::size_t per_message,
+                   const std::vector<std::size_t>& order) {
+    for (const std::size_t k : order) {
+        const std::size_t first = k * per_message;
+        const std::size_t count = std::min(per_message, c.t.size() - first);
+        Batch b;
+        b.t0 = c.t[first];
+        b.dt = c.t[1] - c.t[0];
+        b.position.assign(c.x.begin() + static_cast<std::ptrdiff_t>(first),
+                          c.x.begin() + static_cast<std::ptrdiff_t>(first + count));
+        b.drive.assign(c.current.begin() + static_cast<std::ptrdiff_t>(first),
+                       c.current.begin() + static_cast<std::ptrdiff_t>(first + count));
+        b.force_constant = c.force_constant;
+        ASSERT_EQ(watcher.ingest("plant/M1/X/axis", bytes(encode_binary(b))), "");
+    }
+}
+
+// After a broker restart the messages of an axis come out of order: the client library resends its unacknowledged
+// (newest) messages first, then the publisher replays the last seconds, among them those the broker lost. The
+// watcher holds what comes after a hole until the hole is filled: the identifier sees the uninterrupted stream.
+TEST(WatchRouting, BatchesAfterAHoleAreHeldUntilItIsFilledAndPushedInOrder) {
+    const AxisColumns c = axis_columns(5);
+    const std::size_t per_message = 250, batches = (c.t.size() + per_message - 1) / per_message;
+    std::vector<std::size_t> order;
+    for (std::size_t k = 0; k < 40; ++k) order.push_back(k);
+    for (std::size_t k = 44; k < 47; ++k) order.push_back(k);  // resent by the library: 40 to 43 lost at the broker
+    for (std::size_t k = 30; k < 47; ++k) order.push_back(k);  // the publisher's replay
+    order.push_back(45);                                       // a QoS 1 redelivery
+    for (std::size_t k = 47; k < batches; ++k) order.push_back(k);
+    Watcher watcher({});
+    send_in_order(watcher, c, per_message, order);
+    watcher.flush();
+    const OnlineEstimate expected = direct(c, per_message);
+    const auto got = watcher.estimate("M1", "X");
+    ASSERT_TRUE(got && expected.coulomb.value);
+    EXPECT_EQ(got->samples, c.t.size());
+    EXPECT_EQ(got->windows.by_verdict, expected.windows.by_verdict);
+    EXPECT_EQ(got->mass.value, expected.mass.value);
+    EXPECT_EQ(got->coulomb.value, expected.coulomb.value);
+    EXPECT_EQ(got->viscous.standard_error, expected.viscous.standard_error);
+    const auto stream = watcher.estimate_document("M1", "X")["stream"];
+    EXPECT_EQ(stream["missing_samples"].get<std::size_t>(), 0u) << stream.dump();
+    EXPECT_EQ(stream["reordered_batches"].get<std::size_t>(), 3u) << stream.dump();  // 44 to 46, after 43
+    EXPECT_EQ(stream["repeated_samples"].get<std::size_t>(), (10 + 3 + 1) * per_message) << stream.dump();
+    EXPECT_EQ(stream["held_samples"].get<std::size_t>(), 0u);
+}
+
+// A hole nobody fills (reorder_s of stream came after it) is a loss: its samples are counted missing and it ends the
+// identifier's window, which neither bridges it nor mixes the samples on both sides of it; a batch of the hole that
+// comes later still is skipped as late, never pushed out of order.
+TEST(WatchRouting, AHoleNotFilledInTimeIsCountedMissingAndEndsTheWindow) {
+    const AxisColumns c = axis_columns(6);
+    const std::size_t per_message = 250, batches = (c.t.size() + per_message - 1) / per_message;
+    std::vector<std::size_t> order;
+    for (std::size_t k = 0; k < batches; ++k)
+        if (k < 100 || k > 103) order.push_back(k);
+    order.insert(order.begin() + 130, 101);  // 30 batches (7.5 s of stream) after the hole: too late
+    WatchOptions options;
+    options.reorder_s = 5.0;
+    Watcher watcher(options);
+    send_in_order(watcher, c, per_message, order);
+    watcher.flush();
+    // the identifier on the samples before the hole, ended there, then on those after it
+    OnlineIdentifier online({});
+    const double dt = c.t[1] - c.t[0];
+    for (std::size_t k = 0; k < c.t.size(); ++k) {
+        if (k == 104 * per_message) online.flush();
+        if (k >= 100 * per_message && k < 104 * per_message) continue;
+        const double t = c.t[k - k % per_message] + static_cast<double>(k % per_message) * dt;
+        online.push(t, c.x[k], c.force_constant * c.current[k]);
+    }
+    online.flush();
+    const OnlineEstimate expected = online.estimate();
+    const auto got = watcher.estimate("M1", "X");
+    ASSERT_TRUE(got && expected.coulomb.value);
+    EXPECT_EQ(got->samples, c.t.size() - 4 * per_message);
+    EXPECT_EQ(got->windows.by_verdict, expected.windows.by_verdict);
+    EXPECT_EQ(got->windows.count(WindowVerdict::gap), 0u);  // no window across the hole
+    EXPECT_EQ(got->mass.value, expected.mass.value);
+    EXPECT_EQ(got->coulomb.value, expected.coulomb.value);
+    const auto stream = watcher.estimate_document("M1", "X")["stream"];
+    EXPECT_EQ(stream["missing_samples"].get<std::size_t>(), 4 * per_message) << stream.dump();
+    EXPECT_EQ(stream["late_batches"].get<std::size_t>(), 1u) << stream.dump();
+    ASSERT_EQ(stream["holes_s"].size(), 1u);
+    EXPECT_DOUBLE_EQ(stream["holes_s"][0][0].get<double>(), c.t[100 * per_message]);
+    EXPECT_DOUBLE_EQ(stream["holes_s"][0][1].get<double>(), c.t[104 * per_message]);
 }
 
 TEST(WatchRouting, APauseLongerThanTheGapCompletesARun) {

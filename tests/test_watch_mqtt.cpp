@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -65,20 +66,14 @@ double write_production_csv(const fs::path& path, std::uint64_t seed, double dur
 
 /// What a clean, uninterrupted stream of the axis gives: the CSV read as publish reads it, straight into an
 /// identifier.
-OnlineEstimate direct_estimate(const fs::path& csv, double force_constant,
-                               const nlohmann::json& holes = nlohmann::json::array()) {
+OnlineEstimate direct_estimate(const fs::path& csv, double force_constant) {
     const Trace trace = read_trace(csv);
     DriveConstants drive;
     drive.force_constant = force_constant;
     const auto force = drive_force(trace, drive);
     const auto t = trace.column(Role::time), x = trace.column(Role::position);
     OnlineIdentifier online({});
-    for (std::size_t k = 0; k < t.size(); ++k) {
-        bool in_hole = false;  // samples the watch reported it never received
-        for (const auto& hole : holes)
-            in_hole = in_hole || (t[k] >= hole[0].get<double>() - 5e-4 && t[k] < hole[1].get<double>() - 5e-4);
-        if (!in_hole) online.push(t[k], x[k], force[k]);
-    }
+    for (std::size_t k = 0; k < t.size(); ++k) online.push(t[k], x[k], force[k]);
     online.flush();
     return online.estimate();
 }
@@ -112,187 +107,229 @@ std::string malformed(std::size_t k) {
     }
 }
 
-struct Relative {
-    double mass, viscous, coulomb;
-};
+/// Issue 16's restart acceptance in named steps: start (a broker that saves its state every second as a production
+/// broker with persistence does, the traces and what an uninterrupted stream of each gives, feedid watch), replay
+/// (30 publishers at 20x with QoS 1, 500 malformed messages), restart (the broker killed with SIGKILL mid-run and
+/// started again on the same port, 500 more malformed messages), finish (every publisher acknowledged, every sample
+/// accounted for, SIGTERM), judge (every sample identified once, every estimate the uninterrupted stream's within one
+/// of its standard errors and the truth within the production-traces tolerances).
+class WatchBrokerKill : public ::testing::Test {
+protected:
+    static constexpr int machines = 10;
+    static constexpr double duration_s = 240.0;  // as test_online's accuracy test: the tolerances were set for 4 min
 
-TEST(WatchMqtt, MachinesTimesThreeAxesAt20xSurviveABrokerRestartAndAThousandMalformedMessages) {
-    if (!have_mosquitto()) GTEST_SKIP() << "no " << mosquitto_path << " (apt install mosquitto)";
-    Library library;
-    const auto dir = temp_dir();
-    const int port = free_port();
-    Broker broker(dir, port, true);  // it keeps watch's session and queued messages over its restart
-    ASSERT_TRUE(broker_answers(port)) << read_text(dir / "mosquitto.err");
-    constexpr int machines = 10;
-    constexpr double duration_s = 240.0;  // as test_online's accuracy test: the tolerances were set for 4 minutes
-    std::map<std::string, double> force_constants;  // by "M<m>_<axis>"
-    for (int m = 1; m <= machines; ++m)
-        for (std::size_t a = 0; a < axes.size(); ++a) {
-            const std::string name = fmt::format("M{}_{}", m, axes[a]);
-            force_constants[name] = write_production_csv(dir / (name + ".csv"), 10 * m + a, duration_s);
-        }
-    write_text(dir / "watch.toml", "[service]\nestimate_interval_s = 0.5\n");
-    Listener listener(port);
-    Process watch({FEEDID_CLI, "watch", "--broker", broker.url(), "--config", (dir / "watch.toml").string(),
-                   "--client-id", "feedid-watch-test"},
-                  dir / "watch.out", dir / "watch.err");
-    const auto online_count = [&] {
-        std::size_t n = 0;
-        for (const auto& s : listener.status()) n += s == "online";
-        return n;
+    struct Axis {
+        std::string name;            ///< "M<m>_<axis>"
+        std::string data_topic;      ///< plant/M<m>/<axis>/axis
+        std::string estimate_topic;  ///< plant/M<m>/<axis>/feedid/estimate
+        double force_constant{0.0};
+        OnlineEstimate uninterrupted;  ///< the identifier on the whole stream, without a restart
     };
-    ASSERT_TRUE(wait_until([&] { return online_count() >= 1; }, 10)) << read_text(dir / "watch.err");
-    std::vector<Process> publishers;
-    for (int m = 1; m <= machines; ++m) {
-        for (const auto& axis : axes) {
-            const std::string name = fmt::format("M{}_{}", m, axis);
+
+    void start() {
+        broker_.emplace(dir_, port_, true);  // persistence: it saves its sessions every second
+        ASSERT_TRUE(broker_answers(port_)) << read_text(dir_ / "mosquitto.err.1");
+        for (int m = 1; m <= machines; ++m)
+            for (std::size_t a = 0; a < axes.size(); ++a) {
+                Axis axis;
+                axis.name = fmt::format("M{}_{}", m, axes[a]);
+                axis.data_topic = fmt::format("plant/M{}/{}/axis", m, axes[a]);
+                axis.estimate_topic = fmt::format("plant/M{}/{}/feedid/estimate", m, axes[a]);
+                axis.force_constant = write_production_csv(csv(axis), 10 * m + a, duration_s);
+                axis.uninterrupted = direct_estimate(csv(axis), axis.force_constant);
+                axes_.push_back(std::move(axis));
+            }
+        write_text(dir_ / "watch.toml", "[service]\nestimate_interval_s = 0.5\n");
+        listener_.emplace(port_);
+        watch_ = Process({FEEDID_CLI, "watch", "--broker", broker_->url(), "--config", (dir_ / "watch.toml").string(),
+                          "--client-id", "feedid-watch-test"},
+                         dir_ / "watch.out", dir_ / "watch.err");
+        ASSERT_TRUE(wait_until([&] { return online_count() >= 1; }, 10)) << read_text(dir_ / "watch.err");
+        // the broker's first save after watch subscribed holds its session (autosave_interval 1)
+        std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+    }
+
+    void replay() {
+        for (std::size_t i = 0; i < axes_.size(); ++i) {
+            const Axis& axis = axes_[i];
             std::vector<std::string> arguments = {FEEDID_CLI,
                                                   "publish",
-                                                  (dir / (name + ".csv")).string(),
+                                                  csv(axis).string(),
                                                   "--force-constant",
-                                                  fmt::format("{:.17g}", force_constants.at(name)),
+                                                  fmt::format("{:.17g}", axis.force_constant),
                                                   "--broker",
-                                                  broker.url(),
+                                                  broker_->url(),
                                                   "--topic",
-                                                  fmt::format("plant/M{}/{}/axis", m, axis),
+                                                  axis.data_topic,
                                                   "--rate",
                                                   "20x",
                                                   "--batch",
                                                   "0.25",
                                                   "--qos",
-                                                  "1"};
-            if (m % 2 == 0) arguments.push_back("--binary");
-            for (const std::string& a : {std::string("--client-id"), "publish-" + name}) arguments.push_back(a);
-            publishers.emplace_back(arguments, dir / fmt::format("publish_M{}_{}.out", m, axis),
-                                    dir / fmt::format("publish_M{}_{}.err", m, axis));
+                                                  "1",
+                                                  "--client-id",
+                                                  "publish-" + axis.name};
+            if (i % 2 == 1) arguments.push_back("--binary");
+            publishers_.emplace_back(arguments, dir_ / ("publish_" + axis.name + ".out"),
+                                     dir_ / ("publish_" + axis.name + ".err"));
         }
+        sender_.emplace(port_);
+        send_malformed(500);
+        // every stream under way (the publishers read their traces first), so that each spans the broker's kill
+        EXPECT_TRUE(wait_until([&] { return listener_->estimates().size() == axes_.size(); }, 30))
+            << listener_->estimates().size() << " axes streaming";
+        // their errors are out before the broker goes (published while it is away, they would be lost: QoS 0)
+        EXPECT_TRUE(wait_until([&] { return listener_->errors().size() >= 500u; }, 30)) << listener_->errors().size();
     }
-    Sender sender(port);
-    std::size_t sent = 0;
-    const auto send_malformed = [&](std::size_t count) {
-        for (std::size_t i = 0; i < count; ++i, ++sent) {
-            const std::string topic = fmt::format("plant/M{}/{}/axis", 1 + sent % machines, axes[sent % 3]);
-            // the sender's own client may still be reconnecting after the restart
-            ASSERT_TRUE(wait_until([&] { return sender.send(topic, malformed(sent)); }, 10));
-            std::this_thread::sleep_for(std::chrono::milliseconds(2));
+
+    void restart() {
+        EXPECT_EQ(broker_->kill(), 128 + SIGKILL);
+        const auto killed = Clock::now();
+        std::this_thread::sleep_for(std::chrono::milliseconds(300));
+        broker_->start();
+        ASSERT_TRUE(broker_answers(port_));
+        EXPECT_TRUE(wait_until([&] { return online_count() >= 2; }, 40)) << "feedid watch did not reconnect";
+        reconnected_s_ = std::chrono::duration<double>(Clock::now() - killed).count();
+        EXPECT_TRUE(wait_until([&] { return listener_->connections() >= 2; }, 40)) << "the listener did not reconnect";
+        std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the sender reconnects too
+        send_malformed(500);
+    }
+
+    void finish() {
+        for (std::size_t i = 0; i < publishers_.size(); ++i) {
+            EXPECT_EQ(publishers_[i].wait(), 0) << read_text(dir_ / ("publish_" + axes_[i].name + ".err"));
+            // its stream spanned the kill: it held messages while the broker was away
+            const std::string err = read_text(dir_ / ("publish_" + axes_[i].name + ".err"));
+            const auto held = err.find(" held while the broker was away");
+            ASSERT_NE(held, std::string::npos) << err;
+            EXPECT_GT(std::stoul(err.substr(err.rfind('(', held) + 1)), 0u) << err;
         }
-    };
-    send_malformed(500);
-    // their errors are out before the broker goes (published while it is away, they would be lost: QoS 0)
-    EXPECT_TRUE(wait_until([&] { return listener.errors().size() >= 500u; }, 30)) << listener.errors().size();
-    // the broker goes away mid-run and comes back on the same port
-    EXPECT_EQ(broker.stop(), 0);
-    std::this_thread::sleep_for(std::chrono::milliseconds(300));
-    broker.start();
-    ASSERT_TRUE(broker_answers(port));
-    EXPECT_TRUE(wait_until([&] { return online_count() >= 2; }, 40)) << "feedid watch did not reconnect";
-    EXPECT_TRUE(wait_until([&] { return listener.connections() >= 2; }, 40)) << "the listener did not reconnect";
-    std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the sender reconnects too
-    send_malformed(500);
-    for (auto& p : publishers) EXPECT_EQ(p.wait(), 0);
-    const auto published = Clock::now();
-    wait_until([&] { return listener.errors().size() >= 1000u; }, 10);
-    std::cout << fmt::format("errors {} after {:.1f} s\n", listener.errors().size(),
-                             std::chrono::duration<double>(Clock::now() - published).count());
-    // the last batches are through the broker and watch's queue when its estimates (every 0.5 s while data comes)
-    // stop changing: 2 s without a change (a fixed pause lost the last short batch of an axis under load)
-    const auto samples_estimated = [&] {
-        std::size_t total = 0;
-        for (const auto& [topic, estimate] : listener.estimates())
-            if (estimate.contains("stream")) total += estimate["stream"]["samples"].get<std::size_t>();
-        return total;
-    };
-    for (auto [last, since] = std::pair{samples_estimated(), Clock::now()};
-         Clock::now() - since < std::chrono::seconds(2) && Clock::now() - published < std::chrono::seconds(60);) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(100));
-        if (const std::size_t now = samples_estimated(); now != last)
-            std::tie(last, since) = std::pair{now, Clock::now()};
-    }
-    EXPECT_EQ(watch.terminate(), 0) << read_text(dir / "watch.err");  // SIGTERM: flush, publish, exit 0
-    ASSERT_TRUE(wait_until([&] { return !listener.status().empty() && listener.status().back() == "offline"; }, 5));
-    const std::string watch_err = read_text(dir / "watch.err");
-    std::cout << watch_err;
-    // every malformed message counted and reported on the error topic
-    EXPECT_NE(watch_err.find("1000 malformed"), std::string::npos) << watch_err;
-    EXPECT_EQ(listener.errors().size(), 1000u);
-    // every axis's estimate: the truth within the production-traces tolerances, and the uninterrupted stream's
-    // estimate within one standard error
-    const auto estimates = listener.estimates();
-    EXPECT_EQ(estimates.size(), 3u * machines);
-    std::size_t within_sigma = 0, compared = 0, undetermined = 0, repeated = 0, missing_total = 0, axes_missing = 0;
-    double largest_sigma = 0.0;
-    const AxisModel truth = demo_spec().axis;
-    for (int m = 1; m <= machines; ++m) {
-        for (const auto& axis : axes) {
-            const std::string name = fmt::format("M{}_{}", m, axis);
-            const std::string topic = fmt::format("plant/M{}/{}/feedid/estimate", m, axis);
-            ASSERT_TRUE(estimates.count(topic)) << topic;
-            const auto& p = estimates.at(topic)["parameters"];
-            const OnlineEstimate clean = direct_estimate(dir / (name + ".csv"), force_constants.at(name));
-            // the identifier's state survived the restart: the estimate is the identifier's on the samples received
-            const auto& holes = estimates.at(topic)["stream"]["holes_s"];
-            const OnlineEstimate received =
-                holes.empty() ? clean : direct_estimate(dir / (name + ".csv"), force_constants.at(name), holes);
-            for (const auto& [key, e] :
-                 {std::pair{"mass_kg", received.mass}, std::pair{"viscous_Ns_per_m", received.viscous},
-                  std::pair{"coulomb_N", received.coulomb}}) {
-                if (!e.value || !e.standard_error || !p[key]["value"].is_number()) continue;
-                EXPECT_LT(std::abs(p[key]["value"].get<double>() - *e.value), 0.1 * *e.standard_error)
-                    << topic << " " << key << ": not the identifier's estimate of the samples received";
+        const auto published = Clock::now();
+        // every publisher had each of its messages acknowledged: the watch has every sample when each axis's
+        // estimate accounts for all of them (pushed, or given up as missing)
+        const auto all_accounted = [&] {
+            const auto estimates = listener_->estimates();
+            for (const Axis& axis : axes_) {
+                const auto it = estimates.find(axis.estimate_topic);
+                if (it == estimates.end() || !it->second.contains("stream")) return false;
+                const auto& stream = it->second["stream"];
+                if (stream["samples"].get<std::size_t>() + stream["missing_samples"].get<std::size_t>() <
+                    axis.uninterrupted.samples)
+                    return false;
             }
-            // every sample identified once, or counted missing (a message the broker acknowledged to the publisher
-            // as it shut down, and did not keep); none of the redelivered ones twice. The stream's last message is
-            // the exception: no later batch can show its hole (seen in about 1 run in 4 here: one axis's last, short
-            // batch, e.g. 28 of 240,028 samples, not received, its cause not found), so at most that one batch
-            // (0.25 s, 250 samples) may be unaccounted.
-            const auto& stream = estimates.at(topic)["stream"];
-            const auto missing = stream["missing_samples"].get<std::size_t>();
-            const auto accounted = stream["samples"].get<std::size_t>() + missing;
-            EXPECT_LE(accounted, clean.samples) << topic << " " << stream.dump();
-            EXPECT_LE(clean.samples - std::min(accounted, clean.samples), 250u) << topic << " " << stream.dump();
-            EXPECT_LT(missing, clean.samples / 100) << topic << " " << stream.dump();
-            missing_total += missing;
-            axes_missing += missing > 0;
-            repeated += estimates.at(topic)["stream"]["repeated_samples"].get<std::size_t>();
+            return true;
+        };
+        EXPECT_TRUE(wait_until(all_accounted, 60)) << "samples not accounted for 60 s after the last publisher";
+        wait_until([&] { return listener_->errors().size() >= 1000u; }, 10);
+        std::cout << fmt::format("every sample accounted for {:.1f} s after the last publisher; {} errors\n",
+                                 std::chrono::duration<double>(Clock::now() - published).count(),
+                                 listener_->errors().size());
+        EXPECT_EQ(watch_.terminate(), 0) << read_text(dir_ / "watch.err");  // SIGTERM: flush, publish, exit 0
+        ASSERT_TRUE(
+            wait_until([&] { return !listener_->status().empty() && listener_->status().back() == "offline"; }, 5));
+    }
+
+    void judge() {
+        const std::string watch_err = read_text(dir_ / "watch.err");
+        std::cout << watch_err;
+        // every malformed message counted and reported on the error topic
+        EXPECT_NE(watch_err.find("1000 malformed"), std::string::npos) << watch_err;
+        EXPECT_EQ(listener_->errors().size(), 1000u);
+        const auto estimates = listener_->estimates();
+        EXPECT_EQ(estimates.size(), axes_.size());
+        std::size_t compared = 0, undetermined = 0, repeated = 0, reordered = 0, missing = 0, axes_missing = 0;
+        double largest_sigma = 0.0;
+        const AxisModel truth = demo_spec().axis;
+        for (const Axis& axis : axes_) {
+            ASSERT_TRUE(estimates.count(axis.estimate_topic)) << axis.estimate_topic;
+            const auto& document = estimates.at(axis.estimate_topic);
+            const auto& p = document["parameters"];
+            // every sample identified once: none missing, none twice (QoS 1 redeliveries and the publishers'
+            // replays skipped by time stamp), none held back
+            const auto& stream = document["stream"];
+            EXPECT_EQ(stream["samples"].get<std::size_t>(), axis.uninterrupted.samples)
+                << axis.estimate_topic << " " << stream.dump();
+            EXPECT_EQ(stream["missing_samples"].get<std::size_t>(), 0u)
+                << axis.estimate_topic << " " << stream.dump() << "\n"
+                << read_text(dir_ / ("publish_" + axis.name + ".err"));
+            EXPECT_TRUE(stream["holes_s"].empty()) << axis.estimate_topic << " " << stream.dump();
+            EXPECT_EQ(stream["held_samples"].get<std::size_t>(), 0u) << axis.estimate_topic;
+            EXPECT_EQ(document["service"]["dropped_queue_full"].get<std::size_t>(), 0u) << axis.estimate_topic;
+            repeated += stream["repeated_samples"].get<std::size_t>();
+            reordered += stream["reordered_batches"].get<std::size_t>();
+            missing += stream["missing_samples"].get<std::size_t>();
+            axes_missing += stream["missing_samples"].get<std::size_t>() > 0;
             const auto check = [&](const char* key, double true_value, double tolerance, const Estimate& reference) {
                 if (!reference.standard_error) {
                     // the identifier cannot say how good its value is on this stream (too few windows qualify):
                     // the watch publishes null, with the reason
                     ++undetermined;
-                    EXPECT_TRUE(p[key]["value"].is_null()) << topic << " " << key << " " << p[key].dump();
-                    EXPECT_FALSE(estimates.at(topic)["diagnostics"].empty()) << topic;
+                    EXPECT_TRUE(p[key]["value"].is_null()) << axis.estimate_topic << " " << key << " " << p[key].dump();
+                    EXPECT_FALSE(document["diagnostics"].empty()) << axis.estimate_topic;
                     return;
                 }
-                ASSERT_TRUE(p[key]["value"].is_number()) << topic << " " << key;
+                ASSERT_TRUE(p[key]["value"].is_number()) << axis.estimate_topic << " " << key;
                 const double value = p[key]["value"].get<double>();
+                // the tolerances of the production-traces issue (tests/test_online.cpp)
                 EXPECT_LT(std::abs(value - true_value), tolerance * std::abs(true_value))
-                    << topic << " " << key << " " << value << " truth " << true_value;
+                    << axis.estimate_topic << " " << key << " " << value << " truth " << true_value;
+                // the same estimate as without the restart, within one standard error
+                const double sigmas = std::abs(value - *reference.value) / *reference.standard_error;
+                EXPECT_LE(sigmas, 1.0) << axis.estimate_topic << " " << key << ": " << value << " against "
+                                       << *reference.value << " ± " << *reference.standard_error
+                                       << " without the restart";
+                largest_sigma = std::max(largest_sigma, sigmas);
                 ++compared;
-                const bool within = std::abs(value - *reference.value) <= *reference.standard_error;
-                // a message lost at the broker's shutdown moves the identifier's windows (up to 1.3 sigma measured):
-                // asserted within 1 sigma where nothing was lost, reported where something was
-                if (holes.empty()) {
-                    EXPECT_TRUE(within) << topic << " " << key;
-                }
-                largest_sigma = std::max(largest_sigma, std::abs(value - *reference.value) / *reference.standard_error);
-                within_sigma += within;
-                if (!within)
-                    std::cout << fmt::format("{} {}: {} against {} ± {} uninterrupted ({:+.2f} sigma)\n", topic, key,
-                                             value, *reference.value, *reference.standard_error,
-                                             (value - *reference.value) / *reference.standard_error);
             };
-            // the tolerances of the production-traces issue (tests/test_online.cpp)
-            check("mass_kg", truth.mass, 0.03, clean.mass);
-            check("viscous_Ns_per_m", truth.friction.forward.viscous, 0.10, clean.viscous);
-            check("coulomb_N", truth.friction.forward.coulomb, 0.03, clean.coulomb);
+            check("mass_kg", truth.mass, 0.03, axis.uninterrupted.mass);
+            check("viscous_Ns_per_m", truth.friction.forward.viscous, 0.10, axis.uninterrupted.viscous);
+            check("coulomb_N", truth.friction.forward.coulomb, 0.03, axis.uninterrupted.coulomb);
+        }
+        std::cout << fmt::format(
+            "broker killed, watch online again after {:.1f} s; {} parameters within tolerance of the truth and within "
+            "1 sigma of the uninterrupted stream's (largest difference {:.2g} sigma), {} that the identifier cannot "
+            "determine on its stream published as null; {} repeated samples skipped, {} batches put back in order, "
+            "{} samples missing on {} axes\n",
+            reconnected_s_, compared, largest_sigma, undetermined, repeated, reordered, missing, axes_missing);
+        EXPECT_GE(compared, 3u * 3u * (machines - 1));
+    }
+
+private:
+    [[nodiscard]] fs::path csv(const Axis& axis) const { return dir_ / (axis.name + ".csv"); }
+    std::size_t online_count() {
+        std::size_t n = 0;
+        for (const auto& s : listener_->status()) n += s == "online";
+        return n;
+    }
+    void send_malformed(std::size_t count) {
+        for (std::size_t i = 0; i < count; ++i, ++sent_) {
+            const std::string topic = fmt::format("plant/M{}/{}/axis", 1 + sent_ % machines, axes[sent_ % 3]);
+            // the sender's own client may still be reconnecting after the restart
+            ASSERT_TRUE(wait_until([&] { return sender_->send(topic, malformed(sent_)); }, 10));
+            std::this_thread::sleep_for(std::chrono::milliseconds(2));
         }
     }
-    std::cout << fmt::format(
-        "{} of {} parameters within 1 sigma of the uninterrupted stream's and within tolerance of the truth; {} that "
-        "the identifier cannot determine on its stream published as null; largest difference {:.2g} sigma; {} "
-        "redelivered samples skipped; {} samples missing on {} axes\n",
-        within_sigma, compared, undetermined, largest_sigma, repeated, missing_total, axes_missing);
-    EXPECT_GE(compared, 3u * 3u * (machines - 1));
+
+    Library library_;
+    fs::path dir_{temp_dir()};
+    int port_{free_port()};
+    std::optional<Broker> broker_;
+    std::vector<Axis> axes_;
+    std::optional<Listener> listener_;
+    Process watch_;
+    std::vector<Process> publishers_;
+    std::optional<Sender> sender_;
+    std::size_t sent_{0};
+    double reconnected_s_{0.0};
+};
+
+TEST_F(WatchBrokerKill, MachinesTimesThreeAxesAt20xSurviveASigkillOfTheBrokerWithTheSameEstimates) {
+    if (!have_mosquitto()) GTEST_SKIP() << "no " << mosquitto_path << " (apt install mosquitto)";
+    ASSERT_NO_FATAL_FAILURE(start());
+    ASSERT_NO_FATAL_FAILURE(replay());
+    ASSERT_NO_FATAL_FAILURE(restart());
+    ASSERT_NO_FATAL_FAILURE(finish());
+    judge();
 }
 
 // Coulomb friction of X constant for 10 simulated days, then rising 1 % a day (as tests/test_history_drift.cpp's

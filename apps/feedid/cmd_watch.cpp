@@ -37,7 +37,7 @@ void check_keys(const toml::table& table, const std::string& section, std::initi
 }
 
 /// watch.toml: [online] window_s offset robust cutoff_hz; [force_constants] AXIS or "MACHINE/AXIS" = N/A;
-/// [run] windows period_s gap_s; [service] estimate_interval_s queue_mb max_samples.
+/// [run] windows period_s gap_s reorder_s; [service] estimate_interval_s queue_mb max_samples.
 void read_config(const std::string& path, watch::ServiceOptions& options) {
     toml::table root;
     try {
@@ -74,10 +74,11 @@ void read_config(const std::string& path, watch::ServiceOptions& options) {
         }
     }
     if (const auto* t = table("run")) {
-        check_keys(*t, "run", {"windows", "period_s", "gap_s"}, path);
+        check_keys(*t, "run", {"windows", "period_s", "gap_s", "reorder_s"}, path);
         options.watch.run_windows = static_cast<std::size_t>(config_number(*t, "run", "windows", 0, 0, 1e9, path));
         options.watch.run_period_s = config_number(*t, "run", "period_s", 0.0, 0.0, 1e9, path);
         options.watch.run_gap_s = config_number(*t, "run", "gap_s", options.watch.run_gap_s, 1e-3, 1e9, path);
+        options.watch.reorder_s = config_number(*t, "run", "reorder_s", options.watch.reorder_s, 0.0, 3600.0, path);
     }
     if (const auto* t = table("service")) {
         check_keys(*t, "service", {"estimate_interval_s", "queue_mb", "max_samples"}, path);
@@ -176,10 +177,11 @@ Action add_watch_command(CLI::App& app) {
         "--db", command->options.database,
         "History (a SQLite file or a postgresql:// database) to record each completed identification in, and to "
         "check for drift");
-    sub->add_option("--config", command->config,
-                    "watch.toml: [online] window_s offset robust cutoff_hz, [force_constants] X = 52.0 or "
-                    "\"M1/X\" = 52.0 [N/A], [run] windows period_s gap_s, [service] estimate_interval_s queue_mb "
-                    "max_samples");
+    sub->add_option(
+        "--config", command->config,
+        "watch.toml: [online] window_s offset robust cutoff_hz, [force_constants] X = 52.0 or "
+        "\"M1/X\" = 52.0 [N/A], [run] windows period_s gap_s reorder_s, [service] estimate_interval_s queue_mb "
+        "max_samples");
     sub->add_option("--status-topic", command->options.status_topic,
                     "Where online/offline (the last will) goes (default: <first level>/feedid/status)");
     sub->add_option("--client-id", command->options.client_id,
@@ -212,6 +214,11 @@ Action add_publish_command(CLI::App& app) {
                     "Stream time held while the broker is away, sent when it is back [s]")
         ->default_val(60.0)
         ->check(allowed_range(0.0, 1e6, "s"));
+    sub->add_option("--replay", command->options.replay_s,
+                    "QoS 1/2: after a reconnect, send again what was sent in this much time before the connection "
+                    "was lost (a killed broker loses what it acknowledged since its last save) [s]")
+        ->default_val(5.0)
+        ->check(allowed_range(0.0, 3600.0, "s"));
     sub->add_option("--copies", command->options.copies,
                     "Publish the stream on N topics at once, '{n}' in --topic replaced by 1..N (a benchmark's load)")
         ->check(CLI::Range(1, 100000));

@@ -10,6 +10,7 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <thread>
 
 #include <mosquitto.h>
@@ -51,6 +52,44 @@ struct Message {
     std::string payload;
 };
 
+/// A publishing side of a connection (network thread and publishing thread): whether it is up, how often it came up,
+/// and the message ids the library holds until the broker acknowledges them.
+struct Link {
+    std::mutex mutex;
+    std::atomic<bool> connected{false};
+    std::atomic<std::size_t> connects{0};
+    std::multiset<int> unacknowledged;  ///< mids handed to the library and not acknowledged (QoS 0: not written) yet
+    std::multiset<int> early;           ///< mids acknowledged before mosquitto_publish returned them
+    bool at_most_once{false};           ///< QoS 0: what is not written when the connection drops is gone
+    std::size_t dropped_unwritten{0};   ///< QoS 0 messages gone that way
+
+    void handed(int mid) {
+        std::lock_guard lock(mutex);
+        if (const auto it = early.find(mid); it != early.end())
+            early.erase(it);
+        else
+            unacknowledged.insert(mid);
+    }
+    void acknowledged(int mid) {
+        std::lock_guard lock(mutex);
+        if (const auto it = unacknowledged.find(mid); it != unacknowledged.end())
+            unacknowledged.erase(it);
+        else
+            early.insert(mid);
+    }
+    void disconnected() {
+        connected = false;
+        std::lock_guard lock(mutex);
+        if (!at_most_once) return;  // QoS 1: the library keeps them and sends them again
+        dropped_unwritten += unacknowledged.size();
+        unacknowledged.clear();
+    }
+    [[nodiscard]] std::size_t pending() {
+        std::lock_guard lock(mutex);
+        return unacknowledged.size();
+    }
+};
+
 /// What the network thread and the service thread share.
 struct Shared {
     std::mutex mutex;
@@ -63,7 +102,8 @@ struct Shared {
     std::string status_topic;
     std::atomic<std::size_t> connects{0};
     std::atomic<bool> connected{false};
-    std::atomic<std::size_t> delivered{0};  ///< publications the library has handed over (QoS 0) or had acknowledged
+    std::atomic<bool> closing{false};
+    Link last;  ///< the final estimates and "offline", waited for before the disconnect
 };
 
 void on_connect(mosquitto* client, void* user, int code) {
@@ -77,6 +117,11 @@ void on_connect(mosquitto* client, void* user, int code) {
 
 void on_disconnect(mosquitto*, void* user, int) {
     static_cast<Shared*>(user)->connected = false;
+}
+
+void on_publish(mosquitto*, void* user, int mid) {
+    auto* shared = static_cast<Shared*>(user);
+    if (shared->closing) shared->last.acknowledged(mid);
 }
 
 void on_message(mosquitto*, void* user, const mosquitto_message* message) {
@@ -198,8 +243,11 @@ private:
     }
 
     void publish(const std::string& topic, const std::string& payload, int qos, bool retain) {
-        mosquitto_publish(client_, nullptr, topic.c_str(), static_cast<int>(payload.size()), payload.data(), qos,
-                          retain);
+        int mid = 0;
+        const int code = mosquitto_publish(client_, &mid, topic.c_str(), static_cast<int>(payload.size()),
+                                           payload.data(), qos, retain);
+        if (shared_.closing && qos > 0 && (code == MOSQ_ERR_SUCCESS || code == MOSQ_ERR_NO_CONN))
+            shared_.last.handed(mid);
     }
 
     void record(const CompletedRun& run) {
@@ -261,16 +309,22 @@ private:
     std::unique_ptr<history::HistoryStore> store_;
 };
 
-/// Messages the broker did not take while it was away, held (at most `limit`; beyond, the oldest is dropped and
-/// counted) and sent in order once it is back: store and forward, as an NC's gateway does.
+/// Store and forward, as an NC's gateway does. While the broker is away, messages are held (at most `limit`; beyond,
+/// the oldest is dropped and counted) and sent in order once it is back. A QoS 1 message handed to libmosquitto
+/// stays with it until the broker acknowledges it, over reconnects (it resends it itself: holding it here too sent
+/// it twice, and counting acknowledgements against sends then ended the stream before its last message was
+/// acknowledged). An acknowledgement only says that the broker has the message, not that a subscriber got it: a
+/// broker killed loses what it acknowledged since its last save. So after every reconnect the messages of the last
+/// `replay_s` seconds before the connection was lost are sent again (the subscriber skips what it has by time stamp).
 class Outbox {
 public:
-    Outbox(mosquitto* client, const PublishOptions& options, std::size_t limit)
-        : client_(client), options_(options), limit_(limit) {}
+    Outbox(mosquitto* client, Link& link, const PublishOptions& options, std::size_t limit)
+        : client_(client), link_(link), options_(options), limit_(limit) {}
 
     void send(const std::string& topic, std::string payload) {
         flush();
-        if (held_.empty() && publish(topic, payload)) {
+        if (held_.empty() && link_.connected && publish(topic, payload)) {
+            remember(topic, payload);
             ++sent_;
             return;
         }
@@ -281,9 +335,15 @@ public:
             ++lost_;
         }
     }
-    /// Sends what is held; true when nothing is left.
+    /// After a reconnect: the recent messages again, then what is held, in order; true when nothing is left.
     bool flush() {
-        while (!held_.empty() && publish(held_.front().first, held_.front().second)) {
+        if (!link_.connected) return held_.empty();
+        if (const std::size_t connects = link_.connects; connects != connects_seen_) {
+            connects_seen_ = connects;
+            if (connects > 1) replay();
+        }
+        while (!held_.empty() && link_.connected && publish(held_.front().first, held_.front().second)) {
+            remember(held_.front().first, held_.front().second);
             held_.pop_front();
             ++sent_;
         }
@@ -292,17 +352,48 @@ public:
     [[nodiscard]] std::size_t sent() const { return sent_; }
     [[nodiscard]] std::size_t lost() const { return lost_ + held_.size(); }
     [[nodiscard]] std::size_t held_total() const { return held_total_; }
+    [[nodiscard]] std::size_t replayed() const { return replayed_; }
 
 private:
+    /// true when the library took the message: sent, or (QoS 1) queued to be sent when the connection is back.
     bool publish(const std::string& topic, const std::string& payload) {
-        return mosquitto_publish(client_, nullptr, topic.c_str(), static_cast<int>(payload.size()), payload.data(),
-                                 options_.qos, false) == MOSQ_ERR_SUCCESS;
+        int mid = 0;
+        const int code = mosquitto_publish(client_, &mid, topic.c_str(), static_cast<int>(payload.size()),
+                                           payload.data(), options_.qos, false);
+        // QoS > 0: the library queues the message before it tries to send it, and keeps it when the connection is
+        // down (MOSQ_ERR_NO_CONN)
+        const bool taken = code == MOSQ_ERR_SUCCESS || (options_.qos > 0 && code == MOSQ_ERR_NO_CONN);
+        if (taken) link_.handed(mid);
+        return taken;
     }
+    void remember(const std::string& topic, const std::string& payload) {
+        if (options_.qos == 0 || options_.replay_s <= 0.0) return;
+        const auto now = Clock::now();
+        recent_.push_back({now, topic, payload});
+        const auto horizon =
+            now - std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(options_.replay_s));
+        while (!recent_.empty() && recent_.front().sent < horizon) recent_.pop_front();
+    }
+    void replay() {
+        // recent_ holds what was sent in the replay_s before the connection was lost (nothing is added while it is
+        // down); sent again, oldest first, before anything newer
+        for (const Recent& r : recent_) {
+            if (!publish(r.topic, r.payload)) break;
+            ++replayed_;
+        }
+    }
+    struct Recent {
+        Clock::time_point sent;
+        std::string topic, payload;
+    };
     mosquitto* client_;
+    Link& link_;
     const PublishOptions& options_;
     std::size_t limit_;
     std::deque<std::pair<std::string, std::string>> held_;  ///< topic, payload
-    std::size_t sent_{0}, lost_{0}, held_total_{0};
+    std::deque<Recent> recent_;
+    std::size_t connects_seen_{0};
+    std::size_t sent_{0}, lost_{0}, held_total_{0}, replayed_{0};
 };
 
 }  // namespace
@@ -331,6 +422,7 @@ int run_watch(const ServiceOptions& options) {
     mosquitto_connect_callback_set(client.get(), on_connect);
     mosquitto_disconnect_callback_set(client.get(), on_disconnect);
     mosquitto_message_callback_set(client.get(), on_message);
+    mosquitto_publish_callback_set(client.get(), on_publish);
     Service service(options, shared, client.get());  // opens the history: exit 2 before connecting when it cannot
     connect_or_throw(client.get(), options.broker);
     stop_requested = false;
@@ -367,12 +459,22 @@ int run_watch(const ServiceOptions& options) {
             break;
     }
     drain();
+    shared.closing = true;
     service.finish();
     service.record_runs();
-    mosquitto_publish(client.get(), nullptr, shared.status_topic.c_str(), 7, "offline", 1, true);
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));  // let the QoS 1 messages leave
+    int mid = 0;
+    if (const int code = mosquitto_publish(client.get(), &mid, shared.status_topic.c_str(), 7, "offline", 1, true);
+        code == MOSQ_ERR_SUCCESS || code == MOSQ_ERR_NO_CONN)
+        shared.last.handed(mid);
+    // the final estimates and "offline" acknowledged by the broker (at most 5 s: a broker away keeps its last will)
+    for (const auto until = Clock::now() + std::chrono::seconds(5);
+         (shared.last.pending() > 0 || !shared.connected) && Clock::now() < until;)
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
     mosquitto_disconnect(client.get());
     mosquitto_loop_stop(client.get(), false);
+    // libmosquitto acknowledges a message as it takes it: what came after the last drain is gone, and said
+    if (const std::size_t late = shared.queue.size(); late > 0)
+        fmt::print(stderr, "feedid watch: {} messages came after the final estimates and were not identified\n", late);
     std::signal(SIGTERM, SIG_DFL);
     std::signal(SIGINT, SIG_DFL);
     return 0;
@@ -385,19 +487,27 @@ int run_publish(const Batch& stream, const PublishOptions& options) {
         throw InputError(fmt::format("--copies {}: the topic '{}' needs a '{{n}}' to tell the copies apart",
                                      options.copies, options.topic));
     Library library;
-    Shared shared;
+    Link link;
     // a client id of the user's: a persistent session (the broker keeps the QoS 1 exchange in flight over a restart)
-    Client client = make_client(options.client_id.empty() ? default_client_id("publish") : options.client_id, &shared,
+    Client client = make_client(options.client_id.empty() ? default_client_id("publish") : options.client_id, &link,
                                 options.client_id.empty());
     mosquitto_reconnect_delay_set(client.get(), 1, 1, false);  // an NC's gateway retries every second
-    mosquitto_disconnect_callback_set(client.get(), on_disconnect);
-    mosquitto_publish_callback_set(client.get(),
-                                   [](mosquitto*, void* user, int) { ++static_cast<Shared*>(user)->delivered; });
+    link.at_most_once = options.qos == 0;
+    mosquitto_disconnect_callback_set(client.get(),
+                                      [](mosquitto*, void* user, int) { static_cast<Link*>(user)->disconnected(); });
+    mosquitto_publish_callback_set(
+        client.get(), [](mosquitto*, void* user, int mid) { static_cast<Link*>(user)->acknowledged(mid); });
     mosquitto_connect_callback_set(client.get(), [](mosquitto*, void* user, int code) {
-        if (code == 0) static_cast<Shared*>(user)->connected = true;
+        if (code != 0) return;
+        auto* link = static_cast<Link*>(user);
+        ++link->connects;
+        link->connected = true;
     });
     connect_or_throw(client.get(), options.broker);
     mosquitto_loop_start(client.get());
+    // the first CONNACK: publishing before it would only queue in the library
+    for (const auto until = Clock::now() + std::chrono::seconds(30); !link.connected && Clock::now() < until;)
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
     stop_requested = false;
     std::signal(SIGTERM, request_stop);
     std::signal(SIGINT, request_stop);
@@ -418,7 +528,7 @@ int run_publish(const Batch& stream, const PublishOptions& options) {
     }
     const auto start = Clock::now();
     Outbox outbox(
-        client.get(), options,
+        client.get(), link, options,
         static_cast<std::size_t>(std::ceil(options.buffer_s / (static_cast<double>(per_message) * stream.dt))));
     for (std::size_t first = 0; first < n && !stop_requested; first += per_message) {
         const std::size_t count = std::min(per_message, n - first);
@@ -435,17 +545,21 @@ int run_publish(const Batch& stream, const PublishOptions& options) {
         const std::string payload = options.binary ? encode_binary(part) : encode_json(part);
         for (const std::string& topic : topics) outbox.send(topic, payload);
     }
-    // what is held, and what the library holds (QoS 1 awaiting acknowledgement), leaves first
+    // what is held, and what the library holds (QoS 1 awaiting acknowledgement, each by its message id), leaves
+    // before the disconnect: the stream's last message too
     const auto give_up = Clock::now() + std::chrono::seconds(60);
-    while ((!outbox.flush() || shared.delivered < outbox.sent()) && Clock::now() < give_up && !stop_requested)
+    while ((!outbox.flush() || link.pending() > 0 || !link.connected) && Clock::now() < give_up && !stop_requested)
         std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    const std::size_t unacknowledged = link.pending();
     mosquitto_disconnect(client.get());
     mosquitto_loop_stop(client.get(), false);
     std::signal(SIGTERM, SIG_DFL);
     std::signal(SIGINT, SIG_DFL);
-    fmt::print(stderr, "feedid publish: {} messages sent to {} on {} ({} held while the broker was away), {} lost\n",
+    fmt::print(stderr,
+               "feedid publish: {} messages sent to {} on {} ({} held while the broker was away, {} sent again after "
+               "a reconnect), {} lost, {} not acknowledged\n",
                outbox.sent(), topics.size() == 1 ? topics[0] : options.topic, options.broker.url(), outbox.held_total(),
-               outbox.lost());
+               outbox.replayed(), outbox.lost() + link.dropped_unwritten, unacknowledged);
     return 0;
 }
 

@@ -18,6 +18,7 @@ std::string WatchOptions::validate() const {
     if (max_axes == 0) return "max_axes must be at least 1";
     if (!(run_period_s >= 0.0) || !std::isfinite(run_period_s)) return "run period must be a finite time >= 0 s";
     if (!(run_gap_s > 0.0)) return "run gap must be a time > 0 s";
+    if (!(reorder_s >= 0.0) || !std::isfinite(reorder_s)) return "reorder time must be a finite time >= 0 s";
     for (const auto& [name, k] : force_constants)
         if (!std::isfinite(k) || k == 0.0)
             return fmt::format("force constant of '{}' must be finite and non-zero", name);
@@ -82,56 +83,107 @@ std::string Watcher::push(Axis& axis, const Batch& batch) {
             "[force_constants] in the configuration)",
             axis.machine, axis.axis);
     const std::size_t n = batch.samples();
-    std::size_t skip = 0;
-    if (axis.counters.batches > 0) {
-        if (std::abs(batch.dt - axis.dt) > 1e-6 * axis.dt)
-            return fmt::format("dt = {} s, but {}/{} streams at {} s", batch.dt, axis.machine, axis.axis, axis.dt);
-        const double ahead = batch.t0 - axis.next_t;  // > 0: a pause; < 0: a repeat
-        if (ahead < -0.5 * axis.dt) {
-            if (batch.t0 >= axis.hole_start - 0.5 * axis.dt && batch.t0 < axis.hole_end - 0.5 * axis.dt)
-                ++axis.counters.late_batches;  // it belonged in a hole: it came after later samples
-            skip =
-                static_cast<std::size_t>(std::min<double>(static_cast<double>(n), std::ceil(-ahead / axis.dt - 0.5)));
-            axis.counters.repeated_samples += skip;
-            if (skip == n) return "";
-        } else if (ahead > options_.run_gap_s) {
-            ++axis.counters.recordings;
-            if (axis.run_samples > 0) complete_run(axis);
-        } else if (ahead > 0.5 * axis.dt) {
-            axis.counters.missing_samples += static_cast<std::size_t>(std::llround(ahead / axis.dt));
-            axis.hole_start = axis.next_t;
-            axis.hole_end = batch.t0;
-            if (axis.holes.size() < 16) axis.holes.emplace_back(axis.next_t, batch.t0);
-        }
-    } else {
+    if (axis.counters.batches == 0 && axis.held.empty()) {
         axis.dt = batch.dt;
+        axis.next_t = batch.t0;
         axis.counters.recordings = 1;
+    } else if (std::abs(batch.dt - axis.dt) > 1e-6 * axis.dt) {
+        return fmt::format("dt = {} s, but {}/{} streams at {} s", batch.dt, axis.machine, axis.axis, axis.dt);
     }
-    if (axis.run_samples == 0) axis.run_start_t = batch.t0 + static_cast<double>(skip) * batch.dt;
-    axis.t.resize(n - skip);
-    force_.resize(n - skip);
-    for (std::size_t i = skip; i < n; ++i) {
-        axis.t[i - skip] = batch.t0 + static_cast<double>(i) * batch.dt;
-        force_[i - skip] = k * batch.drive[i];
+    force_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) force_[i] = k * batch.drive[i];
+    const double ahead = batch.t0 - axis.next_t;  // > 0: a hole or a pause; < 0: a repeat
+    if (ahead > options_.run_gap_s) {
+        // a new recording: what is held belongs to the last one
+        release_held(axis);
+        ++axis.counters.recordings;
+        if (axis.run_samples > 0) complete_run(axis);
+        axis.next_t = batch.t0;
+    } else if (ahead > 0.5 * axis.dt) {
+        // a hole: held until the batches that fill it come, or reorder_s of stream has come after it
+        auto [it, inserted] = axis.held.try_emplace(batch.t0);
+        if (!inserted) {  // a repeat of a held batch
+            axis.counters.repeated_samples += n;
+            return "";
+        }
+        it->second.assign(batch.position.begin(), batch.position.end());
+        it->second.insert(it->second.end(), force_.begin(), force_.end());
+        axis.held_samples += n;
+        while (!axis.held.empty()) {
+            const auto& [last_t0, last] = *axis.held.rbegin();
+            const double held_until = last_t0 + static_cast<double>(last.size() / 2) * axis.dt;
+            if (held_until - axis.next_t <= options_.reorder_s) break;
+            declare_hole(axis, axis.held.begin()->first);
+        }
+        return "";
     }
-    axis.online->push(axis.t, std::span(batch.position).subspan(skip), force_);
-    axis.next_t = batch.t0 + static_cast<double>(n) * batch.dt;
-    ++axis.counters.batches;
-    axis.counters.samples += n - skip;
-    axis.run_samples += n - skip;
-    if (changed_.empty() || changed_.back() != axis.machine + "/" + axis.axis)
-        changed_.push_back(axis.machine + "/" + axis.axis);
-    // a completed identification: by period, or by information (checked once per window's worth of samples)
-    if (options_.run_period_s > 0.0 && axis.next_t - axis.run_start_t >= options_.run_period_s) {
-        complete_run(axis);
-    } else if (options_.run_windows > 0) {
-        const auto window_samples = static_cast<std::size_t>(std::max(1.0, options_.online.window_s / axis.dt));
-        if (axis.run_samples / window_samples > axis.checked_windows) {
-            axis.checked_windows = axis.run_samples / window_samples;
-            if (axis.online->estimate().windows.qualified() >= options_.run_windows) complete_run(axis);
+    feed(axis, batch.t0, batch.position, force_);
+    feed_held(axis);
+    return "";
+}
+
+void Watcher::declare_hole(Axis& axis, double t0) {
+    axis.counters.missing_samples += static_cast<std::size_t>(std::llround((t0 - axis.next_t) / axis.dt));
+    axis.hole_start = axis.next_t;
+    axis.hole_end = t0;
+    if (axis.holes.size() < 16) axis.holes.emplace_back(axis.next_t, t0);
+    axis.online->flush();  // the hole ends the window: none bridges it
+    axis.next_t = t0;
+    auto node = axis.held.extract(axis.held.begin());
+    const std::vector<double>& columns = node.mapped();
+    const std::size_t n = columns.size() / 2;
+    axis.held_samples -= n;
+    feed(axis, t0, std::span(columns).first(n), std::span(columns).subspan(n));
+    feed_held(axis);
+}
+
+void Watcher::release_held(Axis& axis) {
+    while (!axis.held.empty()) declare_hole(axis, axis.held.begin()->first);
+}
+
+void Watcher::feed(Axis& axis, double t0, std::span<const double> position, std::span<const double> force) {
+    const std::size_t n = position.size();
+    std::size_t skip = 0;
+    if (const double behind = axis.next_t - t0; behind > 0.5 * axis.dt) {
+        if (t0 >= axis.hole_start - 0.5 * axis.dt && t0 < axis.hole_end - 0.5 * axis.dt)
+            ++axis.counters.late_batches;  // it belonged in a hole given up on: it came after later samples
+        skip = static_cast<std::size_t>(std::min<double>(static_cast<double>(n), std::ceil(behind / axis.dt - 0.5)));
+        axis.counters.repeated_samples += skip;
+    }
+    if (skip < n) {
+        if (axis.run_samples == 0) axis.run_start_t = t0 + static_cast<double>(skip) * axis.dt;
+        axis.t.resize(n - skip);
+        for (std::size_t i = skip; i < n; ++i) axis.t[i - skip] = t0 + static_cast<double>(i) * axis.dt;
+        axis.online->push(axis.t, position.subspan(skip), force.subspan(skip));
+        axis.next_t = t0 + static_cast<double>(n) * axis.dt;
+        ++axis.counters.batches;
+        axis.counters.samples += n - skip;
+        axis.run_samples += n - skip;
+        if (changed_.empty() || changed_.back() != axis.machine + "/" + axis.axis)
+            changed_.push_back(axis.machine + "/" + axis.axis);
+        // a completed identification: by period, or by information (checked once per window's worth of samples)
+        if (options_.run_period_s > 0.0 && axis.next_t - axis.run_start_t >= options_.run_period_s) {
+            complete_run(axis);
+        } else if (options_.run_windows > 0) {
+            const auto window_samples = static_cast<std::size_t>(std::max(1.0, options_.online.window_s / axis.dt));
+            if (axis.run_samples / window_samples > axis.checked_windows) {
+                axis.checked_windows = axis.run_samples / window_samples;
+                if (axis.online->estimate().windows.qualified() >= options_.run_windows) complete_run(axis);
+            }
         }
     }
-    return "";
+}
+
+void Watcher::feed_held(Axis& axis) {
+    // the held batches that the last one made contiguous (or that it covers), in order
+    while (!axis.held.empty() && axis.held.begin()->first <= axis.next_t + 0.5 * axis.dt) {
+        auto node = axis.held.extract(axis.held.begin());
+        const std::vector<double>& columns = node.mapped();
+        const std::size_t m = columns.size() / 2;
+        axis.held_samples -= m;
+        ++axis.counters.reordered_batches;
+        feed(axis, node.key(), std::span(columns).first(m), std::span(columns).subspan(m));
+    }
 }
 
 void Watcher::complete_run(Axis& axis) {
@@ -152,6 +204,7 @@ void Watcher::complete_run(Axis& axis) {
 
 void Watcher::flush() {
     for (auto& [key, axis] : axes_) {
+        release_held(*axis);  // the holes nobody filled are losses now
         axis->online->flush();
         changed_.push_back(key);  // the flushed tail may change every estimate
     }
@@ -231,6 +284,8 @@ nlohmann::json Watcher::estimate_document(const std::string& machine, const std:
                           {"repeated_samples", axis.counters.repeated_samples},
                           {"missing_samples", axis.counters.missing_samples},
                           {"late_batches", axis.counters.late_batches},
+                          {"reordered_batches", axis.counters.reordered_batches},
+                          {"held_samples", axis.held_samples},
                           {"holes_s", axis.holes},
                           {"recordings", axis.counters.recordings},
                           {"time_s", axis.next_t}};

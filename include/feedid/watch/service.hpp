@@ -63,6 +63,9 @@ struct PublishOptions {
     int qos{0};
     /// Stream time held while the broker is away [s], sent in order when it is back (beyond: the oldest is lost)
     double buffer_s{60.0};
+    /// QoS 1 and 2: after a reconnect, the messages sent in this much wall time before the connection was lost are
+    /// sent again [s] (a broker killed loses what it acknowledged since its last save; subscribers skip repeats)
+    double replay_s{5.0};
     /// The same stream on this many topics, '{n}' in the topic replaced by 1..copies (a load for benchmarks)
     std::size_t copies{1};
     std::string client_id;
@@ -71,7 +74,9 @@ struct PublishOptions {
 /// Streams a batch's samples (t0, dt, position [m], drive [A] or [N]) as messages of batch_s each, paced to
 /// `rate` times real time. Messages the broker does not take while it is away are held (buffer_s of stream) and sent
 /// in order when it is back; beyond that they are lost and counted (a control does not buffer forever either).
-/// Reconnects every second in the background. Returns the exit code.
+/// Reconnects every second in the background; with QoS 1, sends the last replay_s of messages again after a
+/// reconnect, and returns only when the broker has acknowledged every message (or after 60 s, saying how many it
+/// did not). Returns the exit code.
 int run_publish(const Batch& stream, const PublishOptions& options);
 
 }  // namespace feedid::watch

@@ -4,8 +4,13 @@
 // it from its queue on one thread; tests feed it directly.
 //
 // Time stamps keep the stream honest: a batch that starts before the end of what the axis already has is a repeat
-// (a publisher resending after a reconnect) and its old samples are skipped and counted, never pushed twice; a
-// batch that starts more than run_gap_s after it is a new recording.
+// (a publisher resending after a reconnect, a QoS 1 redelivery) and its old samples are skipped and counted, never
+// pushed twice; a batch that starts more than run_gap_s after it is a new recording. A batch that starts after a
+// shorter hole is held (with the ones after it, up to reorder_s of stream) until the hole is filled: after a broker
+// restart the messages of an axis may come out of order (the client library resends its unacknowledged messages
+// before the publisher's replay of those the broker lost). Filled, the stream is pushed in order and the identifier
+// sees what it would have seen without the restart; not filled in time (or at flush), the hole is a loss: its
+// samples are counted missing, and it ends the identifier's window (flush) so that no window bridges it.
 
 #include <cstddef>
 #include <map>
@@ -36,6 +41,8 @@ struct WatchOptions {
     double run_period_s{0.0};
     /// ... or a pause of the stream longer than this [s] before a batch (a new recording).
     double run_gap_s{30.0};
+    /// Stream time held after a hole, waiting for the batches that fill it [s]; beyond, the hole is a loss.
+    double reorder_s{30.0};
 
     /// What is wrong ("" when nothing).
     [[nodiscard]] std::string validate() const;
@@ -52,12 +59,13 @@ struct CompletedRun {
 
 struct AxisCounters {
     std::size_t batches{0};
-    std::size_t samples{0};           ///< pushed into the identifier
-    std::size_t repeated_samples{0};  ///< skipped: their time was already covered
-    std::size_t missing_samples{0};   ///< not received in order: holes in the stream shorter than run_gap_s
-    std::size_t late_batches{0};      ///< batches that came after later ones, into a hole (skipped: too late)
-    std::size_t recordings{0};        ///< streams after a pause longer than run_gap_s (1 for one recording)
-    std::size_t runs{0};              ///< completed identifications
+    std::size_t samples{0};            ///< pushed into the identifier
+    std::size_t repeated_samples{0};   ///< skipped: their time was already covered
+    std::size_t missing_samples{0};    ///< not received in order: holes in the stream shorter than run_gap_s
+    std::size_t late_batches{0};       ///< batches that came after later ones, into a hole (skipped: too late)
+    std::size_t reordered_batches{0};  ///< batches held after a hole that was then filled (pushed in order)
+    std::size_t recordings{0};         ///< streams after a pause longer than run_gap_s (1 for one recording)
+    std::size_t runs{0};               ///< completed identifications
 };
 
 class Watcher {
@@ -98,8 +106,19 @@ private:
         std::size_t checked_windows{0};  ///< window count at the last run check
         AxisCounters counters;
         std::vector<double> t;  ///< time stamps of the batch being pushed (reused)
+        /// Batches after a hole, by t0, waiting for it to be filled: positions [m] then forces [N] in one vector
+        std::map<double, std::vector<double>> held;
+        std::size_t held_samples{0};
     };
     std::string push(Axis& axis, const Batch& batch);
+    /// Pushes samples that start at t0, at or before the axis's next expected sample (the part already pushed
+    /// skipped and counted as repeated).
+    void feed(Axis& axis, double t0, std::span<const double> position, std::span<const double> force);
+    /// Feeds the held batches that have become contiguous, in order.
+    void feed_held(Axis& axis);
+    void release_held(Axis& axis);
+    /// Gives up on the hole before the first held batch: counted missing, the identifier's window ended there.
+    void declare_hole(Axis& axis, double t0);
     void complete_run(Axis& axis);
     [[nodiscard]] double force_constant(const Batch& batch, const std::string& machine, const std::string& axis) const;
 
