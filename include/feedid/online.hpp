@@ -80,6 +80,10 @@ struct OnlineOptions {
     /// One-speed windows (too little excitation or ill-conditioned on their own) held until a pooled estimate exists
     /// to judge them against; beyond this many they are counted as low_excitation
     std::size_t deferred_windows{256};
+    /// A window with fewer step-1 rows than minimum_row_fraction (a short rapid between two holes, the end of a feed
+    /// move) is not fitted on its own but judged against the pooled model as a one-speed window is, when it has at
+    /// least this many rows; below, low_excitation
+    std::size_t minimum_pool_rows{50};
 
     /// What is wrong ("" when nothing).
     [[nodiscard]] std::string validate() const;
@@ -202,7 +206,9 @@ private:
     void settle_pending();
     [[nodiscard]] bool consistent(const WindowInformation& window, const Vec& reference) const;
     WindowVerdict one_speed(std::size_t rows, WindowVerdict own);
+    WindowVerdict judge_rows(std::size_t rows);
     WindowVerdict judge_one_speed(const OneSpeedWindow& window);
+    [[nodiscard]] bool fits_pool(const Mat& h, const Vec& c) const;
     void settle_deferred();
     void bin_slow_samples(std::size_t first, std::size_t last);
     void filter(std::span<const double> in, std::span<double> out, std::size_t count);
