@@ -633,6 +633,19 @@ void OnlineIdentifier::settle_pending() {
                          column.begin() + static_cast<std::ptrdiff_t>(n));
         consensus(i) = n > 0 ? column[n / 2] : 0.0;
     }
+    if (clean <= 2) {
+        // two windows have no median: the coordinate-wise upper one mixes the two estimates (M of one, B of the
+        // other) into a point neither agrees with, along B and F_C's correlation (seen: both clean windows of the
+        // drilling program's Y axis rejected in 2 of 30 seeds, nothing qualified). Their pooled estimate instead.
+        Mat h = Mat::Zero(p, p);
+        Vec c = Vec::Zero(p);
+        for (std::size_t k = 0; k < pending_count_; ++k) {
+            if (!(pending_[k].scale <= options_.maximum_scale_ratio * reference_scale_)) continue;
+            h += pending_[k].h;
+            c += pending_[k].c;
+        }
+        if (clean > 0) consensus = h.ldlt().solve(c);
+    }
     for (std::size_t k = 0; k < pending_count_; ++k) {
         const bool ok = clean > 0 && pending_[k].scale <= options_.maximum_scale_ratio * reference_scale_ &&
                         consistent(pending_[k], consensus);
