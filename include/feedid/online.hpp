@@ -55,8 +55,8 @@ struct OnlineOptions {
     double minimum_speed_ratio{1.5};       ///< ... or 90th / 10th percentile of |x'| below this (one speed)
     double maximum_condition{200.0};       ///< ill-conditioned above this (column-scaled Phi)
     double maximum_outlier_fraction{0.3};  ///< process force when more rows than this are rejected by the weights
-    /// ... or when the window's robust residual scale exceeds this multiple of the clean windows' (the median of the
-    /// last 32 windows'): the fit bent to a force the model does not have
+    /// ... or when the window's robust residual scale exceeds this multiple of the clean windows' (the lower quartile
+    /// of the last 32 windows'): the fit bent to a force the model does not have
     double maximum_scale_ratio{2.0};
     /// ... or when its own estimate lies farther than this chi^2 (p degrees of freedom) from the pooled one, in its
     /// own information (the first windows: from their consensus, the median of their estimates)
