@@ -8,6 +8,10 @@
 // qualifies, pooled by its information:
 //   [R z]  <-  QR of [sqrt(lambda) [R z] ; L_w^T, L_w^-1 c_w]   (square-root information by Givens rotations,
 //   L_w L_w^T = H_w the window's information: the same as rotating its weighted rows in)
+// A window that cannot be fitted on its own (one speed, too little acceleration, ill-conditioned, or a short rapid
+// with too few rows) still informs the directions it excites: it is judged row by row against the pooled estimate
+// (Tukey weights of its residuals there, in the clean windows' scale) and its weighted H_w, possibly singular, enters
+// the same way (by its eigen-decomposition); the process-force gates judge it whole.
 // theta = R^-1 z. Standard errors treat windows as clusters (they are long against the filter's correlation length):
 //   Cov = H^-1 (sum_w g_w g_w^T) H^-1,  g_w = c_w - H_w theta,  H_w = Phi_w^T W Phi_w,  c_w = Phi_w^T W y_w,
 // whose meat is kept as fixed-size moment sums (sum c c^T, sum c (x) H, sum H (x) H) and evaluated at the final theta.
