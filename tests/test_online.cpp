@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <new>
+#include <numbers>
 #include <vector>
 
 #include <fmt/core.h>
@@ -182,6 +183,77 @@ TEST(Online, AnAxisAtOneSpeedQualifiesNothing) {
     EXPECT_EQ(e.windows.qualified(), 0U);
     EXPECT_GT(e.windows.count(WindowVerdict::low_excitation) + e.windows.count(WindowVerdict::ill_conditioned), 0U);
     EXPECT_FALSE(e.mass.value);
+}
+
+// A drilling pattern after two minutes of production: 40 short rapids (10 mm at 0.1 m/s peak, 0.2 s, about 140 rows
+// above the split speed: too few for a fit of their own) between dwells of 1.85 s. Each window holding one is judged
+// row by row against the pooled estimate: clean, they qualify and count; with a cutting force on them (150 N against
+// the motion) they are process_force; with it on a fifth of their rows only, those rows weigh nothing and the rest
+// counts. Every time M, B and F_C stay within the tolerances.
+Columns drilling_pattern(double cut_N, int cut_from = 0, int cut_to = 200) {
+    testing::ProductionOptions o;
+    o.duration_s = 120.0;
+    testing::ProductionTrace p = testing::production_trace(5, o);
+    const double dt = o.sample_time_s;
+    double x = p.reference.back();
+    for (int move = 0; move < 40; ++move) {
+        for (int k = 0; k < 1850; ++k) {
+            p.reference.push_back(x);
+            p.cutting_force.push_back(0.0);
+        }
+        const double direction = x > 0.0 ? -1.0 : 1.0;
+        const int n = 200;
+        for (int k = 1; k <= n; ++k) {
+            const double v = direction * 0.1 * (1.0 - std::cos(2.0 * std::numbers::pi * k / n)) / 2.0;
+            x += v * dt;
+            p.reference.push_back(x);
+            p.cutting_force.push_back(k >= cut_from && k < cut_to ? -direction * cut_N : 0.0);
+        }
+    }
+    SynthSpec spec = demo_spec();
+    spec.seed = 5;
+    return columns(synthesize(spec, p.reference, p.cutting_force));
+}
+
+TEST(Online, ShortRapidsAreJudgedRowByRowAgainstThePool) {
+    const AxisModel truth = demo_spec().axis;
+    OnlineOptions whole_windows_only;
+    whole_windows_only.minimum_pool_rows = 1000000;  // the short windows low_excitation, as before they counted
+    const Columns clean = drilling_pattern(0.0);
+    const OnlineEstimate before = run(clean, whole_windows_only);
+    const OnlineEstimate after = run(clean, {});
+    const OnlineEstimate cut = run(drilling_pattern(150.0), {});
+    const OnlineEstimate partly = run(drilling_pattern(150.0, 40, 70), {});
+    fmt::print(
+        "short rapids: {} of {} windows qualify ({} without the row-by-row judgement); with a cutting force on "
+        "them {} ({} process force), on a fifth of their rows {}\n",
+        after.windows.qualified(), after.windows.total, before.windows.qualified(), cut.windows.qualified(),
+        cut.windows.count(WindowVerdict::process_force), partly.windows.qualified());
+    EXPECT_GE(after.windows.qualified(), before.windows.qualified() + 30);
+    EXPECT_LE(cut.windows.qualified(), before.windows.qualified() + 2);
+    EXPECT_GE(cut.windows.count(WindowVerdict::process_force), before.windows.count(WindowVerdict::process_force) + 30);
+    EXPECT_GE(partly.windows.qualified(), before.windows.qualified() + 30);
+    for (const OnlineEstimate* e : {&before, &after, &cut, &partly}) {
+        ASSERT_TRUE(e->mass.value && e->viscous.value && e->coulomb.value) << e->mass_reason;
+        EXPECT_LT(std::abs(relative(*e->mass.value, truth.mass)), 0.03);
+        EXPECT_LT(std::abs(relative(*e->viscous.value, truth.friction.forward.viscous)), 0.10);
+        EXPECT_LT(std::abs(relative(*e->coulomb.value, truth.friction.forward.coulomb)), 0.03);
+    }
+    // the short rapids inform M (their accelerations): its standard error shrinks
+    EXPECT_LT(*after.mass.standard_error, *before.mass.standard_error);
+}
+
+// Seed 80's first eight windows: six cut (robust scales 7-112 N), two clean (3.9, 4.2 N). With the median of their
+// scales (24 N) as the clean one, a cut window founded the pool (M 93 kg, B -810 N*s/m) and windows judged against it
+// passed: a wrong number with a standard error. The clean scale is the scales' lower quartile now.
+TEST(Online, FirstWindowsThatMostlyCutDoNotFoundThePool) {
+    const AxisModel truth = demo_spec().axis;
+    const OnlineEstimate e = run(columns(testing::production_synth(80)), {});
+    ASSERT_TRUE(e.mass.value && e.viscous.value && e.coulomb.value) << e.mass_reason;
+    EXPECT_GT(e.windows.qualified(), 20U);
+    EXPECT_LT(std::abs(relative(*e.mass.value, truth.mass)), 0.03);
+    EXPECT_LT(std::abs(relative(*e.viscous.value, truth.friction.forward.viscous)), 0.10);
+    EXPECT_LT(std::abs(relative(*e.coulomb.value, truth.friction.forward.coulomb)), 0.03);
 }
 
 TEST(Online, PushingOneSampleAtATimeGivesTheBlockResult) {

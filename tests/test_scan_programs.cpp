@@ -1,9 +1,9 @@
 // Issue 15's acceptance: feedid scan on the three example part programs (pocket, contour, drilling), axes X and Y,
 // 10 seeds each, cutting forces on. M within 3 %, B within 10 %, F_C within 3 % of the truth the trace's header
-// states; the scatter over the seeds against the mean reported standard error within 0.7-1.5; F_B and v_s within 4
+// states; the scatter over the seeds against the mean reported standard error within 0.7-1.5, per program and axis
+// (the issue's tolerance: a ratio of 10 seeds scatters by about 24 % on its own); F_B and v_s within 4
 // of their standard errors of the truth or null with a reason; the same scans with --no-robust visibly biased.
 // One test per program (ctest runs them in parallel); each prints the table of what it measured.
-#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -112,32 +112,21 @@ Summary summarize(const std::vector<Run>& runs, const std::string& axis, const P
     return s;
 }
 
-// What one program's scans of one axis showed, for the axis's pooled figures.
-struct AxisResult {
-    double plain_miss{0.0};             ///< --no-robust: the largest |mean / truth - 1| over M, B, F_C, in tolerances
-    double windows{0.0};                ///< mean qualified windows over the seeds
-    std::array<double, 3> ratio_sum{};  ///< (seeds - 1) (scatter / mean standard error)^2 per parameter
-    std::array<int, 3> degrees{};       ///< seeds - 1 where determined in every seed
-};
-
-// Programs with fewer qualified windows than this on an axis have their scatter ratio pooled with the axis's other
-// programs (a ratio of 10 seeds scatters by about 25 % on its own; with few windows the cluster covariance is
-// noisier still).
-constexpr double few_windows = 20.0;
-
-// Checks one axis of one program: M, B, F_C within tolerance in every seed (or null with a reason), F_B and v_s within
-// 4 standard errors (or null with a reason); the scatter ratio on its own when the program has many windows.
-AxisResult check_axis(const std::string& program, const std::string& axis) {
+// Checks one axis of one program: M, B, F_C within tolerance in every seed where determined (null with a reason
+// elsewhere), the scatter over the seeds against the mean reported standard error within 0.7-1.5 per parameter (over
+// the determined seeds, when at least half of them are), F_B and v_s within 4 standard errors (or null with a
+// reason). Returns how far --no-robust misses: the largest |mean / truth - 1| over M, B, F_C, in tolerances.
+double check_axis(const std::string& program, const std::string& axis) {
     const std::vector<Run> runs = scan_program(program, axis);
     EXPECT_EQ(runs.size(), static_cast<std::size_t>(seeds));
-    AxisResult result;
-    for (const auto& run : runs) result.windows += run.robust["windows"]["qualified"].get<double>() / seeds;
-    fmt::print("{} {}: windows qualified (mean over seeds) {:.1f} of {}\n", program, axis, result.windows,
+    double windows = 0.0;
+    for (const auto& run : runs) windows += run.robust["windows"]["qualified"].get<double>() / seeds;
+    fmt::print("{} {}: windows qualified (mean over seeds) {:.1f} of {}\n", program, axis, windows,
                runs[0].robust["windows"]["total"].get<int>());
     fmt::print("  {:<28} {:>5} {:>12} {:>12} {:>9} {:>9} {:>7} {:>10}\n", "parameter", "n", "truth", "mean", "worst %",
                "scatter", "ratio", "no-robust");
-    for (std::size_t i = 0; i < step1.size(); ++i) {
-        const Parameter& p = step1[i];
+    double plain_miss = 0.0;
+    for (const Parameter& p : step1) {
         const Summary s = summarize(runs, axis, p, true);
         const Summary plain = summarize(runs, axis, p, false);
         const double truth = truth_of(runs[0], axis, p);
@@ -146,25 +135,18 @@ AxisResult check_axis(const std::string& program, const std::string& axis) {
             plain.determined > 0 ? fmt::format("{:+.2f}%", 100.0 * (plain.mean / truth - 1.0)) : "null";
         fmt::print("  {:<28} {:>5} {:>12.5g} {:>12.5g} {:>9.2f} {:>9.3g} {:>7.2f} {:>10}\n", p.key, s.determined, truth,
                    s.mean, 100.0 * s.worst, s.scatter, ratio, plain_bias);
-        if (plain.determined > 0)
-            result.plain_miss = std::max(result.plain_miss, std::abs(plain.mean / truth - 1.0) / p.tolerance);
-        if (s.determined < static_cast<std::size_t>(seeds)) {
-            // an axis the program barely moves: null with a reason in every seed where not determined
-            for (const auto& run : runs) {
-                if (run.robust["parameters"][p.key]["value"].is_null()) {
-                    EXPECT_TRUE(has_reason(run.robust));
-                }
+        if (plain.determined > 0) plain_miss = std::max(plain_miss, std::abs(plain.mean / truth - 1.0) / p.tolerance);
+        // where not determined: null with a reason
+        for (const auto& run : runs) {
+            if (run.robust["parameters"][p.key]["value"].is_null()) {
+                EXPECT_TRUE(has_reason(run.robust)) << program << " " << axis << " " << p.key;
             }
-            continue;
         }
+        EXPECT_GE(s.determined, static_cast<std::size_t>(seeds / 2)) << program << " " << axis << " " << p.key;
+        if (s.determined < static_cast<std::size_t>(seeds / 2)) continue;
         EXPECT_LE(s.worst, p.tolerance) << program << " " << axis << " " << p.key;
-        if (result.windows >= few_windows) {
-            EXPECT_GE(ratio, 0.7) << program << " " << axis << " " << p.key;
-            EXPECT_LE(ratio, 1.5) << program << " " << axis << " " << p.key;
-        } else {
-            result.ratio_sum[i] = (seeds - 1) * ratio * ratio;
-            result.degrees[i] = seeds - 1;
-        }
+        EXPECT_GE(ratio, 0.7) << program << " " << axis << " " << p.key;
+        EXPECT_LE(ratio, 1.5) << program << " " << axis << " " << p.key;
     }
     for (const auto& p : stribeck) {
         int reported = 0;
@@ -185,35 +167,16 @@ AxisResult check_axis(const std::string& program, const std::string& axis) {
         }
         fmt::print("  {:<28} reported in {} of {} seeds\n", p.key, reported, seeds);
     }
-    return result;
+    return plain_miss;
 }
 
-// One axis over the three programs. The scatter ratios of the programs with few windows pooled: the root of the
-// variance ratios weighted by their degrees of freedom. Without robust weighting the cutting forces enter the pool:
-// on at least one program one of M, B, F_C (the mean over the seeds) misses the truth by more than its acceptance
-// tolerance, on the traces the robust scan passes on (drilling cuts along Z: its X and Y see no cutting force).
+// One axis over the three programs. Without robust weighting the cutting forces enter the pool: on at least one
+// program one of M, B, F_C (the mean over the seeds) misses the truth by more than its acceptance tolerance, on the
+// traces the robust scan passes on (drilling cuts along Z: its X and Y see no cutting force).
 void check_axis_over_programs(const std::string& axis) {
-    std::array<double, 3> sum{};
-    std::array<int, 3> degrees{};
     double plain_miss = 0.0;
-    for (const char* program : {"pocket", "contour", "drilling"}) {
-        const AxisResult r = check_axis(program, axis);
-        plain_miss = std::max(plain_miss, r.plain_miss);
-        for (std::size_t i = 0; i < 3; ++i) {
-            sum[i] += r.ratio_sum[i];
-            degrees[i] += r.degrees[i];
-        }
-    }
-    for (std::size_t i = 0; i < 3; ++i) {
-        if (degrees[i] == 0) continue;
-        const double pooled = std::sqrt(sum[i] / degrees[i]);
-        fmt::print(
-            "axis {} {}: scatter / standard error pooled over the programs with few windows: {:.2f} ({} "
-            "degrees of freedom)\n",
-            axis, step1[i].key, pooled, degrees[i]);
-        EXPECT_GE(pooled, 0.7) << axis << " " << step1[i].key;
-        EXPECT_LE(pooled, 1.5) << axis << " " << step1[i].key;
-    }
+    for (const char* program : {"pocket", "contour", "drilling"})
+        plain_miss = std::max(plain_miss, check_axis(program, axis));
     fmt::print("axis {}: --no-robust misses by up to {:.2f} of the tolerance\n", axis, plain_miss);
     EXPECT_GT(plain_miss, 1.0) << axis << ": without robust weighting the scans are not visibly biased";
 }

@@ -8,6 +8,10 @@
 // qualifies, pooled by its information:
 //   [R z]  <-  QR of [sqrt(lambda) [R z] ; L_w^T, L_w^-1 c_w]   (square-root information by Givens rotations,
 //   L_w L_w^T = H_w the window's information: the same as rotating its weighted rows in)
+// A window that cannot be fitted on its own (one speed, too little acceleration, ill-conditioned, or a short rapid
+// with too few rows) still informs the directions it excites: it is judged row by row against the pooled estimate
+// (Tukey weights of its residuals there, in the clean windows' scale) and its weighted H_w, possibly singular, enters
+// the same way (by its eigen-decomposition); the process-force gates judge it whole.
 // theta = R^-1 z. Standard errors treat windows as clusters (they are long against the filter's correlation length):
 //   Cov = H^-1 (sum_w g_w g_w^T) H^-1,  g_w = c_w - H_w theta,  H_w = Phi_w^T W Phi_w,  c_w = Phi_w^T W y_w,
 // whose meat is kept as fixed-size moment sums (sum c c^T, sum c (x) H, sum H (x) H) and evaluated at the final theta.
@@ -55,8 +59,8 @@ struct OnlineOptions {
     double minimum_speed_ratio{1.5};       ///< ... or 90th / 10th percentile of |x'| below this (one speed)
     double maximum_condition{200.0};       ///< ill-conditioned above this (column-scaled Phi)
     double maximum_outlier_fraction{0.3};  ///< process force when more rows than this are rejected by the weights
-    /// ... or when the window's robust residual scale exceeds this multiple of the clean windows' (the median of the
-    /// last 32 windows'): the fit bent to a force the model does not have
+    /// ... or when the window's robust residual scale exceeds this multiple of the clean windows' (the lower quartile
+    /// of the last 32 windows'): the fit bent to a force the model does not have
     double maximum_scale_ratio{2.0};
     /// ... or when its own estimate lies farther than this chi^2 (p degrees of freedom) from the pooled one, in its
     /// own information (the first windows: from their consensus, the median of their estimates)
@@ -80,6 +84,10 @@ struct OnlineOptions {
     /// One-speed windows (too little excitation or ill-conditioned on their own) held until a pooled estimate exists
     /// to judge them against; beyond this many they are counted as low_excitation
     std::size_t deferred_windows{256};
+    /// A window with fewer step-1 rows than minimum_row_fraction (a short rapid between two holes, the end of a feed
+    /// move) is not fitted on its own but judged against the pooled model as a one-speed window is, when it has at
+    /// least this many rows; below, low_excitation
+    std::size_t minimum_pool_rows{50};
 
     /// What is wrong ("" when nothing).
     [[nodiscard]] std::string validate() const;
@@ -202,7 +210,9 @@ private:
     void settle_pending();
     [[nodiscard]] bool consistent(const WindowInformation& window, const Vec& reference) const;
     WindowVerdict one_speed(std::size_t rows, WindowVerdict own);
+    WindowVerdict judge_rows(std::size_t rows);
     WindowVerdict judge_one_speed(const OneSpeedWindow& window);
+    [[nodiscard]] bool fits_pool(const Mat& h, const Vec& c) const;
     void settle_deferred();
     void bin_slow_samples(std::size_t first, std::size_t last);
     void filter(std::span<const double> in, std::span<double> out, std::size_t count);
