@@ -82,7 +82,7 @@ struct Identifiers {
     Identifiers(const OnlineOptions& options, bool systematic) : nominal(options) {
         if (!systematic) return;
         OnlineOptions doubled = options;
-        doubled.split_velocity = 2.0 * options.split_velocity;
+        doubled.split_velocity = 2.0 * options.split();
         variant.emplace(doubled);
     }
 };
@@ -119,8 +119,8 @@ void assess_split(OnlineIdentifier& variant, const OnlineOptions& options, ScanR
                 "{}: the friction just above the split speed is not yet the linear law (Stribeck); its systematic "
                 "part and combined uncertainty say so, and a higher --split-velocity may be the better choice",
                 p.symbol, spread, p.unit, spread / *p.estimate.standard_error,
-                options.split_velocity * naming.display_velocity_scale(),
-                2.0 * options.split_velocity * naming.display_velocity_scale(), naming.display_velocity_unit()));
+                options.split() * naming.display_velocity_scale(),
+                2.0 * options.split() * naming.display_velocity_scale(), naming.display_velocity_unit()));
     }
 }
 
@@ -164,7 +164,9 @@ ScanResult finish(Identifiers& identifiers, const TraceSummary& summary, const O
 }  // namespace
 
 ScanResult scan(const Trace& trace, std::span<const double> force, std::span<const char> use,
-                const OnlineOptions& options, std::size_t block, bool systematic) {
+                const OnlineOptions& given, std::size_t block, bool systematic) {
+    OnlineOptions options = given;
+    options.rotary = trace.rotary;
     if (const auto problem = options.validate(); !problem.empty()) throw InputError("scan: " + problem);
     if (!trace.has(Role::position))
         throw InputError(fmt::format("{}: scan needs a position channel (--channel position=NAME)", trace.source_path));
@@ -228,13 +230,15 @@ ScanResult scan_csv_stream(const std::filesystem::path& path, const ImportOption
     for (std::size_t line = 0; line < first_lines - first.samples(); ++line)
         preamble_end = text.find('\n', preamble_end) + 1;
     const std::string preamble = text.substr(0, preamble_end);
-    Identifiers identifiers(options, systematic);
+    const bool rotary = first.rotary;
+    OnlineOptions axis_options = options;
+    axis_options.rotary = rotary;
+    Identifiers identifiers(axis_options, systematic);
     TraceSummary summary{path.string(), "csv", 0, 0.0, 0.0};
     const TimeBase base = first.samples() >= 2 ? first.time_base() : TimeBase{};
     summary.sample_time_s = base.sample_time_s;
     const double start = first.samples() > 0 ? first.column(Role::time).front() : 0.0;
     double end = start;
-    const bool rotary = first.rotary;
     for (Trace block = std::move(first);;) {
         const std::vector<double> force = drive_force(block, drive);
         const std::vector<char> use = gate_samples(block, gates);
@@ -246,7 +250,7 @@ ScanResult scan_csv_stream(const std::filesystem::path& path, const ImportOption
         block = parse_block(text, path, import);
     }
     summary.duration_s = end - start;
-    return finish(identifiers, summary, options, rotary);
+    return finish(identifiers, summary, axis_options, rotary);
 }
 
 nlohmann::json scan_document(const ScanResult& s) {

@@ -171,6 +171,44 @@ TEST(Scan, APositionInMillimetresLabelledMetresIsBadInputWholeAndInBlocks) {
     }
 }
 
+// The EMPS recording (real, friction differing by direction: B+ 166.7 and B- 240.4 N*s/m published): 4 of the 9
+// windows that fit the model on their own disagree with the other 5, whose pool gave B 141 +- 9 against the 203.5
+// published. Exit 1 with that reason, no value.
+TEST(Scan, TheEmpsRecordingsDisagreeingWindowsGiveNoValueButTheReason) {
+    FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
+    const auto r = testing::run_cli(
+        fmt::format("scan {} --channel position=qm --channel current=vir --force-constant gtau --json -",
+                    (testing::shared_data() / "emps" / "DATA_EMPS.mat").string()));
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    const auto d = nlohmann::json::parse(r.out);
+    for (const char* key : {"mass_kg", "viscous_Ns_per_m", "coulomb_N"})
+        EXPECT_TRUE(d["parameters"][key]["value"].is_null()) << key;
+    EXPECT_GE(d["windows"]["rejected"]["inconsistent"].get<int>(), 2);
+    // one line says why, after the importer's findings on the file's channels
+    EXPECT_NE(r.err.substr(r.err.rfind("feedid: ")).find("disagree with what the other"), std::string::npos) << r.err;
+}
+
+// A rotary table (feedid synth --rotary: J 2 kg*m^2, B 5 N*m*s/rad, F_C 20 N*m, v_s 0.05 rad/s): the split speed's
+// default is the rotary one (0.2 rad/s; the linear 0.02 lies inside its Stribeck range and gave M 27 uncertainties
+// off), the reasons speak rad/s, and every value lies within 4 combined uncertainties of the truth.
+TEST(Scan, ARotaryTableIsScannedWithTheRotarySplitSpeed) {
+    const auto file = testing::temp_dir() / "rotary.csv";
+    const auto made = testing::run_cli(fmt::format("synth --rotary --seed 1 --out {}", file.string()));
+    ASSERT_EQ(made.exit_code, 0) << made.err;
+    const auto r = testing::run_cli(fmt::format("scan {} --kt 2 --json -", file.string()));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto d = nlohmann::json::parse(r.out);
+    EXPECT_EQ(d["options"]["split_velocity"].get<double>(), 0.2);
+    for (const auto& [key, truth] :
+         {std::pair{"inertia_kgm2", 2.0}, std::pair{"viscous_Nms_per_rad", 5.0}, std::pair{"coulomb_Nm", 20.0}}) {
+        const auto& p = d["parameters"][key];
+        ASSERT_FALSE(p["value"].is_null()) << key;
+        EXPECT_NEAR(p["value"].get<double>(), truth, 4.0 * p["uncertainty"].get<double>()) << key;
+    }
+    for (const auto& line : d["diagnostics"])
+        EXPECT_EQ(line.get<std::string>().find("mm/s"), std::string::npos) << line;
+}
+
 TEST(Scan, AxisSelectsOneAxisOfAMultiAxisFile) {
     const auto file = testing::temp_dir() / "multi.csv";
     const Trace x = read_trace(production_csv());

@@ -236,18 +236,26 @@ TEST(WatchRouting, InterleavedMachinesAndAxesEachGiveTheDirectIdentifiersEstimat
     watcher.flush();
     EXPECT_EQ(watcher.axes(), 6u);
     EXPECT_EQ(watcher.malformed(), 0u);
+    std::size_t determined = 0;
     for (std::size_t m = 0; m < machines; ++m) {
         for (std::size_t a = 0; a < axes.size(); ++a) {
             const std::string& axis = axes[a];
             const OnlineEstimate expected = direct(columns[3 * m + a], per_message);
-            ASSERT_TRUE(expected.coulomb.value) << "M" << m + 1 << " " << axis << ": " << expected.friction_reason;
-            const AxisModel truth = demo_spec().axis;
-            std::cout << "M" << m + 1 << " " << axis << ": M " << 100 * (*expected.mass.value / truth.mass - 1)
-                      << " %, B " << 100 * (*expected.viscous.value / truth.friction.forward.viscous - 1) << " %, F_C "
-                      << 100 * (*expected.coulomb.value / truth.friction.forward.coulomb - 1) << " % ("
-                      << expected.windows.qualified() << " of " << expected.windows.total << " windows)\n";
             const auto got = watcher.estimate("M" + std::to_string(m + 1), axis);
             ASSERT_TRUE(got);
+            if (expected.coulomb.value) {
+                ++determined;
+                const AxisModel truth = demo_spec().axis;
+                std::cout << "M" << m + 1 << " " << axis << ": M " << 100 * (*expected.mass.value / truth.mass - 1)
+                          << " %, B " << 100 * (*expected.viscous.value / truth.friction.forward.viscous - 1)
+                          << " %, F_C " << 100 * (*expected.coulomb.value / truth.friction.forward.coulomb - 1)
+                          << " % (" << expected.windows.qualified() << " of " << expected.windows.total
+                          << " windows)\n";
+            } else {
+                // no value from the identifier, none from the watcher, for the same reason
+                std::cout << "M" << m + 1 << " " << axis << ": " << expected.mass_reason << "\n";
+                EXPECT_EQ(got->mass_reason, expected.mass_reason);
+            }
             EXPECT_EQ(got->samples, n);
             EXPECT_EQ(got->windows.by_verdict, expected.windows.by_verdict) << "M" << m + 1 << " " << axis;
             // the same numbers to the last bit; the JSON payloads carry doubles exactly (shortest round trip)
@@ -259,6 +267,7 @@ TEST(WatchRouting, InterleavedMachinesAndAxesEachGiveTheDirectIdentifiersEstimat
             EXPECT_EQ(document["windows"]["qualified"].get<std::size_t>(), expected.windows.qualified());
         }
     }
+    EXPECT_GE(determined, 5u) << "the comparison needs values";
 }
 
 /// The axis's batches of `per_message` samples as the watch's messages, in the order given by `order` (indexes of
@@ -314,7 +323,7 @@ TEST(WatchRouting, BatchesAfterAHoleAreHeldUntilItIsFilledAndPushedInOrder) {
 // identifier's window, which neither bridges it nor mixes the samples on both sides of it; a batch of the hole that
 // comes later still is skipped as late, never pushed out of order.
 TEST(WatchRouting, AHoleNotFilledInTimeIsCountedMissingAndEndsTheWindow) {
-    const AxisColumns c = axis_columns(6);
+    const AxisColumns c = axis_columns(7);
     const std::size_t per_message = 250, batches = (c.t.size() + per_message - 1) / per_message;
     std::vector<std::size_t> order;
     for (std::size_t k = 0; k < batches; ++k)
@@ -337,7 +346,8 @@ TEST(WatchRouting, AHoleNotFilledInTimeIsCountedMissingAndEndsTheWindow) {
     online.flush();
     const OnlineEstimate expected = online.estimate();
     const auto got = watcher.estimate("M1", "X");
-    ASSERT_TRUE(got && expected.coulomb.value);
+    // a trace whose windows agree (seed 7: values on both sides of the hole; some seeds' short traces give none)
+    ASSERT_TRUE(got && expected.coulomb.value) << expected.mass_reason;
     EXPECT_EQ(got->samples, c.t.size() - 4 * per_message);
     EXPECT_EQ(got->windows.by_verdict, expected.windows.by_verdict);
     EXPECT_EQ(got->windows.count(WindowVerdict::gap), 0u);  // no window across the hole

@@ -56,9 +56,9 @@ struct ScanCommand {
         sub.add_option("--cutoff", options.cutoff_hz, "Butterworth cut-off [Hz] (default: min(100 Hz, fs / 10))")
             ->check(allowed_range(1e-3, 1e6, "Hz"));
         sub.add_option("--split-velocity", options.split_velocity,
-                       "Step 1 uses |v| above, the Stribeck bins the quasi-static samples below [m/s]")
-            ->capture_default_str()
-            ->check(allowed_range(1e-6, 1e4, "m/s"));
+                       "Step 1 uses |v| above, the Stribeck bins the quasi-static samples below [m/s; rad/s]; default "
+                       "0.02 m/s, 0.2 rad/s on a rotary axis")
+            ->check(allowed_range(1e-6, 1e4, "m/s or rad/s"));
         sub.add_option("--force-limit", options.force_limit,
                        "The drive's force limit [N]: a window reaching 99 % of it is rejected as saturated")
             ->check(allowed_range(1e-6, 1e9, "N"));
@@ -81,12 +81,17 @@ struct ScanCommand {
         require_separate_outputs({{"--json", json_path}}, inputs);
         record.check(trace_arguments.axis);
         ScanResult result = streamed() ? scan_streamed(o, gates) : scan_whole(o, gates);
+        o.rotary = result.result.rotary;  // the split speed's default is the axis kind's
         result.result.options = options_document(o);
         const nlohmann::json document = scan_document(result);
         if (!json_path.empty()) write_json(document, json_path);
         if (json_path != "-") print_table(result);
         if (result.result.status == Status::failed) {
-            fmt::print(stderr, "feedid: no window qualified: {}\n", counts_text(result.online.windows));
+            if (result.online.windows.qualified() == 0)
+                fmt::print(stderr, "feedid: no window qualified: {}\n", counts_text(result.online.windows));
+            else
+                fmt::print(stderr, "feedid: {} ({})\n", terminal_message(result.online.mass_reason),
+                           counts_text(result.online.windows));
             return 1;
         }
         if (record.enabled()) record.record(document, trace_arguments.file, trace_arguments.axis, document["options"]);
@@ -128,7 +133,7 @@ struct ScanCommand {
                 {"forgetting", o.forgetting},
                 {"offset", o.offset},
                 {"cutoff_hz", o.cutoff_hz ? nlohmann::json(*o.cutoff_hz) : nlohmann::json()},
-                {"split_velocity", o.split_velocity},
+                {"split_velocity", o.split()},
                 {"systematic", !no_systematic},
                 {"only_when", only_when},
                 {"channels", trace_arguments.channel_assignments},

@@ -48,9 +48,14 @@ struct OnlineOptions {
     /// before each new window, for slow drift.
     double forgetting{1.0};
     double moving_threshold{1e-3};  ///< |x'| above this counts as moving [m/s]
+    /// A rotary axis: its quantities in rad, rad/s and N*m (as the trace's), the messages in rad/s, and the split
+    /// speed's default.
+    bool rotary{false};
     /// Step 1 (M, B, F_C) uses |x'| above this, where the Stribeck term has decayed; slower quasi-static samples
-    /// feed the Stribeck bins [m/s].
-    double split_velocity{0.02};
+    /// feed the Stribeck bins [m/s or rad/s]. Default split(): 20 mm/s, four times the 5 mm/s Stribeck speed of a
+    /// ball-screw drive; 0.2 rad/s (11.5 deg/s), four times the rotary demo table's 0.05 rad/s.
+    std::optional<double> split_velocity;
+    [[nodiscard]] double split() const { return split_velocity.value_or(rotary ? 0.2 : 0.02); }
     double quasi_static_acceleration{0.02};  ///< |x''| below this: quasi-static (Stribeck bins) [m/s^2]
     // Qualification of a window:
     double minimum_moving_fraction{0.05};  ///< at rest below this fraction of moving samples
