@@ -841,30 +841,17 @@ StribeckFit fit_stribeck(std::span<const BinPoint> points, std::size_t minimum_b
 
 }  // namespace
 
-OnlineEstimate OnlineIdentifier::estimate() const {
-    OnlineEstimate e;
-    e.windows = counts_;
-    e.changes = changes_;
-    e.samples = pushed_;
-    e.rows_used = rows_used_;
-    const auto p = static_cast<Eigen::Index>(p_);
-    if (!have_pooled_) {
-        e.mass_reason = fmt::format("no window qualified ({} of {} windows; see the rejection counts)",
-                                    counts_.qualified(), counts_.total);
-        e.friction_reason = e.mass_reason;
-        e.stribeck_reason = e.mass_reason;
-        return e;
-    }
+std::string OnlineIdentifier::no_value_reason() const {
+    if (!have_pooled_)
+        return fmt::format("no window qualified ({} of {} windows; see the rejection counts)", counts_.qualified(),
+                           counts_.total);
     if (counts_.qualified() < 2) {
         // one window is checked against no other: its robust fit may have followed a process force over most of it
         // (seen: M 33 % high and B -806 N*s/m from the one window of a trace, with a small model-based error)
-        e.mass_reason = fmt::format(
+        return fmt::format(
             "only {} window qualified (of {}): one window cannot be checked against another, and a process force "
             "over most of it would pass for the axis; 2 or more needed",
             counts_.qualified(), counts_.total);
-        e.friction_reason = e.mass_reason;
-        e.stribeck_reason = e.mass_reason;
-        return e;
     }
     // Windows that fit the model on their own (few outlying rows) but not the pool. When they are a fair share of the
     // windows that fit (a quarter, and 2 or more), the pool is only of the windows that happen to agree, and which
@@ -872,12 +859,25 @@ OnlineEstimate OnlineIdentifier::estimate() const {
     // agreed, against the 203.5 published (its friction differs by direction). No value then, but why.
     const std::size_t inconsistent = counts_.count(WindowVerdict::inconsistent);
     if (options_.forgetting >= 1.0 && inconsistent >= 2 && 4 * inconsistent >= counts_.qualified() + inconsistent) {
-        e.mass_reason = fmt::format(
+        return fmt::format(
             "{} of the {} windows that fit the model on their own disagree with what the other {} pool to: the "
             "model does not describe this axis the same way throughout (friction that differs by direction or is "
             "not linear in the speed, or a change of the axis: --forgetting follows a change); identify it from a "
             "dedicated test (feedid plan)",
             inconsistent, counts_.qualified() + inconsistent, counts_.qualified());
+    }
+    return {};
+}
+
+OnlineEstimate OnlineIdentifier::estimate() const {
+    OnlineEstimate e;
+    e.windows = counts_;
+    e.changes = changes_;
+    e.samples = pushed_;
+    e.rows_used = rows_used_;
+    const auto p = static_cast<Eigen::Index>(p_);
+    e.mass_reason = no_value_reason();
+    if (!e.mass_reason.empty()) {
         e.friction_reason = e.mass_reason;
         e.stribeck_reason = e.mass_reason;
         return e;

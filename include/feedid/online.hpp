@@ -193,6 +193,8 @@ private:
 
     void setup(double sample_time_s);
     void process_window(std::size_t count);
+    /// Why the pool gives no value ("" when it does): no window, one window, or windows that disagree.
+    [[nodiscard]] std::string no_value_reason() const;
     WindowVerdict judge_window(std::size_t first, std::size_t last);
     WindowVerdict fit_window(std::size_t rows);
     [[nodiscard]] Vec solve_weighted(std::size_t rows) const;

@@ -480,6 +480,17 @@ int run_watch(const ServiceOptions& options) {
     return 0;
 }
 
+// --copies N: the same stream on N topics, '{n}' in the topic replaced by 1..N (a load for the benchmark).
+std::vector<std::string> copy_topics(const PublishOptions& options) {
+    std::vector<std::string> topics;
+    for (std::size_t c = 1; c <= options.copies; ++c) {
+        std::string topic = options.topic;
+        if (const auto at = topic.find("{n}"); at != std::string::npos) topic.replace(at, 3, std::to_string(c));
+        topics.push_back(std::move(topic));
+    }
+    return topics;
+}
+
 int run_publish(const Batch& stream, const PublishOptions& options) {
     if (options.topic.empty() || options.topic.find_first_of("+#") != std::string::npos)
         throw InputError(fmt::format("--topic '{}': a topic to publish to has no wildcards", options.topic));
@@ -519,13 +530,7 @@ int run_publish(const Batch& stream, const PublishOptions& options) {
     part.dt = stream.dt;
     part.drive_is_force = stream.drive_is_force;
     part.force_constant = stream.force_constant;
-    // --copies N: the same stream on N topics, '{n}' in the topic replaced by 1..N (a load for the benchmark)
-    std::vector<std::string> topics;
-    for (std::size_t c = 1; c <= options.copies; ++c) {
-        std::string topic = options.topic;
-        if (const auto at = topic.find("{n}"); at != std::string::npos) topic.replace(at, 3, std::to_string(c));
-        topics.push_back(std::move(topic));
-    }
+    const std::vector<std::string> topics = copy_topics(options);
     const auto start = Clock::now();
     Outbox outbox(
         client.get(), link, options,
