@@ -38,12 +38,20 @@ std::vector<char> quasi_static_flags(const Derivatives& d, const SelectionOption
 /// the fitted model.
 double friction_rise(const Regressors& r, const Derivatives& d, const std::vector<std::size_t>& rows,
                      const Eigen::VectorXd& estimate) {
-    const Eigen::VectorXd residual = r.outputs(rows) - r.matrix(rows) * estimate;
+    Eigen::VectorXd phi(static_cast<Eigen::Index>(r.parameters()));
     double rise = 0.0;
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-        rise += (d.velocity[rows[i]] > 0 ? 1.0 : -1.0) * residual(static_cast<Eigen::Index>(i));
+    for (const auto k : rows) {
+        const double y = r.row(k, phi.data());
+        rise += (d.velocity[k] > 0 ? 1.0 : -1.0) * (y - phi.dot(estimate));
     }
     return rise / static_cast<double>(rows.size());
+}
+
+/// The step-1 model fitted on `rows`, straight from the regressors' columns (no matrix of the rows).
+LeastSquaresResult fit_rows(const Regressors& r, const std::vector<std::size_t>& rows) {
+    return solve_least_squares_rows(
+        rows.size(), static_cast<Eigen::Index>(r.parameters()),
+        [&](std::size_t i, double* phi) { return r.row(rows[i], phi); }, [&](std::size_t i) { return rows[i]; }, 1);
 }
 
 /// Step 1 must see no Stribeck friction. The speeds just above the split are checked against a fit on the faster
@@ -66,7 +74,7 @@ double raise_split_above_stribeck(const Derivatives& d, const Regressors& r, con
         const std::size_t plenty =
             std::max<std::size_t>(2 * options.minimum_step1_samples_per_parameter * r.parameters(), moving.size() / 5);
         if (band.size() < options.minimum_slow_samples || faster.size() < plenty) break;
-        const LeastSquaresResult fit = solve_least_squares(r.matrix(faster), r.outputs(faster));
+        const LeastSquaresResult fit = fit_rows(r, faster);
         if (fit.rank_deficient) break;
         const double rise = friction_rise(r, d, band, fit.estimate);
         const double noise = 3.0 * fit.residual_std / std::sqrt(static_cast<double>(band.size()));
@@ -92,7 +100,7 @@ void merge_slow_ramps(const Derivatives& d, const Regressors& r, const Selection
         if (std::abs(d.velocity[k]) < split && !(s.near_rest(k) && d.used.differentiation != "central"))
             slow.push_back(k);
     }
-    const LeastSquaresResult fast_fit = solve_least_squares(r.matrix(s.step1), r.outputs(s.step1));
+    const LeastSquaresResult fast_fit = fit_rows(r, s.step1);
     if (slow.size() < options.minimum_slow_samples || fast_fit.rank_deficient) return;
     const double rise = friction_rise(r, d, slow, fast_fit.estimate);
     const bool consistent = rise <= fast_fit.residual_std;  // a Stribeck effect only ever adds friction
