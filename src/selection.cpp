@@ -193,6 +193,12 @@ void select_moving(const Derivatives& d, const SelectionOptions& options, double
     s.report.passes = s.stick_slip.passes.size();
     s.report.stick_slip_passes = s.stick_slip.stick_slip_passes;
     s.report.stick_slip_samples = s.stick_slip.samples;
+    const auto is_moving = [&](std::size_t k) {
+        return std::abs(d.velocity[k]) > threshold && (d.unusable.empty() || !d.unusable[k]) && !s.stick_slip.flags[k];
+    };
+    std::size_t count = 0;
+    for (std::size_t k = 0; k < d.size(); ++k) count += is_moving(k) ? 1 : 0;
+    s.moving.reserve(count);  // exactly: grown by doubling, the indices would hold up to twice their size
     for (std::size_t k = 0; k < d.size(); ++k) {
         if (!(std::abs(d.velocity[k]) > threshold)) continue;
         if (!d.unusable.empty() && d.unusable[k]) {
@@ -254,6 +260,16 @@ Selection select_samples(const Derivatives& d, const Regressors& r, const Select
     }
     s.stribeck_band = split;
     s.report.split_velocity = split;
+    std::size_t fast = 0, slow = 0;
+    const bool central = d.used.differentiation == "central";
+    for (const auto k : s.moving) {
+        if (std::abs(d.velocity[k]) >= split)
+            fast += s.near_rest(k) && !central ? 0 : 1;
+        else
+            slow += s.steady(k) ? 1 : 0;
+    }
+    s.step1.reserve(fast);
+    s.step2.reserve(slow);
     for (const auto k : s.moving) {
         if (std::abs(d.velocity[k]) >= split) {
             if (s.near_rest(k) && d.used.differentiation != "central") {

@@ -53,16 +53,22 @@ Step2Data make_data(const Derivatives& d, const Selection& s, const Step1Fit& st
 
 /// The paper's log-linear RLS (eq. 12-14), per direction.
 void fit_log_linear_per_direction(const Step2Data& data, FrictionFit& out) {
+    const auto& d = data.d;
     for (std::size_t g = 0; g < 2; ++g) {
-        detail::FitSamples samples;
+        // this direction's step-2 samples, as indices (not as gathered columns: a long trace has millions)
+        std::vector<std::size_t> rows;
+        rows.reserve(data.slow_count[g]);
         for (const auto k : data.s.step2) {
-            if ((data.d.velocity[k] > 0) == (g == 0)) {
-                samples.push(data.d.acceleration[k], data.d.velocity[k], data.d.force[k], k);
-            }
+            if ((d.velocity[k] > 0) == (g == 0)) rows.push_back(k);
         }
         const auto [viscous, coulomb] = data.linear_branch(g);
-        out.log_linear[g] = detail::fit_log_linear(
-            samples, data.step1.batch.estimate(0), viscous, coulomb, data.offset_value(),
+        out.log_linear[g] = detail::fit_log_linear_over(
+            rows.size(),
+            [&](std::size_t i) {
+                const std::size_t k = rows[i];
+                return std::array<double, 3>{d.acceleration[k], d.velocity[k], d.force[k]};
+            },
+            data.step1.batch.estimate(0), viscous, coulomb, data.offset_value(),
             data.options.log_linear_noise_multiple * data.step1.batch.residual_std, data.step1.rls_options);
     }
 }

@@ -24,7 +24,8 @@ SecondOrderSections chebyshev1_lowpass(int order, double ripple_db, double cutof
 /// most n - 1) and steady-state initial conditions, as MATLAB's filtfilt(b, a, x) on the cascade's transfer function.
 std::vector<double> filtfilt(const SecondOrderSections& filter, std::span<const double> x);
 /// The same into `out` (x.size() values), padding in `workspace`, which grows only when x is longer than before: no
-/// allocation once it has held the longest signal (the online identifier's windows).
+/// allocation once it has held the longest signal (the online identifier's windows). An empty `out` leaves the
+/// filtered signal in workspace[pad, pad + n) (the padding: max(1, 3 * order), at most n - 1).
 void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std::span<double> out,
               std::vector<double>& workspace);
 
