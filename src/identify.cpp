@@ -403,7 +403,7 @@ void null_inseparable_friction(IdentifyResult& result, const Derivatives& d, con
             if (s.steady(k) && (!asymmetric || (d.velocity[k] > 0.0) == (g == 0)))
                 speeds.push_back(std::abs(d.velocity[k]));
         }
-        const double low = percentile(speeds, 0.1), high = percentile(speeds, 0.9);
+        const double low = percentile_in_place(speeds, 0.1), high = percentile_in_place(speeds, 0.9);
         if (speeds.empty() || high >= options.separable_speed_ratio * low) continue;
         // B rests on the ramps: trusted where they are most of step 1's samples (a single long move), not where a
         // few ramp samples decide it against many at the one speed
@@ -419,7 +419,7 @@ void null_inseparable_friction(IdentifyResult& result, const Derivatives& d, con
         Estimate& viscous = parameter(result, Term::viscous, direction).estimate;
         Estimate& coulomb = parameter(result, Term::coulomb, direction).estimate;
         if (!viscous.value || !coulomb.value) continue;
-        const double speed = percentile(speeds, 0.5);
+        const double speed = percentile_in_place(speeds, 0.5);
         result.diagnostics.push_back(fmt::format(
             "{} and {}: the constant-speed samples all run at about {:.4g} {} (10th to 90th percentile {:.4g} to "
             "{:.4g}): one speed determines only the friction there, {:.5g} {}, not how it splits into viscous and "
@@ -495,11 +495,15 @@ IdentifyResult run_stages_on(IdentifyResult result, const Preprocessed& p, const
 /// The four stages on a drive force (N, or the drive signal's own unit when no constant is known). A trace too
 /// coarse for a mass (its figures say so before any fit: a mass fitted to it would be noise) gives a friction-only
 /// result, or fails saying why in figures. With `keep`, the preprocessed samples are handed back (for runs that
-/// share them) when the stages got that far.
-IdentifyResult run_stages(const Trace& trace, std::span<const double> force, const IdentifyOptions& options,
+/// share them) when the stages got that far. The drive force is formed from `drive` for the first stage alone and
+/// released after it: the later stages read the filtered force in the Derivatives, and every run forms its own
+/// (the same values) rather than all of them holding one for the whole of identify.
+IdentifyResult run_stages(const Trace& trace, const DriveConstants& drive, const IdentifyOptions& options,
                           std::optional<Preprocessed>* keep = nullptr) {
+    std::vector<double> force = drive_force(trace, drive);  // throws without a constant
     IdentifyResult result = start_result(trace, options);
     Preprocessed p{preprocess(trace, force, options.preprocess), {}};
+    std::vector<double>().swap(force);
     result.diagnostics.insert(result.diagnostics.end(), p.derivatives.notes.begin(), p.derivatives.notes.end());
     if (p.derivatives.failed()) return failed(std::move(result), p.derivatives.failure);
     p.regressors = build_regressors(p.derivatives, options.model, options.offset);
@@ -527,7 +531,7 @@ constexpr double budget_bytes_per_sample = 100.0;
 /// as the memory budget and the cores allow (the runs share nothing but the trace and the force, both read only); a
 /// member the trace cannot take (InputError) is empty. Members with the nominal preprocessing (the split variant)
 /// are not run here.
-std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, std::span<const double> force,
+std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace,
                                                       const IdentifyOptions& base,
                                                       const std::vector<PreprocessingVariant>& family) {
     std::vector<std::optional<IdentifyResult>> runs(family.size());
@@ -541,7 +545,7 @@ std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, std::s
         for (std::size_t i = next++; i < todo.size(); i = next++) {
             const std::size_t v = todo[i];
             try {
-                runs[v] = run_stages(trace, force, member_options(base, family[v]));
+                runs[v] = run_stages(trace, base.drive, member_options(base, family[v]));
             } catch (const InputError&) {
                 runs[v].reset();
             } catch (...) {
@@ -568,7 +572,7 @@ std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, std::s
 /// The preprocessing family's estimates (systematic.hpp): each parameter's systematic part is the largest deviation
 /// of a variant's estimate from the nominal one (variants that leave it undetermined do not count; with none left it
 /// stays unassessed), said in a finding where it exceeds the multiple of the standard error.
-void assess_systematic(const Trace& trace, std::span<const double> force, const IdentifyOptions& options,
+void assess_systematic(const Trace& trace, const IdentifyOptions& options,
                        std::optional<Preprocessed>& nominal, IdentifyResult& result) {
     const bool from_velocity = result.preprocessing->velocity_source == "velocity";
     const double interval = native_interval_of(trace, from_velocity ? Role::velocity : Role::position);
@@ -592,7 +596,7 @@ void assess_systematic(const Trace& trace, std::span<const double> force, const 
                                   *nominal, member_options(variant_options, family[v]));
     }
     nominal.reset();
-    auto runs = run_family(trace, force, variant_options, family);
+    auto runs = run_family(trace, variant_options, family);
     for (std::size_t v = 0; v < family.size(); ++v) {
         if (family[v].split_velocity) runs[v] = std::move(shared[v]);
     }
@@ -643,6 +647,7 @@ const Channel* signal_without_force_constant(const Trace& trace, const DriveCons
 
 IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
+    const TimeBaseMemo time_base(trace);  // one pass over the time column, not one per stage and run
     if (const auto problems = unit_inconsistencies(trace); !problems.empty()) {
         throw InputError(fmt::format("{}: {}", trace.source_path.empty() ? std::string("trace") : trace.source_path,
                                      fmt::join(problems, "; ")));
@@ -653,7 +658,7 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
         // that would not help.
         DriveConstants unit_constant;
         unit_constant.force_constant = 1.0;
-        IdentifyResult provisional = run_stages(trace, drive_force(trace, unit_constant), options);
+        IdentifyResult provisional = run_stages(trace, unit_constant, options);
         if (provisional.status == Status::failed) {
             provisional.diagnostics.push_back(
                 fmt::format("{}: (figures above in units of the drive signal '{}': no force constant was given)",
@@ -661,11 +666,10 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
             return provisional;
         }
     }
-    const std::vector<double> force = drive_force(trace, options.drive);  // throws without a constant
     std::optional<Preprocessed> nominal;
-    IdentifyResult result = run_stages(trace, force, options, options.systematic ? &nominal : nullptr);
+    IdentifyResult result = run_stages(trace, options.drive, options, options.systematic ? &nominal : nullptr);
     if (options.systematic && result.status != Status::failed && result.preprocessing)
-        assess_systematic(trace, force, options, nominal, result);
+        assess_systematic(trace, options, nominal, result);
     // Drive constants outside what feed drives have: the figures are right for the constants given, which may not be.
     for (auto& warning : options.drive.warnings()) result.diagnostics.push_back(std::move(warning));
     return result;

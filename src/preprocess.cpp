@@ -563,6 +563,7 @@ Derivatives preprocess(const Trace& trace, std::span<const double> force, const 
 
 std::vector<double> filter_like_force(std::span<const double> full_rate, const Derivatives& d) {
     const auto& starts = d.used.decimation > 1 ? d.full_rate_segment_starts : d.segment_starts;
+    if (starts.size() == 1 && d.used.decimation <= 1) return filter_like_position(full_rate, d.used, d.sample_time_s);
     std::vector<double> filtered;
     filtered.reserve(full_rate.size());
     for (std::size_t s = 0; s < starts.size(); ++s) {

@@ -233,7 +233,7 @@ double default_split(const Derivatives& d, const SelectionOptions& options, doub
     for (const auto k : s.moving) {
         if (s.steady(k)) steady_speeds.push_back(std::abs(d.velocity[k]));
     }
-    const double typical = percentile(steady_speeds.empty() ? std::vector<double>{fastest} : steady_speeds,
+    const double typical = percentile(steady_speeds.empty() ? std::vector<double>{fastest} : std::move(steady_speeds),
                                       options.typical_speed_percentile);
     return options.stribeck ? options.split_fraction * typical : 0.0;
 }

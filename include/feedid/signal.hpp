@@ -58,6 +58,8 @@ double noise_floor(std::span<const double> x);
 /// The value below which `fraction` (0..1) of the values lie: the element of rank floor(fraction * (n - 1)), no
 /// interpolation; 0 for no values.
 double percentile(std::vector<double> values, double fraction);
+/// The same in place: reorders `values` (no copy), so that several percentiles of one buffer cost no memory.
+double percentile_in_place(std::span<double> values, double fraction);
 
 /// The minimum (maximum) of x over [k - half, k + half], for every k, in O(n) (a monotonic queue of indices).
 std::vector<double> running_minimum(std::span<const double> x, std::size_t half);
