@@ -531,8 +531,7 @@ constexpr double budget_bytes_per_sample = 100.0;
 /// as the memory budget and the cores allow (the runs share nothing but the trace and the force, both read only); a
 /// member the trace cannot take (InputError) is empty. Members with the nominal preprocessing (the split variant)
 /// are not run here.
-std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace,
-                                                      const IdentifyOptions& base,
+std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, const IdentifyOptions& base,
                                                       const std::vector<PreprocessingVariant>& family) {
     std::vector<std::optional<IdentifyResult>> runs(family.size());
     std::vector<std::exception_ptr> errors(family.size());
@@ -572,8 +571,8 @@ std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace,
 /// The preprocessing family's estimates (systematic.hpp): each parameter's systematic part is the largest deviation
 /// of a variant's estimate from the nominal one (variants that leave it undetermined do not count; with none left it
 /// stays unassessed), said in a finding where it exceeds the multiple of the standard error.
-void assess_systematic(const Trace& trace, const IdentifyOptions& options,
-                       std::optional<Preprocessed>& nominal, IdentifyResult& result) {
+void assess_systematic(const Trace& trace, const IdentifyOptions& options, std::optional<Preprocessed>& nominal,
+                       IdentifyResult& result) {
     const bool from_velocity = result.preprocessing->velocity_source == "velocity";
     const double interval = native_interval_of(trace, from_velocity ? Role::velocity : Role::position);
     IdentifyOptions variant_options = options;
@@ -592,8 +591,9 @@ void assess_systematic(const Trace& trace, const IdentifyOptions& options,
     std::vector<std::optional<IdentifyResult>> shared(family.size());
     for (std::size_t v = 0; v < family.size(); ++v) {
         if (!family[v].split_velocity || !nominal) continue;
-        shared[v] = run_stages_on(start_result(trace, variant_options),
-                                  *nominal, member_options(variant_options, family[v]));
+        IdentifyResult start = start_result(trace, variant_options);
+        start.diagnostics = nominal->derivatives.notes;  // as the stages would have noted them again
+        shared[v] = run_stages_on(std::move(start), *nominal, member_options(variant_options, family[v]));
     }
     nominal.reset();
     auto runs = run_family(trace, variant_options, family);

@@ -528,8 +528,8 @@ Derivatives preprocess(const Trace& trace, std::span<const double> force, const 
     const bool need_index = !clipped.empty() || std::max(1, options.decimation) > 1;
     const Reference reference = reference_of(trace, first, last);
     for (const Segment& segment : segments) {
-        append_segment(x, window_force, time.subspan(first, last - first), reference, segment, options, d,
-                       window_index, need_index);
+        append_segment(x, window_force, time.subspan(first, last - first), reference, segment, options, d, window_index,
+                       need_index);
     }
     if (d.velocity.empty()) {
         std::size_t longest = 0;

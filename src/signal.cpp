@@ -282,7 +282,9 @@ double noise_floor(std::span<const double> x) {
     return 1.4826 * median_of(d) / std::numbers::sqrt2;
 }
 
-double percentile(std::vector<double> values, double fraction) { return percentile_in_place(values, fraction); }
+double percentile(std::vector<double> values, double fraction) {
+    return percentile_in_place(values, fraction);
+}
 
 double percentile_in_place(std::span<double> values, double fraction) {
     if (values.empty()) return 0.0;

@@ -108,8 +108,8 @@ RlsRun run_rls_fixed(std::size_t n, const Row& next_row, const Time& time, const
 }
 
 template <class Row, class Time>
-RlsRun run_rls_rows(Eigen::Index parameters, std::size_t n, const Row& row, const Time& time,
-                    const RlsOptions& options, const Eigen::VectorXd& tolerance, std::size_t history_points) {
+RlsRun run_rls_rows(Eigen::Index parameters, std::size_t n, const Row& row, const Time& time, const RlsOptions& options,
+                    const Eigen::VectorXd& tolerance, std::size_t history_points) {
     switch (parameters) {
         case 3: return run_rls_fixed<3>(n, row, time, options, tolerance, history_points);
         case 4: return run_rls_fixed<4>(n, row, time, options, tolerance, history_points);
@@ -127,8 +127,9 @@ RlsRun run_rls(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, const std::
         for (Eigen::Index c = 0; c < phi.cols(); ++c) out[c] = phi(static_cast<Eigen::Index>(k), c);
         return y(static_cast<Eigen::Index>(k));
     };
-    return run_rls_rows(phi.cols(), static_cast<std::size_t>(phi.rows()), row,
-                        [&](std::size_t k) { return time[k]; }, options, tolerance, history_points);
+    return run_rls_rows(
+        phi.cols(), static_cast<std::size_t>(phi.rows()), row, [&](std::size_t k) { return time[k]; }, options,
+        tolerance, history_points);
 }
 
 Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind model, bool offset) {
@@ -338,9 +339,9 @@ Step1Fit fit_step1(const Regressors& regressors, const Derivatives& derivatives,
     // the rows straight from the regressors' columns, never gathered into a matrix (a 16M-sample trace's step 1
     // would hold several hundred MB)
     const auto row = [&](std::size_t i, double* phi) { return regressors.row(rows[i], phi); };
-    fit.batch = solve_least_squares_rows(rows.size(), static_cast<Eigen::Index>(p), row,
-                                         [&](std::size_t i) { return rows[i]; },
-                                         correlation_block(derivatives, options.correlation_blocks));
+    fit.batch = solve_least_squares_rows(
+        rows.size(), static_cast<Eigen::Index>(p), row, [&](std::size_t i) { return rows[i]; },
+        correlation_block(derivatives, options.correlation_blocks));
     for (const auto k : rows)
         fit.max_acceleration = std::max(fit.max_acceleration, std::abs(derivatives.acceleration[k]));
     const bool offset = !fit.columns.empty() && fit.columns.back().term == Term::offset;
@@ -376,9 +377,9 @@ Step1Fit fit_step1(const Regressors& regressors, const Derivatives& derivatives,
     // RLS on the same samples, in time order.
     const Eigen::VectorXd tolerance = (fit.batch.estimate.cwiseAbs() * options.rls_settle_fraction)
                                           .cwiseMax(options.rls_settle_standard_errors * fit.batch.standard_error);
-    fit.rls = run_rls_rows(static_cast<Eigen::Index>(p), rows.size(), row,
-                           [&](std::size_t i) { return derivatives.time[rows[i]]; }, options.rls, tolerance,
-                           options.rls_history_points);
+    fit.rls = run_rls_rows(
+        static_cast<Eigen::Index>(p), rows.size(), row, [&](std::size_t i) { return derivatives.time[rows[i]]; },
+        options.rls, tolerance, options.rls_history_points);
     return fit;
 }
 

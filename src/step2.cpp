@@ -211,7 +211,8 @@ bool stribeck_determined(const Step2Data& data, const detail::CurveFit& fit, con
         const double speed = std::abs(data.d.velocity[k]);
         if (data.in_group(k, g) && speed < o.determining_speed_multiple * vs) below.push_back(speed);
     }
-    const bool spread = !below.empty() && percentile_in_place(below, 0.9) >= o.determining_speed_ratio * percentile_in_place(below, 0.1);
+    const bool spread = !below.empty() &&
+                        percentile_in_place(below, 0.9) >= o.determining_speed_ratio * percentile_in_place(below, 0.1);
     const bool ok = fit.converged && std::isfinite(vs) && vs > bounds.low * o.bound_margin_low &&
                     vs < bounds.high * o.bound_margin_high && delta > o.rise_significance * delta_se &&
                     vs_se < o.max_stribeck_velocity_relative_error * vs && below.size() >= o.minimum_slow_samples &&

@@ -88,8 +88,8 @@ private:
 /// solve_least_squares() and account_for_correlated_residuals() on `n` rows given by row(i, phi) -> y (phi: parameters
 /// values to fill), each called twice in order; index(i) the sample index of row i (for the batch means).
 template <class Row, class Index>
-LeastSquaresResult solve_least_squares_rows(std::size_t n, Eigen::Index parameters, const Row& row,
-                                            const Index& index, std::size_t block) {
+LeastSquaresResult solve_least_squares_rows(std::size_t n, Eigen::Index parameters, const Row& row, const Index& index,
+                                            std::size_t block) {
     StreamedLeastSquares solver(parameters);
     Eigen::VectorXd phi(parameters);
     for (std::size_t i = 0; i < n; ++i) {
