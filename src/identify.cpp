@@ -521,14 +521,15 @@ IdentifyOptions member_options(const IdentifyOptions& base, const PreprocessingV
 }
 
 /// Bytes per sample a rerun of the stages holds at its peak (the Derivatives' four columns, the filtered sgn(x')
-/// column, the selection's indices and flags, the largest transient), measured with heaptrack on bench_identify's
-/// trace; and the budget per sample identify keeps to with the trace's columns and the drive force included.
-constexpr double rerun_bytes_per_sample = 60.0;
-constexpr double shared_bytes_per_sample = 32.0;
+/// column, the selection's indices and flags, step 2's index lists: about 70, measured with heaptrack and the peak
+/// resident set on bench_identify_scaling's trace), what all runs share (the trace's time, position and current),
+/// and the budget per sample identify keeps to (issue 14).
+constexpr double rerun_bytes_per_sample = 72.0;
+constexpr double shared_bytes_per_sample = 24.0;
 constexpr double budget_bytes_per_sample = 100.0;
 
 /// The stages over each member of the family whose preprocessing differs from the nominal run's; as many at a time
-/// as the memory budget and the cores allow (the runs share nothing but the trace and the force, both read only); a
+/// as the memory budget and the cores allow (the runs share nothing but the trace, read only); a
 /// member the trace cannot take (InputError) is empty. Members with the nominal preprocessing (the split variant)
 /// are not run here.
 std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, const IdentifyOptions& base,
