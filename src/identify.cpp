@@ -402,7 +402,7 @@ void null_inseparable_friction(IdentifyResult& result, const Derivatives& d, con
             if (s.steady(k) && (!asymmetric || (d.velocity[k] > 0.0) == (g == 0)))
                 speeds.push_back(std::abs(d.velocity[k]));
         }
-        const double low = percentile(speeds, 0.1), high = percentile(speeds, 0.9);
+        const double low = percentile_in_place(speeds, 0.1), high = percentile_in_place(speeds, 0.9);
         if (speeds.empty() || high >= options.separable_speed_ratio * low) continue;
         // B rests on the ramps: trusted where they are most of step 1's samples (a single long move), not where a
         // few ramp samples decide it against many at the one speed
@@ -418,7 +418,7 @@ void null_inseparable_friction(IdentifyResult& result, const Derivatives& d, con
         Estimate& viscous = parameter(result, Term::viscous, direction).estimate;
         Estimate& coulomb = parameter(result, Term::coulomb, direction).estimate;
         if (!viscous.value || !coulomb.value) continue;
-        const double speed = percentile(speeds, 0.5);
+        const double speed = percentile_in_place(speeds, 0.5);
         result.diagnostics.push_back(fmt::format(
             "{} and {}: the constant-speed samples all run at about {:.4g} {} (10th to 90th percentile {:.4g} to "
             "{:.4g}): one speed determines only the friction there, {:.5g} {}, not how it splits into viscous and "
@@ -466,19 +466,19 @@ IdentifyResult fit_steps(IdentifyResult result, const Derivatives& derivatives, 
     return result;
 }
 
-/// The four stages on a drive force (N, or the drive signal's own unit when no constant is known). A trace too
-/// coarse for a mass (its figures say so before any fit: a mass fitted to it would be noise) gives a friction-only
-/// result, or fails saying why in figures.
-IdentifyResult run_stages(const Trace& trace, std::span<const double> force, const IdentifyOptions& options) {
-    IdentifyResult result = start_result(trace, options);
-    const Derivatives derivatives = preprocess(trace, force, options.preprocess);
-    result.diagnostics.insert(result.diagnostics.end(), derivatives.notes.begin(), derivatives.notes.end());
-    if (derivatives.failed()) return failed(std::move(result), derivatives.failure);
-    const Regressors regressors = build_regressors(derivatives, options.model, options.offset);
+/// The first stage's output and the regressors that view it: what runs with the same preprocessing share.
+struct Preprocessed {
+    Derivatives derivatives;
+    Regressors regressors;
+};
+
+/// Stages 2 to 4 (selection, resolution check, steps 1 and 2) on preprocessed samples.
+IdentifyResult run_stages_on(IdentifyResult result, const Preprocessed& p, const IdentifyOptions& options) {
+    const Derivatives& derivatives = p.derivatives;
     SelectionOptions selection_options = options.selection;
     selection_options.stribeck = options.stribeck;
     selection_options.minimum_step1_samples_per_parameter = options.step1.minimum_samples_per_parameter;
-    const Selection selection = select_samples(derivatives, regressors, selection_options);
+    const Selection selection = select_samples(derivatives, p.regressors, selection_options);
     result.preprocessing = derivatives.used;
     result.selection = selection.report;
     // what was left out because the data there is not the model's, said where every reader looks
@@ -488,24 +488,63 @@ IdentifyResult run_stages(const Trace& trace, std::span<const double> force, con
     }
     if (const Resolution resolution = assess_resolution(derivatives, options.friction_only); resolution.coarse())
         return friction_only_result(std::move(result), derivatives, selection, resolution, {}, options);
-    return fit_steps(std::move(result), derivatives, regressors, selection, options);
+    return fit_steps(std::move(result), derivatives, p.regressors, selection, options);
 }
 
-/// The stages over each member of the family, on as many threads as the machine has cores (the runs share nothing
-/// but the trace and the force, both read only); a member the trace cannot take (InputError) is empty.
-std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, std::span<const double> force,
-                                                      const IdentifyOptions& base,
+/// The four stages on a drive force (N, or the drive signal's own unit when no constant is known). A trace too
+/// coarse for a mass (its figures say so before any fit: a mass fitted to it would be noise) gives a friction-only
+/// result, or fails saying why in figures. With `keep`, the preprocessed samples are handed back (for runs that
+/// share them) when the stages got that far. The drive force is formed from `drive` for the first stage alone and
+/// released after it: the later stages read the filtered force in the Derivatives, and every run forms its own
+/// (the same values) rather than all of them holding one for the whole of identify.
+IdentifyResult run_stages(const Trace& trace, const DriveConstants& drive, const IdentifyOptions& options,
+                          std::optional<Preprocessed>* keep = nullptr) {
+    std::vector<double> force = drive_force(trace, drive);  // throws without a constant
+    IdentifyResult result = start_result(trace, options);
+    Preprocessed p{preprocess(trace, force, options.preprocess), {}};
+    std::vector<double>().swap(force);
+    result.diagnostics.insert(result.diagnostics.end(), p.derivatives.notes.begin(), p.derivatives.notes.end());
+    if (p.derivatives.failed()) return failed(std::move(result), p.derivatives.failure);
+    p.regressors = build_regressors(p.derivatives, options.model, options.offset);
+    result = run_stages_on(std::move(result), p, options);
+    if (keep != nullptr) keep->emplace(std::move(p));
+    return result;
+}
+
+/// The options of a family member: the nominal run's with its preprocessing (and split).
+IdentifyOptions member_options(const IdentifyOptions& base, const PreprocessingVariant& variant) {
+    IdentifyOptions options = base;
+    options.preprocess = variant.options;
+    if (variant.split_velocity) options.selection.split_velocity = variant.split_velocity;
+    return options;
+}
+
+/// Bytes per sample a rerun of the stages holds at its peak (the Derivatives' four columns, the filtered sgn(x')
+/// column, the selection's indices and flags, step 2's index lists: about 70, measured with heaptrack and the peak
+/// resident set on bench_identify_scaling's trace), what all runs share (the trace's time, position and current),
+/// and the budget per sample identify keeps to (issue 14).
+constexpr double rerun_bytes_per_sample = 72.0;
+constexpr double shared_bytes_per_sample = 24.0;
+constexpr double budget_bytes_per_sample = 100.0;
+
+/// The stages over each member of the family whose preprocessing differs from the nominal run's; as many at a time
+/// as the memory budget and the cores allow (the runs share nothing but the trace, read only); a
+/// member the trace cannot take (InputError) is empty. Members with the nominal preprocessing (the split variant)
+/// are not run here.
+std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, const IdentifyOptions& base,
                                                       const std::vector<PreprocessingVariant>& family) {
     std::vector<std::optional<IdentifyResult>> runs(family.size());
     std::vector<std::exception_ptr> errors(family.size());
+    std::vector<std::size_t> todo;
+    for (std::size_t v = 0; v < family.size(); ++v) {
+        if (!family[v].split_velocity) todo.push_back(v);
+    }
     std::atomic<std::size_t> next{0};
     const auto work = [&] {
-        for (std::size_t v = next++; v < family.size(); v = next++) {
-            IdentifyOptions options = base;
-            options.preprocess = family[v].options;
-            if (family[v].split_velocity) options.selection.split_velocity = family[v].split_velocity;
+        for (std::size_t i = next++; i < todo.size(); i = next++) {
+            const std::size_t v = todo[i];
             try {
-                runs[v] = run_stages(trace, force, options);
+                runs[v] = run_stages(trace, base.drive, member_options(base, family[v]));
             } catch (const InputError&) {
                 runs[v].reset();
             } catch (...) {
@@ -514,7 +553,11 @@ std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, std::s
         }
     };
     const unsigned cores = base.threads > 0 ? base.threads : std::max(1u, std::thread::hardware_concurrency());
-    const std::size_t threads = std::min<std::size_t>(family.size(), cores);
+    // reruns in parallel only while their buffers fit the budget (the same count at every trace length: the time
+    // stays linear in it)
+    const auto fitting =
+        static_cast<std::size_t>((budget_bytes_per_sample - shared_bytes_per_sample) / rerun_bytes_per_sample);
+    const std::size_t threads = std::min<std::size_t>({todo.size(), cores, std::max<std::size_t>(1, fitting)});
     std::vector<std::thread> pool;
     for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(work);
     work();
@@ -528,7 +571,7 @@ std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, std::s
 /// The preprocessing family's estimates (systematic.hpp): each parameter's systematic part is the largest deviation
 /// of a variant's estimate from the nominal one (variants that leave it undetermined do not count; with none left it
 /// stays unassessed), said in a finding where it exceeds the multiple of the standard error.
-void assess_systematic(const Trace& trace, std::span<const double> force, const IdentifyOptions& options,
+void assess_systematic(const Trace& trace, const IdentifyOptions& options, std::optional<Preprocessed>& nominal,
                        IdentifyResult& result) {
     const bool from_velocity = result.preprocessing->velocity_source == "velocity";
     const double interval = native_interval_of(trace, from_velocity ? Role::velocity : Role::position);
@@ -544,7 +587,19 @@ void assess_systematic(const Trace& trace, std::span<const double> force, const 
         result.selection ? std::max(result.selection->split_velocity, result.selection->initial_split) : 0.0;
     const auto family = preprocessing_family(options.preprocess, *result.preprocessing, interval, split,
                                              naming.display_velocity_scale(), naming.display_velocity_unit());
-    const auto runs = run_family(trace, force, variant_options, family);
+    // the members with the nominal preprocessing first, on the nominal run's samples, which are then released
+    std::vector<std::optional<IdentifyResult>> shared(family.size());
+    for (std::size_t v = 0; v < family.size(); ++v) {
+        if (!family[v].split_velocity || !nominal) continue;
+        IdentifyResult start = start_result(trace, variant_options);
+        start.diagnostics = nominal->derivatives.notes;  // as the stages would have noted them again
+        shared[v] = run_stages_on(std::move(start), *nominal, member_options(variant_options, family[v]));
+    }
+    nominal.reset();
+    auto runs = run_family(trace, variant_options, family);
+    for (std::size_t v = 0; v < family.size(); ++v) {
+        if (family[v].split_velocity) runs[v] = std::move(shared[v]);
+    }
     for (std::size_t v = 0; v < family.size(); ++v) {
         if (!runs[v]) continue;  // a variant this trace cannot take (a window longer than the trace)
         const auto& variant = family[v];
@@ -592,6 +647,7 @@ const Channel* signal_without_force_constant(const Trace& trace, const DriveCons
 
 IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
     if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
+    const TimeBaseMemo time_base(trace);  // one pass over the time column, not one per stage and run
     require_consistent_units(trace);
     if (const Channel* signal = signal_without_force_constant(trace, options.drive)) {
         // Whether the data can identify anything at all does not depend on the force constant: find out in signal
@@ -599,7 +655,7 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
         // that would not help.
         DriveConstants unit_constant;
         unit_constant.force_constant = 1.0;
-        IdentifyResult provisional = run_stages(trace, drive_force(trace, unit_constant), options);
+        IdentifyResult provisional = run_stages(trace, unit_constant, options);
         if (provisional.status == Status::failed) {
             provisional.diagnostics.push_back(
                 fmt::format("{}: (figures above in units of the drive signal '{}': no force constant was given)",
@@ -607,10 +663,10 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
             return provisional;
         }
     }
-    const std::vector<double> force = drive_force(trace, options.drive);  // throws without a constant
-    IdentifyResult result = run_stages(trace, force, options);
+    std::optional<Preprocessed> nominal;
+    IdentifyResult result = run_stages(trace, options.drive, options, options.systematic ? &nominal : nullptr);
     if (options.systematic && result.status != Status::failed && result.preprocessing)
-        assess_systematic(trace, force, options, result);
+        assess_systematic(trace, options, nominal, result);
     // Drive constants outside what feed drives have: the figures are right for the constants given, which may not be.
     for (auto& warning : options.drive.warnings()) result.diagnostics.push_back(std::move(warning));
     return result;

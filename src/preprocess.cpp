@@ -167,24 +167,28 @@ PositionHold position_hold(const Trace& trace, std::span<const double> position)
 /// axis, whose slip bursts are short, M came out 17 % high with the force left unfiltered, and on the rotary
 /// SINUMERIK-like synthetic axis 1.25 % high. Central differences filter nothing, so neither is the force.
 std::vector<double> filter_like_position(std::span<const double> force, const PreprocessReport& used, double dt) {
-    std::vector<double> filtered(force.begin(), force.end());
+    std::vector<double> filtered;
     if (used.differentiation == "butterworth")
         filtered = filtfilt(butterworth_lowpass(used.filter_order, used.cutoff_hz, 1.0 / dt), force);
-    if (used.differentiation == "savitzky-golay" &&
-        static_cast<std::size_t>(used.savitzky_golay_window) <= force.size())
+    else if (used.differentiation == "savitzky-golay" &&
+             static_cast<std::size_t>(used.savitzky_golay_window) <= force.size())
         filtered = savitzky_golay(force, used.savitzky_golay_window, used.savitzky_golay_order, 0, dt);
+    else
+        filtered.assign(force.begin(), force.end());
     // Central differences are low-passes too: x'' = D_c(D_c(x)) has the response -w^2 * sinc^2(w*dt) of the true
     // second derivative, x'' = D_c(v) of a logged velocity iw * sinc(w*dt). The three-tap kernels [1 1 1]/3 and
     // [1 4 1]/6 match sinc^2 and sinc to second order (at a tenth of the sample rate sinc^2 is 0.87: the force
     // would otherwise carry 13 % more of that frequency than M*x'' does).
     const bool from_velocity = used.velocity_source == "velocity";
     const double centre = from_velocity ? 4.0 / 6.0 : 1.0 / 3.0, side = from_velocity ? 1.0 / 6.0 : 1.0 / 3.0;
-    std::vector<double> out(filtered.size());
+    // in place: `before` keeps the value the previous sample had before it was overwritten
+    double before = filtered.empty() ? 0.0 : filtered[0];
     for (std::size_t k = 0; k < filtered.size(); ++k) {
-        const double before = filtered[k > 0 ? k - 1 : k], after = filtered[k + 1 < filtered.size() ? k + 1 : k];
-        out[k] = side * before + centre * filtered[k] + side * after;
+        const double here = filtered[k], after = filtered[k + 1 < filtered.size() ? k + 1 : k];
+        filtered[k] = side * before + centre * here + side * after;
+        before = here;
     }
-    return out;
+    return filtered;
 }
 
 /// min(100 Hz, fs/10) of the position signal's native rate.
@@ -345,7 +349,7 @@ std::vector<double> reference_velocity(const Reference& reference, const Segment
 /// One stretch: differentiate, filter the force alike, trim the edges, append to d.
 void append_segment(std::span<const double> x, std::span<const double> force, std::span<const double> time,
                     const Reference& reference, const Segment& segment, const PreprocessOptions& options,
-                    Derivatives& d, std::vector<std::size_t>& window_index) {
+                    Derivatives& d, std::vector<std::size_t>& window_index, bool need_index) {
     const std::size_t length = segment.last - segment.first;
     const auto part = x.subspan(segment.first, length);
     Differentiated derivatives = d.velocity_from_position()
@@ -354,14 +358,34 @@ void append_segment(std::span<const double> x, std::span<const double> force, st
     const std::size_t edge = options.edge_samples.value_or(derivatives.default_edge);
     d.used.edge_samples = edge;
     if (derivatives.velocity.empty() || length <= 2 * edge + options.minimum_samples) return;
-    const std::vector<double> filtered_force =
+    std::vector<double> filtered_force =
         filter_like_position(force.subspan(segment.first, length), d.used, d.sample_time_s);
-    const std::vector<double> commanded =
+    std::vector<double> commanded =
         reference.values.empty() ? std::vector<double>{} : reference_velocity(reference, segment, d, options);
+    if (need_index) {
+        window_index.reserve(window_index.size() + length - 2 * edge);
+        for (std::size_t k = edge; k < length - edge; ++k) window_index.push_back(segment.first + k);
+    }
+    if (d.time.empty()) {
+        // the first stretch (most often the only one): its columns become the Derivatives', trimmed in place, not
+        // copied (a copy would hold each column twice at the stage's peak)
+        const auto trimmed = [&](std::vector<double>& column) {
+            column.erase(column.begin(), column.begin() + static_cast<std::ptrdiff_t>(edge));
+            column.resize(length - 2 * edge);
+            return std::move(column);
+        };
+        d.segment_starts.push_back(0);
+        const auto part_time = time.subspan(segment.first + edge, length - 2 * edge);
+        d.time.assign(part_time.begin(), part_time.end());
+        d.velocity = trimmed(derivatives.velocity);
+        d.acceleration = trimmed(derivatives.acceleration);
+        d.force = trimmed(filtered_force);
+        if (!commanded.empty()) d.reference_velocity = trimmed(commanded);
+        return;
+    }
     d.segment_starts.push_back(d.time.size());
     const std::size_t room = d.time.size() + length - 2 * edge;
     for (auto* column : {&d.time, &d.velocity, &d.acceleration, &d.force}) column->reserve(room);
-    window_index.reserve(room);
     if (!commanded.empty()) d.reference_velocity.reserve(room);
     for (std::size_t k = edge; k < length - edge; ++k) {
         d.time.push_back(time[segment.first + k]);
@@ -369,7 +393,6 @@ void append_segment(std::span<const double> x, std::span<const double> force, st
         d.acceleration.push_back(derivatives.acceleration[k]);
         d.force.push_back(filtered_force[k]);
         if (!commanded.empty()) d.reference_velocity.push_back(commanded[k]);
-        window_index.push_back(segment.first + k);
     }
 }
 
@@ -501,11 +524,12 @@ Derivatives preprocess(const Trace& trace, std::span<const double> force, const 
     const std::vector<Segment> segments =
         contiguous_segments(time.subspan(first, last - first), d.sample_time_s, options.gap_factor);
     if (segments.size() > 1) d.notes.push_back(gap_note(time.subspan(first, last - first), segments, d));
-    std::vector<std::size_t> window_index;  // of each analysed sample, into the window
+    std::vector<std::size_t> window_index;  // of each analysed sample, into the window (for clipping, decimation)
+    const bool need_index = !clipped.empty() || std::max(1, options.decimation) > 1;
     const Reference reference = reference_of(trace, first, last);
     for (const Segment& segment : segments) {
-        append_segment(x, window_force, time.subspan(first, last - first), reference, segment, options, d,
-                       window_index);
+        append_segment(x, window_force, time.subspan(first, last - first), reference, segment, options, d, window_index,
+                       need_index);
     }
     if (d.velocity.empty()) {
         std::size_t longest = 0;
@@ -539,6 +563,7 @@ Derivatives preprocess(const Trace& trace, std::span<const double> force, const 
 
 std::vector<double> filter_like_force(std::span<const double> full_rate, const Derivatives& d) {
     const auto& starts = d.used.decimation > 1 ? d.full_rate_segment_starts : d.segment_starts;
+    if (starts.size() == 1 && d.used.decimation <= 1) return filter_like_position(full_rate, d.used, d.sample_time_s);
     std::vector<double> filtered;
     filtered.reserve(full_rate.size());
     for (std::size_t s = 0; s < starts.size(); ++s) {

@@ -38,12 +38,20 @@ std::vector<char> quasi_static_flags(const Derivatives& d, const SelectionOption
 /// the fitted model.
 double friction_rise(const Regressors& r, const Derivatives& d, const std::vector<std::size_t>& rows,
                      const Eigen::VectorXd& estimate) {
-    const Eigen::VectorXd residual = r.outputs(rows) - r.matrix(rows) * estimate;
+    Eigen::VectorXd phi(static_cast<Eigen::Index>(r.parameters()));
     double rise = 0.0;
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-        rise += (d.velocity[rows[i]] > 0 ? 1.0 : -1.0) * residual(static_cast<Eigen::Index>(i));
+    for (const auto k : rows) {
+        const double y = r.row(k, phi.data());
+        rise += (d.velocity[k] > 0 ? 1.0 : -1.0) * (y - phi.dot(estimate));
     }
     return rise / static_cast<double>(rows.size());
+}
+
+/// The step-1 model fitted on `rows`, straight from the regressors' columns (no matrix of the rows).
+LeastSquaresResult fit_rows(const Regressors& r, const std::vector<std::size_t>& rows) {
+    return solve_least_squares_rows(
+        rows.size(), static_cast<Eigen::Index>(r.parameters()),
+        [&](std::size_t i, double* phi) { return r.row(rows[i], phi); }, [&](std::size_t i) { return rows[i]; }, 1);
 }
 
 /// Step 1 must see no Stribeck friction. The speeds just above the split are checked against a fit on the faster
@@ -66,7 +74,7 @@ double raise_split_above_stribeck(const Derivatives& d, const Regressors& r, con
         const std::size_t plenty =
             std::max<std::size_t>(2 * options.minimum_step1_samples_per_parameter * r.parameters(), moving.size() / 5);
         if (band.size() < options.minimum_slow_samples || faster.size() < plenty) break;
-        const LeastSquaresResult fit = solve_least_squares(r.matrix(faster), r.outputs(faster));
+        const LeastSquaresResult fit = fit_rows(r, faster);
         if (fit.rank_deficient) break;
         const double rise = friction_rise(r, d, band, fit.estimate);
         const double noise = 3.0 * fit.residual_std / std::sqrt(static_cast<double>(band.size()));
@@ -92,7 +100,7 @@ void merge_slow_ramps(const Derivatives& d, const Regressors& r, const Selection
         if (std::abs(d.velocity[k]) < split && !(s.near_rest(k) && d.used.differentiation != "central"))
             slow.push_back(k);
     }
-    const LeastSquaresResult fast_fit = solve_least_squares(r.matrix(s.step1), r.outputs(s.step1));
+    const LeastSquaresResult fast_fit = fit_rows(r, s.step1);
     if (slow.size() < options.minimum_slow_samples || fast_fit.rank_deficient) return;
     const double rise = friction_rise(r, d, slow, fast_fit.estimate);
     const bool consistent = rise <= fast_fit.residual_std;  // a Stribeck effect only ever adds friction
@@ -185,6 +193,12 @@ void select_moving(const Derivatives& d, const SelectionOptions& options, double
     s.report.passes = s.stick_slip.passes.size();
     s.report.stick_slip_passes = s.stick_slip.stick_slip_passes;
     s.report.stick_slip_samples = s.stick_slip.samples;
+    const auto is_moving = [&](std::size_t k) {
+        return std::abs(d.velocity[k]) > threshold && (d.unusable.empty() || !d.unusable[k]) && !s.stick_slip.flags[k];
+    };
+    std::size_t count = 0;
+    for (std::size_t k = 0; k < d.size(); ++k) count += is_moving(k) ? 1 : 0;
+    s.moving.reserve(count);  // exactly: grown by doubling, the indices would hold up to twice their size
     for (std::size_t k = 0; k < d.size(); ++k) {
         if (!(std::abs(d.velocity[k]) > threshold)) continue;
         if (!d.unusable.empty() && d.unusable[k]) {
@@ -219,7 +233,7 @@ double default_split(const Derivatives& d, const SelectionOptions& options, doub
     for (const auto k : s.moving) {
         if (s.steady(k)) steady_speeds.push_back(std::abs(d.velocity[k]));
     }
-    const double typical = percentile(steady_speeds.empty() ? std::vector<double>{fastest} : steady_speeds,
+    const double typical = percentile(steady_speeds.empty() ? std::vector<double>{fastest} : std::move(steady_speeds),
                                       options.typical_speed_percentile);
     return options.stribeck ? options.split_fraction * typical : 0.0;
 }
@@ -246,6 +260,16 @@ Selection select_samples(const Derivatives& d, const Regressors& r, const Select
     }
     s.stribeck_band = split;
     s.report.split_velocity = split;
+    std::size_t fast = 0, slow = 0;
+    const bool central = d.used.differentiation == "central";
+    for (const auto k : s.moving) {
+        if (std::abs(d.velocity[k]) >= split)
+            fast += s.near_rest(k) && !central ? 0 : 1;
+        else
+            slow += s.steady(k) ? 1 : 0;
+    }
+    s.step1.reserve(fast);
+    s.step2.reserve(slow);
     for (const auto k : s.moving) {
         if (std::abs(d.velocity[k]) >= split) {
             if (s.near_rest(k) && d.used.differentiation != "central") {

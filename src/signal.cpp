@@ -120,10 +120,15 @@ SecondOrderSections chebyshev1_lowpass(int order, double ripple_db, double cutof
 }
 
 std::vector<double> filtfilt(const SecondOrderSections& filter, std::span<const double> x) {
-    std::vector<double> out(x.size());
     std::vector<double> workspace;
-    filtfilt(filter, x, out, workspace);
-    return out;
+    if (x.size() < 2) return std::vector<double>(x.begin(), x.end());
+    // the padded signal filtered in its own buffer, then the padding cut off in place: one column, not two
+    const std::size_t pad = std::min(std::max<std::size_t>(1, 3 * filter_order(filter)), x.size() - 1);
+    workspace.reserve(x.size() + 2 * pad);
+    filtfilt(filter, x, std::span<double>(), workspace);
+    workspace.erase(workspace.begin(), workspace.begin() + static_cast<std::ptrdiff_t>(pad));
+    workspace.resize(x.size());
+    return workspace;
 }
 
 void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std::span<double> out,
@@ -146,6 +151,7 @@ void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std:
     std::reverse(y.begin(), y.end());
     filter_in_place(filter, y);
     std::reverse(y.begin(), y.end());
+    if (out.empty()) return;  // the caller takes the filtered signal from the workspace (filtfilt above)
     std::copy(y.begin() + static_cast<std::ptrdiff_t>(pad), y.begin() + static_cast<std::ptrdiff_t>(pad + n),
               out.begin());
 }
@@ -277,6 +283,10 @@ double noise_floor(std::span<const double> x) {
 }
 
 double percentile(std::vector<double> values, double fraction) {
+    return percentile_in_place(values, fraction);
+}
+
+double percentile_in_place(std::span<double> values, double fraction) {
     if (values.empty()) return 0.0;
     const auto index =
         static_cast<std::size_t>(std::clamp(fraction, 0.0, 1.0) * static_cast<double>(values.size() - 1));

@@ -58,19 +58,19 @@ bool nonlinear(const RegressorColumn& column) {
     return column.term == Term::coulomb || (column.term == Term::viscous && column.direction != Direction::both);
 }
 
-template <int N>
-RlsRun run_rls_fixed(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, const std::vector<double>& time,
-                     const RlsOptions& options, const Eigen::VectorXd& tolerance, std::size_t history_points) {
+/// RLS over n rows given by row(k, phi) -> y; time(k) the row's time [s].
+template <int N, class Row, class Time>
+RlsRun run_rls_fixed(std::size_t n, const Row& next_row, const Time& time, const RlsOptions& options,
+                     const Eigen::VectorXd& tolerance, std::size_t history_points) {
     Rls<N> rls(options);
-    const auto n = static_cast<std::size_t>(phi.rows());
     const std::size_t stride = std::max<std::size_t>(1, n / history_points);
     std::vector<Eigen::VectorXd> trajectory;
     trajectory.reserve(n / stride + 2);
     std::vector<std::size_t> trajectory_index;
     typename Rls<N>::Vector row;
     for (std::size_t k = 0; k < n; ++k) {
-        row = phi.row(static_cast<Eigen::Index>(k)).transpose();
-        rls.update(row, y(static_cast<Eigen::Index>(k)));
+        const double y = next_row(k, row.data());
+        rls.update(row, y);
         if (k % stride == 0 || k + 1 == n) {
             trajectory.emplace_back(rls.estimate());
             trajectory_index.push_back(k);
@@ -101,24 +101,35 @@ RlsRun run_rls_fixed(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, const
     } else {
         run.averaged = run.final_estimate;
     }
-    for (std::size_t i = 0; i < trajectory.size(); ++i) run.history_time.push_back(time[trajectory_index[i]]);
+    for (std::size_t i = 0; i < trajectory.size(); ++i) run.history_time.push_back(time(trajectory_index[i]));
     run.history = std::move(trajectory);
-    run.transient_end_s =
-        run.settled_index < time.size() ? time[run.settled_index] : (time.empty() ? 0.0 : time.back());
+    run.transient_end_s = run.settled_index < n ? time(run.settled_index) : (n == 0 ? 0.0 : time(n - 1));
     return run;
+}
+
+template <class Row, class Time>
+RlsRun run_rls_rows(Eigen::Index parameters, std::size_t n, const Row& row, const Time& time, const RlsOptions& options,
+                    const Eigen::VectorXd& tolerance, std::size_t history_points) {
+    switch (parameters) {
+        case 3: return run_rls_fixed<3>(n, row, time, options, tolerance, history_points);
+        case 4: return run_rls_fixed<4>(n, row, time, options, tolerance, history_points);
+        case 5: return run_rls_fixed<5>(n, row, time, options, tolerance, history_points);
+        case 6: return run_rls_fixed<6>(n, row, time, options, tolerance, history_points);
+        default: throw std::logic_error("unsupported RLS size");
+    }
 }
 
 }  // namespace
 
 RlsRun run_rls(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, const std::vector<double>& time,
                const RlsOptions& options, const Eigen::VectorXd& tolerance, std::size_t history_points) {
-    switch (phi.cols()) {
-        case 3: return run_rls_fixed<3>(phi, y, time, options, tolerance, history_points);
-        case 4: return run_rls_fixed<4>(phi, y, time, options, tolerance, history_points);
-        case 5: return run_rls_fixed<5>(phi, y, time, options, tolerance, history_points);
-        case 6: return run_rls_fixed<6>(phi, y, time, options, tolerance, history_points);
-        default: throw std::logic_error("unsupported RLS size");
-    }
+    const auto row = [&](std::size_t k, double* out) {
+        for (Eigen::Index c = 0; c < phi.cols(); ++c) out[c] = phi(static_cast<Eigen::Index>(k), c);
+        return y(static_cast<Eigen::Index>(k));
+    };
+    return run_rls_rows(
+        phi.cols(), static_cast<std::size_t>(phi.rows()), row, [&](std::size_t k) { return time[k]; }, options,
+        tolerance, history_points);
 }
 
 Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind model, bool offset) {
@@ -129,7 +140,18 @@ Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind mo
     const bool decimated = factor > 1;
     const auto& a = decimated ? derivatives.full_rate_acceleration : derivatives.acceleration;
     const auto& v = decimated ? derivatives.full_rate_velocity : derivatives.velocity;
+    r.owned.reserve(r.columns.size());  // no reallocation: the views below point into these vectors' buffers
     for (const auto& column : r.columns) {
+        // x'' and x' are the Derivatives' columns: decimated (when decimating) by the same decimate_segments over the
+        // same stretches, so the same values; viewed, not copied
+        if (column.term == Term::mass) {
+            r.values.emplace_back(derivatives.acceleration);
+            continue;
+        }
+        if (column.term == Term::viscous && column.direction == Direction::both) {
+            r.values.emplace_back(derivatives.velocity);
+            continue;
+        }
         std::vector<double> values = regressor_column(column, a, v);
         if (nonlinear(column)) {
             // sgn(x') (and x' per direction) of the filtered x' is not the filtered sgn(x'): through the force's
@@ -141,7 +163,8 @@ Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind mo
             // the force
             values = decimate_segments(values, derivatives.full_rate_segment_starts, factor);
         }
-        r.values.push_back(std::move(values));
+        r.owned.push_back(std::move(values));
+        r.values.emplace_back(r.owned.back());
     }
     return r;
 }
@@ -200,11 +223,12 @@ std::size_t correlation_block(const Derivatives& derivatives, double blocks) {
 namespace {
 
 /// Which parameter is missing its excitation, when the regressors are linearly dependent.
-std::string rank_deficiency_message(const Step1Fit& fit, const Eigen::MatrixXd& phi, const Derivatives& derivatives,
-                                    bool offset) {
+std::string rank_deficiency_message(const Step1Fit& fit, const Regressors& regressors,
+                                    const std::vector<std::size_t>& rows, const Derivatives& derivatives, bool offset) {
     std::vector<std::string> silent;
     for (std::size_t c = 0; c < fit.columns.size(); ++c) {
-        if (phi.col(static_cast<Eigen::Index>(c)).norm() == 0.0) {
+        const auto& column = regressors.values[c];
+        if (std::all_of(rows.begin(), rows.end(), [&](std::size_t k) { return column[k] == 0.0; })) {
             silent.push_back(ParameterNaming::symbol(fit.columns[c].term, fit.columns[c].direction));
         }
     }
@@ -235,10 +259,14 @@ std::vector<double> time_to_reversal(const Derivatives& d) {
 /// Where a poor step-1 fit's residual sits: the share of the squared residual carried by the accelerating samples,
 /// the slow ones and those near reversals, against their share of the samples; the class most over-represented
 /// names the likely cause.
-std::string investigate_residual(const Step1Fit& fit, const Eigen::MatrixXd& phi, const Eigen::VectorXd& y,
-                                 const Derivatives& d, const std::vector<std::size_t>& rows,
-                                 const Step1Options& options) {
-    const Eigen::VectorXd residual = y - phi * fit.batch.estimate;
+std::string investigate_residual(const Step1Fit& fit, const Regressors& regressors, const Derivatives& d,
+                                 const std::vector<std::size_t>& rows, const Step1Options& options) {
+    Eigen::VectorXd residual(static_cast<Eigen::Index>(rows.size()));
+    Eigen::VectorXd phi(static_cast<Eigen::Index>(regressors.parameters()));
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        const double y = regressors.row(rows[i], phi.data());
+        residual(static_cast<Eigen::Index>(i)) = y - phi.dot(fit.batch.estimate);
+    }
     const std::vector<double> reversal = time_to_reversal(d);
     double slowest = INFINITY;
     for (const auto k : rows) slowest = std::min(slowest, std::abs(d.velocity[k]));
@@ -308,16 +336,17 @@ Step1Fit fit_step1(const Regressors& regressors, const Derivatives& derivatives,
             derivatives.source, rows.size(), options.minimum_samples_per_parameter * p);
         return fit;
     }
-    const Eigen::MatrixXd phi = regressors.matrix(rows);
-    const Eigen::VectorXd y = regressors.outputs(rows);
-    fit.batch = solve_least_squares(phi, y);
-    account_for_correlated_residuals(fit.batch, phi, y, rows,
-                                     correlation_block(derivatives, options.correlation_blocks));
+    // the rows straight from the regressors' columns, never gathered into a matrix (a 16M-sample trace's step 1
+    // would hold several hundred MB)
+    const auto row = [&](std::size_t i, double* phi) { return regressors.row(rows[i], phi); };
+    fit.batch = solve_least_squares_rows(
+        rows.size(), static_cast<Eigen::Index>(p), row, [&](std::size_t i) { return rows[i]; },
+        correlation_block(derivatives, options.correlation_blocks));
     for (const auto k : rows)
         fit.max_acceleration = std::max(fit.max_acceleration, std::abs(derivatives.acceleration[k]));
     const bool offset = !fit.columns.empty() && fit.columns.back().term == Term::offset;
     if (fit.batch.rank_deficient) {
-        fit.failure = rank_deficiency_message(fit, phi, derivatives, offset);
+        fit.failure = rank_deficiency_message(fit, regressors, rows, derivatives, offset);
         return fit;
     }
     if (auto opposed = opposed_drive_signal(fit.columns, fit.batch, derivatives, options.sign_standard_errors)) {
@@ -343,14 +372,14 @@ Step1Fit fit_step1(const Regressors& regressors, const Derivatives& derivatives,
         return fit;
     }
     if (fit.batch.relative_error_pct > options.investigate_relative_error_pct) {
-        fit.residual_finding = investigate_residual(fit, phi, y, derivatives, rows, options);
+        fit.residual_finding = investigate_residual(fit, regressors, derivatives, rows, options);
     }
     // RLS on the same samples, in time order.
-    std::vector<double> time(rows.size());
-    for (std::size_t i = 0; i < rows.size(); ++i) time[i] = derivatives.time[rows[i]];
     const Eigen::VectorXd tolerance = (fit.batch.estimate.cwiseAbs() * options.rls_settle_fraction)
                                           .cwiseMax(options.rls_settle_standard_errors * fit.batch.standard_error);
-    fit.rls = run_rls(phi, y, time, options.rls, tolerance, options.rls_history_points);
+    fit.rls = run_rls_rows(
+        static_cast<Eigen::Index>(p), rows.size(), row, [&](std::size_t i) { return derivatives.time[rows[i]]; },
+        options.rls, tolerance, options.rls_history_points);
     return fit;
 }
 

@@ -53,16 +53,22 @@ Step2Data make_data(const Derivatives& d, const Selection& s, const Step1Fit& st
 
 /// The paper's log-linear RLS (eq. 12-14), per direction.
 void fit_log_linear_per_direction(const Step2Data& data, FrictionFit& out) {
+    const auto& d = data.d;
     for (std::size_t g = 0; g < 2; ++g) {
-        detail::FitSamples samples;
+        // this direction's step-2 samples, as indices (not as gathered columns: a long trace has millions)
+        std::vector<std::size_t> rows;
+        rows.reserve(data.slow_count[g]);
         for (const auto k : data.s.step2) {
-            if ((data.d.velocity[k] > 0) == (g == 0)) {
-                samples.push(data.d.acceleration[k], data.d.velocity[k], data.d.force[k], k);
-            }
+            if ((d.velocity[k] > 0) == (g == 0)) rows.push_back(k);
         }
         const auto [viscous, coulomb] = data.linear_branch(g);
-        out.log_linear[g] = detail::fit_log_linear(
-            samples, data.step1.batch.estimate(0), viscous, coulomb, data.offset_value(),
+        out.log_linear[g] = detail::fit_log_linear_over(
+            rows.size(),
+            [&](std::size_t i) {
+                const std::size_t k = rows[i];
+                return std::array<double, 3>{d.acceleration[k], d.velocity[k], d.force[k]};
+            },
+            data.step1.batch.estimate(0), viscous, coulomb, data.offset_value(),
             data.options.log_linear_noise_multiple * data.step1.batch.residual_std, data.step1.rls_options);
     }
 }
@@ -103,7 +109,7 @@ bool curve_separable(const Step2Data& data, const std::vector<std::size_t>& quas
             if (data.in_group(k, g)) speeds.push_back(std::abs(data.d.velocity[k]));
         }
         if (speeds.size() < o.separable_sample_multiple * o.minimum_slow_samples ||
-            !(percentile(speeds, 0.9) >= o.separable_speed_ratio * percentile(speeds, 0.1))) {
+            !(percentile_in_place(speeds, 0.9) >= o.separable_speed_ratio * percentile_in_place(speeds, 0.1))) {
             return false;
         }
     }
@@ -205,7 +211,8 @@ bool stribeck_determined(const Step2Data& data, const detail::CurveFit& fit, con
         const double speed = std::abs(data.d.velocity[k]);
         if (data.in_group(k, g) && speed < o.determining_speed_multiple * vs) below.push_back(speed);
     }
-    const bool spread = !below.empty() && percentile(below, 0.9) >= o.determining_speed_ratio * percentile(below, 0.1);
+    const bool spread = !below.empty() &&
+                        percentile_in_place(below, 0.9) >= o.determining_speed_ratio * percentile_in_place(below, 0.1);
     const bool ok = fit.converged && std::isfinite(vs) && vs > bounds.low * o.bound_margin_low &&
                     vs < bounds.high * o.bound_margin_high && delta > o.rise_significance * delta_se &&
                     vs_se < o.max_stribeck_velocity_relative_error * vs && below.size() >= o.minimum_slow_samples &&

@@ -15,31 +15,12 @@ namespace feedid::detail {
 
 LogLinearStribeck fit_log_linear(const FitSamples& samples, double mass, double viscous, double coulomb, double offset,
                                  double noise_level, const RlsOptions& rls_options) {
-    LogLinearStribeck result;
-    Rls<2> rls(rls_options);
-    for (std::size_t k = 0; k < samples.size(); ++k) {
-        const double v = samples.velocity[k];
-        const double direction = v > 0.0 ? 1.0 : -1.0;
-        // eq. (12): what the first step's model leaves unexplained is the Stribeck part
-        const double stribeck =
-            samples.force[k] - mass * samples.acceleration[k] - viscous * v - coulomb * direction - offset;
-        if (stribeck * direction <= 0.0) {
-            ++result.wrong_sign;
-            continue;
-        }
-        if (std::abs(stribeck) < noise_level) {
-            ++result.below_noise;
-            continue;
-        }
-        // eq. (13): ln|F_stri| = ln|F_B - F_C| - |v|/v_s
-        rls.update(Eigen::Vector2d(1.0, std::abs(v)), std::log(std::abs(stribeck)));
-        ++result.used;
-    }
-    if (result.used >= 3 && rls.estimate()(1) < 0.0) {
-        result.breakaway = coulomb + std::exp(rls.estimate()(0));
-        result.stribeck_velocity = -1.0 / rls.estimate()(1);
-    }
-    return result;
+    return fit_log_linear_over(
+        samples.size(),
+        [&](std::size_t k) {
+            return std::array<double, 3>{samples.acceleration[k], samples.velocity[k], samples.force[k]};
+        },
+        mass, viscous, coulomb, offset, noise_level, rls_options);
 }
 
 CurveLayout::CurveLayout(const CurveModel& model) {

@@ -2,6 +2,8 @@
 // The numerics of step 2 (internal): the paper's log-linear Stribeck RLS and the nonlinear least-squares fit
 // of the whole friction curve.
 
+#include <array>
+#include <cmath>
 #include <cstddef>
 #include <optional>
 #include <vector>
@@ -35,6 +37,36 @@ struct FitSamples {
 /// level are excluded and counted.
 LogLinearStribeck fit_log_linear(const FitSamples& samples, double mass, double viscous, double coulomb, double offset,
                                  double noise_level, const RlsOptions& rls_options);
+
+/// The same on `n` samples given by sample(k) -> {a, v, F} (the samples need not be gathered first).
+template <class Sample>
+LogLinearStribeck fit_log_linear_over(std::size_t n, const Sample& sample, double mass, double viscous, double coulomb,
+                                      double offset, double noise_level, const RlsOptions& rls_options) {
+    LogLinearStribeck result;
+    Rls<2> rls(rls_options);
+    for (std::size_t k = 0; k < n; ++k) {
+        const auto [a, v, f] = sample(k);
+        const double direction = v > 0.0 ? 1.0 : -1.0;
+        // eq. (12): what the first step's model leaves unexplained is the Stribeck part
+        const double stribeck = f - mass * a - viscous * v - coulomb * direction - offset;
+        if (stribeck * direction <= 0.0) {
+            ++result.wrong_sign;
+            continue;
+        }
+        if (std::abs(stribeck) < noise_level) {
+            ++result.below_noise;
+            continue;
+        }
+        // eq. (13): ln|F_stri| = ln|F_B - F_C| - |v|/v_s
+        rls.update(Eigen::Vector2d(1.0, std::abs(v)), std::log(std::abs(stribeck)));
+        ++result.used;
+    }
+    if (result.used >= 3 && rls.estimate()(1) < 0.0) {
+        result.breakaway = coulomb + std::exp(rls.estimate()(0));
+        result.stribeck_velocity = -1.0 / rls.estimate()(1);
+    }
+    return result;
+}
 
 /// Layout of the nonlinear model: M (unless the caller has taken M*a out of the force), then per direction group
 /// (one shared group, or forward and reverse) B, F_C and, where enabled, F_B - F_C and ln v_s; then the offset F_0

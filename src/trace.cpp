@@ -3,7 +3,10 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <mutex>
+#include <optional>
 #include <utility>
+#include <vector>
 
 #include <fmt/core.h>
 
@@ -108,8 +111,64 @@ Channel& Trace::set(std::string name, Role role, std::string unit, std::vector<d
     return channels.back();
 }
 
+namespace {
+
+/// The time bases remembered by live TimeBaseMemos: the trace, its time column's storage (a replaced column is not
+/// the remembered one) and how many memos hold it.
+struct RememberedTimeBase {
+    const Trace* trace;
+    const double* data;
+    std::size_t size;
+    TimeBase base;
+    int holders;
+};
+
+std::mutex remembered_mutex;
+std::vector<RememberedTimeBase> remembered;
+
+std::optional<TimeBase> remembered_time_base(const Trace* trace, std::span<const double> time) {
+    const std::lock_guard lock(remembered_mutex);
+    for (const auto& r : remembered) {
+        if (r.trace == trace && r.data == time.data() && r.size == time.size()) return r.base;
+    }
+    return std::nullopt;
+}
+
+}  // namespace
+
+TimeBaseMemo::TimeBaseMemo(const Trace& trace) {
+    const Channel* time = trace.find(Role::time);
+    if (time == nullptr || time->values.size() < 2) return;
+    trace_ = &trace;
+    {
+        const std::lock_guard lock(remembered_mutex);
+        for (auto& r : remembered) {
+            if (r.trace == trace_ && r.data == time->values.data() && r.size == time->values.size()) {
+                ++r.holders;
+                return;
+            }
+        }
+    }
+    const TimeBase base = trace.time_base();
+    const std::lock_guard lock(remembered_mutex);
+    remembered.push_back({trace_, time->values.data(), time->values.size(), base, 1});
+}
+
+TimeBaseMemo::~TimeBaseMemo() {
+    if (trace_ == nullptr) return;
+    const std::lock_guard lock(remembered_mutex);
+    for (auto r = remembered.begin(); r != remembered.end(); ++r) {
+        if (r->trace == trace_ && --r->holders == 0) {
+            remembered.erase(r);
+            return;
+        }
+        if (r->trace == trace_) return;
+    }
+}
+
 TimeBase Trace::time_base() const {
     const auto time = column(Role::time);
+    if (const auto known = remembered_time_base(this, time)) return *known;
     TimeBase base;
     if (time.size() < 2) return base;
     std::vector<double> steps(time.size() - 1);

@@ -2,14 +2,17 @@
 // variant winding up on the same data, and no heap allocation in the update path.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
 #include <new>
 #include <random>
+#include <string>
 
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
+#include <fmt/core.h>
 
 #include "feedid/least_squares.hpp"
 #include "feedid/rls.hpp"
@@ -102,6 +105,72 @@ TEST(Rls, BatchLeastSquaresRecoversAKnownModel) {
     }
     EXPECT_NEAR(batch.residual_std, 2.0, 0.05);
     EXPECT_FALSE(batch.rank_deficient);
+}
+
+// The streamed solve (rows one at a time, R of [Phi y] updated a block at a time, never the matrix) against the
+// matrix solve and the long-run sandwich on the same rows: a few rows (all in the first block), many (many blocks and
+// a partial one), rows in time order and shuffled (the batch means then per block, not streamed), white and
+// correlated standard errors. Same figures to 1e-9 relative (rounding only).
+TEST(StreamedLeastSquares, GivesTheMatrixSolvesFiguresWithoutTheMatrix) {
+    for (const std::size_t n : {std::size_t{300}, std::size_t{20000}}) {
+        for (const bool shuffled : {false, true}) {
+            for (const std::size_t block : {std::size_t{1}, std::size_t{25}}) {
+                const auto data = exciting_data(n, 3);
+                std::vector<std::size_t> index(n);
+                for (std::size_t k = 0; k < n; ++k) index[k] = 3 * k;  // a row set that skips samples
+                if (shuffled) std::shuffle(index.begin(), index.end(), std::mt19937(7));
+                Eigen::MatrixXd phi(static_cast<Eigen::Index>(n), 4);
+                Eigen::VectorXd y(static_cast<Eigen::Index>(n));
+                for (std::size_t i = 0; i < n; ++i) {
+                    phi.row(static_cast<Eigen::Index>(i)) = data[index[i] / 3].phi.transpose();
+                    y(static_cast<Eigen::Index>(i)) = data[index[i] / 3].y;
+                }
+                auto reference = feedid::solve_least_squares(phi, y);
+                feedid::account_for_correlated_residuals(reference, phi, y, index, block);
+                const auto streamed = feedid::solve_least_squares_rows(
+                    n, 4,
+                    [&](std::size_t i, double* row) {
+                        for (Eigen::Index c = 0; c < 4; ++c) row[c] = phi(static_cast<Eigen::Index>(i), c);
+                        return y(static_cast<Eigen::Index>(i));
+                    },
+                    [&](std::size_t i) { return index[i]; }, block);
+                const std::string where = fmt::format("{} rows, shuffled {}, block {}", n, shuffled, block);
+                const auto near = [&](double a, double b, const char* what) {
+                    EXPECT_LE(std::abs(a - b), 1e-9 * std::max(std::abs(a), std::abs(b))) << what << ", " << where;
+                };
+                ASSERT_FALSE(streamed.rank_deficient) << where;
+                EXPECT_EQ(streamed.samples, reference.samples) << where;
+                near(streamed.residual_std, reference.residual_std, "residual std");
+                near(streamed.relative_error_pct, reference.relative_error_pct, "relative error");
+                near(streamed.condition_number, reference.condition_number, "condition");
+                for (Eigen::Index i = 0; i < 4; ++i) {
+                    near(streamed.estimate(i), reference.estimate(i), "estimate");
+                    near(streamed.standard_error(i), reference.standard_error(i), "standard error");
+                    near(streamed.white_noise_standard_error(i), reference.white_noise_standard_error(i),
+                         "white-noise standard error");
+                    near(streamed.r_diagonal(i), reference.r_diagonal(i), "|diag R|");
+                }
+            }
+        }
+    }
+}
+
+TEST(StreamedLeastSquares, SaysRankDeficientAsTheMatrixSolveDoes) {
+    // the offset column equals sgn(v) over 5000 rows (one direction only): dependent
+    const std::size_t n = 5000;
+    const auto row = [](std::size_t k, double* phi) {
+        const double v = 0.1 + 0.01 * std::sin(static_cast<double>(k));
+        phi[0] = 0.3 * std::cos(static_cast<double>(k));
+        phi[1] = v;
+        phi[2] = 1.0;
+        phi[3] = 1.0;
+        return 50.0 * v + 20.0;
+    };
+    const auto result = feedid::solve_least_squares_rows(n, 4, row, [](std::size_t k) { return k; }, 1);
+    EXPECT_TRUE(result.rank_deficient);
+    EXPECT_TRUE(std::isnan(result.estimate(0)));
+    const auto few = feedid::solve_least_squares_rows(3, 4, row, [](std::size_t k) { return k; }, 1);
+    EXPECT_TRUE(few.rank_deficient);
 }
 
 // A constant-velocity test, back and forth: no acceleration, no offset excitation beyond sgn(v) - the regressor

@@ -74,7 +74,8 @@ struct IdentifyCommand {
                       "differentiation method, the split speed raised by half) that gives each parameter its "
                       "systematic uncertainty: standard errors only, about 5x faster");
         pre->add_option("--threads", options.threads,
-                        "Threads the family of preprocessing choices runs on (default 0: one per core)")
+                        "Threads the family of preprocessing choices runs on at most (default 0: one per core; reruns go in "
+                        "parallel only while they fit identify's memory budget of 100 bytes per sample)")
             ->check(allowed_range(0, 1024, ""));
         pre->add_option("--cutoff", options.preprocess.cutoff_hz,
                         "Butterworth cut-off [Hz] (default: min(100 Hz, sample rate / 10))")

@@ -43,8 +43,9 @@ struct IdentifyOptions {
     FrictionOnlyOptions friction_only;  ///< when the data cannot determine a mass
     /// Rerun the stages over the preprocessing family (systematic.hpp) for each parameter's systematic uncertainty.
     bool systematic{true};
-    /// Threads the family runs on; 0 = one per core (std::thread::hardware_concurrency). 1 keeps identify on the
-    /// calling thread (a batch that runs one identify per core already).
+    /// Threads the family runs on at most; 0 = one per core (std::thread::hardware_concurrency). 1 keeps identify on
+    /// the calling thread (a batch that runs one identify per core already). Reruns go in parallel only while their
+    /// buffers fit identify's memory budget (100 bytes per sample with the trace): with today's stages, one at a time.
     unsigned threads{0};
     /// A systematic part above this multiple of the standard error is said in a finding.
     double systematic_finding_multiple{2.0};

@@ -1,8 +1,11 @@
 #pragma once
 // Batch linear least squares by Householder QR: the certified cross-check for RLS.
 
+#include <algorithm>
 #include <cstddef>
 #include <span>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -38,5 +41,75 @@ Eigen::MatrixXd long_run_covariance(const Eigen::MatrixXd& phi, const Eigen::Vec
 /// are correlated over up to `block` neighbouring samples. A `block` of 1 or a rank-deficient fit leaves it as it is.
 void account_for_correlated_residuals(LeastSquaresResult& result, const Eigen::MatrixXd& phi, const Eigen::VectorXd& y,
                                       std::span<const std::size_t> index, std::size_t block);
+
+/// Batch least squares on rows given one at a time, never held as a matrix: the R factor of [Phi y] is updated a block
+/// of rows at a time (Householder QR of the previous R stacked on the next rows), a second pass over the rows gives
+/// the residuals, their sums and, with `block` > 1, the long-run covariance (as account_for_correlated_residuals
+/// does; rows whose `index` is not ascending fall back to a sum per block). The same figures as
+/// solve_least_squares(Phi, y) followed by account_for_correlated_residuals, up to rounding, in memory of the order
+/// of the parameters, not of the rows. Use through solve_least_squares_rows().
+class StreamedLeastSquares {
+public:
+    explicit StreamedLeastSquares(Eigen::Index parameters);
+    /// First pass: one row of Phi (parameters() values) and its y.
+    void add(const double* phi, double y);
+    /// After the first pass: the QR's figures (estimate, R, condition, rank); false when nothing more can be
+    /// computed (too few rows, rank deficient): result() is then final.
+    bool factor();
+    /// Before the second pass: the block length of the long-run covariance (1 = none), and whether the rows' sample
+    /// indices ascend (else up to `largest_index` / `block` + 1 block sums are held).
+    void start_residuals(std::size_t block, bool ascending, std::size_t largest_index);
+    /// Second pass: the same rows in the same order, with each row's sample index.
+    void add_residual(const double* phi, double y, std::size_t index);
+    /// After the second pass: the residual figures and the standard errors (the long-run sandwich for a block > 1).
+    LeastSquaresResult finish();
+    [[nodiscard]] const LeastSquaresResult& result() const { return result_; }
+
+private:
+    void reduce();
+    void close_block();
+    Eigen::Index p_;
+    Eigen::MatrixXd stack_;  ///< rows 0..p: R of [Phi y] so far (once have_r_), then the pending rows
+    Eigen::Index pending_{0};
+    bool have_r_{false};
+    std::size_t rows_{0};
+    Eigen::MatrixXd r_;  ///< R of Phi (p x p)
+    LeastSquaresResult result_;
+    double rss_{0.0}, y_squared_{0.0};
+    std::size_t block_{1};
+    bool ascending_{true};
+    Eigen::MatrixXd long_run_;  ///< sum over blocks of g_b g_b^T
+    Eigen::VectorXd g_;         ///< the current block's sum of phi_t e_t (ascending indices)
+    std::size_t current_block_{0};
+    bool in_block_{false};
+    Eigen::MatrixXd sums_;  ///< per block (indices not ascending)
+};
+
+/// solve_least_squares() and account_for_correlated_residuals() on `n` rows given by row(i, phi) -> y (phi: parameters
+/// values to fill), each called twice in order; index(i) the sample index of row i (for the batch means).
+template <class Row, class Index>
+LeastSquaresResult solve_least_squares_rows(std::size_t n, Eigen::Index parameters, const Row& row, const Index& index,
+                                            std::size_t block) {
+    StreamedLeastSquares solver(parameters);
+    Eigen::VectorXd phi(parameters);
+    for (std::size_t i = 0; i < n; ++i) {
+        const double y = row(i, phi.data());
+        solver.add(phi.data(), y);
+    }
+    if (!solver.factor()) return solver.result();
+    bool ascending = true;
+    std::size_t largest = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::size_t k = index(i);
+        if (i > 0 && k < largest) ascending = false;
+        largest = std::max(largest, k);
+    }
+    solver.start_residuals(block, ascending, largest);
+    for (std::size_t i = 0; i < n; ++i) {
+        const double y = row(i, phi.data());
+        solver.add_residual(phi.data(), y, index(i));
+    }
+    return solver.finish();
+}
 
 }  // namespace feedid

@@ -24,7 +24,8 @@ SecondOrderSections chebyshev1_lowpass(int order, double ripple_db, double cutof
 /// most n - 1) and steady-state initial conditions, as MATLAB's filtfilt(b, a, x) on the cascade's transfer function.
 std::vector<double> filtfilt(const SecondOrderSections& filter, std::span<const double> x);
 /// The same into `out` (x.size() values), padding in `workspace`, which grows only when x is longer than before: no
-/// allocation once it has held the longest signal (the online identifier's windows).
+/// allocation once it has held the longest signal (the online identifier's windows). An empty `out` leaves the
+/// filtered signal in workspace[pad, pad + n) (the padding: max(1, 3 * order), at most n - 1).
 void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std::span<double> out,
               std::vector<double>& workspace);
 
@@ -57,6 +58,8 @@ double noise_floor(std::span<const double> x);
 /// The value below which `fraction` (0..1) of the values lie: the element of rank floor(fraction * (n - 1)), no
 /// interpolation; 0 for no values.
 double percentile(std::vector<double> values, double fraction);
+/// The same in place: reorders `values` (no copy), so that several percentiles of one buffer cost no memory.
+double percentile_in_place(std::span<double> values, double fraction);
 
 /// The minimum (maximum) of x over [k - half, k + half], for every k, in O(n) (a monotonic queue of indices).
 std::vector<double> running_minimum(std::span<const double> x, std::size_t half);

@@ -9,6 +9,7 @@
 
 #include <cstddef>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -33,11 +34,27 @@ struct RegressorColumn {
 std::vector<RegressorColumn> linear_columns(FrictionModelKind model, bool offset);
 
 /// The regressor of eq. (11) on every analysed sample: one column per parameter, formed at the full rate and
-/// decimated like the force (Derivatives), and the output y = F_d.
+/// decimated like the force (Derivatives), and the output y = F_d. The columns that are the Derivatives' own (x'' for
+/// M, x' for B, F_d for y: the same values, decimated alike) are views of them, not copies: the Derivatives must
+/// outlive the Regressors. The others (the filtered sgn(x'), x' per direction, the constant) are held in `owned`.
 struct Regressors {
     std::vector<RegressorColumn> columns;
-    std::vector<std::vector<double>> values;  ///< values[c][k]: column c at sample k
-    std::vector<double> output;               ///< y[k] = F_d
+    std::vector<std::span<const double>> values;  ///< values[c][k]: column c at sample k
+    std::span<const double> output;               ///< y[k] = F_d
+    std::vector<std::vector<double>> owned;       ///< the storage of the columns that are not the Derivatives'
+
+    Regressors() = default;
+    Regressors(Regressors&&) = default;
+    Regressors& operator=(Regressors&&) = default;
+    // a copy's views would point into the original's storage
+    Regressors(const Regressors&) = delete;
+    Regressors& operator=(const Regressors&) = delete;
+
+    /// Row k of Phi into `row` (parameters() values) and y[k] as the result.
+    double row(std::size_t k, double* phi) const {
+        for (std::size_t c = 0; c < values.size(); ++c) phi[c] = values[c][k];
+        return output[k];
+    }
 
     /// Phi over the given samples (rows in that order).
     [[nodiscard]] Eigen::MatrixXd matrix(const std::vector<std::size_t>& rows) const;

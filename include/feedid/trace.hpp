@@ -97,4 +97,18 @@ public:
     [[nodiscard]] Trace slice(std::size_t first, std::size_t last) const;
 };
 
+/// While alive, `trace.time_base()` returns the statistics computed when it was made, without a pass over the time
+/// column (each pass copies the steps for their median): identify asks for them in every stage of every run. The
+/// trace must not change meanwhile. Nestable, and visible from every thread.
+class TimeBaseMemo {
+public:
+    explicit TimeBaseMemo(const Trace& trace);
+    ~TimeBaseMemo();
+    TimeBaseMemo(const TimeBaseMemo&) = delete;
+    TimeBaseMemo& operator=(const TimeBaseMemo&) = delete;
+
+private:
+    const Trace* trace_{nullptr};
+};
+
 }  // namespace feedid
