@@ -7,6 +7,22 @@
 
 namespace feedid {
 
+namespace {
+
+// The figures of the upper-triangular R of Phi = Q R (batch or streamed): |diag R|, the condition number (Phi and R
+// share their singular values) and whether the columns are numerically independent (false: rank deficient, set).
+bool judge_r(const Eigen::MatrixXd& r, LeastSquaresResult& result) {
+    const auto p = r.cols();
+    result.r_diagonal = r.diagonal().cwiseAbs();
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(r);
+    const auto& singular = svd.singularValues();
+    result.condition_number = singular(p - 1) > 0.0 ? singular(0) / singular(p - 1) : INFINITY;
+    result.rank_deficient = !(singular(p - 1) > singular(0) * 1e-12);
+    return !result.rank_deficient;
+}
+
+}  // namespace
+
 LeastSquaresResult solve_least_squares(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y) {
     LeastSquaresResult result;
     const auto n = phi.rows();
@@ -22,15 +38,7 @@ LeastSquaresResult solve_least_squares(const Eigen::MatrixXd& phi, const Eigen::
     // Householder QR (no pivoting, so that |diag(R)| belongs to the columns in their order).
     const Eigen::HouseholderQR<Eigen::MatrixXd> qr(phi);
     const Eigen::MatrixXd r = qr.matrixQR().topRows(p).triangularView<Eigen::Upper>();
-    result.r_diagonal = r.diagonal().cwiseAbs();
-    // Phi = Q*R with orthonormal Q: Phi and R share their singular values.
-    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(r);
-    const auto& singular = svd.singularValues();
-    result.condition_number = singular(p - 1) > 0.0 ? singular(0) / singular(p - 1) : INFINITY;
-    if (!(singular(p - 1) > singular(0) * 1e-12)) {
-        result.rank_deficient = true;
-        return result;
-    }
+    if (!judge_r(r, result)) return result;
     result.estimate = qr.solve(y);
     const Eigen::VectorXd residual = y - phi * result.estimate;
     const double rss = residual.squaredNorm();
@@ -119,14 +127,7 @@ bool StreamedLeastSquares::factor() {
         return false;
     }
     r_ = stack_.topLeftCorner(p_, p_).triangularView<Eigen::Upper>();
-    result_.r_diagonal = r_.diagonal().cwiseAbs();
-    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(r_);
-    const auto& singular = svd.singularValues();
-    result_.condition_number = singular(p_ - 1) > 0.0 ? singular(0) / singular(p_ - 1) : INFINITY;
-    if (!(singular(p_ - 1) > singular(0) * 1e-12)) {
-        result_.rank_deficient = true;
-        return false;
-    }
+    if (!judge_r(r_, result_)) return false;
     result_.estimate = r_.triangularView<Eigen::Upper>().solve(stack_.col(p_).head(p_));
     return true;
 }
