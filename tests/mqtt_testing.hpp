@@ -24,6 +24,7 @@
 #include <mosquitto.h>
 #include <nlohmann/json.hpp>
 
+#include "free_port.hpp"
 #include "testing.hpp"
 
 extern char** environ;
@@ -31,20 +32,6 @@ extern char** environ;
 namespace feedid::testing {
 
 inline const char* mosquitto_path = "/usr/sbin/mosquitto";
-
-/// A free TCP port on 127.0.0.1 (bound and released: ctest runs test programs in parallel).
-inline int free_port() {
-    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in address{};
-    address.sin_family = AF_INET;
-    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    address.sin_port = 0;
-    ::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address));
-    socklen_t length = sizeof(address);
-    ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length);
-    ::close(fd);
-    return ntohs(address.sin_port);
-}
 
 /// A child process with stdout and stderr in files.
 class Process {

@@ -26,6 +26,8 @@
 
 #include <fmt/core.h>
 
+#include "free_port.hpp"
+
 #ifdef FEEDID_HAVE_POSTGRESQL
 #include <libpq-fe.h>
 #endif
@@ -179,21 +181,6 @@ private:
     int as_server_user(const std::string& command) const {
         const int status = std::system((runas_ + command + " >/dev/null 2>&1").c_str());
         return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
-    }
-
-    static int free_port() {
-        const int socket = ::socket(AF_INET, SOCK_STREAM, 0);
-        sockaddr_in address{};
-        address.sin_family = AF_INET;
-        address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-        address.sin_port = 0;
-        socklen_t length = sizeof address;
-        int port = 0;
-        if (::bind(socket, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0 &&
-            ::getsockname(socket, reinterpret_cast<sockaddr*>(&address), &length) == 0)
-            port = ntohs(address.sin_port);
-        ::close(socket);
-        return port;
     }
 
     /// Stops and removes the servers of earlier programs that died without stopping theirs (a crash): sibling folders

@@ -189,8 +189,8 @@ void bind_input_records(py::module_& m) {
         .def_readonly("notes", &SelectionReport::notes);
 }
 
-// The records of the two steps: the batch fit and RLS of step 1, the Stribeck fits of step 2.
-void bind_step_records(py::module_& m) {
+// The records of step 1: the batch fit and the RLS.
+void bind_step1_records(py::module_& m) {
     py::class_<Step1Report>(m, "Step1Report",
                             "Step 1's batch QR fit: batch (key -> Estimate [SI]), relative_error_pct [%], "
                             "condition_number, samples_used, residual_std [N or N*m], r_diagonal (|diag R|)")
@@ -244,6 +244,10 @@ void bind_step_records(py::module_& m) {
                 out[py::str(r.keys[c])] = view(r.history[c], self);
             return out;
         });
+}
+
+// The records of step 2: the log-linear Stribeck RLS per direction and the nonlinear curve fit.
+void bind_step2_records(py::module_& m) {
     py::class_<LogLinearStribeck>(m, "LogLinearStribeck",
                                   "Step 2's log-linear RLS of one direction (eq. 12-14): breakaway [N or N*m], "
                                   "stribeck_velocity [m/s or rad/s], samples used and excluded")
@@ -327,32 +331,13 @@ void bind_friction_records(py::module_& m) {
 
 void bind_records(py::module_& m) {
     bind_input_records(m);
-    bind_step_records(m);
+    bind_step1_records(m);
+    bind_step2_records(m);
     bind_friction_records(m);
 }
 
-void bind_result(py::module_& m) {
-    py::class_<IdentifyResult> cls(m, "Result",
-                                   R"doc(An identification (:func:`feedid.identify`): the parameters, each an
-:class:`Estimate` in the SI unit its key names (``mass_kg`` [kg], ``viscous_Ns_per_m`` [N*s/m], ``coulomb_N`` [N],
-``breakaway_N`` [N], ``stribeck_velocity_m_per_s`` [m/s], ``offset_N`` [N]; per direction ``coulomb_forward_N``, ...;
-rotary ``inertia_kgm2``, ``coulomb_Nm``, ...), the pipeline's stage records (``preprocessing``, ``selection``,
-``step1``, ``rls``, ``stribeck``, ``friction_curve``, ``friction_only``; None where the pipeline did not get there)
-and the diagnostics. ``to_dict()`` is the document ``feedid identify --json`` writes, key for key.
-
-Example::
-
-    >>> result = feedid.identify(EMPS, channels={"position": "qm", "current": "vir"}, force_constant="gtau",
-    ...                          offset=True)
-    >>> result.status, result.symbols["viscous_Ns_per_m"], result.units["viscous_Ns_per_m"]
-    ('partial', 'B', 'N*s/m')
-    >>> result.parameters["breakaway_N"].value is None      # EMPS has no slow passes; a diagnostic says so
-    True
-    >>> round(result.step1.condition_number, 1), round(result.preprocessing.cutoff_hz, 6)
-    (26.1, 100.0)
-    >>> sorted(result.to_dict()["parameters"]) == sorted(result.parameters)
-    True
-)doc");
+// Result: what it is (status, model, parameters with their units and symbols) and where it came from.
+void add_result_summary(py::class_<IdentifyResult>& cls) {
     cls.def_property_readonly(
         "status", [](const IdentifyResult& r) { return to_string(r.status); },
         "'ok'; 'partial' when some parameters are None (each with a diagnostic); 'failed'");
@@ -392,6 +377,10 @@ Example::
             return out;
         },
         "Key -> symbol ('M', 'B', 'F_C+', ...)");
+}
+
+// Result: the pipeline's stage records, None where it did not get there.
+void add_result_stages(py::class_<IdentifyResult>& cls) {
     cls.def_property_readonly(
         "preprocessing", [](py::object self) { return optional_record(self, &IdentifyResult::preprocessing); },
         "PreprocessReport: the differentiation, cut-off [Hz], decimation and edge trim used");
@@ -416,6 +405,10 @@ Example::
     cls.def_property_readonly(
         "systematic", [](py::object self) { return optional_record(self, &IdentifyResult::systematic); },
         "SystematicReport: the preprocessing family's estimates (None with systematic=False)");
+}
+
+// Result: the options, the failure text, the document both ways and the repr.
+void add_result_documents(py::class_<IdentifyResult>& cls) {
     cls.def_property_readonly(
         "options", [](const IdentifyResult& r) { return to_python(r.options); },
         "The options that shaped the result, as the command line records them");
@@ -447,6 +440,33 @@ Example::
         }
         return fmt::format("<feedid.Result {} {}{}>", to_string(r.status), r.model_name(), values);
     });
+}
+
+void bind_result(py::module_& m) {
+    py::class_<IdentifyResult> cls(m, "Result",
+                                   R"doc(An identification (:func:`feedid.identify`): the parameters, each an
+:class:`Estimate` in the SI unit its key names (``mass_kg`` [kg], ``viscous_Ns_per_m`` [N*s/m], ``coulomb_N`` [N],
+``breakaway_N`` [N], ``stribeck_velocity_m_per_s`` [m/s], ``offset_N`` [N]; per direction ``coulomb_forward_N``, ...;
+rotary ``inertia_kgm2``, ``coulomb_Nm``, ...), the pipeline's stage records (``preprocessing``, ``selection``,
+``step1``, ``rls``, ``stribeck``, ``friction_curve``, ``friction_only``; None where the pipeline did not get there)
+and the diagnostics. ``to_dict()`` is the document ``feedid identify --json`` writes, key for key.
+
+Example::
+
+    >>> result = feedid.identify(EMPS, channels={"position": "qm", "current": "vir"}, force_constant="gtau",
+    ...                          offset=True)
+    >>> result.status, result.symbols["viscous_Ns_per_m"], result.units["viscous_Ns_per_m"]
+    ('partial', 'B', 'N*s/m')
+    >>> result.parameters["breakaway_N"].value is None      # EMPS has no slow passes; a diagnostic says so
+    True
+    >>> round(result.step1.condition_number, 1), round(result.preprocessing.cutoff_hz, 6)
+    (26.1, 100.0)
+    >>> sorted(result.to_dict()["parameters"]) == sorted(result.parameters)
+    True
+)doc");
+    add_result_summary(cls);
+    add_result_stages(cls);
+    add_result_documents(cls);
 }
 
 // ---- gains and simulate

@@ -207,24 +207,8 @@ std::string trace_repr(const Trace& trace) {
                        channels);
 }
 
-void bind_trace_class(py::module_& m) {
-    py::class_<PyTrace> cls(m, "Trace", R"doc(A recording in SI units: named channels with roles, constants, findings.
-
-Made by :func:`feedid.read_trace`, :meth:`Trace.from_arrays`, :meth:`Trace.from_pandas`, :func:`feedid.synth`.
-Values are SI (m, s, m/s, A, N; rad, rad/s, N*m on a rotary axis); ``units`` names each channel's SI unit,
-``source_units`` what the source stated. ``trace[name]`` and ``trace.role(role)`` are read-only float64 numpy views
-of the trace's own columns (no copy; a view keeps the trace alive). The trace itself cannot be changed: copy a column
-(``numpy.array(trace["x"])``) to work on it.
-
-Example::
-
-    >>> trace = feedid.read_trace(EMPS, channels={"position": "qm", "current": "vir"})
-    >>> trace.roles["current"], trace.units["vir"], round(trace.constants["gtau"], 4)
-    ('vir', 'A', 35.1507)
-    >>> x = trace.role("position")
-    >>> x.flags.writeable, x.dtype, len(x) == trace.samples
-    (False, dtype('float64'), True)
-)doc");
+// Trace: where it came from, how long, what the import noticed.
+void add_trace_summary(py::class_<PyTrace>& cls) {
     cls.def_property_readonly(
         "path", [](const PyTrace& t) { return t.trace.source_path; }, "The file it came from ('' when made in memory)");
     cls.def_property_readonly(
@@ -246,6 +230,10 @@ Example::
     });
     cls.def_property_readonly(
         "duration_s", [](const PyTrace& t) { return t.trace.samples() >= 2 ? t.trace.time_base().duration_s : 0.0; });
+}
+
+// Trace: its channels' names, roles, units and sampling intervals.
+void add_trace_channels(py::class_<PyTrace>& cls) {
     cls.def_property_readonly(
         "channel_names",
         [](const PyTrace& t) {
@@ -288,6 +276,10 @@ Example::
         },
         "Channel name -> the interval its signal was sampled at [s] (a held, slower signal: a multiple of the "
         "sample time)");
+}
+
+// Trace: the channels as numpy views (by name or role), the pandas frame, the repr.
+void add_trace_access(py::class_<PyTrace>& cls) {
     cls.def(
         "__getitem__",
         [](py::object self, const std::string& name) {
@@ -324,6 +316,29 @@ Example::
         "values that read back exactly");
     cls.def_property_readonly("_read_options", [](const PyTrace& t) { return to_python(t.read_options); });
     cls.def("__repr__", [](const PyTrace& t) { return trace_repr(t.trace); });
+}
+
+void bind_trace_class(py::module_& m) {
+    py::class_<PyTrace> cls(m, "Trace", R"doc(A recording in SI units: named channels with roles, constants, findings.
+
+Made by :func:`feedid.read_trace`, :meth:`Trace.from_arrays`, :meth:`Trace.from_pandas`, :func:`feedid.synth`.
+Values are SI (m, s, m/s, A, N; rad, rad/s, N*m on a rotary axis); ``units`` names each channel's SI unit,
+``source_units`` what the source stated. ``trace[name]`` and ``trace.role(role)`` are read-only float64 numpy views
+of the trace's own columns (no copy; a view keeps the trace alive). The trace itself cannot be changed: copy a column
+(``numpy.array(trace["x"])``) to work on it.
+
+Example::
+
+    >>> trace = feedid.read_trace(EMPS, channels={"position": "qm", "current": "vir"})
+    >>> trace.roles["current"], trace.units["vir"], round(trace.constants["gtau"], 4)
+    ('vir', 'A', 35.1507)
+    >>> x = trace.role("position")
+    >>> x.flags.writeable, x.dtype, len(x) == trace.samples
+    (False, dtype('float64'), True)
+)doc");
+    add_trace_summary(cls);
+    add_trace_channels(cls);
+    add_trace_access(cls);
 }
 
 // ---- synth and plan
