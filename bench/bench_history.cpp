@@ -10,7 +10,7 @@
 // with its own values: noise of 0.2 % and, on every tenth axis, Coulomb friction rising over the last tenth of its
 // runs. They are kept in the build tree (bench-data/) and made once: 100,000 runs take a few minutes to record.
 // Issue 18: the same `--check` on the 120-axis history of 100,000 runs in PostgreSQL, within 2x of SQLite's. The
-// server is started as the tests start theirs (tests/postgres_server.hpp), its cluster kept in bench-data/pg so that
+// server is started as the tests start theirs (tests/support/postgres_server.hpp), its cluster kept in bench-data/pg so that
 // the database is recorded once, through the same store interface.
 #include <benchmark/benchmark.h>
 
@@ -29,9 +29,9 @@
 #include <fmt/core.h>
 
 #include "feedid/history/store.hpp"
-#include "feedid/identify.hpp"
-#include "feedid/result_document.hpp"
-#include "feedid/synth.hpp"
+#include "feedid/identify/identify.hpp"
+#include "feedid/identify/result_document.hpp"
+#include "feedid/sim/synth.hpp"
 #include "postgres_server.hpp"
 #include "run_program.hpp"
 

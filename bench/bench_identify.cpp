@@ -7,7 +7,7 @@
 #include <fstream>
 #include <numbers>
 
-#include "feedid/identify.hpp"
+#include "feedid/identify/identify.hpp"
 #include "feedid/io/csv.hpp"
 #include "feedid/io/import.hpp"
 #include "stribeck_trace.hpp"

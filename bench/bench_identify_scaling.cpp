@@ -21,7 +21,7 @@
 #include <numbers>
 #include <vector>
 
-#include "feedid/identify.hpp"
+#include "feedid/identify/identify.hpp"
 #include "feedid/io/import.hpp"
 #include "stribeck_trace.hpp"
 

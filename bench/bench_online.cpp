@@ -5,9 +5,9 @@
 
 #include <vector>
 
-#include "../tests/production_traces.hpp"
-#include "feedid/drive.hpp"
-#include "feedid/online.hpp"
+#include "production_traces.hpp"
+#include "feedid/model/drive.hpp"
+#include "feedid/identify/online_identifier.hpp"
 
 namespace {
 

@@ -6,8 +6,8 @@
 #include <filesystem>
 #include <string>
 
-#include "feedid/gcode_reader.hpp"
-#include "feedid/production.hpp"
+#include "feedid/plan/gcode_reader.hpp"
+#include "feedid/sim/production_synth.hpp"
 
 namespace {
 

@@ -4,7 +4,7 @@
 #include <cmath>
 #include <vector>
 
-#include "feedid/rls.hpp"
+#include "feedid/numeric/rls.hpp"
 
 namespace {
 

@@ -4,8 +4,8 @@
 
 #include <vector>
 
-#include "feedid/simulate.hpp"
-#include "feedid/synth.hpp"
+#include "feedid/sim/simulate.hpp"
+#include "feedid/sim/synth.hpp"
 
 namespace {
 

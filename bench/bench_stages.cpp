@@ -7,13 +7,13 @@
 #include <numbers>
 #include <vector>
 
-#include "feedid/friction_only.hpp"
-#include "feedid/identify.hpp"
+#include "feedid/identify/friction_only.hpp"
+#include "feedid/identify/identify.hpp"
 #include "feedid/io/import.hpp"
-#include "feedid/preprocess.hpp"
-#include "feedid/selection.hpp"
-#include "feedid/step1.hpp"
-#include "feedid/step2.hpp"
+#include "feedid/identify/preprocess.hpp"
+#include "feedid/identify/selection.hpp"
+#include "feedid/identify/step1.hpp"
+#include "feedid/identify/step2.hpp"
 #include "stribeck_trace.hpp"
 
 namespace {

@@ -1,9 +1,9 @@
 // Test design: a three-centre plan with slow passes (about 250 s of motion, 250,000 reference samples at 1 kHz).
 #include <benchmark/benchmark.h>
 
-#include "feedid/gcode.hpp"
+#include "feedid/plan/gcode_writer.hpp"
 #include "feedid/io/csv.hpp"
-#include "feedid/testplan.hpp"
+#include "feedid/plan/test_plan.hpp"
 
 namespace {
 

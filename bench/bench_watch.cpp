@@ -9,7 +9,7 @@
 
 #include <fmt/core.h>
 
-#include "feedid/watch/watcher.hpp"
+#include "feedid/stream/watcher.hpp"
 
 namespace {
 

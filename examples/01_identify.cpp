@@ -6,8 +6,8 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
-#include "feedid/identify.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/identify/identify.hpp"
 #include "feedid/io/import.hpp"
 
 int main(int argc, char** argv) {

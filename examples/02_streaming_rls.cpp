@@ -6,7 +6,7 @@
 
 #include <fmt/core.h>
 
-#include "feedid/rls.hpp"
+#include "feedid/numeric/rls.hpp"
 
 int main() {
     const double mass = 69.1, viscous = 54.2, coulomb = 742.8;  // the paper's drive

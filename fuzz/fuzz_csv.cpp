@@ -3,7 +3,7 @@
 #include <cstdint>
 #include <string_view>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/io/csv.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {

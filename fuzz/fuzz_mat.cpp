@@ -12,7 +12,7 @@
 #include <sys/mman.h>
 #include <unistd.h>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/io/mat.hpp"
 
 namespace {

@@ -16,7 +16,7 @@
 
 #include <pugixml.hpp>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/io/sinumerik_trace.hpp"
 
 namespace {

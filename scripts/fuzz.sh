@@ -4,7 +4,7 @@
 #   1. libFuzzer: each reader's fuzz target (fuzz/) built with clang into build-fuzz/ and run for a bounded time,
 #      seeded from the hand-made corpus in tests/fuzz/corpus/<reader>/, the kept regression inputs in
 #      tests/fuzz/regressions/<reader>/ and the real files in ../shared/data (read only);
-#   2. the reader tests (tests/test_readers.cpp) built with -DFEEDID_SANITIZE=ON (AddressSanitizer + UBSan) into
+#   2. the reader tests (tests/io/test_readers.cpp) built with -DFEEDID_SANITIZE=ON (AddressSanitizer + UBSan) into
 #      build-asan/ and run.
 # Exits non-zero when a fuzzer finds a crash, a hang, a sanitizer report or unbounded memory, or when the sanitized
 # tests fail. Without clang/libFuzzer the fuzzing part is skipped with a message (scripts/setup.sh --extra installs

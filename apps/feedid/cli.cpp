@@ -9,10 +9,10 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/io/json_input.hpp"
 #include "feedid/io/output_file.hpp"
-#include "feedid/terminal_text.hpp"
+#include "feedid/core/terminal_text.hpp"
 
 namespace feedid::cli {
 

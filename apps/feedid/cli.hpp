@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "feedid/drive.hpp"
+#include "feedid/model/drive.hpp"
 #include "feedid/io/import.hpp"
 #include "feedid/io/output_file.hpp"
 

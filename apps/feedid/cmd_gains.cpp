@@ -5,10 +5,10 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
-#include "feedid/error.hpp"
-#include "feedid/gains.hpp"
-#include "feedid/parameters.hpp"
-#include "feedid/terminal_text.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/identify/gains.hpp"
+#include "feedid/core/parameters.hpp"
+#include "feedid/core/terminal_text.hpp"
 #include "gain_arguments.hpp"
 
 namespace feedid::cli {

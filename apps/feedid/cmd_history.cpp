@@ -8,12 +8,12 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/history/record.hpp"
 #include "feedid/history/store.hpp"
 #include "feedid/history/trend.hpp"
-#include "feedid/progress.hpp"
-#include "feedid/terminal_text.hpp"
+#include "feedid/core/progress.hpp"
+#include "feedid/core/terminal_text.hpp"
 
 namespace feedid::cli {
 namespace {

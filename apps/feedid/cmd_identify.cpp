@@ -7,12 +7,12 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
-#include "feedid/error.hpp"
-#include "feedid/friction_map.hpp"
-#include "feedid/identify.hpp"
-#include "feedid/parameters.hpp"
-#include "feedid/result_document.hpp"
-#include "feedid/terminal_text.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/identify/friction_map.hpp"
+#include "feedid/identify/identify.hpp"
+#include "feedid/core/parameters.hpp"
+#include "feedid/identify/result_document.hpp"
+#include "feedid/core/terminal_text.hpp"
 #include "record_arguments.hpp"
 
 namespace feedid::cli {

@@ -10,7 +10,7 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
-#include "feedid/terminal_text.hpp"
+#include "feedid/core/terminal_text.hpp"
 
 namespace feedid::cli {
 

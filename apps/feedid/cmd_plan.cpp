@@ -11,11 +11,11 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
-#include "feedid/error.hpp"
-#include "feedid/gcode.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/plan/gcode_writer.hpp"
 #include "feedid/io/csv.hpp"
-#include "feedid/parameters.hpp"
-#include "feedid/testplan.hpp"
+#include "feedid/core/parameters.hpp"
+#include "feedid/plan/test_plan.hpp"
 
 namespace feedid::cli {
 

@@ -6,11 +6,11 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/history/store.hpp"
 #include "feedid/history/trend.hpp"
 #include "feedid/io/json_input.hpp"
-#include "feedid/report.hpp"
+#include "feedid/report/report.hpp"
 
 namespace feedid::cli {
 namespace {

@@ -11,9 +11,9 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
-#include "feedid/error.hpp"
-#include "feedid/scan.hpp"
-#include "feedid/terminal_text.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/stream/scan.hpp"
+#include "feedid/core/terminal_text.hpp"
 #include "record_arguments.hpp"
 
 namespace feedid::cli {

@@ -7,11 +7,11 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/io/csv.hpp"
-#include "feedid/parameters.hpp"
-#include "feedid/simulate.hpp"
-#include "feedid/terminal_text.hpp"
+#include "feedid/core/parameters.hpp"
+#include "feedid/sim/simulate.hpp"
+#include "feedid/core/terminal_text.hpp"
 #include "gain_arguments.hpp"
 
 namespace feedid::cli {

@@ -6,11 +6,11 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
-#include "feedid/error.hpp"
-#include "feedid/gcode_reader.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/plan/gcode_reader.hpp"
 #include "feedid/io/csv.hpp"
-#include "feedid/production.hpp"
-#include "feedid/synth.hpp"
+#include "feedid/sim/production_synth.hpp"
+#include "feedid/sim/synth.hpp"
 
 namespace feedid::cli {
 

@@ -9,9 +9,9 @@
 #include <toml++/toml.h>
 
 #include "cli.hpp"
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/history/record.hpp"
-#include "feedid/watch/service.hpp"
+#include "feedid/stream/service.hpp"
 
 namespace feedid::cli {
 namespace {

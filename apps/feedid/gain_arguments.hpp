@@ -5,8 +5,8 @@
 #include <string>
 
 #include "cli.hpp"
-#include "feedid/error.hpp"
-#include "feedid/gains.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/identify/gains.hpp"
 
 namespace feedid::cli {
 

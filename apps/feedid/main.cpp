@@ -7,9 +7,9 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
-#include "feedid/error.hpp"
-#include "feedid/terminal_text.hpp"
-#include "feedid/version.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/core/terminal_text.hpp"
+#include "feedid/core/version.hpp"
 
 int main(int argc, char** argv) {
     using namespace feedid::cli;

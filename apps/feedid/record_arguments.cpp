@@ -4,10 +4,10 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/history/record.hpp"
 #include "feedid/history/store.hpp"
-#include "feedid/terminal_text.hpp"
+#include "feedid/core/terminal_text.hpp"
 
 namespace feedid::cli {
 

@@ -3,12 +3,12 @@
 #include <fmt/core.h>
 
 #include "binding.hpp"
-#include "feedid/error.hpp"
-#include "feedid/gains.hpp"
-#include "feedid/identify.hpp"
-#include "feedid/parameters.hpp"
-#include "feedid/result_document.hpp"
-#include "feedid/simulate.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/identify/gains.hpp"
+#include "feedid/identify/identify.hpp"
+#include "feedid/core/parameters.hpp"
+#include "feedid/identify/result_document.hpp"
+#include "feedid/sim/simulate.hpp"
 
 namespace feedid::python {
 

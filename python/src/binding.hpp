@@ -15,7 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "feedid/io/import.hpp"
-#include "feedid/trace.hpp"
+#include "feedid/core/trace.hpp"
 
 namespace feedid::python {
 

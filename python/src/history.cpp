@@ -3,12 +3,12 @@
 #include <fmt/core.h>
 
 #include "binding.hpp"
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/history/record.hpp"
 #include "feedid/history/store.hpp"
 #include "feedid/history/trend.hpp"
-#include "feedid/identify.hpp"
-#include "feedid/result_document.hpp"
+#include "feedid/identify/identify.hpp"
+#include "feedid/identify/result_document.hpp"
 
 namespace feedid::python {
 

@@ -7,9 +7,9 @@
 #include <fmt/core.h>
 
 #include "binding.hpp"
-#include "feedid/error.hpp"
-#include "feedid/estimate.hpp"
-#include "feedid/version.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/core/estimate.hpp"
+#include "feedid/core/version.hpp"
 
 namespace feedid::python {
 

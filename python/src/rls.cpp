@@ -5,8 +5,8 @@
 #include <fmt/core.h>
 
 #include "binding.hpp"
-#include "feedid/error.hpp"
-#include "feedid/rls.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/numeric/rls.hpp"
 
 namespace feedid::python {
 

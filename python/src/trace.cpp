@@ -5,15 +5,15 @@
 #include <fmt/core.h>
 
 #include "binding.hpp"
-#include "feedid/drive.hpp"
-#include "feedid/error.hpp"
-#include "feedid/gcode.hpp"
+#include "feedid/model/drive.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/plan/gcode_writer.hpp"
 #include "feedid/io/csv.hpp"
 #include "feedid/io/join.hpp"
 #include "feedid/io/tare.hpp"
-#include "feedid/synth.hpp"
-#include "feedid/testplan.hpp"
-#include "feedid/units.hpp"
+#include "feedid/sim/synth.hpp"
+#include "feedid/plan/test_plan.hpp"
+#include "feedid/core/units.hpp"
 
 namespace feedid::python {
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Writes the golden result documents of tests/test_golden.cpp with a given feedid binary:
+# Writes the golden result documents of tests/system/test_golden.cpp with a given feedid binary:
 #   scripts/golden/make_golden.sh BUILD/feedid [SHARED_DATA]
 # Run it only when a change of numbers is intended, and say in the CHANGELOG which numbers moved and why.
 # The documents are stored with the data folder and the demo trace's folder replaced by placeholders, so that the test

@@ -4,7 +4,7 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/history/store.hpp"
 
 namespace feedid::history {

@@ -29,7 +29,7 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/history/sha256.hpp"
 #include "feedid/history/store.hpp"
 #include "feedid/io/json_input.hpp"

@@ -5,9 +5,9 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/history/sha256.hpp"
-#include "feedid/version.hpp"
+#include "feedid/core/version.hpp"
 #include "sqlite_access.hpp"
 
 namespace feedid::history {

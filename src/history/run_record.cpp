@@ -6,10 +6,10 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/history/store.hpp"
-#include "feedid/parameters.hpp"
-#include "feedid/result_document.hpp"
+#include "feedid/core/parameters.hpp"
+#include "feedid/identify/result_document.hpp"
 
 namespace feedid::history {
 namespace {

@@ -11,7 +11,7 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 
 namespace feedid::history {
 namespace {

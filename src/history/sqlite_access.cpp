@@ -13,7 +13,7 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "sqlite_statement.hpp"
 
 namespace feedid::history {

@@ -9,7 +9,7 @@
 #include <string>
 #include <string_view>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 
 namespace feedid::history {
 

@@ -1,5 +1,5 @@
 #pragma once
-// What both history backends (store.cpp: SQLite, postgres_store.cpp: PostgreSQL) compute alike from a run record.
+// What both history backends (sqlite_store.cpp: SQLite, postgres_store.cpp: PostgreSQL) compute alike from a run record.
 
 #include <cstdint>
 #include <optional>
@@ -10,7 +10,7 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/history/store.hpp"
 
 namespace feedid::history {

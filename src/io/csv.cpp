@@ -17,9 +17,9 @@
 #include <fmt/core.h>
 #include <fmt/format.h>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/io/import.hpp"
-#include "feedid/units.hpp"
+#include "feedid/core/units.hpp"
 #include "text_scan.hpp"
 
 namespace feedid {

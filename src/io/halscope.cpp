@@ -8,7 +8,7 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "text_scan.hpp"
 
 namespace feedid {

@@ -9,7 +9,7 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "feedid/io/csv.hpp"
 #include "feedid/io/halscope.hpp"
 #include "feedid/io/mat.hpp"
@@ -18,7 +18,7 @@
 #include "feedid/io/sinumerik_trace.hpp"
 #include "feedid/io/tare.hpp"
 #include "feedid/io/twincat_scope.hpp"
-#include "feedid/native_interval.hpp"
+#include "feedid/numeric/native_interval.hpp"
 
 namespace feedid {
 

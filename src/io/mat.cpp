@@ -16,7 +16,7 @@
 #include <system_error>
 #include <vector>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 
 namespace feedid {
 

@@ -8,8 +8,8 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
-#include "feedid/units.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/core/units.hpp"
 #include "text_scan.hpp"
 
 namespace feedid {

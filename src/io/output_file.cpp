@@ -14,7 +14,7 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 
 namespace feedid {
 namespace fs = std::filesystem;

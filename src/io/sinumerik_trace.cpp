@@ -22,7 +22,7 @@
 #include <fmt/core.h>
 #include <pugixml.hpp>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 #include "text_scan.hpp"
 
 namespace feedid {

@@ -5,7 +5,7 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 
 namespace feedid {
 

@@ -12,13 +12,13 @@
 
 #include <fmt/core.h>
 
-#include "feedid/error.hpp"
-#include "feedid/report.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/report/report.hpp"
 
-#include "feedid/friction.hpp"
-#include "feedid/parameters.hpp"
-#include "feedid/signal.hpp"
-#include "feedid/version.hpp"
+#include "feedid/model/friction.hpp"
+#include "feedid/core/parameters.hpp"
+#include "feedid/numeric/signal.hpp"
+#include "feedid/core/version.hpp"
 
 namespace feedid::report {
 namespace {

@@ -11,7 +11,7 @@
 
 #include <fmt/core.h>
 
-#include "feedid/report.hpp"
+#include "feedid/report/report.hpp"
 
 namespace feedid::report {
 namespace {

@@ -1,4 +1,4 @@
-"""A PostgreSQL server of a test module's own (Debian's postgresql: initdb, pg_ctl), as tests/postgres_server.hpp
+"""A PostgreSQL server of a test module's own (Debian's postgresql: initdb, pg_ctl), as tests/support/postgres_server.hpp
 starts one for the C++ tests: its files in a folder of the build tree, owned by the `postgres` user when the tests run
 as root (PostgreSQL refuses to run as root), listening on 127.0.0.1 on a port the kernel found free, with trust for
 the role feedid_admin; stopped by its process id."""

@@ -20,7 +20,7 @@ def test_emps_through_python_equals_the_cli(emps):
                         "gtau", "--offset")
     result = feedid.identify(emps, channels=EMPS_CHANNELS, force_constant="gtau", offset=True)
     assert_documents_equal(result.to_dict(), expected, TOLERANCE)
-    # the published IDIM-LS figures the README holds feedid to (tests/test_identify.cpp): within 2 %
+    # the published IDIM-LS figures the README holds feedid to (tests/identify/test_identify.cpp): within 2 %
     assert result.parameters["mass_kg"].value == pytest.approx(95.1089, rel=0.02)
     assert result.parameters["offset_N"].value == pytest.approx(-3.1648, rel=0.02)
 

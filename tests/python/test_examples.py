@@ -22,7 +22,7 @@ def test_identify_emps(emps):
     mass = re.search(r"^mass_kg\s+M\s+kg\s+(\S+)\s+(\S+)\s+(\S+)\s+95\.1089\s+0\.1085\s+(\S+)$", output,
                      re.MULTILINE)
     assert mass, output
-    assert abs(float(mass.group(4))) < 2.0  # within 2 % of the published mass (tests/test_identify.cpp)
+    assert abs(float(mass.group(4))) < 2.0  # within 2 % of the published mass (tests/identify/test_identify.cpp)
 
 
 def test_streaming_rls():

@@ -5,7 +5,7 @@
 // location: a SQLite file (one file, no server; the default) or a PostgreSQL database (a plant's shared history,
 // written by many machines at once and read by dashboards).
 //
-// Guarantees of the SQLite store (tested in tests/test_history_store.cpp):
+// Guarantees of the SQLite store (tested in tests/history/test_history_store.cpp):
 //   - a run is written in one transaction: after a crash it is either whole or absent;
 //   - re-recording the same trace with the same options (same SHA-256 of the trace file, same options) adds nothing;
 //   - two processes writing at once lose nothing (WAL journal, busy timeout, BEGIN IMMEDIATE with retry);
@@ -30,7 +30,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "feedid/estimate.hpp"
+#include "feedid/core/estimate.hpp"
 
 namespace feedid::history {
 

@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "feedid/io/join.hpp"
-#include "feedid/trace.hpp"
-#include "feedid/units.hpp"
+#include "feedid/core/trace.hpp"
+#include "feedid/core/units.hpp"
 
 namespace feedid {
 

@@ -13,7 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "feedid/error.hpp"
+#include "feedid/core/error.hpp"
 
 namespace feedid {
 

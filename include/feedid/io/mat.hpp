@@ -4,7 +4,7 @@
 
 #include <filesystem>
 
-#include "feedid/trace.hpp"
+#include "feedid/core/trace.hpp"
 
 namespace feedid {
 

@@ -17,7 +17,7 @@
 #include <string>
 #include <string_view>
 
-#include "feedid/trace.hpp"
+#include "feedid/core/trace.hpp"
 
 namespace feedid {
 

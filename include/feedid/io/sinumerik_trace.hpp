@@ -17,7 +17,7 @@
 #include <string_view>
 #include <vector>
 
-#include "feedid/trace.hpp"
+#include "feedid/core/trace.hpp"
 
 namespace feedid {
 

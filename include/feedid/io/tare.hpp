@@ -9,7 +9,7 @@
 
 #include <cstddef>
 
-#include "feedid/trace.hpp"
+#include "feedid/core/trace.hpp"
 
 namespace feedid {
 

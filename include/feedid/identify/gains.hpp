@@ -1,0 +1,106 @@
+#pragma once
+// Identification of the cascaded P-PI controller's gains (controller.hpp) from a trace: the position loop's K_v, the
+// velocity loop's K_p and K_i, and the structure between them (velocity measurement, reference delay, current-loop
+// lag), by RLS on the loop equations; and the gains document that carries them to `feedid simulate`.
+
+#include <cstddef>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "feedid/model/controller.hpp"
+#include "feedid/model/drive.hpp"
+#include "feedid/core/estimate.hpp"
+#include "feedid/numeric/rls.hpp"
+#include "feedid/core/status.hpp"
+#include "feedid/core/trace.hpp"
+
+namespace feedid {
+
+enum class VelocityLoopStructure { automatic, p, pi };
+
+struct GainOptions {
+    /// P or PI velocity loop; automatic: PI, falling back to P when the integral gain is not significant.
+    VelocityLoopStructure velocity_loop{VelocityLoopStructure::automatic};
+    bool feedforward{false};                            ///< also estimate a velocity feed-forward k_ff
+    std::optional<int> velocity_difference_samples;     ///< n of the velocity measurement; none = chosen from the data
+    std::optional<double> current_lag_s;                ///< tau [s]; none = estimated from the data
+    std::optional<double> saturation_N;                 ///< samples at this force command limit are left out [N]
+    double force_per_signal{0.0};                       ///< N per unit of the logged drive signal (0 = unknown)
+    std::string signal_unit;                            ///< the logged drive signal's unit ("V", "A"), for reporting
+    RlsOptions rls{1.0, 1e6, RlsVariant::directional};  ///< constant gains: no forgetting by default
+
+    [[nodiscard]] std::string validate() const;
+};
+
+/// Sets what the options take from the drive signal, as `feedid gains` does: force_per_signal and signal_unit when the
+/// trace's drive signal is a current or voltage that `drive` turns into force (not when the trace has a force
+/// channel), and saturation_N from a limit given in the drive signal's own units (e.g. 10 for 10 V; its magnitude,
+/// times force_per_signal when known).
+void set_drive_signal(GainOptions& options, const Trace& trace, const DriveConstants& drive,
+                      std::optional<double> saturation_in_signal_units);
+
+/// The largest systematic error [%] of the velocity loop's force fit (GainResult::systematic_error_pct: the part of
+/// the residual that is not white sensor noise) at which the gains are trusted. Measured (README, "Injected test
+/// signals"): a correct controller model leaves 0.00 % on EMPS and 0.03 to 0.56 % on synthetic traces (current noise
+/// 0.02 to 0.2 A, that is a total relative error of 1.1 to 11 %); a model that misses an injected square wave leaves
+/// 12 % (200 N on the demo drive) to 87 % (EMPS-like 176 N pulses). 3 % lies five times above the one and four times
+/// below the other. Above it the gains are reported as failed.
+inline constexpr double gain_fit_error_limit_pct = 3.0;
+
+struct GainResult {
+    /// ok; failed when the controller model does not explain the drive signal (systematic error above
+    /// gain_fit_error_limit_pct), when the drive force is too large for its squares to be finite numbers (nothing is
+    /// fitted), when a gain or fit figure is not a finite number (it is dropped), or when K_v or K_p came out
+    /// negative (no stable controller; the fix is named): the gains are then not to be trusted, and the first
+    /// diagnostic says why, with the figures.
+    Status status{Status::ok};
+    ControllerModel controller;               ///< the identified controller (for simulation)
+    Estimate position_gain_per_s;             ///< K_v
+    Estimate velocity_gain_N_s_per_m;         ///< K_p
+    Estimate velocity_integral_gain_N_per_m;  ///< K_i (null for a P-only loop)
+    Estimate velocity_feedforward;            ///< k_ff (null unless asked for)
+    Estimate reset_time_s;                    ///< T_n = K_p / K_i
+    /// "velocity_command" when the trace holds the velocity command (each loop identified on its own), or
+    /// "structure" when only reference, position and drive signal are there (v = K_p*(K_v*e - v) [+ integral]).
+    std::string method;
+    int velocity_difference_samples{1};
+    int reference_delay_samples{0};  ///< samples by which the controller's reference lags the logged one
+    int drive_delay_samples{0};      ///< samples by which the logged drive signal lags the command
+    double current_lag_s{0.0};
+    double relative_error_pct{0.0};  ///< of the velocity loop's force fit, 100*||F - F_hat||/||F||
+    /// 100*||r_s||/||F||, r_s the part of the velocity loop's residual that is not white (sensor) noise: what the
+    /// model misses. The fit-quality gate (gain_fit_error_limit_pct) looks at this.
+    double systematic_error_pct{0.0};
+    double position_loop_relative_error_pct{0.0};  ///< of the position loop's fit (velocity_command method)
+    std::size_t samples_used{0};
+    bool injection_subtracted{false};  ///< an injected signal was taken out of the drive force before the fit
+    std::vector<std::string> diagnostics;
+};
+
+/// Identifies the controller gains from a trace (reference position, position, and a velocity command when present)
+/// and the drive force [N] per sample (drive_force() of drive.hpp). Estimates by RLS (GainOptions::rls; with
+/// lambda = 1 it equals batch least squares) on normalised regressors; standard errors from the batch residuals.
+/// `injection` [N] per sample (injection_force() of drive.hpp; empty = none) is a test signal added to the
+/// controller's output before the drive: it is in the drive force but not the controller's doing, so it is taken
+/// out (through the same current-loop lag) before the controller is fitted.
+/// Throws InputError when the trace lacks a reference or position; AnalysisError when the data cannot determine
+/// the gains (no following error, too few samples). A fit too poor to trust is status failed with a diagnostic.
+GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options = {},
+                          std::span<const double> injection = {});
+
+/// The gain result document of DESIGN.md (`feedid gains --json`) of the gains identified from `trace` (its path and
+/// length are in the document).
+nlohmann::json gains_document(const GainResult& result, const GainOptions& options, const Trace& trace);
+
+/// Whether a gains document is of a rotary axis ("rotary": true, or without that key its rotary gain keys).
+[[nodiscard]] bool gains_document_is_rotary(const nlohmann::json& document);
+
+/// Reads a controller from a gains document (as written by gains_document), InputError naming `source` when a
+/// required key is missing.
+ControllerModel controller_from_document(const nlohmann::json& document, const std::string& source);
+
+}  // namespace feedid

@@ -1,0 +1,154 @@
+#pragma once
+// Synthetic traces: what an NC records for a known drive (mass, per-direction friction with breakaway and Stribeck,
+// offset), its P-PI controller and a reference, through the closed-loop simulator and sensor models (position
+// quantisation, current noise and quantisation, current-loop lag, sample time and time-stamp jitter). The ground
+// truth for tests, the demo and `feedid synth`.
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "feedid/model/controller.hpp"
+#include "feedid/model/friction.hpp"
+#include "feedid/sim/simulate.hpp"
+#include "feedid/core/trace.hpp"
+
+namespace feedid {
+
+/// The constant-velocity back-and-forth test of METHOD.md: strokes at stepwise increasing feedrates, plus optional
+/// slow passes (short strokes at log-spaced low feedrates) so that breakaway friction and Stribeck velocity are
+/// identifiable.
+struct TestReference {
+    std::vector<double> feedrates_mm_per_min{1250, 2150, 3050, 3950, 4850, 5750, 6650, 7550, 8450, 9350};
+    double stroke_m{0.030};  ///< length of each stroke [m]
+    int cycles{1};           ///< back-and-forth cycles per feedrate
+    bool slow_passes{true};
+    std::vector<double> slow_feedrates_mm_per_min{10, 17.8, 31.6, 56.2, 100, 178, 316, 562, 1000};
+    double slow_pass_duration_s{1.5};   ///< each slow stroke lasts about this long ...
+    double slow_stroke_min_m{0.0002};   ///< ... but is at least this long [m]
+    double acceleration_m_per_s2{2.0};  ///< the NC's acceleration limit [m/s^2]
+    double dwell_s{0.2};                ///< pause at each reversal and at the start and end [s]
+    double start_m{0.0};                ///< where the strokes start [m]
+
+    [[nodiscard]] std::string validate() const;
+};
+
+/// The sensors and the recording.
+struct SensorModel {
+    double sample_time_s{1e-3};          ///< the trace's sample time (and the controller's cycle) [s]
+    double jitter_s{0.0};                ///< time stamps jitter uniformly within +-jitter [s] (< T/2)
+    double position_resolution_m{1e-8};  ///< encoder quantum [m]; 0 = exact
+    double current_noise_A{0.02};        ///< standard deviation of white current-sensor noise [A]
+    double current_resolution_A{0.005};  ///< current quantum [A]; 0 = exact
+    int substeps{8};                     ///< integration steps per sample
+
+    [[nodiscard]] std::string validate() const;
+};
+
+/// How the recorder logs the signals (an NC's trace): each signal group's own interval, held (forward-filled) on the
+/// trace's time base as a SINUMERIK servo trace does, the units it writes, and which signals it logs.
+struct RecordingModel {
+    /// Position, reference position and velocity command are logged every this [s] (the position loop's cycle) and
+    /// held in between; 0 = every sample.
+    double position_interval_s{0.0};
+    double velocity_interval_s{0.0};  ///< the actual velocity's interval [s]; 0 = every sample
+    double drive_interval_s{0.0};     ///< the current's (or torque's) interval [s]; 0 = every sample
+    bool log_velocity{false};         ///< log the actual velocity too (channel `v`)
+    bool log_torque{false};           ///< log the drive torque (force) `tau` [N*m or N] instead of the current `i` [A]
+    std::string position_unit;        ///< the unit `feedid synth` writes positions in ("deg", "mm"); "" = SI
+    std::string velocity_unit;        ///< ... velocities ("rpm", "deg/min", "mm/min"); "" = SI
+
+    /// What is wrong, given the axis kind and the trace's sample time ("" when nothing).
+    [[nodiscard]] std::string validate(bool rotary, double sample_time_s) const;
+};
+
+/// A test signal added to the controller's force command before the current loop, as a disturbance-injection
+/// experiment adds it (EMPS's validation pulses, SINUMERIK's additive torque setpoint, a drive's function
+/// generator): a square wave at `amplitude_N` for the first half of each period and 0 for the second, from t = 0.
+struct SquareWaveInjection {
+    double amplitude_N{300.0};  ///< the wave's high level [N] (negative: a wave below zero)
+    double frequency_Hz{1.0};   ///< [Hz]
+
+    /// u_inj(t) [N].
+    [[nodiscard]] double at(double time_s) const;
+    /// What is wrong with it for a trace sampled every `sample_time_s` ("" when nothing).
+    [[nodiscard]] std::string validate(double sample_time_s) const;
+};
+
+/// Everything `feedid synth` needs: the drive, its controller, the sensors, the test, the seed.
+/// A rotary axis (axis.rotary) is SI of its kind inside: rad, rad/s, kg*m^2, N*m; its test and sensor lengths are read
+/// in degrees where the keys say mm, as an NC does for a rotary axis (stroke 30 mm is 30 deg, 9350 mm/min is
+/// 9350 deg/min, a 1 um encoder quantum 0.001 deg), and its drive has no lead: torque = K_t * gear ratio * i.
+struct SynthSpec {
+    AxisModel axis;
+    ControllerModel controller;
+    double kt_Nm_per_A{1.444};  ///< motor torque constant [N*m/A] (the paper's 26.0 N*m at 18.0 A)
+    double lead_m{0.020};       ///< ball-screw lead [m]
+    double gear_ratio{1.0};     ///< motor revolutions per screw revolution
+    SensorModel sensors;
+    RecordingModel recording;
+    TestReference test;
+    /// Friction along the axis: stretches with scaled Coulomb and breakaway friction (a worn part of the screw).
+    std::vector<FrictionZone> friction_zones;
+    /// A test signal injected at the controller's output, logged as its own channel; none = no injection.
+    std::optional<SquareWaveInjection> injection;
+    std::uint64_t seed{1};
+
+    /// Force per ampere [N/A] = K_t * g * 2*pi / lead (eq. 2); on a rotary axis torque per ampere [N*m/A] = K_t * g.
+    [[nodiscard]] double force_constant_N_per_A() const;
+    [[nodiscard]] std::string validate() const;
+};
+
+/// The demo drive: the paper's M 69.1 kg, B 54.2 N*s/m, F_C 742.8 N, F_B 946.2 N with a ball-screw-typical
+/// v_s = 5 mm/s, K_v = 2 (m/min)/mm, K_p = 40000 N*s/m, T_n = 20 ms, 1 kHz, with slow passes.
+SynthSpec demo_spec();
+
+/// The rotary demo drive (a direct-drive rotary table): J 2.0 kg*m^2, B 5.0 N*m*s/rad, F_C 20 N*m, F_B 26 N*m,
+/// v_s 0.05 rad/s; K_v 2 (1000 deg/min)/deg, K_p 400 N*m*s/rad, T_n 20 ms; K_t 2 N*m/A; 1 kHz.
+SynthSpec rotary_demo_spec();
+
+/// Records `spec` as a SINUMERIK servo trace does: 2 ms time base, the position loop (and so position, reference and
+/// velocity command, and the actual velocity) every 4 ms, the velocity loop and the torque every 2 ms; the velocity
+/// loop measures its velocity over the last 4 ms; positions written in deg (rotary) or mm, velocities in rpm or
+/// mm/min, the torque in N*m (rotary) or the current in A.
+void apply_sinumerik_recording(SynthSpec& spec);
+
+/// The trace in the units the recording states (positions, velocities), for writing: values converted from SI and
+/// the channels' units set to them. Throws InputError for a unit that does not fit the axis kind.
+Trace in_recording_units(const Trace& trace, const RecordingModel& recording);
+
+/// Reads a drive file (JSON; see `feedid synth --help` and the README for the keys); unspecified fields keep the
+/// demo values. InputError naming `source` and the key on a bad value.
+SynthSpec spec_from_json(const nlohmann::json& document, const std::string& source);
+/// The same starting from `base` instead of the demo (a machine file's axis over the machine's default drive).
+SynthSpec spec_from_json(const nlohmann::json& document, const std::string& source, const SynthSpec& base);
+/// The same from TOML text (the same keys; tables for the sections). InputError with the line on a syntax error.
+SynthSpec spec_from_toml(std::string_view text, const std::string& source);
+/// Reads a drive file: TOML when the name ends in .toml, JSON otherwise.
+SynthSpec read_spec(const std::filesystem::path& path);
+/// The drive file of a spec (every key, with its value), e.g. to start a new drive file from the demo.
+nlohmann::json spec_to_json(const SynthSpec& spec);
+
+/// The reference position of the test sampled every `sample_time_s` [s]; trapezoidal velocity (acceleration
+/// limited) between dwells.
+std::vector<double> test_reference(const TestReference& test, double sample_time_s);
+
+/// Generates the trace: channels t [s], x_ref [m], x [m], v_cmd [m/s], i [A] (or tau [N] with recording.log_torque;
+/// v [m/s] with recording.log_velocity; `injection`, the injected signal in the drive signal's units (A, or N or N*m
+/// with log_torque), role injection, when the spec has one: the drive signal contains it); on a rotary axis rad,
+/// rad/s, N*m. Each channel's native interval is the
+/// recording's (format source), its values held over it. Constants kt_Nm_per_A, gear_ratio, lead_m and
+/// force_constant_N_per_A (linear) or torque_constant_Nm_per_A (rotary), and the true values (true_mass_kg or
+/// true_inertia_kgm2, ...). `reference` overrides the test (sampled every sensors.sample_time_s). Deterministic for a
+/// given seed. `external_force` [N, or N*m on a rotary axis], one value per reference sample acting in +x (a process
+/// force such as cutting), is felt by the axis and not logged; empty = none.
+Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>& reference = std::nullopt,
+                 std::span<const double> external_force = {});
+
+}  // namespace feedid

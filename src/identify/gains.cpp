@@ -1,0 +1,881 @@
+// Identification of the cascaded P-PI gains from a trace (the paper's validation step; its Ref. 6).
+//   with a logged velocity command:  v_cmd(k) = K_v*e(k - d) [+ k_ff*x_ref'(k - d)],    e = x_ref - x
+//                                    F(k) = L[K_p*e_v + K_i*E_v + c](k),  e_v = v_cmd - v,  E_v = sum(e_v*T)
+//   without it (the structure only): F(k) = L[K_p*(K_v*e - v) + K_i*sum(T*(K_v*e - v)) + c](k)
+//                                        = L[th1*e + th2*(-v) + th3*sum(T*e) + th4*(-sum(T*v)) + c](k),
+//                                    K_v = th1/th2, K_p = th2, K_i = th4   (th3 = K_i*K_v is left free)
+// v is the controller's velocity measurement (x_k - x_{k-n})/(n*T); c is the integrator's initial state (it holds a
+// weight or an offset); L is what lies between the force command and the logged drive signal: the current loop as
+// a first-order lag with a fractional sample of delay,
+//   y(k) = a*y(k-1) + (1-a)*((1-mu)*u(k) + mu*u(k-1)),  a = exp(-T/tau),
+// which is exact for a lag sampled one integration step after the command. L commutes with the linear regression,
+// so it filters every regressor column. The structure (n, reference delay d, tau, mu) is chosen by the smallest
+// residual; the gains are then estimated by RLS on the normalised columns, with standard errors from the batch
+// least-squares residuals.
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include <fmt/core.h>
+#include <Eigen/Dense>
+
+#include "feedid/core/error.hpp"
+#include "feedid/identify/gains.hpp"
+#include "feedid/numeric/least_squares.hpp"
+#include "feedid/numeric/native_interval.hpp"
+#include "feedid/core/parameters.hpp"
+
+namespace feedid {
+
+std::string GainOptions::validate() const {
+    if (velocity_difference_samples && (*velocity_difference_samples < 1 || *velocity_difference_samples > 8)) {
+        return "--velocity-difference must be between 1 and 8 samples";
+    }
+    if (current_lag_s && !(*current_lag_s >= 0.0 && std::isfinite(*current_lag_s))) {
+        return "--current-lag must be a time >= 0";
+    }
+    if (saturation_N && !(*saturation_N > 0.0 && std::isfinite(*saturation_N))) return "--saturation must be positive";
+    if (!(rls.forgetting_factor > 0.0 && rls.forgetting_factor <= 1.0))
+        return "the forgetting factor must be in (0, 1]";
+    return {};
+}
+
+void set_drive_signal(GainOptions& options, const Trace& trace, const DriveConstants& drive,
+                      std::optional<double> saturation_in_signal_units) {
+    if (!trace.has(Role::force)) {
+        if (const auto factor = drive.force_per_signal(trace)) {
+            options.force_per_signal = *factor;
+            if (const auto* current = trace.find(Role::current))
+                options.signal_unit = current->unit.empty() ? current->source_unit : current->unit;
+        }
+    }
+    if (saturation_in_signal_units) {
+        options.saturation_N = std::abs(*saturation_in_signal_units) *
+                               (options.force_per_signal != 0.0 ? std::abs(options.force_per_signal) : 1.0);
+    }
+}
+
+namespace {
+
+using Column = std::vector<double>;
+
+// The lag-and-delay filter L above, applied in place; starts in steady state at the column's first value.
+void apply_drive_filter(Column& column, double a, double mu) {
+    if (column.empty() || (a == 0.0 && mu == 0.0)) return;
+    double previous_in = column.front();
+    double previous_out = column.front();
+    for (double& value : column) {
+        const double in = value;
+        const double out = a * previous_out + (1.0 - a) * ((1.0 - mu) * in + mu * previous_in);
+        previous_in = in;
+        previous_out = out;
+        value = out;
+    }
+}
+
+struct Structure {
+    int difference{1};       // n; 0 = the logged velocity channel
+    int reference_delay{0};  // d
+    double lag_s{0.0};       // tau
+    double mu{0.0};
+};
+
+struct Problem {
+    std::vector<Column> columns;  // regressors, filtered
+    Column y;                     // what the regressors explain
+    const std::vector<char>* use{nullptr};
+};
+
+// Residual sum of squares of the least-squares fit on the selected rows (normal equations on normalised columns:
+// fast enough for the structure search; the final estimate uses QR and RLS).
+double residual_sum_of_squares(const Problem& problem) {
+    const auto p = static_cast<Eigen::Index>(problem.columns.size());
+    const auto& y = problem.y;
+    const auto& use = *problem.use;
+    const std::size_t n = y.size();
+    Eigen::VectorXd scale(p);
+    for (Eigen::Index j = 0; j < p; ++j) {
+        double sum = 0.0;
+        for (std::size_t k = 0; k < n; ++k) {
+            if (use[k])
+                sum +=
+                    problem.columns[static_cast<std::size_t>(j)][k] * problem.columns[static_cast<std::size_t>(j)][k];
+        }
+        scale(j) = sum > 0.0 ? 1.0 / std::sqrt(sum) : 1.0;
+    }
+    Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(p, p);
+    Eigen::VectorXd right = Eigen::VectorXd::Zero(p);
+    Eigen::VectorXd phi(p);
+    for (std::size_t k = 0; k < n; ++k) {
+        if (!use[k]) continue;
+        for (Eigen::Index j = 0; j < p; ++j) phi(j) = problem.columns[static_cast<std::size_t>(j)][k] * scale(j);
+        normal.selfadjointView<Eigen::Lower>().rankUpdate(phi);
+        right += phi * y[k];
+    }
+    normal = normal.selfadjointView<Eigen::Lower>();
+    const Eigen::VectorXd theta = normal.ldlt().solve(right);
+    double rss = 0.0;
+    for (std::size_t k = 0; k < n; ++k) {
+        if (!use[k]) continue;
+        double fitted = 0.0;
+        for (Eigen::Index j = 0; j < p; ++j)
+            fitted += problem.columns[static_cast<std::size_t>(j)][k] * scale(j) * theta(j);
+        rss += (y[k] - fitted) * (y[k] - fitted);
+    }
+    return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
+}
+
+struct Fit {
+    Eigen::VectorXd estimate;    // RLS, unscaled
+    Eigen::VectorXd batch;       // batch LS, unscaled
+    Eigen::MatrixXd covariance;  // batch, unscaled
+    double relative_error_pct{0.0};
+    double systematic_error_pct{0.0};  // the part of the residual that is not white noise
+    std::size_t samples{0};
+    bool rank_deficient{false};
+};
+
+// 100*||r_s||/||y||, r_s the part of the residual r that is not white noise. Sensor noise on the drive signal is
+// white; what the model lacks (an injected signal, a missing term) varies slowly from sample to sample. For white
+// noise of variance s^2, E[(r_k - r_{k-1})^2] = 2*s^2 (von Neumann), while a slowly varying part barely changes the
+// differences; so ||r_s||^2 = ||r||^2 - N*s^2 with s^2 from the differences of rows that follow each other.
+double systematic_error_pct(const Eigen::VectorXd& residual, const std::vector<std::size_t>& rows, double target_norm) {
+    double squares = 0.0;
+    double differences = 0.0;
+    std::size_t pairs = 0;
+    for (Eigen::Index k = 0; k < residual.size(); ++k) {
+        squares += residual(k) * residual(k);
+        if (k > 0 && rows[static_cast<std::size_t>(k)] == rows[static_cast<std::size_t>(k - 1)] + 1) {
+            differences += (residual(k) - residual(k - 1)) * (residual(k) - residual(k - 1));
+            ++pairs;
+        }
+    }
+    if (pairs == 0 || !(target_norm > 0.0)) return 0.0;
+    const double white = static_cast<double>(residual.size()) * differences / (2.0 * static_cast<double>(pairs));
+    return 100.0 * std::sqrt(std::max(0.0, squares - white)) / target_norm;
+}
+
+template <int N>
+Eigen::VectorXd run_rls(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, const RlsOptions& options) {
+    Rls<N> rls(options);
+    typename Rls<N>::Vector row;
+    for (Eigen::Index k = 0; k < phi.rows(); ++k) {
+        row = phi.row(k).transpose();
+        rls.update(row, y(k));
+    }
+    return rls.estimate();
+}
+
+// RLS (the paper) and batch QR on normalised columns; returns both in the original scaling.
+Fit fit(const Problem& problem, const RlsOptions& options) {
+    const auto p = static_cast<Eigen::Index>(problem.columns.size());
+    const auto& y = problem.y;
+    const auto& use = *problem.use;
+    const auto rows = static_cast<Eigen::Index>(std::count(use.begin(), use.end(), char{1}));
+    Eigen::MatrixXd phi(rows, p);
+    Eigen::VectorXd target(rows);
+    std::vector<std::size_t> sample_of_row(static_cast<std::size_t>(rows));
+    Eigen::Index row = 0;
+    for (std::size_t k = 0; k < y.size(); ++k) {
+        if (!use[k]) continue;
+        for (Eigen::Index j = 0; j < p; ++j) phi(row, j) = problem.columns[static_cast<std::size_t>(j)][k];
+        target(row) = y[k];
+        sample_of_row[static_cast<std::size_t>(row)] = k;
+        ++row;
+    }
+    Eigen::VectorXd scale(p);
+    for (Eigen::Index j = 0; j < p; ++j) {
+        const double rms = phi.col(j).norm() / std::sqrt(static_cast<double>(std::max<Eigen::Index>(rows, 1)));
+        scale(j) = rms > 0.0 ? rms : 1.0;
+        phi.col(j) /= scale(j);
+    }
+    const double y_scale =
+        std::max(target.norm() / std::sqrt(static_cast<double>(std::max<Eigen::Index>(rows, 1))), 1e-300);
+    const LeastSquaresResult batch = solve_least_squares(phi, target / y_scale);
+    Fit result;
+    result.samples = static_cast<std::size_t>(rows);
+    result.rank_deficient = batch.rank_deficient;
+    result.relative_error_pct = batch.relative_error_pct;
+    if (!batch.rank_deficient) {
+        const Eigen::VectorXd residual = target / y_scale - phi * batch.estimate;
+        result.systematic_error_pct = systematic_error_pct(residual, sample_of_row, target.norm() / y_scale);
+    }
+    Eigen::VectorXd rls;
+    const Eigen::VectorXd scaled_target = target / y_scale;
+    switch (p) {
+        case 1: rls = run_rls<1>(phi, scaled_target, options); break;
+        case 2: rls = run_rls<2>(phi, scaled_target, options); break;
+        case 3: rls = run_rls<3>(phi, scaled_target, options); break;
+        case 4: rls = run_rls<4>(phi, scaled_target, options); break;
+        default: rls = run_rls<5>(phi, scaled_target, options); break;
+    }
+    const Eigen::VectorXd unscale = scale.cwiseInverse() * y_scale;
+    result.estimate = rls.cwiseProduct(unscale);
+    result.batch = batch.estimate.cwiseProduct(unscale);
+    result.covariance = unscale.asDiagonal() * batch.covariance * unscale.asDiagonal();
+    return result;
+}
+
+// A gain and its standard error from the fit's variance: sqrt(variance) where that is a finite number >= 0, none
+// otherwise (Estimate's rule). Unlike Estimate::of, a value that is not finite is kept as computed: the document
+// writes it as null, and the controller and the printed report see what the fit gave.
+Estimate estimate_from_variance(double value, double variance) {
+    Estimate estimate;
+    estimate.value = value;
+    if (variance >= 0.0 && std::isfinite(variance)) estimate.standard_error = std::sqrt(variance);
+    return estimate;
+}
+
+// Where K_p and K_i sit in the velocity loop's theta: (K_p, K_i, c) with the velocity command, and
+// (K_p*K_v, K_p, K_i*K_v, K_i, c) from the structure alone.
+struct GainIndices {
+    Eigen::Index velocity_gain;
+    Eigen::Index integral_gain;
+};
+
+GainIndices gain_indices(bool logged_command) {
+    return logged_command ? GainIndices{0, 1} : GainIndices{1, 3};
+}
+
+// Var(a/b) by the delta method from the covariance of (a, b).
+double ratio_variance(double a, double b, double var_a, double var_b, double cov_ab) {
+    const double r = a / b;
+    return (var_a - 2.0 * r * cov_ab + r * r * var_b) / (b * b);
+}
+
+// Velocity measurement with n-sample difference: (x_k - x_{k-n})/(n*T); the first samples use what exists.
+Column difference_velocity(std::span<const double> x, int n, double dt) {
+    Column v(x.size(), 0.0);
+    for (std::size_t k = 0; k < x.size(); ++k) {
+        const std::size_t back = k >= static_cast<std::size_t>(n) ? k - static_cast<std::size_t>(n) : 0;
+        v[k] = (x[k] - x[back]) / (n * dt);
+    }
+    return v;
+}
+
+Column delayed(std::span<const double> x, int d) {
+    Column out(x.size());
+    for (std::size_t k = 0; k < x.size(); ++k)
+        out[k] = x[k >= static_cast<std::size_t>(d) ? k - static_cast<std::size_t>(d) : 0];
+    return out;
+}
+
+Column running_sum(const Column& x, double dt) {
+    Column out(x.size());
+    double sum = 0.0;
+    for (std::size_t k = 0; k < x.size(); ++k) {
+        sum += x[k] * dt;
+        out[k] = sum;
+    }
+    return out;
+}
+
+// The candidate lag time constants [in samples] and fractional delays of the coarse search.
+constexpr std::array<double, 12> lag_grid{0.0, 0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.0, 1.4, 2.0, 3.0, 5.0};
+constexpr std::array<double, 5> mu_grid{0.0, 0.25, 0.5, 0.75, 1.0};
+
+double lag_coefficient(double lag_s, double dt) {
+    return lag_s > 0.0 ? std::exp(-dt / lag_s) : 0.0;
+}
+
+// e(k) = x_ref(k - d) - x(k): the following error against the reference delayed by d samples.
+Column following_error(std::span<const double> reference, std::span<const double> position, int delay) {
+    Column error(position.size());
+    for (std::size_t k = 0; k < error.size(); ++k) {
+        const std::size_t j = k >= static_cast<std::size_t>(delay) ? k - static_cast<std::size_t>(delay) : 0;
+        error[k] = reference[j] - position[k];
+    }
+    return error;
+}
+
+// The signals the gains are identified from.
+struct GainSignals {
+    std::string source;  // the trace's file, for messages
+    bool rotary{false};  // rad and N*m instead of m and N
+    std::size_t samples{0};
+    double dt{0.0};                     // T [s]
+    int hold_factor{1};                 // the position signal holds each value over this many samples
+    int hold_phase{0};                  // the rows (k % hold_factor) where it takes a new value
+    Column interpolated_position;       // a held position interpolated between its own samples (else empty)
+    std::span<const double> position;   // x [m]
+    std::span<const double> reference;  // x_ref [m]
+    const Channel* velocity{nullptr};   // the logged velocity, when there is one
+    bool logged_command{false};         // whether the trace holds the velocity command
+    Column velocity_command;            // v_cmd [m/s], when logged
+    Column force;                       // F [N]
+    Column injection;                   // the test signal added to the controller's output [N]; empty = none
+};
+
+// A position held over k >= 2 samples (sampled at the position loop's cycle, the drive signal at the velocity loop's):
+// the controller holds its reference and velocity command too, so those are exact at every sample, while the position
+// it measured between its samples is interpolated (interpolate_held()). The regressions use the rows where the
+// position is new.
+void use_native_rate(const Trace& trace, GainSignals& signals) {
+    const auto factor = static_cast<int>(std::lround(native_interval_of(trace, Role::position) / signals.dt));
+    if (factor < 2) return;
+    signals.hold_factor = factor;
+    signals.hold_phase = hold_phase(signals.position, factor);
+    signals.interpolated_position = interpolate_held(signals.position, factor, signals.hold_phase);
+    signals.position = signals.interpolated_position;
+}
+
+// The trace's position, reference, velocity command and velocity, and the drive force, checked: position and
+// reference there, as many force samples as trace samples, and enough of them.
+GainSignals gain_signals(const Trace& trace, std::span<const double> drive_force, std::span<const double> injection) {
+    GainSignals signals;
+    signals.source = trace.source_path.empty() ? std::string("trace") : trace.source_path;
+    signals.rotary = trace.rotary;
+    const auto* reference_channel = trace.find(Role::reference_position);
+    const auto* position_channel = trace.find(Role::position);
+    if (position_channel == nullptr) {
+        throw InputError(fmt::format("{}: no position channel: map one with --channel position=NAME", signals.source));
+    }
+    if (reference_channel == nullptr) {
+        throw InputError(
+            fmt::format("{}: no reference position channel, which the position loop's following error "
+                        "needs: map one with --channel reference_position=NAME",
+                        signals.source));
+    }
+    const std::size_t n = trace.samples();
+    if (drive_force.size() != n)
+        throw InputError(
+            fmt::format("{}: the drive force has {} samples, the trace {}", signals.source, drive_force.size(), n));
+    if (!injection.empty() && injection.size() != n)
+        throw InputError(
+            fmt::format("{}: the injection has {} samples, the trace {}", signals.source, injection.size(), n));
+    if (n < 50) {
+        throw AnalysisError(fmt::format("{}: {} samples are too few to identify controller gains", signals.source, n));
+    }
+    signals.samples = n;
+    signals.dt = trace.time_base().sample_time_s;
+    signals.position = position_channel->values;
+    signals.reference = reference_channel->values;
+    use_native_rate(trace, signals);
+    signals.velocity = trace.find(Role::velocity);
+    if (const auto* command_channel = trace.find(Role::velocity_command)) {
+        signals.logged_command = true;
+        signals.velocity_command.assign(command_channel->values.begin(), command_channel->values.end());
+    }
+    signals.force.assign(drive_force.begin(), drive_force.end());
+    signals.injection.assign(injection.begin(), injection.end());
+    return signals;
+}
+
+// Only the rows where a held position is new (all rows when it is not held).
+void keep_fresh_rows(const GainSignals& signals, std::vector<char>& use) {
+    if (signals.hold_factor < 2) return;
+    const auto factor = static_cast<std::size_t>(signals.hold_factor);
+    for (std::size_t k = 0; k < use.size(); ++k) {
+        if (k % factor != static_cast<std::size_t>(signals.hold_phase)) use[k] = 0;
+    }
+}
+
+// The following error must carry signal, or no position gain can be seen.
+void require_following_error(const GainSignals& signals) {
+    double following_rms = 0.0;
+    for (std::size_t k = 0; k < signals.samples; ++k) {
+        following_rms += (signals.reference[k] - signals.position[k]) * (signals.reference[k] - signals.position[k]);
+    }
+    following_rms = std::sqrt(following_rms / static_cast<double>(signals.samples));
+    if (!(following_rms > 0.0)) {
+        throw AnalysisError(
+            fmt::format("{}: the position equals the reference everywhere (no following error), so the "
+                        "position gain cannot be identified; a trace of a motion with the position "
+                        "loop closed would",
+                        signals.source));
+    }
+}
+
+// Every row but the first ones, where the differences and filters start up.
+std::vector<char> rows_past_start_up(std::size_t n) {
+    std::vector<char> use(n, 1);
+    for (std::size_t k = 0; k < std::min<std::size_t>(n, 10); ++k) use[k] = 0;
+    return use;
+}
+
+// The velocity loop's rows: past the start-up, not at the force limit, with a finite force. The limit holds for the
+// controller's output F - u_inj (before an injected signal is added) and for the drive's command F.
+std::vector<char> velocity_loop_rows(const GainSignals& signals, std::optional<double> saturation_N,
+                                     std::vector<std::string>& diagnostics) {
+    const Column& force = signals.force;
+    std::vector<char> use = rows_past_start_up(force.size());
+    if (saturation_N) {
+        std::size_t saturated = 0;
+        for (std::size_t k = 0; k < force.size(); ++k) {
+            const double controller_output = signals.injection.empty() ? force[k] : force[k] - signals.injection[k];
+            if (std::max(std::abs(force[k]), std::abs(controller_output)) >= 0.999 * *saturation_N) {
+                use[k] = 0;
+                ++saturated;
+            }
+        }
+        if (saturated > 0) diagnostics.push_back(fmt::format("{} samples at the force limit left out", saturated));
+    }
+    for (std::size_t k = 0; k < force.size(); ++k) {
+        if (!std::isfinite(force[k])) use[k] = 0;
+    }
+    return use;
+}
+
+// The structures the search chooses from.
+struct SearchSpace {
+    std::vector<int> differences;       // n of the velocity measurement; 0 = the logged velocity
+    std::vector<int> reference_delays;  // d
+    std::vector<double> lags;           // tau [s]
+};
+
+SearchSpace search_space(const GainSignals& signals, const GainOptions& options) {
+    SearchSpace space;
+    if (options.velocity_difference_samples)
+        space.differences.push_back(*options.velocity_difference_samples);
+    else
+        space.differences = {1, 2, 3, 4};
+    if (signals.velocity != nullptr && !options.velocity_difference_samples) space.differences.push_back(0);
+    space.reference_delays = signals.logged_command ? std::vector<int>{0} : std::vector<int>{0, 1, 2};
+    if (options.current_lag_s)
+        space.lags.push_back(*options.current_lag_s);
+    else
+        for (const double samples : lag_grid) space.lags.push_back(samples * signals.dt);
+    return space;
+}
+
+// Position loop (only with a logged velocity command): v_cmd = K_v*e(k-d) [+ k_ff*x_ref'(k-d)], the delay d by the
+// smallest residual. Sets K_v (and k_ff), d and the position loop's relative error.
+void identify_position_loop(const GainSignals& signals, const GainOptions& options, GainResult& result) {
+    // the reference changes once per position-loop cycle: its velocity over that cycle
+    const Column reference_velocity = difference_velocity(signals.reference, signals.hold_factor, signals.dt);
+    std::vector<char> use = rows_past_start_up(signals.samples);
+    keep_fresh_rows(signals, use);
+    double best_rss = std::numeric_limits<double>::infinity();
+    Problem best;
+    for (int d : {0, 1, 2}) {
+        Problem problem;
+        problem.columns.push_back(following_error(signals.reference, signals.position, d));
+        if (options.feedforward) problem.columns.push_back(delayed(reference_velocity, d));
+        problem.y = signals.velocity_command;
+        problem.use = &use;
+        const double rss = residual_sum_of_squares(problem);
+        if (rss < best_rss) {
+            best_rss = rss;
+            best = std::move(problem);
+            result.reference_delay_samples = d;
+        }
+    }
+    const Fit position_fit = fit(best, options.rls);
+    if (position_fit.rank_deficient) {
+        throw AnalysisError(
+            fmt::format("{}: the following error does not determine the position gain", signals.source));
+    }
+    result.position_gain_per_s = estimate_from_variance(position_fit.estimate(0), position_fit.covariance(0, 0));
+    result.position_loop_relative_error_pct = position_fit.relative_error_pct;
+    if (options.feedforward) {
+        result.velocity_feedforward = estimate_from_variance(position_fit.estimate(1), position_fit.covariance(1, 1));
+    }
+}
+
+// The velocity the controller measures: (x_k - x_{k-n})/(n*T), or the logged velocity for n = 0.
+Column measured_velocity(const GainSignals& signals, int difference) {
+    if (difference == 0) return Column(signals.velocity->values.begin(), signals.velocity->values.end());
+    return difference_velocity(signals.position, difference, signals.dt);
+}
+
+// With the velocity command: F = K_p*e_v [+ K_i*E_v + c],  e_v = v_cmd - v,  E_v = sum(e_v*T).
+std::vector<Column> command_columns(const GainSignals& signals, const Column& v, bool integral) {
+    Column error(signals.samples);
+    for (std::size_t k = 0; k < signals.samples; ++k) error[k] = signals.velocity_command[k] - v[k];
+    std::vector<Column> columns;
+    if (integral) {
+        Column error_sum = running_sum(error, signals.dt);
+        columns.push_back(std::move(error));
+        columns.push_back(std::move(error_sum));
+        columns.push_back(Column(signals.samples, 1.0));
+    } else {
+        columns.push_back(std::move(error));
+    }
+    return columns;
+}
+
+// From the structure alone: F = th1*e + th2*(-v) [+ th3*sum(T*e) + th4*(-sum(T*v)) + c],  e = x_ref(k - d) - x.
+std::vector<Column> structure_columns(const GainSignals& signals, const Column& v, int reference_delay, bool integral) {
+    Column error = following_error(signals.reference, signals.position, reference_delay);
+    Column minus_v(signals.samples);
+    for (std::size_t k = 0; k < signals.samples; ++k) minus_v[k] = -v[k];
+    std::vector<Column> columns;
+    if (integral) {
+        Column error_sum = running_sum(error, signals.dt);
+        Column minus_v_sum = running_sum(minus_v, signals.dt);
+        columns.push_back(std::move(error));
+        columns.push_back(std::move(minus_v));
+        columns.push_back(std::move(error_sum));
+        columns.push_back(std::move(minus_v_sum));
+        columns.push_back(Column(signals.samples, 1.0));
+    } else {
+        columns.push_back(std::move(error));
+        columns.push_back(std::move(minus_v));
+    }
+    return columns;
+}
+
+// The velocity loop's regression on its rows: one problem per structure, every column through the drive filter L.
+// An injected signal u_inj is added to the controller's output before the drive, so the logged force is
+// F = L[F_cmd + u_inj] = L[F_cmd] + L[u_inj]: the controller explains F - L[u_inj].
+struct VelocityLoopRegression {
+    const GainSignals& signals;
+    const std::vector<char>& use;
+
+    [[nodiscard]] Problem problem(const Structure& s, bool integral) const {
+        Problem problem;
+        const Column v = measured_velocity(signals, s.difference);
+        problem.columns = signals.logged_command ? command_columns(signals, v, integral)
+                                                 : structure_columns(signals, v, s.reference_delay, integral);
+        const double a = lag_coefficient(s.lag_s, signals.dt);
+        for (auto& column : problem.columns) apply_drive_filter(column, a, s.mu);
+        problem.y = signals.force;
+        if (!signals.injection.empty()) {
+            Column injected = signals.injection;
+            apply_drive_filter(injected, a, s.mu);
+            for (std::size_t k = 0; k < problem.y.size(); ++k) problem.y[k] -= injected[k];
+        }
+        problem.use = &use;
+        return problem;
+    }
+};
+
+// The structure of the smallest residual so far.
+class StructureSearch {
+public:
+    StructureSearch(const VelocityLoopRegression& regression, bool integral)
+        : regression_(regression), integral_(integral) {}
+
+    // Fits `s`; true when it is the best so far.
+    bool consider(const Structure& s) {
+        const double rss = residual_sum_of_squares(regression_.problem(s, integral_));
+        if (!(rss < best_rss_)) return false;
+        best_rss_ = rss;
+        best_ = s;
+        return true;
+    }
+    [[nodiscard]] const Structure& best() const { return best_; }
+
+private:
+    const VelocityLoopRegression& regression_;
+    bool integral_;
+    Structure best_;
+    double best_rss_{std::numeric_limits<double>::infinity()};
+};
+
+// Staged: the velocity measurement and reference delay first (no lag, a few delays), then the lag and the
+// fractional delay for them, then the first stage again with the lag found.
+void search_grid(StructureSearch& search, const SearchSpace& space, const GainOptions& options) {
+    const double first_lag = options.current_lag_s.value_or(0.0);
+    for (int difference : space.differences) {
+        for (int d : space.reference_delays) {
+            for (double mu : {0.0, 0.5, 1.0}) search.consider({difference, d, first_lag, mu});
+        }
+    }
+    for (double lag : space.lags) {
+        for (double mu : mu_grid) search.consider({search.best().difference, search.best().reference_delay, lag, mu});
+    }
+    const Structure lagged = search.best();
+    for (int difference : space.differences) {
+        for (int d : space.reference_delays) search.consider({difference, d, lagged.lag_s, lagged.mu});
+    }
+}
+
+// Refines tau and mu by coordinate search with shrinking steps (the residual is smooth in both).
+void refine_lag_and_delay(StructureSearch& search, const GainOptions& options, double dt) {
+    double lag_step = options.current_lag_s ? 0.0 : 0.1 * dt;
+    double mu_step = 0.1;
+    for (int round = 0; round < 12; ++round) {
+        bool improved = false;
+        for (const auto& [dl, dm] :
+             {std::pair{lag_step, 0.0}, std::pair{-lag_step, 0.0}, std::pair{0.0, mu_step}, std::pair{0.0, -mu_step}}) {
+            Structure s = search.best();
+            s.lag_s = std::max(0.0, s.lag_s + dl);
+            s.mu = std::clamp(s.mu + dm, 0.0, 1.0);
+            if (s.lag_s == search.best().lag_s && s.mu == search.best().mu) continue;
+            if (search.consider(s)) improved = true;
+        }
+        if (!improved) {
+            lag_step *= 0.5;
+            mu_step *= 0.5;
+        }
+    }
+}
+
+Structure search_structure(const VelocityLoopRegression& regression, const SearchSpace& space,
+                           const GainOptions& options, bool integral) {
+    StructureSearch search(regression, integral);
+    search_grid(search, space, options);
+    refine_lag_and_delay(search, options, regression.signals.dt);
+    return search.best();
+}
+
+struct VelocityLoopFit {
+    Structure structure;
+    Fit fit;
+    bool integral{false};
+};
+
+// Why the PI fit shows no integral action ("" when it does): K_i not significant (not above three standard errors),
+// or significant but with a reset time T_n = K_p/K_i longer than the trace, over which an integrator that slow cannot
+// be told from a drift. "" also when the fit gave numbers that are not finite: gate_finite() fails those.
+std::string integral_action_missing(const Fit& fit, const GainSignals& signals) {
+    const auto [kp_index, ki_index] = gain_indices(signals.logged_command);
+    const std::string unit = ParameterNaming{signals.rotary}.velocity_integral_gain_unit();
+    if (fit.rank_deficient)
+        return fmt::format("significant integral action in the velocity loop (K_i = 0 +- 0 {})", unit);
+    const double ki = fit.estimate(ki_index);
+    const double se = std::sqrt(std::max(0.0, fit.covariance(ki_index, ki_index)));
+    const double reset_time = fit.estimate(kp_index) / ki;
+    if (!std::isfinite(ki) || !std::isfinite(se)) return {};
+    if (!(ki > 3.0 * se)) {
+        return fmt::format("significant integral action in the velocity loop (K_i = {:.4g} +- {:.2g} {})", ki, se,
+                           unit);
+    }
+    const double duration = static_cast<double>(signals.samples) * signals.dt;
+    if (std::isfinite(reset_time) && reset_time > duration) {
+        return fmt::format(
+            "integral action in the velocity loop within the trace: T_n = K_p/K_i = {:.4g} ms is longer than the "
+            "trace ({:.4g} s), so K_i = {:.4g} +- {:.2g} {} cannot be told from a drift",
+            reset_time * 1e3, duration, ki, se, unit);
+    }
+    return {};
+}
+
+// The velocity loop, PI or P as asked; automatic: PI, and P when it shows no integral action
+// (integral_action_missing()).
+VelocityLoopFit fit_velocity_loop(const VelocityLoopRegression& regression, const SearchSpace& space,
+                                  const GainOptions& options, std::vector<std::string>& diagnostics) {
+    VelocityLoopFit loop;
+    loop.integral = options.velocity_loop != VelocityLoopStructure::p;
+    loop.structure = search_structure(regression, space, options, loop.integral);
+    loop.fit = fit(regression.problem(loop.structure, loop.integral), options.rls);
+    if (loop.integral) {
+        const std::string why_not = integral_action_missing(loop.fit, regression.signals);
+        if (!why_not.empty() && options.velocity_loop == VelocityLoopStructure::automatic) {
+            diagnostics.push_back(fmt::format("no {}: identified as P only", why_not));
+            loop.integral = false;
+            loop.structure = search_structure(regression, space, options, false);
+            loop.fit = fit(regression.problem(loop.structure, false), options.rls);
+        } else if (!why_not.empty()) {
+            diagnostics.push_back(
+                fmt::format("no {}: K_i and T_n, fitted as --velocity-loop pi asks, are not to be trusted", why_not));
+        }
+    }
+    if (loop.fit.rank_deficient) {
+        throw AnalysisError(
+            fmt::format("{}: the velocity error does not determine the velocity-loop gains (the axis "
+                        "barely moved); a trace of a motion would",
+                        regression.signals.source));
+    }
+    return loop;
+}
+
+// K_p, K_i and T_n = K_p/K_i from the velocity loop's fit; from the structure alone also K_v = th1/th2 and the
+// reference delay.
+void set_velocity_loop_gains(const VelocityLoopFit& loop, bool logged_command, GainResult& result) {
+    const auto& theta = loop.fit.estimate;
+    const auto& covariance = loop.fit.covariance;
+    if (logged_command) {
+        result.velocity_gain_N_s_per_m = estimate_from_variance(theta(0), covariance(0, 0));
+        if (loop.integral) result.velocity_integral_gain_N_per_m = estimate_from_variance(theta(1), covariance(1, 1));
+    } else {
+        // th1 = K_p*K_v, th2 = K_p
+        const double kv = theta(0) / theta(1);
+        result.position_gain_per_s = estimate_from_variance(
+            kv, ratio_variance(theta(0), theta(1), covariance(0, 0), covariance(1, 1), covariance(0, 1)));
+        result.velocity_gain_N_s_per_m = estimate_from_variance(theta(1), covariance(1, 1));
+        if (loop.integral) result.velocity_integral_gain_N_per_m = estimate_from_variance(theta(3), covariance(3, 3));
+        result.reference_delay_samples = loop.structure.reference_delay;
+    }
+    if (loop.integral) {
+        const auto [kp, ki] = gain_indices(logged_command);
+        result.reset_time_s = estimate_from_variance(
+            theta(kp) / theta(ki),
+            ratio_variance(theta(kp), theta(ki), covariance(kp, kp), covariance(ki, ki), covariance(kp, ki)));
+    }
+}
+
+// The structure found and the velocity loop's fit figures, with a note on a logged velocity used and one on gains of
+// the wrong sign.
+void set_structure_and_fit(const VelocityLoopFit& loop, double dt, GainResult& result) {
+    const Structure& structure = loop.structure;
+    result.velocity_difference_samples = structure.difference == 0 ? 1 : structure.difference;
+    if (structure.difference == 0) result.diagnostics.push_back("velocity loop fitted on the logged velocity channel");
+    // A lag below a thousandth of a sample is no lag: only the search's steps, added and taken away, leave it.
+    result.current_lag_s = structure.lag_s < 1e-3 * dt ? 0.0 : structure.lag_s;
+    result.drive_delay_samples = structure.mu > 0.5 ? 1 : 0;
+    result.relative_error_pct = loop.fit.relative_error_pct;
+    result.systematic_error_pct = loop.fit.systematic_error_pct;
+    result.samples_used = loop.fit.samples;
+}
+
+// The identified controller, for simulation: the gains (0 where the data did not determine them), the structure
+// found, both loops at the trace's sample time.
+ControllerModel identified_controller(const GainResult& result, const GainOptions& options, double dt,
+                                      int hold_factor) {
+    ControllerModel controller;
+    controller.position_gain_per_s = result.position_gain_per_s.value.value_or(0.0);
+    controller.velocity_gain_N_s_per_m = result.velocity_gain_N_s_per_m.value.value_or(0.0);
+    controller.velocity_integral_gain_N_per_m = result.velocity_integral_gain_N_per_m.value.value_or(0.0);
+    controller.velocity_feedforward = result.velocity_feedforward.value.value_or(0.0);
+    controller.saturation_N = options.saturation_N;
+    controller.current_lag_s = result.current_lag_s;
+    controller.position_cycle_s = dt * hold_factor;
+    controller.velocity_cycle_s = dt;
+    controller.velocity_difference_samples = result.velocity_difference_samples;
+    return controller;
+}
+
+// Gains from a fit that leaves more of the drive signal unexplained than a correct model does (gains.hpp) are not to
+// be trusted: status failed, with the figures and the likely causes first among the diagnostics.
+void gate_fit_quality(bool injection_given, GainResult& result) {
+    if (result.systematic_error_pct <= gain_fit_error_limit_pct) return;
+    result.status = Status::failed;
+    const std::string injection =
+        injection_given ? std::string("the injection channel may not be the signal added (its sign, units or scale)")
+                        : std::string(
+                              "a signal added to the controller's output that the model lacks (an injected test "
+                              "signal, an additive torque setpoint, a torque feed-forward: map it with "
+                              "--channel injection=NAME)");
+    result.diagnostics.insert(
+        result.diagnostics.begin(),
+        fmt::format("the controller fit is poor: {:.3g} % of the drive signal is left unexplained beyond its noise "
+                    "(relative error {:.3g} %; a correct model leaves less than {:.3g} %), so the gains are not to be "
+                    "trusted. Likely causes: {}; a velocity feed-forward (--feedforward); channels with the wrong "
+                    "role or sign; a trace without motion",
+                    result.systematic_error_pct, result.relative_error_pct, gain_fit_error_limit_pct, injection));
+}
+
+// The largest |F| over the velocity loop's rows, and where it is.
+struct LargestForce {
+    double magnitude{0.0};
+    std::size_t sample{0};
+};
+
+LargestForce largest_force(const GainSignals& signals, const std::vector<char>& use) {
+    LargestForce largest;
+    for (std::size_t k = 0; k < signals.force.size(); ++k) {
+        if (use[k] && std::abs(signals.force[k]) > largest.magnitude) largest = {std::abs(signals.force[k]), k};
+    }
+    return largest;
+}
+
+// A drive force whose squares over the rows are not finite numbers (a current of 1e300 A, a force constant far off)
+// cannot be fitted: the reason, with the figures; none when it can.
+std::optional<std::string> force_beyond_arithmetic(const GainSignals& signals, const std::vector<char>& use) {
+    double squares = 0.0;
+    for (std::size_t k = 0; k < signals.force.size(); ++k) {
+        if (use[k]) squares += signals.force[k] * signals.force[k];
+    }
+    if (std::isfinite(squares)) return std::nullopt;
+    const LargestForce largest = largest_force(signals, use);
+    return fmt::format(
+        "the drive force reaches {:.4g} {} (at t = {:.6g} s): so large that its squares are not finite numbers, and "
+        "no gains can be fitted to it; is the drive signal's unit or the force constant right?",
+        largest.magnitude, signals.rotary ? "N*m" : "N", static_cast<double>(largest.sample) * signals.dt);
+}
+
+// Gains or fit figures that are not finite numbers are no gains: status failed, with a diagnostic first that names
+// them and gives the largest drive force; the values are dropped (null in the document, "—" in print).
+void gate_finite(const GainSignals& signals, const std::vector<char>& use, GainResult& result) {
+    std::string names;
+    const auto check = [&](Estimate& estimate, const char* symbol) {
+        if (estimate.value && !std::isfinite(*estimate.value)) {
+            names += fmt::format("{}{}", names.empty() ? "" : ", ", symbol);
+            estimate = Estimate{};
+        }
+    };
+    check(result.position_gain_per_s, "K_v");
+    check(result.velocity_gain_N_s_per_m, "K_p");
+    check(result.velocity_integral_gain_N_per_m, "K_i");
+    check(result.velocity_feedforward, "k_ff");
+    check(result.reset_time_s, "T_n");
+    for (const auto& [value, name] :
+         {std::pair{result.relative_error_pct, "the relative error"},
+          std::pair{result.systematic_error_pct, "the systematic error"},
+          std::pair{result.position_loop_relative_error_pct, "the position loop's error"}}) {
+        if (!std::isfinite(value)) names += fmt::format("{}{}", names.empty() ? "" : ", ", name);
+    }
+    if (names.empty()) return;
+    result.status = Status::failed;
+    result.diagnostics.insert(
+        result.diagnostics.begin(),
+        fmt::format("the controller fit gave numbers that are not finite ({}): no gains (the drive force reaches "
+                    "{:.4g} {}); are the channels' units and the force constant right?",
+                    names, largest_force(signals, use).magnitude, signals.rotary ? "N*m" : "N"));
+}
+
+// A loop gain of the wrong sign is no controller that could run the axis (its loop would be unstable): status failed,
+// with the likely cause and the fix first among the diagnostics. K_p < 0 with K_v > 0 is a drive signal whose sign is
+// the opposite of the motion's (drive and NC count directions differently); K_v < 0 is a reference and position
+// mapped the wrong way round, or of opposite signs.
+void gate_signs(const GainOptions& options, bool rotary, GainResult& result) {
+    const double kv = result.position_gain_per_s.value.value_or(1.0);
+    const double kp = result.velocity_gain_N_s_per_m.value.value_or(1.0);
+    const ParameterNaming naming{rotary};
+    std::string why;
+    if (kv <= 0.0) {
+        why = fmt::format(
+            "the position loop gain came out negative (K_v = {:.4g} 1/s), which no stable controller has: are the "
+            "reference and the position mapped to their roles (--channel reference_position=NAME, --channel "
+            "position=NAME), with the same sign?",
+            kv);
+    } else if (kp <= 0.0) {
+        const std::string fix = options.force_per_signal != 0.0
+                                    ? fmt::format("give the force constant with the other sign, --force-constant {:g}",
+                                                  -options.force_per_signal)
+                                    : std::string("turn the drive signal's sign (a negative --force-constant)");
+        why = fmt::format(
+            "the velocity loop gain came out negative (K_p = {:.4g} {}), which no stable controller has: the drive "
+            "signal's sign is the opposite of the motion's (drive and NC count directions differently); {}",
+            kp, naming.velocity_gain_unit(), fix);
+    }
+    if (why.empty()) return;
+    result.status = Status::failed;
+    result.diagnostics.insert(result.diagnostics.begin(), std::move(why));
+}
+
+}  // namespace
+
+GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options,
+                          std::span<const double> injection) {
+    if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
+    const GainSignals signals = gain_signals(trace, drive_force, injection);
+    require_following_error(signals);
+    GainResult result;
+    result.method = signals.logged_command ? "velocity_command" : "structure";
+    std::vector<char> use = velocity_loop_rows(signals, options.saturation_N, result.diagnostics);
+    keep_fresh_rows(signals, use);
+    if (auto beyond = force_beyond_arithmetic(signals, use)) {
+        result.status = Status::failed;
+        result.diagnostics.insert(result.diagnostics.begin(), std::move(*beyond));
+        // nothing fitted: no fit figures (null in the document), a controller without gains
+        result.relative_error_pct = result.systematic_error_pct = result.position_loop_relative_error_pct =
+            std::numeric_limits<double>::quiet_NaN();
+        result.controller = identified_controller(result, options, signals.dt, signals.hold_factor);
+        return result;
+    }
+    if (signals.hold_factor > 1) {
+        result.diagnostics.push_back(fmt::format(
+            "the position holds each value over {} samples: fitted on the samples where it is new, the position "
+            "loop taken to run every {:.6g} ms and the velocity loop every {:.6g} ms (the drive signal's interval)",
+            signals.hold_factor, signals.dt * signals.hold_factor * 1e3, signals.dt * 1e3));
+    }
+    if (signals.logged_command) identify_position_loop(signals, options, result);
+    const VelocityLoopRegression regression{signals, use};
+    const VelocityLoopFit velocity_loop =
+        fit_velocity_loop(regression, search_space(signals, options), options, result.diagnostics);
+    set_velocity_loop_gains(velocity_loop, signals.logged_command, result);
+    set_structure_and_fit(velocity_loop, signals.dt, result);
+    result.injection_subtracted = !signals.injection.empty();
+    gate_finite(signals, use, result);
+    if (result.status != Status::failed) gate_fit_quality(result.injection_subtracted, result);
+    gate_signs(options, signals.rotary, result);
+    result.controller = identified_controller(result, options, signals.dt, signals.hold_factor);
+    return result;
+}
+
+}  // namespace feedid

@@ -1,0 +1,325 @@
+#include "feedid/numeric/signal.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <deque>
+#include <functional>
+#include <numbers>
+#include <stdexcept>
+
+#include <Eigen/Dense>
+
+namespace feedid {
+
+namespace {
+
+using Complex = std::complex<double>;
+
+// Builds second-order sections from analog low-pass poles (left half plane, conjugate pairs adjacent or real),
+// mapped by the bilinear transform s = 2*fs*(z-1)/(z+1); all zeros at z = -1. The DC gain is set to `dc_gain`.
+SecondOrderSections from_analog_poles(const std::vector<Complex>& poles, double sample_rate_hz, double dc_gain) {
+    const double k = 2.0 * sample_rate_hz;
+    SecondOrderSections filter;
+    std::vector<bool> used(poles.size(), false);
+    for (std::size_t i = 0; i < poles.size(); ++i) {
+        if (used[i]) continue;
+        used[i] = true;
+        const Complex z = (k + poles[i]) / (k - poles[i]);
+        if (std::abs(poles[i].imag()) < 1e-12 * std::abs(poles[i])) {
+            // first-order section: (1 + z^-1) / (1 - z_r z^-1)
+            filter.sections.push_back({1.0, 1.0, 0.0, 1.0, -z.real(), 0.0});
+            continue;
+        }
+        // its conjugate
+        for (std::size_t j = i + 1; j < poles.size(); ++j) {
+            if (!used[j] && std::abs(poles[j] - std::conj(poles[i])) < 1e-9 * std::abs(poles[i])) {
+                used[j] = true;
+                break;
+            }
+        }
+        filter.sections.push_back({1.0, 2.0, 1.0, 1.0, -2.0 * z.real(), std::norm(z)});
+    }
+    // normalise the DC gain (z = 1)
+    double gain = 1.0;
+    for (const auto& s : filter.sections) gain *= (s[0] + s[1] + s[2]) / (s[3] + s[4] + s[5]);
+    const double correction = dc_gain / gain;
+    auto& first = filter.sections.front();
+    first[0] *= correction;
+    first[1] *= correction;
+    first[2] *= correction;
+    return filter;
+}
+
+double prewarped(double cutoff_hz, double sample_rate_hz) {
+    if (!(cutoff_hz > 0.0) || !(cutoff_hz < 0.5 * sample_rate_hz)) {
+        throw std::invalid_argument("filter cut-off must lie between 0 and half the sample rate");
+    }
+    return 2.0 * sample_rate_hz * std::tan(std::numbers::pi * cutoff_hz / sample_rate_hz);
+}
+
+// One pass of the cascade over x (transposed direct form II), starting from steady state for the level x[0].
+void filter_in_place(const SecondOrderSections& filter, std::span<double> x) {
+    if (x.empty()) return;
+    double level = x.front();
+    for (const auto& s : filter.sections) {
+        const double b0 = s[0], b1 = s[1], b2 = s[2], a1 = s[4], a2 = s[5];
+        const double g = (b0 + b1 + b2) / (1.0 + a1 + a2);
+        double s2 = (b2 - a2 * g) * level;
+        double s1 = (b1 - a1 * g) * level + s2;
+        for (double& v : x) {
+            const double in = v;
+            const double out = b0 * in + s1;
+            s1 = b1 * in - a1 * out + s2;
+            s2 = b2 * in - a2 * out;
+            v = out;
+        }
+        level *= g;
+    }
+}
+
+// The order of the cascade's transfer function (MATLAB's filtord): the larger of the numerator's and the
+// denominator's degree in z^-1, each the sum over the sections of its highest non-zero power. A first-order section
+// (b2 = a2 = 0) adds one, so an odd-order design has an odd order, not twice its number of sections.
+std::size_t filter_order(const SecondOrderSections& filter) {
+    auto degree = [](double c1, double c2) -> std::size_t { return c2 != 0.0 ? 2 : c1 != 0.0 ? 1 : 0; };
+    std::size_t numerator = 0;
+    std::size_t denominator = 0;
+    for (const auto& s : filter.sections) {
+        numerator += degree(s[1], s[2]);
+        denominator += degree(s[4], s[5]);
+    }
+    return std::max(numerator, denominator);
+}
+
+}  // namespace
+
+SecondOrderSections butterworth_lowpass(int order, double cutoff_hz, double sample_rate_hz) {
+    if (order < 1 || order > 20) throw std::invalid_argument("Butterworth order must be 1..20");
+    const double wa = prewarped(cutoff_hz, sample_rate_hz);
+    std::vector<Complex> poles;
+    for (int k = 0; k < order; ++k) {
+        const double angle = std::numbers::pi * (2.0 * k + order + 1.0) / (2.0 * order);
+        poles.push_back(wa * Complex(std::cos(angle), std::sin(angle)));
+    }
+    return from_analog_poles(poles, sample_rate_hz, 1.0);
+}
+
+SecondOrderSections chebyshev1_lowpass(int order, double ripple_db, double cutoff_hz, double sample_rate_hz) {
+    if (order < 1 || order > 20) throw std::invalid_argument("Chebyshev order must be 1..20");
+    const double wa = prewarped(cutoff_hz, sample_rate_hz);
+    const double eps = std::sqrt(std::pow(10.0, ripple_db / 10.0) - 1.0);
+    const double mu = std::asinh(1.0 / eps) / order;
+    std::vector<Complex> poles;
+    for (int k = 0; k < order; ++k) {
+        const double theta = std::numbers::pi * (2.0 * k + 1.0) / (2.0 * order);
+        poles.push_back(wa * Complex(-std::sinh(mu) * std::sin(theta), std::cosh(mu) * std::cos(theta)));
+    }
+    const double dc_gain = order % 2 == 0 ? 1.0 / std::sqrt(1.0 + eps * eps) : 1.0;
+    return from_analog_poles(poles, sample_rate_hz, dc_gain);
+}
+
+std::vector<double> filtfilt(const SecondOrderSections& filter, std::span<const double> x) {
+    std::vector<double> workspace;
+    if (x.size() < 2) return std::vector<double>(x.begin(), x.end());
+    // the padded signal filtered in its own buffer, then the padding cut off in place: one column, not two
+    const std::size_t pad = std::min(std::max<std::size_t>(1, 3 * filter_order(filter)), x.size() - 1);
+    workspace.reserve(x.size() + 2 * pad);
+    filtfilt(filter, x, std::span<double>(), workspace);
+    workspace.erase(workspace.begin(), workspace.begin() + static_cast<std::ptrdiff_t>(pad));
+    workspace.resize(x.size());
+    return workspace;
+}
+
+void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std::span<double> out,
+              std::vector<double>& workspace) {
+    const std::size_t n = x.size();
+    if (n == 0) return;
+    if (n == 1) {
+        out[0] = x[0];
+        return;
+    }
+    // odd reflection about the end points, max(1, 3 * (filter order)) samples, as MATLAB's filtfilt (which refuses a
+    // signal of no more samples than that; here the padding is cut to n - 1)
+    const std::size_t pad = std::min(std::max<std::size_t>(1, 3 * filter_order(filter)), n - 1);
+    if (workspace.size() < n + 2 * pad) workspace.resize(n + 2 * pad);
+    const std::span<double> y(workspace.data(), n + 2 * pad);
+    for (std::size_t k = pad; k >= 1; --k) y[pad - k] = 2.0 * x[0] - x[k];
+    std::copy(x.begin(), x.end(), y.begin() + static_cast<std::ptrdiff_t>(pad));
+    for (std::size_t k = 1; k <= pad; ++k) y[pad + n - 1 + k] = 2.0 * x[n - 1] - x[n - 1 - k];
+    filter_in_place(filter, y);
+    std::reverse(y.begin(), y.end());
+    filter_in_place(filter, y);
+    std::reverse(y.begin(), y.end());
+    if (out.empty()) return;  // the caller takes the filtered signal from the workspace (filtfilt above)
+    std::copy(y.begin() + static_cast<std::ptrdiff_t>(pad), y.begin() + static_cast<std::ptrdiff_t>(pad + n),
+              out.begin());
+}
+
+std::vector<double> central_difference(std::span<const double> x, double dt) {
+    const std::size_t n = x.size();
+    std::vector<double> d(n, 0.0);
+    if (n < 2) return d;
+    for (std::size_t k = 1; k + 1 < n; ++k) d[k] = (x[k + 1] - x[k - 1]) / (2.0 * dt);
+    d[0] = (x[1] - x[0]) / dt;
+    d[n - 1] = (x[n - 1] - x[n - 2]) / dt;
+    return d;
+}
+
+std::vector<double> savitzky_golay(std::span<const double> x, int window, int polynomial, int derivative, double dt) {
+    if (window < 3 || window % 2 == 0) throw std::invalid_argument("Savitzky-Golay window must be odd and >= 3");
+    if (polynomial < derivative || polynomial >= window) {
+        throw std::invalid_argument("Savitzky-Golay polynomial order must be >= the derivative and < the window");
+    }
+    const std::size_t n = x.size();
+    const int half = window / 2;
+    if (n < static_cast<std::size_t>(window))
+        throw std::invalid_argument("signal shorter than the Savitzky-Golay window");
+    // Vandermonde on offsets -half..half; row `derivative` of the pseudo-inverse, times derivative!, gives the
+    // derivative of the fitted polynomial at offset t (evaluated by the polynomial basis).
+    Eigen::MatrixXd vandermonde(window, polynomial + 1);
+    for (int i = 0; i < window; ++i) {
+        for (int j = 0; j <= polynomial; ++j) vandermonde(i, j) = std::pow(static_cast<double>(i - half), j);
+    }
+    const Eigen::MatrixXd pseudo_inverse = vandermonde.completeOrthogonalDecomposition().pseudoInverse();
+    // derivative of sum_j c_j t^j at offset t: sum_j c_j * j!/(j-d)! * t^(j-d)
+    auto weights_at = [&](double t) {
+        Eigen::RowVectorXd basis = Eigen::RowVectorXd::Zero(polynomial + 1);
+        for (int j = derivative; j <= polynomial; ++j) {
+            double factor = 1.0;
+            for (int m = 0; m < derivative; ++m) factor *= (j - m);
+            basis(j) = factor * std::pow(t, j - derivative);
+        }
+        return Eigen::RowVectorXd(basis * pseudo_inverse);
+    };
+    const double scale = std::pow(dt, -derivative);
+    std::vector<double> y(n);
+    const Eigen::RowVectorXd centre = weights_at(0.0);
+    for (std::size_t k = static_cast<std::size_t>(half); k + static_cast<std::size_t>(half) < n; ++k) {
+        double sum = 0.0;
+        for (int i = 0; i < window; ++i)
+            sum += centre(i) * x[k - static_cast<std::size_t>(half) + static_cast<std::size_t>(i)];
+        y[k] = sum * scale;
+    }
+    for (int k = 0; k < half; ++k) {
+        const Eigen::RowVectorXd head = weights_at(static_cast<double>(k - half));
+        const Eigen::RowVectorXd tail = weights_at(static_cast<double>(half - k));
+        double sum_head = 0.0, sum_tail = 0.0;
+        for (int i = 0; i < window; ++i) {
+            sum_head += head(i) * x[static_cast<std::size_t>(i)];
+            sum_tail += tail(i) * x[n - static_cast<std::size_t>(window) + static_cast<std::size_t>(i)];
+        }
+        y[static_cast<std::size_t>(k)] = sum_head * scale;
+        y[n - 1 - static_cast<std::size_t>(k)] = sum_tail * scale;
+    }
+    return y;
+}
+
+std::vector<std::size_t> decimation_indices(std::size_t n, int factor) {
+    std::vector<std::size_t> indices;
+    if (n == 0 || factor < 1) return indices;
+    const std::size_t r = static_cast<std::size_t>(factor);
+    const std::size_t out = (n + r - 1) / r;
+    // MATLAB: nbeg = r - (r*nout - nd), 1-based; keeps the last sample
+    const std::size_t first = r - (r * out - n) - 1;
+    for (std::size_t k = first; k < n; k += r) indices.push_back(k);
+    return indices;
+}
+
+std::vector<double> decimate(std::span<const double> x, int factor) {
+    if (factor <= 1) return {x.begin(), x.end()};
+    const auto filter = chebyshev1_lowpass(8, 0.05, 0.8 * 0.5 / factor, 1.0);
+    const auto filtered = filtfilt(filter, x);
+    std::vector<double> y;
+    for (const auto k : decimation_indices(x.size(), factor)) y.push_back(filtered[k]);
+    return y;
+}
+
+std::vector<std::size_t> extreme_preserving_indices(std::span<const std::span<const double>> signals, std::size_t n,
+                                                    std::size_t max_points) {
+    std::vector<std::size_t> indices;
+    if (n <= max_points) {
+        indices.resize(n);
+        for (std::size_t k = 0; k < n; ++k) indices[k] = k;
+        return indices;
+    }
+    // Each bucket keeps at most two samples per signal, so this many buckets stay within max_points.
+    const std::size_t buckets = std::max<std::size_t>(1, max_points / std::max<std::size_t>(1, 2 * signals.size()));
+    std::vector<std::size_t> kept;
+    for (std::size_t b = 0; b < buckets; ++b) {
+        const std::size_t begin = b * n / buckets;
+        const std::size_t end = (b + 1) * n / buckets;
+        kept.clear();
+        for (const auto& signal : signals) {
+            std::size_t low = begin;
+            std::size_t high = begin;
+            for (std::size_t k = begin; k < end; ++k) {
+                // NaN compares false: a NaN is never kept over a number, and a leading NaN is replaced by one
+                if (signal[k] < signal[low] || std::isnan(signal[low])) low = k;
+                if (signal[k] > signal[high] || std::isnan(signal[high])) high = k;
+            }
+            kept.push_back(low);
+            kept.push_back(high);
+        }
+        std::sort(kept.begin(), kept.end());
+        kept.erase(std::unique(kept.begin(), kept.end()), kept.end());
+        indices.insert(indices.end(), kept.begin(), kept.end());
+    }
+    return indices;
+}
+
+double noise_floor(std::span<const double> x) {
+    if (x.size() < 3) return 0.0;
+    std::vector<double> d(x.size() - 1);
+    for (std::size_t k = 0; k + 1 < x.size(); ++k) d[k] = x[k + 1] - x[k];
+    auto median_of = [](std::vector<double>& v) {
+        auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+        std::nth_element(v.begin(), mid, v.end());
+        return *mid;
+    };
+    const double centre = median_of(d);
+    for (double& v : d) v = std::abs(v - centre);
+    return 1.4826 * median_of(d) / std::numbers::sqrt2;
+}
+
+double percentile(std::vector<double> values, double fraction) {
+    return percentile_in_place(values, fraction);
+}
+
+double percentile_in_place(std::span<double> values, double fraction) {
+    if (values.empty()) return 0.0;
+    const auto index =
+        static_cast<std::size_t>(std::clamp(fraction, 0.0, 1.0) * static_cast<double>(values.size() - 1));
+    std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(index), values.end());
+    return values[index];
+}
+
+namespace {
+template <class Compare>
+std::vector<double> running_extreme(std::span<const double> x, std::size_t half, Compare better) {
+    const std::size_t n = x.size();
+    std::vector<double> out(n);
+    std::deque<std::size_t> queue;
+    std::size_t next = 0;  // the next index to enter the window
+    for (std::size_t k = 0; k < n; ++k) {
+        const std::size_t last = std::min(n - 1, k + half);
+        for (; next <= last; ++next) {
+            while (!queue.empty() && !better(x[queue.back()], x[next])) queue.pop_back();
+            queue.push_back(next);
+        }
+        while (queue.front() + half < k) queue.pop_front();
+        out[k] = x[queue.front()];
+    }
+    return out;
+}
+}  // namespace
+
+std::vector<double> running_minimum(std::span<const double> x, std::size_t half) {
+    return running_extreme(x, half, std::less<>{});
+}
+
+std::vector<double> running_maximum(std::span<const double> x, std::size_t half) {
+    return running_extreme(x, half, std::greater<>{});
+}
+
+}  // namespace feedid

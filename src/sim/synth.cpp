@@ -1,0 +1,824 @@
+#include "feedid/sim/synth.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <random>
+#include <set>
+#include <span>
+
+#include <fmt/core.h>
+#include <toml++/toml.h>
+
+#include "feedid/core/error.hpp"
+#include "feedid/io/import.hpp"
+#include "feedid/io/json_input.hpp"
+#include "feedid/core/units.hpp"
+
+namespace feedid {
+
+namespace {
+
+// Bounds against typos, not physical limits: 1000 cycles of the default test run for about 13 hours (46 million
+// samples); the synthesis time grows with the integration substeps per sample (default 8).
+constexpr int max_cycles = 1000;
+constexpr int max_substeps = 1000;
+// NC servo traces sample every 0.1 to 10 ms; a sample time above 1 s is a unit mistake.
+constexpr double max_sample_time_s = 1.0;
+// Time stamps that jitter by less than half a sample stay in order.
+constexpr double max_jitter_per_sample_time = 0.5;
+// A sample rate that is a whole number of hertz up to the rounding of 1/T gets time stamps k/f_s.
+constexpr double whole_rate_tolerance = 1e-12;
+
+// The demo controller (feedid synth --help): K_v 2 (m/min)/mm, T_n 20 ms, current lag 0.3 ms, and K_p high enough
+// that sliding is stable down to about 100 mm/min against the Stribeck slope (F_B - F_C)/v_s = 40 kN*s/m; below
+// that the axis stick-slips, as real axes do. The force limit is twice the demo motor's rated 18 A.
+constexpr double demo_kv_m_per_min_per_mm = 2.0;
+constexpr double demo_velocity_gain_N_s_per_m = 40000.0;
+constexpr double demo_integral_time_s = 0.020;
+constexpr double demo_current_lag_s = 0.3e-3;
+constexpr double demo_saturation_A = 36.0;
+
+// The rotary demo (a direct-drive rotary table): K_p such that the velocity loop's crossover K_p/J = 200 rad/s keeps
+// about 40 degrees of phase margin at a 2 ms cycle with a velocity measured over 4 ms, and above the Stribeck slope
+// (F_B - F_C)/v_s = 120 N*m*s/rad; the torque limit at 100 A.
+constexpr double rotary_demo_inertia_kgm2 = 2.0;
+constexpr double rotary_demo_velocity_gain_Nms_per_rad = 400.0;
+constexpr double rotary_demo_kt_Nm_per_A = 2.0;
+constexpr double rotary_demo_saturation_A = 100.0;
+
+// A rotary axis' test and sensor lengths are in degrees where the drive file says mm: 1 "m" of them is 1000 deg.
+constexpr double rotary_rad_per_length_unit = 1000.0 * std::numbers::pi / 180.0;
+
+// SINUMERIK servo trace: 2 ms time base, position-loop signals every 4 ms.
+constexpr double sinumerik_sample_time_s = 0.002;
+constexpr double sinumerik_position_interval_s = 0.004;
+
+// SI per unit of a recorded position or velocity ("deg" -> pi/180 rad); InputError for a unit that is not one of the
+// role's quantity on this axis kind.
+double recording_unit_scale(const std::string& unit, Role role, bool rotary) {
+    const bool position = role == Role::position;
+    const Quantity wanted = position ? (rotary ? Quantity::angle : Quantity::length)
+                                     : (rotary ? Quantity::angular_velocity : Quantity::velocity);
+    if (const auto conversion = parse_unit(unit); conversion && conversion->offset == 0.0) {
+        if (conversion->quantity == wanted) return conversion->scale;
+    } else if (rotary && !position) {
+        // motor speed on a rotary axis: revolutions per minute of the axis itself
+        for (const std::string_view rpm : {"rpm", "rev/min", "r/min", "1/min", "U/min"}) {
+            if (unit == rpm) return 2.0 * std::numbers::pi / 60.0;
+        }
+    }
+    throw InputError(fmt::format("recording: '{}' is not a unit of {} on a {} axis", unit,
+                                 position ? "position" : "velocity", rotary ? "rotary" : "linear"));
+}
+
+}  // namespace
+
+std::string RecordingModel::validate(bool rotary, double sample_time_s) const {
+    for (const auto& [name, interval] : {std::pair{"position", position_interval_s},
+                                         std::pair{"velocity", velocity_interval_s},
+                                         std::pair{"drive", drive_interval_s}}) {
+        if (!(interval >= 0.0 && std::isfinite(interval)))
+            return fmt::format("the {} signal's interval must be a time >= 0", name);
+        const double samples = interval / sample_time_s;
+        if (interval > 0.0 && (samples < 1.0 - 1e-9 || std::abs(samples - std::round(samples)) > 1e-6))
+            return fmt::format("the {} signal's interval ({:.6g} ms) must be a whole multiple of the sample time "
+                               "({:.6g} ms)",
+                               name, interval * 1e3, sample_time_s * 1e3);
+    }
+    for (const auto& [role, unit] : {std::pair{Role::position, &position_unit}, std::pair{Role::velocity, &velocity_unit}}) {
+        if (unit->empty()) continue;
+        try {
+            (void)recording_unit_scale(*unit, role, rotary);
+        } catch (const InputError& e) {
+            return e.what();
+        }
+    }
+    return {};
+}
+
+std::string TestReference::validate() const {
+    if (feedrates_mm_per_min.empty() && !(slow_passes && !slow_feedrates_mm_per_min.empty())) {
+        return "the test needs at least one feedrate";
+    }
+    for (const double f : feedrates_mm_per_min) {
+        if (!(f > 0.0 && std::isfinite(f))) return "every feedrate must be a positive number [mm/min]";
+    }
+    for (const double f : slow_feedrates_mm_per_min) {
+        if (!(f > 0.0 && std::isfinite(f))) return "every slow-pass feedrate must be a positive number [mm/min]";
+    }
+    if (!(stroke_m > 0.0 && std::isfinite(stroke_m))) return "the stroke must be a positive length";
+    if (cycles < 1 || cycles > max_cycles)
+        return fmt::format("the cycles per feedrate must be between 1 and {}", max_cycles);
+    if (!(slow_pass_duration_s > 0.0) || !(slow_stroke_min_m > 0.0))
+        return "slow-pass duration and stroke must be positive";
+    if (!(acceleration_m_per_s2 > 0.0 && std::isfinite(acceleration_m_per_s2)))
+        return "the acceleration must be positive";
+    if (!(dwell_s >= 0.0 && std::isfinite(dwell_s))) return "the dwell must be a time >= 0";
+    if (!std::isfinite(start_m)) return "the start position must be a finite number";
+    return {};
+}
+
+std::string SensorModel::validate() const {
+    if (!(sample_time_s > 0.0 && sample_time_s <= max_sample_time_s))
+        return fmt::format("the sample time must lie in (0, {}] s", max_sample_time_s);
+    if (!(jitter_s >= 0.0 && jitter_s < max_jitter_per_sample_time * sample_time_s))
+        return "the jitter must lie in [0, T/2)";
+    if (!(position_resolution_m >= 0.0) || !(current_resolution_A >= 0.0) || !(current_noise_A >= 0.0)) {
+        return "resolutions and noise must be >= 0";
+    }
+    if (substeps < 1 || substeps > max_substeps)
+        return fmt::format("the substeps per sample must be between 1 and {}", max_substeps);
+    return {};
+}
+
+double SquareWaveInjection::at(double time_s) const {
+    const double phase = time_s * frequency_Hz;
+    return phase - std::floor(phase) < 0.5 ? amplitude_N : 0.0;
+}
+
+std::string SquareWaveInjection::validate(double sample_time_s) const {
+    // A force (torque) of either sign from 1 uN to 10 MN: past any drive, short of nonsense.
+    if (!(std::abs(amplitude_N) >= 1e-6 && std::abs(amplitude_N) <= 1e7))
+        return "the injection's amplitude must be a number of either sign with a magnitude from 1e-06 to 1e+07 N";
+    // At least four samples per half period, so that each half of the wave is seen as a level; at most a period of
+    // 1000 s (a slower wave is a step).
+    const double highest = 1.0 / (8.0 * sample_time_s);
+    if (!(frequency_Hz >= 1e-3 && frequency_Hz <= highest)) {
+        return fmt::format("the injection's frequency must lie from 0.001 to {:g} Hz (four samples per half period)",
+                           highest);
+    }
+    return {};
+}
+
+double SynthSpec::force_constant_N_per_A() const {
+    if (axis.rotary) return kt_Nm_per_A * gear_ratio;  // torque at the axis through the gear
+    // eq. (2): F_d = K_t * i / R, R = l / 2*pi, times the gear ratio motor:screw
+    return kt_Nm_per_A * gear_ratio * 2.0 * std::numbers::pi / lead_m;
+}
+
+std::string SynthSpec::validate() const {
+    if (!(kt_Nm_per_A > 0.0) || !(lead_m > 0.0) || !(gear_ratio > 0.0))
+        return "K_t, lead and gear ratio must be positive";
+    if (!(axis.mass > 0.0)) return "the mass must be positive";
+    if (auto problem = controller.validate(); !problem.empty()) return problem;
+    if (auto problem = sensors.validate(); !problem.empty()) return problem;
+    if (auto problem = recording.validate(axis.rotary, sensors.sample_time_s); !problem.empty()) return problem;
+    if (auto problem = test.validate(); !problem.empty()) return problem;
+    if (injection) {
+        if (auto problem = injection->validate(sensors.sample_time_s); !problem.empty()) return problem;
+    }
+    SimulationOptions zones;
+    zones.friction_zones = friction_zones;
+    if (auto problem = zones.validate(); !problem.empty()) return problem;
+    return {};
+}
+
+SynthSpec demo_spec() {
+    SynthSpec spec;
+    FrictionBranch branch;
+    branch.viscous = 54.2;
+    branch.coulomb = 742.8;
+    branch.breakaway = 946.2;
+    branch.stribeck_velocity = 0.005;
+    spec.axis.mass = 69.1;
+    spec.axis.friction = Friction::symmetric(branch);
+    spec.controller.position_gain_per_s = position_gain_from_kv(demo_kv_m_per_min_per_mm);
+    spec.controller.velocity_gain_N_s_per_m = demo_velocity_gain_N_s_per_m;
+    spec.controller.velocity_integral_gain_N_per_m = demo_velocity_gain_N_s_per_m / demo_integral_time_s;
+    spec.controller.current_lag_s = demo_current_lag_s;
+    spec.controller.saturation_N = demo_saturation_A * spec.force_constant_N_per_A();
+    return spec;
+}
+
+SynthSpec rotary_demo_spec() {
+    SynthSpec spec = demo_spec();
+    FrictionBranch branch;
+    branch.viscous = 5.0;
+    branch.coulomb = 20.0;
+    branch.breakaway = 26.0;
+    branch.stribeck_velocity = 0.05;
+    spec.axis.rotary = true;
+    spec.axis.mass = rotary_demo_inertia_kgm2;
+    spec.axis.friction = Friction::symmetric(branch);
+    spec.kt_Nm_per_A = rotary_demo_kt_Nm_per_A;
+    spec.controller.velocity_gain_N_s_per_m = rotary_demo_velocity_gain_Nms_per_rad;
+    spec.controller.velocity_integral_gain_N_per_m = rotary_demo_velocity_gain_Nms_per_rad / demo_integral_time_s;
+    spec.controller.saturation_N = rotary_demo_saturation_A * spec.force_constant_N_per_A();
+    return spec;
+}
+
+void apply_sinumerik_recording(SynthSpec& spec) {
+    spec.sensors.sample_time_s = sinumerik_sample_time_s;
+    spec.controller.position_cycle_s = sinumerik_position_interval_s;
+    spec.controller.velocity_cycle_s = sinumerik_sample_time_s;
+    spec.controller.velocity_difference_samples =
+        static_cast<int>(std::lround(sinumerik_position_interval_s / sinumerik_sample_time_s));
+    auto& r = spec.recording;
+    r.position_interval_s = sinumerik_position_interval_s;
+    r.velocity_interval_s = sinumerik_position_interval_s;
+    r.drive_interval_s = sinumerik_sample_time_s;
+    r.log_velocity = true;
+    r.log_torque = spec.axis.rotary;
+    r.position_unit = spec.axis.rotary ? "deg" : "mm";
+    r.velocity_unit = spec.axis.rotary ? "rpm" : "mm/min";
+}
+
+namespace {
+
+// Walks a JSON object, taking known keys and rejecting unknown ones (a typo must not pass silently).
+class Section {
+public:
+    Section(const nlohmann::json& object, std::string path, std::string source)
+        : object_(object), path_(std::move(path)), source_(std::move(source)) {
+        if (!object_.is_object()) throw InputError(fmt::format("{}: '{}' must be an object", source_, path_));
+    }
+    ~Section() = default;
+    Section(const Section&) = delete;
+    Section& operator=(const Section&) = delete;
+
+    bool has(const std::string& key) const { return object_.contains(key) && !object_[key].is_null(); }
+
+    std::optional<double> number(const std::string& key) {
+        known_.insert(key);
+        if (!has(key)) return std::nullopt;
+        const auto& value = object_[key];
+        if (!value.is_number() || !std::isfinite(value.get<double>())) {
+            throw InputError(fmt::format("{}: {}.{} must be a number", source_, path_, key));
+        }
+        return value.get<double>();
+    }
+    std::optional<bool> boolean(const std::string& key) {
+        known_.insert(key);
+        if (!has(key)) return std::nullopt;
+        if (!object_[key].is_boolean())
+            throw InputError(fmt::format("{}: {}.{} must be true or false", source_, path_, key));
+        return object_[key].get<bool>();
+    }
+    std::optional<std::string> text(const std::string& key) {
+        known_.insert(key);
+        if (!has(key)) return std::nullopt;
+        if (!object_[key].is_string()) throw InputError(fmt::format("{}: {}.{} must be a text", source_, path_, key));
+        return object_[key].get<std::string>();
+    }
+    std::optional<std::vector<double>> numbers(const std::string& key) {
+        known_.insert(key);
+        if (!has(key)) return std::nullopt;
+        const auto& value = object_[key];
+        if (!value.is_array())
+            throw InputError(fmt::format("{}: {}.{} must be a list of numbers", source_, path_, key));
+        std::vector<double> out;
+        for (const auto& item : value) {
+            if (!item.is_number())
+                throw InputError(fmt::format("{}: {}.{} must be a list of numbers", source_, path_, key));
+            out.push_back(item.get<double>());
+        }
+        return out;
+    }
+    void accept(const std::string& key) { known_.insert(key); }
+    void reject_unknown() const {
+        for (const auto& [key, value] : object_.items()) {
+            if (!known_.contains(key)) {
+                throw InputError(
+                    fmt::format("{}: unknown key '{}{}{}'", source_, path_, path_.empty() ? "" : ".", key));
+            }
+        }
+    }
+
+private:
+    const nlohmann::json& object_;
+    std::string path_;
+    std::string source_;
+    std::set<std::string> known_;
+};
+
+// axis: the friction and mass keys axis_from_document reads, and no other.
+void read_axis(const nlohmann::json& axis, const std::string& source, SynthSpec& spec) {
+    spec.axis = axis_from_document(axis, source);
+    for (const auto& [key, value] : axis.items()) {
+        static const std::set<std::string> keys{"mass_kg", "inertia_kgm2", "offset_N", "offset_Nm", "rotary"};
+        const bool friction_key = key.starts_with("viscous_") || key.starts_with("coulomb_") ||
+                                  key.starts_with("breakaway_") || key.starts_with("stribeck_velocity_");
+        if (!keys.contains(key) && !friction_key)
+            throw InputError(fmt::format("{}: unknown key 'axis.{}'", source, key));
+    }
+}
+
+// controller: gains in SI or NC units (K_v in (m/min)/mm, T_n in ms), cycles and lags in ms; saturation_N null
+// removes the limit.
+void read_controller(const nlohmann::json& object, const std::string& source, ControllerModel& model) {
+    Section c(object, "controller", source);
+    if (const auto v = c.number("position_gain_per_s")) model.position_gain_per_s = *v;
+    if (const auto v = c.number("kv_m_per_min_per_mm")) model.position_gain_per_s = position_gain_from_kv(*v);
+    if (const auto v = c.number("velocity_gain_N_s_per_m")) model.velocity_gain_N_s_per_m = *v;
+    if (const auto v = c.number("velocity_integral_gain_N_per_m")) model.velocity_integral_gain_N_per_m = *v;
+    if (const auto v = c.number("tn_ms")) {
+        model.velocity_integral_gain_N_per_m = *v > 0.0 ? model.velocity_gain_N_s_per_m / (*v * 1e-3) : 0.0;
+    }
+    if (const auto v = c.number("velocity_feedforward")) model.velocity_feedforward = *v;
+    if (c.has("saturation_N"))
+        model.saturation_N = c.number("saturation_N");
+    else if (object.contains("saturation_N"))
+        model.saturation_N.reset();
+    c.accept("saturation_N");
+    if (const auto v = c.number("current_lag_ms")) model.current_lag_s = *v * 1e-3;
+    if (const auto v = c.number("position_cycle_ms")) model.position_cycle_s = *v * 1e-3;
+    if (const auto v = c.number("velocity_cycle_ms")) model.velocity_cycle_s = *v * 1e-3;
+    if (const auto v = c.number("velocity_difference_samples"))
+        model.velocity_difference_samples = static_cast<int>(std::lround(*v));
+    c.reject_unknown();
+}
+
+void read_drive(const nlohmann::json& object, const std::string& source, SynthSpec& spec) {
+    Section d(object, "drive", source);
+    if (const auto v = d.number("kt_Nm_per_A")) spec.kt_Nm_per_A = *v;
+    if (const auto v = d.number("lead_mm")) spec.lead_m = *v * 1e-3;
+    if (const auto v = d.number("gear_ratio")) spec.gear_ratio = *v;
+    d.reject_unknown();
+}
+
+void read_sensors(const nlohmann::json& object, const std::string& source, SensorModel& sensors) {
+    Section s(object, "sensors", source);
+    if (const auto v = s.number("sample_time_ms")) sensors.sample_time_s = *v * 1e-3;
+    if (const auto v = s.number("jitter_us")) sensors.jitter_s = *v * 1e-6;
+    if (const auto v = s.number("position_resolution_um")) sensors.position_resolution_m = *v * 1e-6;
+    if (const auto v = s.number("current_noise_A")) sensors.current_noise_A = *v;
+    if (const auto v = s.number("current_resolution_A")) sensors.current_resolution_A = *v;
+    if (const auto v = s.number("substeps")) sensors.substeps = static_cast<int>(std::lround(*v));
+    s.reject_unknown();
+}
+
+// recording: each signal group's interval in ms (0 = every sample), which signals are logged, the units written.
+void read_recording(const nlohmann::json& object, const std::string& source, RecordingModel& recording) {
+    Section r(object, "recording", source);
+    if (const auto v = r.number("position_interval_ms")) recording.position_interval_s = *v * 1e-3;
+    if (const auto v = r.number("velocity_interval_ms")) recording.velocity_interval_s = *v * 1e-3;
+    if (const auto v = r.number("drive_interval_ms")) recording.drive_interval_s = *v * 1e-3;
+    if (const auto v = r.boolean("log_velocity")) recording.log_velocity = *v;
+    if (const auto v = r.boolean("log_torque")) recording.log_torque = *v;
+    if (auto v = r.text("position_unit")) recording.position_unit = std::move(*v);
+    if (auto v = r.text("velocity_unit")) recording.velocity_unit = std::move(*v);
+    r.reject_unknown();
+}
+
+void read_test(const nlohmann::json& object, const std::string& source, TestReference& test) {
+    Section t(object, "test", source);
+    if (auto v = t.numbers("feedrates_mm_per_min")) test.feedrates_mm_per_min = std::move(*v);
+    if (const auto v = t.number("stroke_mm")) test.stroke_m = *v * 1e-3;
+    if (const auto v = t.number("cycles")) test.cycles = static_cast<int>(std::lround(*v));
+    if (const auto v = t.boolean("slow_passes")) test.slow_passes = *v;
+    if (auto v = t.numbers("slow_feedrates_mm_per_min")) test.slow_feedrates_mm_per_min = std::move(*v);
+    if (const auto v = t.number("slow_pass_duration_s")) test.slow_pass_duration_s = *v;
+    if (const auto v = t.number("slow_stroke_min_mm")) test.slow_stroke_min_m = *v * 1e-3;
+    if (const auto v = t.number("acceleration_m_per_s2")) test.acceleration_m_per_s2 = *v;
+    if (const auto v = t.number("dwell_s")) test.dwell_s = *v;
+    if (const auto v = t.number("start_mm")) test.start_m = *v * 1e-3;
+    t.reject_unknown();
+}
+
+// friction_zones: a list of {from_mm, to_mm, coulomb_factor}, each key required; replaces the demo's zones.
+std::vector<FrictionZone> read_friction_zones(const nlohmann::json& list, const std::string& source) {
+    if (!list.is_array()) throw InputError(fmt::format("{}: friction_zones must be a list of objects", source));
+    std::vector<FrictionZone> zones;
+    for (std::size_t k = 0; k < list.size(); ++k) {
+        Section z(list[k], fmt::format("friction_zones[{}]", k), source);
+        const auto from = z.number("from_mm");
+        const auto to = z.number("to_mm");
+        const auto factor = z.number("coulomb_factor");
+        z.reject_unknown();
+        if (!from || !to || !factor) {
+            throw InputError(fmt::format("{}: friction_zones[{}] needs from_mm, to_mm and coulomb_factor", source, k));
+        }
+        zones.push_back({*from * 1e-3, *to * 1e-3, *factor});
+    }
+    return zones;
+}
+
+}  // namespace
+
+SynthSpec spec_from_json(const nlohmann::json& document, const std::string& source) {
+    return spec_from_json(document, source, demo_spec());
+}
+
+SynthSpec spec_from_json(const nlohmann::json& document, const std::string& source, const SynthSpec& base) {
+    SynthSpec spec = base;
+    Section top(document, "", source);
+    if (top.has("axis")) read_axis(document["axis"], source, spec);
+    top.accept("axis");
+    if (top.has("controller")) read_controller(document["controller"], source, spec.controller);
+    top.accept("controller");
+    if (top.has("drive")) read_drive(document["drive"], source, spec);
+    top.accept("drive");
+    if (top.has("sensors")) read_sensors(document["sensors"], source, spec.sensors);
+    top.accept("sensors");
+    if (top.has("recording")) read_recording(document["recording"], source, spec.recording);
+    top.accept("recording");
+    if (top.has("test")) read_test(document["test"], source, spec.test);
+    top.accept("test");
+    if (top.has("friction_zones")) spec.friction_zones = read_friction_zones(document["friction_zones"], source);
+    top.accept("friction_zones");
+    if (const auto v = top.boolean("slow_passes")) spec.test.slow_passes = *v;
+    if (const auto v = top.number("seed")) {
+        if (*v < 0.0) throw InputError(fmt::format("{}: seed must be >= 0", source));
+        spec.seed = static_cast<std::uint64_t>(*v);
+    }
+    top.accept("$schema");
+    top.accept("description");
+    top.reject_unknown();
+    if (const auto problem = spec.validate(); !problem.empty())
+        throw InputError(fmt::format("{}: {}", source, problem));
+    return spec;
+}
+
+namespace {
+
+// TOML values as JSON, so that one reader (spec_from_json) checks the keys of both formats.
+nlohmann::json to_json(const toml::node& node) {
+    if (const auto* table = node.as_table()) {
+        nlohmann::json object = nlohmann::json::object();
+        for (const auto& [key, value] : *table) object[std::string(key.str())] = to_json(value);
+        return object;
+    }
+    if (const auto* array = node.as_array()) {
+        nlohmann::json list = nlohmann::json::array();
+        for (const auto& item : *array) list.push_back(to_json(item));
+        return list;
+    }
+    if (const auto* integer = node.as_integer()) return integer->get();
+    if (const auto* floating = node.as_floating_point()) return floating->get();
+    if (const auto* boolean = node.as_boolean()) return boolean->get();
+    if (const auto* text = node.as_string()) return text->get();
+    return nullptr;  // dates and times: no drive key takes one, so the key check reports it
+}
+
+}  // namespace
+
+SynthSpec spec_from_toml(std::string_view text, const std::string& source) {
+    try {
+        const toml::table table = toml::parse(text, source);
+        return spec_from_json(to_json(table), source);
+    } catch (const toml::parse_error& e) {
+        throw InputError(fmt::format("{}:{}: not valid TOML: {}", source, e.source().begin.line, e.description()));
+    }
+}
+
+SynthSpec read_spec(const std::filesystem::path& path) {
+    const std::string text = read_file_bytes(path);
+    if (path.extension() == ".toml") return spec_from_toml(text, path.string());
+    return spec_from_json(parse_json(text, path.string()), path.string());
+}
+
+namespace {
+
+// The axis keys of a drive file: a linear axis' (mass_kg, ..._N) or a rotary one's (inertia_kgm2, ..._Nm).
+nlohmann::json axis_to_json(const AxisModel& model) {
+    const bool rotary = model.rotary;
+    const std::string force = rotary ? "Nm" : "N", viscous = rotary ? "Nms_per_rad" : "Ns_per_m",
+                      speed = rotary ? "rad_per_s" : "m_per_s";
+    nlohmann::json axis;
+    if (rotary) axis["rotary"] = true;
+    axis[rotary ? "inertia_kgm2" : "mass_kg"] = model.mass;
+    axis["offset_" + force] = model.offset;
+    for (const auto& [direction, branch] : {std::pair{std::string("forward"), &model.friction.forward},
+                                            std::pair{std::string("reverse"), &model.friction.reverse}}) {
+        axis["viscous_" + direction + "_" + viscous] = branch->viscous;
+        axis["coulomb_" + direction + "_" + force] = branch->coulomb;
+        axis["breakaway_" + direction + "_" + force] =
+            branch->has_stribeck() ? nlohmann::json(*branch->breakaway) : nlohmann::json();
+        axis["stribeck_velocity_" + direction + "_" + speed] =
+            branch->has_stribeck() ? nlohmann::json(*branch->stribeck_velocity) : nlohmann::json();
+    }
+    return axis;
+}
+
+}  // namespace
+
+nlohmann::json spec_to_json(const SynthSpec& spec) {
+    const nlohmann::json axis = axis_to_json(spec.axis);
+    const auto& c = spec.controller;
+    nlohmann::json controller{{"position_gain_per_s", c.position_gain_per_s},
+                              {"velocity_gain_N_s_per_m", c.velocity_gain_N_s_per_m},
+                              {"velocity_integral_gain_N_per_m", c.velocity_integral_gain_N_per_m},
+                              {"velocity_feedforward", c.velocity_feedforward},
+                              {"saturation_N", c.saturation_N ? nlohmann::json(*c.saturation_N) : nlohmann::json()},
+                              {"current_lag_ms", c.current_lag_s * 1e3},
+                              {"position_cycle_ms", c.position_cycle_s * 1e3},
+                              {"velocity_cycle_ms", c.velocity_cycle_s * 1e3},
+                              {"velocity_difference_samples", c.velocity_difference_samples}};
+    const auto& s = spec.sensors;
+    const auto& t = spec.test;
+    const auto& r = spec.recording;
+    nlohmann::json zones = nlohmann::json::array();
+    for (const auto& zone : spec.friction_zones) {
+        zones.push_back(
+            {{"from_mm", zone.from_m * 1e3}, {"to_mm", zone.to_m * 1e3}, {"coulomb_factor", zone.coulomb_factor}});
+    }
+    return {
+        {"axis", axis},
+        {"controller", controller},
+        {"drive", {{"kt_Nm_per_A", spec.kt_Nm_per_A}, {"lead_mm", spec.lead_m * 1e3}, {"gear_ratio", spec.gear_ratio}}},
+        {"sensors",
+         {{"sample_time_ms", s.sample_time_s * 1e3},
+          {"jitter_us", s.jitter_s * 1e6},
+          {"position_resolution_um", s.position_resolution_m * 1e6},
+          {"current_noise_A", s.current_noise_A},
+          {"current_resolution_A", s.current_resolution_A},
+          {"substeps", s.substeps}}},
+        {"test",
+         {{"feedrates_mm_per_min", t.feedrates_mm_per_min},
+          {"stroke_mm", t.stroke_m * 1e3},
+          {"cycles", t.cycles},
+          {"slow_passes", t.slow_passes},
+          {"slow_feedrates_mm_per_min", t.slow_feedrates_mm_per_min},
+          {"slow_pass_duration_s", t.slow_pass_duration_s},
+          {"slow_stroke_min_mm", t.slow_stroke_min_m * 1e3},
+          {"acceleration_m_per_s2", t.acceleration_m_per_s2},
+          {"dwell_s", t.dwell_s},
+          {"start_mm", t.start_m * 1e3}}},
+        {"recording",
+         {{"position_interval_ms", r.position_interval_s * 1e3},
+          {"velocity_interval_ms", r.velocity_interval_s * 1e3},
+          {"drive_interval_ms", r.drive_interval_s * 1e3},
+          {"log_velocity", r.log_velocity},
+          {"log_torque", r.log_torque},
+          {"position_unit", r.position_unit},
+          {"velocity_unit", r.velocity_unit}}},
+        {"friction_zones", zones},
+        {"seed", spec.seed}};
+}
+
+std::vector<double> test_reference(const TestReference& test, double sample_time_s) {
+    if (const auto problem = test.validate(); !problem.empty()) throw InputError("test: " + problem);
+    if (!(sample_time_s > 0.0)) throw InputError("test: the sample time must be positive");
+    // The test as a list of moves (target, speed) and dwells (speed 0).
+    struct Move {
+        double target;
+        double speed;  // [m/s]; 0 = dwell at the current position for test.dwell_s
+    };
+    std::vector<Move> moves;
+    const double start = test.start_m;
+    moves.push_back({start, 0.0});
+    const auto stroke = [&](double feedrate_mm_per_min, double length) {
+        const double speed = feedrate_mm_per_min / 60000.0;
+        for (int c = 0; c < test.cycles; ++c) {
+            moves.push_back({start + length, speed});
+            moves.push_back({start + length, 0.0});
+            moves.push_back({start, speed});
+            moves.push_back({start, 0.0});
+        }
+    };
+    for (const double f : test.feedrates_mm_per_min) stroke(f, test.stroke_m);
+    if (test.slow_passes) {
+        for (const double f : test.slow_feedrates_mm_per_min) {
+            const double speed = f / 60000.0;
+            stroke(f, std::clamp(speed * test.slow_pass_duration_s, test.slow_stroke_min_m, test.stroke_m));
+        }
+    }
+
+    std::vector<double> reference;
+    double position = start;
+    double segment_start = 0.0;  // time at which the current move starts [s]
+    std::size_t k = 0;
+    const double a = test.acceleration_m_per_s2;
+    for (const auto& move : moves) {
+        double duration = 0.0;
+        double peak = 0.0, accelerate = 0.0, cruise = 0.0;
+        const double distance = std::abs(move.target - position);
+        const double direction = move.target >= position ? 1.0 : -1.0;
+        if (move.speed == 0.0 || distance == 0.0) {
+            duration = move.speed == 0.0 ? test.dwell_s : 0.0;
+        } else {
+            // Trapezoidal velocity: accelerate to the feedrate (or a triangle when the move is too short).
+            peak = std::min(move.speed, std::sqrt(distance * a));
+            accelerate = peak / a;
+            cruise = (distance - peak * accelerate) / peak;
+            duration = 2.0 * accelerate + cruise;
+        }
+        const double end = segment_start + duration;
+        for (; static_cast<double>(k) * sample_time_s < end; ++k) {
+            const double tau = static_cast<double>(k) * sample_time_s - segment_start;
+            double travelled = 0.0;
+            if (peak > 0.0) {
+                if (tau < accelerate)
+                    travelled = 0.5 * a * tau * tau;
+                else if (tau < accelerate + cruise)
+                    travelled = 0.5 * peak * accelerate + peak * (tau - accelerate);
+                else {
+                    const double left = std::max(0.0, duration - tau);
+                    travelled = distance - 0.5 * a * left * left;
+                }
+            }
+            reference.push_back(position + direction * travelled);
+        }
+        position = move.target;
+        segment_start = end;
+    }
+    reference.push_back(position);
+    return reference;
+}
+
+namespace {
+
+// Holds every factor-th sample (from the first) over the samples in between: a signal logged every `interval_s` on a
+// time base of `dt`.
+std::vector<double> held_every(std::vector<double> values, double interval_s, double dt) {
+    const long factor = interval_s > 0.0 ? std::lround(interval_s / dt) : 1L;
+    if (factor < 2) return values;
+    const auto step = static_cast<std::size_t>(factor);
+    for (std::size_t k = 0; k < values.size(); ++k) values[k] = values[k - k % step];
+    return values;
+}
+
+// A channel as the recorder logs it: held over its interval, which it states.
+void record(Trace& trace, std::string name, Role role, std::string unit, std::vector<double> values,
+            double interval_s, double dt) {
+    auto& channel = trace.set(std::move(name), role, std::move(unit), held_every(std::move(values), interval_s, dt));
+    channel.source_unit = channel.unit;
+    channel.native_interval_s = interval_s > 0.0 ? interval_s : dt;
+    channel.interval_source = interval_s > 0.0 ? IntervalSource::format : IntervalSource::time_base;
+}
+
+struct SensorReadings {
+    std::vector<double> time;   ///< [s]
+    std::vector<double> drive;  ///< current [A], or the torque (force) from it [N*m or N]
+};
+
+// Time stamps k/f_s (k*T where the rate is not a whole number of hertz), jittered as the sensors say, and the drive
+// force [N or N*m] as a current sensor (noise, quantum) reads it, or as the drive's torque (force) from that current.
+SensorReadings read_sensors(const SynthSpec& spec, const std::vector<double>& force) {
+    // a local generator, seeded, so that a trace is reproducible
+    std::mt19937_64 generator(spec.seed);
+    std::normal_distribution<double> noise(0.0, 1.0);
+    std::uniform_real_distribution<double> jitter(-1.0, 1.0);
+    const double dt = spec.sensors.sample_time_s;
+    const double per_ampere = spec.force_constant_N_per_A();
+    const double quantum = spec.sensors.current_resolution_A;
+    // k/f_s rather than k*T where the rate is a whole number of hertz: 0.009, not 0.009000000000000001.
+    const double rate = std::round(1.0 / dt);
+    const bool whole_rate = std::abs(rate * dt - 1.0) < whole_rate_tolerance;
+    SensorReadings out{std::vector<double>(force.size()), std::vector<double>(force.size())};
+    for (std::size_t k = 0; k < force.size(); ++k) {
+        out.time[k] = (whole_rate ? static_cast<double>(k) / rate : static_cast<double>(k) * dt) +
+                      (spec.sensors.jitter_s > 0.0 ? spec.sensors.jitter_s * jitter(generator) : 0.0);
+        const double amperes = force[k] / per_ampere + (spec.sensors.current_noise_A > 0.0
+                                                            ? spec.sensors.current_noise_A * noise(generator)
+                                                            : 0.0);
+        // + 0.0 turns -0 into 0 (a quantised zero prints as 0, not -0).
+        const double current = (quantum > 0.0 ? quantum * std::nearbyint(amperes / quantum) : amperes) + 0.0;
+        out.drive[k] = spec.recording.log_torque ? current * per_ampere : current;
+    }
+    return out;
+}
+
+// The drive constants and the true values, keyed with the axis kind's units.
+void true_values(const SynthSpec& spec, const ControllerModel& controller, std::map<std::string, double>& constants) {
+    const bool rotary = spec.axis.rotary;
+    const std::string force = rotary ? "Nm" : "N", viscous = rotary ? "Nms_per_rad" : "Ns_per_m",
+                      speed = rotary ? "rad_per_s" : "m_per_s", length = rotary ? "rad" : "m";
+    constants["kt_Nm_per_A"] = spec.kt_Nm_per_A;
+    constants["gear_ratio"] = spec.gear_ratio;
+    if (rotary) {
+        constants["torque_constant_Nm_per_A"] = spec.force_constant_N_per_A();
+    } else {
+        constants["lead_m"] = spec.lead_m;
+        constants["force_constant_N_per_A"] = spec.force_constant_N_per_A();
+    }
+    constants["seed"] = static_cast<double>(spec.seed);
+    constants[rotary ? "true_inertia_kgm2" : "true_mass_kg"] = spec.axis.mass;
+    constants["true_offset_" + force] = spec.axis.offset;
+    for (const auto& [direction, branch] : {std::pair{std::string("forward"), &spec.axis.friction.forward},
+                                            std::pair{std::string("reverse"), &spec.axis.friction.reverse}}) {
+        constants["true_viscous_" + direction + "_" + viscous] = branch->viscous;
+        constants["true_coulomb_" + direction + "_" + force] = branch->coulomb;
+        if (branch->has_stribeck()) {
+            constants["true_breakaway_" + direction + "_" + force] = *branch->breakaway;
+            constants["true_stribeck_velocity_" + direction + "_" + speed] = *branch->stribeck_velocity;
+        }
+    }
+    const double zone_scale = rotary ? rotary_rad_per_length_unit : 1.0;
+    for (std::size_t z = 0; z < spec.friction_zones.size(); ++z) {
+        const auto& zone = spec.friction_zones[z];
+        constants[fmt::format("true_friction_zone{}_from_{}", z + 1, length)] = zone.from_m * zone_scale;
+        constants[fmt::format("true_friction_zone{}_to_{}", z + 1, length)] = zone.to_m * zone_scale;
+        constants[fmt::format("true_friction_zone{}_coulomb_factor", z + 1)] = zone.coulomb_factor;
+    }
+    constants["true_position_gain_per_s"] = controller.position_gain_per_s;
+    constants[rotary ? "true_velocity_gain_Nms_per_rad" : "true_velocity_gain_N_s_per_m"] =
+        controller.velocity_gain_N_s_per_m;
+    constants[rotary ? "true_velocity_integral_gain_Nm_per_rad" : "true_velocity_integral_gain_N_per_m"] =
+        controller.velocity_integral_gain_N_per_m;
+    constants["true_current_lag_s"] = controller.current_lag_s;
+}
+
+// The closed loop simulated on the reference: lengths of a rotary axis' test, encoder and friction zones in radians.
+SimulationOutput simulate_spec(const SynthSpec& spec, const ControllerModel& controller,
+                               const std::vector<double>& reference, std::span<const double> injection,
+                               std::span<const double> external_force) {
+    const double scale = spec.axis.rotary ? rotary_rad_per_length_unit : 1.0;
+    SimulationInput input;
+    input.sample_time_s = spec.sensors.sample_time_s;
+    input.reference = reference;
+    input.injection = injection;
+    input.external_force = external_force;
+    SimulationOptions options;
+    options.substeps = spec.sensors.substeps;
+    if (spec.sensors.position_resolution_m > 0.0)
+        options.position_resolution_m = spec.sensors.position_resolution_m * scale;
+    options.friction_zones = spec.friction_zones;
+    for (auto& zone : options.friction_zones) {
+        zone.from_m *= scale;
+        zone.to_m *= scale;
+    }
+    return simulate(spec.axis, controller, input, options);
+}
+
+// The injected signal u_inj(k*T) [N] (held over each sample), or empty when the spec has none.
+std::vector<double> injected_signal(const SynthSpec& spec, std::size_t samples) {
+    std::vector<double> signal;
+    if (!spec.injection) return signal;
+    signal.resize(samples);
+    for (std::size_t k = 0; k < samples; ++k)
+        signal[k] = spec.injection->at(static_cast<double>(k) * spec.sensors.sample_time_s);
+    return signal;
+}
+
+// The injected signal as the controller logs it: its own channel, in the drive signal's units (A, as the current),
+// exact (a setpoint, not a measurement); and its true values.
+void log_injection(const SynthSpec& spec, std::span<const double> injection, Trace& trace) {
+    if (!spec.injection) return;
+    // As the drive signal: a current [A], or with log_torque the force (torque) itself.
+    const bool as_force = spec.recording.log_torque;
+    const double per_unit = as_force ? 1.0 : spec.force_constant_N_per_A();
+    std::vector<double> values(injection.size());
+    for (std::size_t k = 0; k < values.size(); ++k) values[k] = injection[k] / per_unit;
+    const std::string unit = as_force ? (spec.axis.rotary ? "N*m" : "N") : "A";
+    auto& channel = trace.set("injection", Role::injection, unit, std::move(values));
+    channel.source_unit = unit;
+    channel.native_interval_s = spec.sensors.sample_time_s;
+    channel.interval_source = IntervalSource::time_base;
+    trace.constants["true_injection_amplitude_N"] = spec.injection->amplitude_N;
+    trace.constants["true_injection_frequency_Hz"] = spec.injection->frequency_Hz;
+}
+
+}  // namespace
+
+Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>& reference_override,
+                 std::span<const double> external_force) {
+    if (const auto problem = spec.validate(); !problem.empty()) throw InputError("synth: " + problem);
+    const double dt = spec.sensors.sample_time_s;
+    std::vector<double> reference = reference_override ? *reference_override : test_reference(spec.test, dt);
+    if (reference.size() < 2) throw InputError("synth: the reference needs at least two samples");
+    if (!external_force.empty() && external_force.size() != reference.size())
+        throw InputError(fmt::format("synth: the external force has {} samples where the reference has {}",
+                                     external_force.size(), reference.size()));
+    if (spec.axis.rotary && !reference_override) {
+        for (double& r : reference) r *= rotary_rad_per_length_unit;  // the test's "mm" are degrees
+    }
+
+    ControllerModel controller = spec.controller;
+    if (controller.position_cycle_s == 0.0) controller.position_cycle_s = dt;
+    if (controller.velocity_cycle_s == 0.0) controller.velocity_cycle_s = controller.position_cycle_s;
+    const std::vector<double> injection = injected_signal(spec, reference.size());
+    SimulationOutput simulated = simulate_spec(spec, controller, reference, injection, external_force);
+
+    SensorReadings sensors = read_sensors(spec, simulated.force);
+
+    const bool rotary = spec.axis.rotary;
+    const std::string length = rotary ? "rad" : "m", speed = rotary ? "rad/s" : "m/s";
+    const auto& r = spec.recording;
+    Trace trace;
+    trace.format = "synthetic";
+    trace.rotary = rotary;
+    record(trace, "t", Role::time, "s", std::move(sensors.time), 0.0, dt);
+    record(trace, "x_ref", Role::reference_position, length, reference, r.position_interval_s, dt);
+    record(trace, "x", Role::position, length, std::move(simulated.measured_position), r.position_interval_s, dt);
+    record(trace, "v_cmd", Role::velocity_command, speed, std::move(simulated.velocity_command), r.position_interval_s,
+           dt);
+    if (r.log_velocity)
+        record(trace, "v", Role::velocity, speed, std::move(simulated.velocity), r.velocity_interval_s, dt);
+    if (r.log_torque)
+        record(trace, "tau", Role::force, rotary ? "N*m" : "N", std::move(sensors.drive), r.drive_interval_s, dt);
+    else
+        record(trace, "i", Role::current, "A", std::move(sensors.drive), r.drive_interval_s, dt);
+    true_values(spec, controller, trace.constants);
+    log_injection(spec, injection, trace);
+    return trace;
+}
+
+Trace in_recording_units(const Trace& trace, const RecordingModel& recording) {
+    Trace out = trace;
+    for (auto& channel : out.channels) {
+        const bool position = channel.role == Role::position || channel.role == Role::reference_position;
+        const bool velocity = channel.role == Role::velocity || channel.role == Role::velocity_command;
+        const std::string& unit = position ? recording.position_unit : velocity ? recording.velocity_unit : "";
+        if (unit.empty() || (!position && !velocity)) continue;
+        const double scale = recording_unit_scale(unit, position ? Role::position : Role::velocity, trace.rotary);
+        for (double& value : channel.values) value /= scale;
+        channel.unit = unit;
+        channel.source_unit = unit;
+    }
+    return out;
+}
+
+}  // namespace feedid

@@ -1,0 +1,301 @@
+#include "feedid/stream/scan.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+
+#include <fmt/core.h>
+
+#include "feedid/io/unit_checks.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/io/csv.hpp"
+#include "feedid/core/parameters.hpp"
+#include "feedid/identify/result_document.hpp"
+#include "feedid/core/version.hpp"
+
+namespace feedid {
+
+GateCondition parse_gate_condition(const std::string& text) {
+    const auto at = text.find_first_of("<>");
+    const auto bad = [&] {
+        return InputError(
+            fmt::format("--only-when '{}': expected NAME<VALUE, NAME>VALUE, NAME<=VALUE or NAME>=VALUE "
+                        "(e.g. 'spindle_load<5')",
+                        text));
+    };
+    if (at == std::string::npos || at == 0) throw bad();
+    GateCondition c;
+    c.channel = text.substr(0, at);
+    const bool equal = at + 1 < text.size() && text[at + 1] == '=';
+    c.op = text.substr(at, equal ? 2 : 1);
+    const std::string number = text.substr(at + c.op.size());
+    std::size_t used = 0;
+    try {
+        c.value = std::stod(number, &used);
+    } catch (const std::exception&) {
+        throw bad();
+    }
+    if (used != number.size() || !std::isfinite(c.value)) throw bad();
+    while (!c.channel.empty() && c.channel.back() == ' ') c.channel.pop_back();
+    return c;
+}
+
+std::vector<char> gate_samples(const Trace& trace, std::span<const GateCondition> conditions) {
+    std::vector<char> use(trace.samples(), 1);
+    for (const auto& c : conditions) {
+        const Channel* channel = trace.find(std::string_view(c.channel));
+        if (channel == nullptr) {
+            std::string names;
+            for (const auto& ch : trace.channels) names += (names.empty() ? "" : ", ") + ch.name;
+            throw InputError(fmt::format("--only-when: {} has no channel '{}' (its channels: {})", trace.source_path,
+                                         c.channel, names));
+        }
+        for (std::size_t k = 0; k < use.size(); ++k) {
+            const double v = channel->values[k];
+            const bool holds = c.op == "<"    ? v < c.value
+                               : c.op == ">"  ? v > c.value
+                               : c.op == "<=" ? v <= c.value
+                                              : v >= c.value;
+            if (!holds) use[k] = 0;
+        }
+    }
+    return use;
+}
+
+namespace {
+
+void set_parameters(ScanResult& s, const OnlineEstimate& e) {
+    for (auto& p : s.result.parameters) p.estimate = e.of(p.term);
+}
+
+}  // namespace
+
+namespace {
+
+// The identifiers a scan runs: the nominal one and, for the systematic part of each parameter's uncertainty, the same
+// with the split speed doubled (friction just above the split speed that is still Stribeck's biases B and F_C, and
+// only a second split shows it; the family of identify's preprocessing_family.hpp, reduced to the choice a scan makes).
+struct Identifiers {
+    OnlineIdentifier nominal;
+    std::optional<OnlineIdentifier> variant;
+
+    Identifiers(const OnlineOptions& options, bool systematic) : nominal(options) {
+        if (!systematic) return;
+        OnlineOptions doubled = options;
+        doubled.split_velocity = 2.0 * options.split();
+        variant.emplace(doubled);
+    }
+};
+
+void push_trace(Identifiers& identifiers, const Trace& trace, std::span<const double> force, std::span<const char> use,
+                std::size_t block) {
+    const auto t = trace.column(Role::time);
+    const auto x = trace.column(Role::position);
+    for (std::size_t k = 0; k < t.size(); k += block) {
+        const std::size_t n = std::min(block, t.size() - k);
+        const auto gate = use.empty() ? use : use.subspan(k, n);
+        identifiers.nominal.push(t.subspan(k, n), x.subspan(k, n), force.subspan(k, n), gate);
+        if (identifiers.variant) identifiers.variant->push(t.subspan(k, n), x.subspan(k, n), force.subspan(k, n), gate);
+    }
+}
+
+// Each parameter's systematic part: how far it moves when the split speed doubles (unassessed where either is null);
+// a finding where that exceeds twice the standard error.
+void assess_split(OnlineIdentifier& variant, const OnlineOptions& options, ScanResult& s) {
+    variant.flush();
+    ScanResult other;
+    other.result.parameters = s.result.parameters;
+    set_parameters(other, variant.estimate());
+    const ParameterNaming naming{s.result.rotary};
+    for (std::size_t i = 0; i < s.result.parameters.size(); ++i) {
+        Parameter& p = s.result.parameters[i];
+        const Estimate& doubled = other.result.parameters[i].estimate;
+        if (!p.estimate.value || !p.estimate.standard_error || !doubled.value) continue;
+        const double spread = std::abs(*doubled.value - *p.estimate.value);
+        p.estimate.set_systematic(spread);
+        if (spread > 2.0 * *p.estimate.standard_error)
+            s.result.diagnostics.push_back(fmt::format(
+                "{} moves by {:.3g} {} ({:.2g} standard errors) when the split speed doubles from {:.3g} to {:.3g} "
+                "{}: the friction just above the split speed is not yet the linear law (Stribeck); its systematic "
+                "part and combined uncertainty say so, and a higher --split-velocity may be the better choice",
+                p.symbol, spread, p.unit, spread / *p.estimate.standard_error,
+                options.split() * naming.display_velocity_scale(),
+                2.0 * options.split() * naming.display_velocity_scale(), naming.display_velocity_unit()));
+    }
+}
+
+ScanResult finish(Identifiers& identifiers, const TraceSummary& summary, const OnlineOptions& options, bool rotary) {
+    OnlineIdentifier& online = identifiers.nominal;
+    online.flush();
+    ScanResult s;
+    s.online = online.estimate();
+    IdentifyResult& r = s.result;
+    r.model = FrictionModelKind::symmetric;
+    r.offset = options.offset;
+    r.rotary = rotary;
+    r.axis.rotary = rotary;
+    r.feedid_version = version;
+    r.trace = summary;
+    r.parameters = model_parameters(r.model, r.offset, r.rotary);
+    set_parameters(s, s.online);
+    const OnlineEstimate& e = s.online;
+    for (const std::string* reason : {&e.mass_reason, &e.friction_reason, &e.stribeck_reason})
+        if (!reason->empty() && std::find(r.diagnostics.begin(), r.diagnostics.end(), *reason) == r.diagnostics.end())
+            r.diagnostics.push_back(*reason);
+    if (e.changes > 0)
+        r.diagnostics.push_back(fmt::format(
+            "the axis changed {} time(s) during the trace ({} windows in a row fitted the model on their own but not "
+            "the pooled estimate): the estimate is of the axis after the last change",
+            e.changes, options.change_windows));
+    const std::size_t inconsistent = e.windows.count(WindowVerdict::inconsistent);
+    if (options.forgetting >= 1.0 && inconsistent >= options.change_windows)
+        r.diagnostics.push_back(fmt::format(
+            "{} windows fitted the model on their own but disagreed with the pooled estimate: if the axis changed "
+            "during the trace, --forgetting (e.g. 0.9 per window) follows the change",
+            inconsistent));
+    const bool all = std::all_of(r.parameters.begin(), r.parameters.end(),
+                                 [](const Parameter& p) { return p.estimate.determined(); });
+    r.status = !e.mass.determined() ? Status::failed : all ? Status::ok : Status::partial;
+    if (identifiers.variant && r.status != Status::failed) assess_split(*identifiers.variant, options, s);
+    r.axis = axis_from_parameters(r.parameters, r.model, r.rotary);
+    return s;
+}
+
+}  // namespace
+
+ScanResult scan(const Trace& trace, std::span<const double> force, std::span<const char> use,
+                const OnlineOptions& given, std::size_t block, bool systematic) {
+    OnlineOptions options = given;
+    options.rotary = trace.rotary;
+    if (const auto problem = options.validate(); !problem.empty()) throw InputError("scan: " + problem);
+    if (!trace.has(Role::position))
+        throw InputError(fmt::format("{}: scan needs a position channel (--channel position=NAME)", trace.source_path));
+    require_consistent_units(trace);
+    Identifiers identifiers(options, systematic);
+    push_trace(identifiers, trace, force, use, block);
+    const TimeBase base = trace.samples() >= 2 ? trace.time_base() : TimeBase{};
+    return finish(identifiers,
+                  TraceSummary{trace.source_path, trace.format, trace.samples(), base.sample_time_s, base.duration_s},
+                  options, trace.rotary);
+}
+
+namespace {
+
+// Reads up to `rows` lines into `text` (each with its '\n'); returns how many.
+std::size_t read_lines(std::istream& in, std::size_t rows, std::string& text) {
+    std::string line;
+    std::size_t n = 0;
+    while (n < rows && std::getline(in, line)) {
+        text += line;
+        text += '\n';
+        ++n;
+    }
+    return n;
+}
+
+Trace parse_block(const std::string& text, const std::filesystem::path& path, const ImportOptions& import) {
+    CsvOptions csv;
+    csv.skip_rows = import.skip_rows;
+    for (const auto& [role, name] : import.channels) csv.numeric_columns.push_back(name);
+    Trace trace = parse_csv(text, path.string(), csv);
+    trace.source_path = path.string();
+    trace.format = "csv";
+    prepare_trace(trace, import);
+    if (!trace.has(Role::position))
+        throw InputError(fmt::format("{}: scan needs a position channel (--channel position=NAME)", path.string()));
+    require_consistent_units(trace);  // block by block: a unit mix-up shows in any block that moves
+    return trace;
+}
+
+}  // namespace
+
+ScanResult scan_csv_stream(const std::filesystem::path& path, const ImportOptions& import, const DriveConstants& drive,
+                           std::span<const GateCondition> gates, const OnlineOptions& options, std::size_t block_rows,
+                           std::vector<std::string>& findings, bool systematic) {
+    if (const auto problem = options.validate(); !problem.empty()) throw InputError("scan: " + problem);
+    if (import.join || !import.tare.empty() || !import.invert.empty() || import.sample_time_s)
+        throw InputError(
+            fmt::format("{}: --join, --tare, --invert and --sample-time need the whole file; it is read "
+                        "in blocks",
+                        path.string()));
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(fmt::format("{}: cannot open the file", path.string()));
+    std::string text;
+    const std::size_t first_lines = read_lines(in, block_rows, text);
+    Trace first = parse_block(text, path, import);
+    findings = first.findings;
+    // the lines before the first data row: the header (and comments, constants, skipped rows) of every block
+    if (first.samples() > first_lines) throw InputError(fmt::format("{}: unexpected CSV layout", path.string()));
+    std::size_t preamble_end = 0;
+    for (std::size_t line = 0; line < first_lines - first.samples(); ++line)
+        preamble_end = text.find('\n', preamble_end) + 1;
+    const std::string preamble = text.substr(0, preamble_end);
+    const bool rotary = first.rotary;
+    OnlineOptions axis_options = options;
+    axis_options.rotary = rotary;
+    Identifiers identifiers(axis_options, systematic);
+    TraceSummary summary{path.string(), "csv", 0, 0.0, 0.0};
+    const TimeBase base = first.samples() >= 2 ? first.time_base() : TimeBase{};
+    summary.sample_time_s = base.sample_time_s;
+    const double start = first.samples() > 0 ? first.column(Role::time).front() : 0.0;
+    double end = start;
+    for (Trace block = std::move(first);;) {
+        const std::vector<double> force = drive_force(block, drive);
+        const std::vector<char> use = gate_samples(block, gates);
+        push_trace(identifiers, block, force, use, 65536);
+        summary.samples += block.samples();
+        if (block.samples() > 0) end = block.column(Role::time).back();
+        text = preamble;
+        if (read_lines(in, block_rows, text) == 0) break;
+        block = parse_block(text, path, import);
+    }
+    summary.duration_s = end - start;
+    return finish(identifiers, summary, axis_options, rotary);
+}
+
+nlohmann::json scan_document(const ScanResult& s) {
+    nlohmann::json document = s.result;
+    document["kind"] = "scan";
+    const OnlineEstimate& e = s.online;
+    nlohmann::json rejected = nlohmann::json::object();
+    for (std::size_t v = 1; v < window_verdicts; ++v)
+        rejected[verdict_name(static_cast<WindowVerdict>(v))] = e.windows.by_verdict[v];
+    document["windows"] = {{"total", e.windows.total},       {"qualified", e.windows.qualified()},
+                           {"rejected", rejected},           {"rows_used", e.rows_used},
+                           {"residual_std", e.residual_std}, {"stribeck_bins_used", e.stribeck_bins_used}};
+    nlohmann::json information = nlohmann::json::object();
+    std::size_t column = 0;
+    for (const auto& p : s.result.parameters) {
+        if (p.term == Term::breakaway || p.term == Term::stribeck_velocity) continue;
+        const bool known = column < static_cast<std::size_t>(e.information.size());
+        const double value = known ? e.information(static_cast<Eigen::Index>(column)) : NAN;
+        information[p.key] = {{"inverse_variance", std::isfinite(value) ? nlohmann::json(value) : nlohmann::json()}};
+        ++column;
+    }
+    std::vector<double> eigenvalues(e.information_eigenvalues.data(),
+                                    e.information_eigenvalues.data() + e.information_eigenvalues.size());
+    information["eigenvalues"] = eigenvalues;
+    document["information"] = information;
+    return document;
+}
+
+std::vector<std::string> scan_verdicts(const ScanResult& s) {
+    std::vector<std::string> lines;
+    const std::size_t windows = s.online.windows.qualified();
+    for (const auto& p : s.result.parameters) {
+        const Estimate& e = p.estimate;
+        if (e.value && e.standard_error && *e.value != 0.0) {
+            lines.push_back(fmt::format("{} from {} windows, σ {:.2g} %", p.symbol, windows,
+                                        100.0 * *e.standard_error / std::abs(*e.value)));
+        } else if (e.value) {
+            lines.push_back(fmt::format("{} from {} windows, no standard error", p.symbol, windows));
+        } else {
+            const bool stribeck = p.term == Term::breakaway || p.term == Term::stribeck_velocity;
+            const std::string& why = stribeck ? s.online.stribeck_reason : s.online.mass_reason;
+            lines.push_back(fmt::format("{} not determined: {}", p.symbol, why));
+        }
+    }
+    return lines;
+}
+
+}  // namespace feedid

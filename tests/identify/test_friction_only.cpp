@@ -1,0 +1,193 @@
+// Identification from a logged velocity (no position, or a position too coarse to differentiate), and the
+// friction-only result of a coarse machine log: constructed traces with known mass and friction.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include "feedid/core/error.hpp"
+#include "feedid/identify/identify.hpp"
+#include "feedid/io/csv.hpp"
+#include "testing.hpp"
+
+using namespace feedid;
+
+namespace {
+
+bool contains(const std::string& text, const std::string& part) {
+    return text.find(part) != std::string::npos;
+}
+
+/// Per direction: B [N*s/m] and F_C [N].
+struct Branch {
+    double viscous, coulomb;
+};
+
+double friction(double v, Branch forward, Branch reverse) {
+    if (v > 0) return forward.viscous * v + forward.coulomb;
+    if (v < 0) return reverse.viscous * v - reverse.coulomb;
+    return 0.0;
+}
+
+/// 1 kHz, no position: a logged velocity (two sinusoids, both directions) and the drive force.
+Trace velocity_only_trace(double mass, Branch branch) {
+    Trace trace;
+    trace.source_path = "velocity-only.csv";
+    std::vector<double> t, v, f;
+    std::mt19937 random(7);
+    std::normal_distribution<double> noise(0.0, 0.2);  // [N]
+    for (int k = 0; k < 8000; ++k) {
+        const double time = k * 1e-3, w1 = 2.0, w2 = 7.0;
+        const double velocity = 0.1 * std::sin(w1 * time) + 0.03 * std::sin(w2 * time);
+        const double acceleration = 0.1 * w1 * std::cos(w1 * time) + 0.03 * w2 * std::cos(w2 * time);
+        t.push_back(time);
+        v.push_back(velocity);
+        f.push_back(mass * acceleration + friction(velocity, branch, branch) + noise(random));
+    }
+    trace.set("t", Role::time, "s", std::move(t));
+    trace.set("v", Role::velocity, "m/s", std::move(v));
+    trace.set("F", Role::force, "N", std::move(f));
+    trace.validate();
+    return trace;
+}
+
+/// A machine's own log: 10 Hz, steady strokes at four speeds each way, the speed reached within a sample, positions
+/// rounded to 1 mm, the logged velocity and the drive force.
+struct CoarseLog {
+    Trace trace;
+    Branch forward{2000.0, 150.0}, reverse{2400.0, 170.0};
+    double mass{300.0};
+};
+
+CoarseLog coarse_log() {
+    CoarseLog log;
+    std::vector<double> t, x, v, f;
+    std::mt19937 random(3);
+    std::normal_distribution<double> force_noise(0.0, 5.0), speed_noise(0.0, 0.02e-3);
+    double position = 0.1, previous = 0.0;
+    int k = 0;
+    const auto sample = [&](double speed) {
+        const double acceleration = (speed - previous) / 0.1;  // within the sample
+        position += speed * 0.1;
+        t.push_back(0.1 * k++);
+        x.push_back(std::round(position * 1e3) * 1e-3);
+        v.push_back(speed + (speed != 0.0 ? speed_noise(random) : 0.0));
+        f.push_back(log.mass * acceleration + friction(speed, log.forward, log.reverse) + force_noise(random));
+        previous = speed;
+    };
+    for (const double speed : {0.005, 0.010, 0.020, 0.040}) {
+        for (const double direction : {-1.0, 1.0}) {
+            for (int i = 0; i < 5; ++i) sample(0.0);
+            for (int i = 0; i < 30; ++i) sample(direction * speed);
+        }
+    }
+    for (int i = 0; i < 30; ++i) sample(0.0);
+    log.trace.source_path = "mill-log.csv";
+    log.trace.set("t", Role::time, "s", std::move(t));
+    log.trace.set("x", Role::position, "m", std::move(x));
+    log.trace.set("v", Role::velocity, "m/s", std::move(v));
+    log.trace.set("F", Role::force, "N", std::move(f));
+    log.trace.validate();
+    return log;
+}
+
+double value(const IdentifyResult& result, const std::string& key) {
+    const auto* p = result.find(key);
+    return p != nullptr && p->estimate.value ? *p->estimate.value : NAN;
+}
+double stderr_of(const IdentifyResult& result, const std::string& key) {
+    const auto* p = result.find(key);
+    return p != nullptr && p->estimate.standard_error ? *p->estimate.standard_error : NAN;
+}
+
+}  // namespace
+
+TEST(VelocityOnly, ALoggedVelocityWithoutPositionIdentifiesMassAndFriction) {
+    const Branch truth{200.0, 20.0};
+    const Trace trace = velocity_only_trace(50.0, truth);
+    IdentifyOptions options;
+    options.stribeck = false;
+    const IdentifyResult result = identify(trace, options);
+    ASSERT_NE(result.status, Status::failed) << (result.diagnostics.empty() ? "" : result.diagnostics.front());
+    ASSERT_TRUE(result.preprocessing);
+    EXPECT_EQ(result.preprocessing->velocity_source, "velocity");
+    EXPECT_NEAR(value(result, "mass_kg"), 50.0, 0.5);
+    EXPECT_NEAR(value(result, "viscous_Ns_per_m"), 200.0, 2.0);
+    EXPECT_NEAR(value(result, "coulomb_N"), 20.0, 0.2);
+    EXPECT_FALSE(result.friction_only);
+}
+
+TEST(VelocityOnly, AskingForTheLoggedVelocityWithoutOneIsBadInput) {
+    Trace trace = velocity_only_trace(50.0, {200.0, 20.0});
+    trace.find(Role::velocity)->role = Role::position;  // now it has a position and no velocity
+    IdentifyOptions options;
+    options.preprocess.velocity_source = VelocitySource::logged;
+    try {
+        (void)identify(trace, options);
+        FAIL() << "expected an InputError";
+    } catch (const InputError& e) {
+        EXPECT_TRUE(contains(e.what(), "has no velocity channel")) << e.what();
+    }
+}
+
+TEST(FrictionOnly, ACoarseLogGivesFrictionPerDirectionAndSaysWhyTheMassIsNull) {
+    const CoarseLog log = coarse_log();
+    IdentifyOptions options;
+    options.model = FrictionModelKind::asymmetric;
+    const IdentifyResult result = identify(log.trace, options);
+    ASSERT_EQ(result.status, Status::partial) << (result.diagnostics.empty() ? "" : result.diagnostics.front());
+    ASSERT_TRUE(result.friction_only);
+    EXPECT_EQ(result.preprocessing->velocity_source, "velocity");  // 1 mm against 0.5 .. 4 mm per sample
+    EXPECT_FALSE(result.find("mass_kg")->estimate.value);
+    EXPECT_FALSE(result.find("breakaway_forward_N")->estimate.value);
+    EXPECT_FALSE(result.find("stribeck_velocity_reverse_m_per_s")->estimate.value);
+    const auto check = [&](const std::string& key, double truth) {
+        const double estimate = value(result, key), se = stderr_of(result, key);
+        ASSERT_TRUE(std::isfinite(se) && se > 0.0) << key;
+        EXPECT_NEAR(estimate, truth, 3.0 * se) << key << " +/- " << se;
+        EXPECT_NEAR(estimate, truth, 0.05 * truth) << key;
+    };
+    check("viscous_forward_Ns_per_m", log.forward.viscous);
+    check("coulomb_forward_N", log.forward.coulomb);
+    check("viscous_reverse_Ns_per_m", log.reverse.viscous);
+    check("coulomb_reverse_N", log.reverse.coulomb);
+    // the reason in figures: the sample rate and the position resolution
+    const std::string& reason = result.friction_only->reason;
+    EXPECT_TRUE(contains(reason, "mass not identifiable: 10 Hz sampling and 1 mm position resolution")) << reason;
+    EXPECT_TRUE(contains(reason, "no higher than 3x the friction scatter")) << reason;
+    EXPECT_FALSE(contains(reason, "micro-step")) << reason;
+}
+
+TEST(FrictionOnly, TheCommandLineExitsZeroAndWritesTheResult) {
+    const CoarseLog log = coarse_log();
+    // as the mill writes it: mm, mm/s and a current (100 N/A here)
+    Trace file = log.trace;
+    for (double& x : file.find(Role::position)->values) x *= 1e3;
+    for (double& v : file.find(Role::velocity)->values) v *= 1e3;
+    for (double& f : file.find(Role::force)->values) f /= 100.0;
+    std::string csv = "t [s],x [mm],v [mm/s],i [A]\n";
+    for (std::size_t k = 0; k < file.samples(); ++k) {
+        csv += fmt::format("{:.9g},{:.9g},{:.9g},{:.9g}\n", file.channels[0].values[k], file.channels[1].values[k],
+                           file.channels[2].values[k], file.channels[3].values[k]);
+    }
+    const auto path = feedid::testing::temp_dir() / "mill.csv";
+    feedid::testing::write_text(path, csv);
+    const auto run =
+        feedid::testing::run_cli("identify '" + path.string() + "' --force-constant 100 --model asymmetric --json -");
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    const auto document = nlohmann::json::parse(run.out);
+    EXPECT_EQ(document.at("status"), "partial");
+    EXPECT_TRUE(document.at("parameters").at("mass_kg").at("value").is_null());
+    EXPECT_NEAR(document.at("parameters").at("coulomb_forward_N").at("value").get<double>(), log.forward.coulomb,
+                0.05 * log.forward.coulomb);
+    EXPECT_TRUE(contains(document.at("friction_only").at("reason").get<std::string>(), "10 Hz sampling"));
+    EXPECT_GT(document.at("friction_only").at("samples_used").get<std::size_t>(), 100u);
+    // the current needs a constant: without one the message says which
+    const auto bare = feedid::testing::run_cli("identify '" + path.string() + "'");
+    EXPECT_EQ(bare.exit_code, 2) << bare.err;
+    EXPECT_TRUE(contains(bare.err, "give --kt and --lead, or --force-constant")) << bare.err;
+}

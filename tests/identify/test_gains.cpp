@@ -1,0 +1,109 @@
+// Gain identification: EMPS (published gains) and synthetic closed-loop traces with known gains.
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+#include "feedid/model/drive.hpp"
+#include "feedid/identify/gains.hpp"
+#include "feedid/io/import.hpp"
+#include "feedid/sim/simulate.hpp"
+// synth.hpp (later)
+#include "testing.hpp"
+
+namespace {
+
+using feedid::testing::run_cli;
+using feedid::testing::shared_data;
+
+feedid::Trace read_emps() {
+    feedid::ImportOptions options;
+    options.channels[feedid::Role::position] = "qm";
+    options.channels[feedid::Role::reference_position] = "qg";
+    options.channels[feedid::Role::current] = "vir";
+    return feedid::read_trace(shared_data() / "emps/DATA_EMPS.mat", options);
+}
+
+TEST(Gains, EmpsPublishedGainsFromTheLibrary) {
+    FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
+    const auto trace = read_emps();
+    feedid::DriveConstants drive;
+    drive.force_constant_name = "gtau";
+    const auto force = feedid::drive_force(trace, drive);
+    const double gtau = trace.constants.at("gtau");
+    feedid::GainOptions options;
+    options.force_per_signal = gtau;
+    const auto result = feedid::identify_gains(trace, force, options);
+    EXPECT_EQ(result.method, "structure");
+    ASSERT_TRUE(result.position_gain_per_s.value);
+    EXPECT_NEAR(*result.position_gain_per_s.value, 160.18, 0.02 * 160.18);
+    EXPECT_NEAR(*result.velocity_gain_N_s_per_m.value / gtau, 243.45, 0.02 * 243.45);
+    EXPECT_FALSE(result.velocity_integral_gain_N_per_m.value) << "EMPS has a P velocity loop";
+    EXPECT_EQ(result.velocity_difference_samples, 2) << "the [0.5 0.5] filter then a difference";
+    EXPECT_GT(*result.position_gain_per_s.standard_error, 0.0);
+}
+
+TEST(Gains, EmpsCommandLine) {
+    FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
+    const auto result = run_cli("gains '" + (shared_data() / "emps/DATA_EMPS.mat").string() +
+                                "' --channel position=qm --channel reference_position=qg --channel current=vir "
+                                "--force-constant gtau --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto document = nlohmann::json::parse(result.out);
+    const double kp = document["gains"]["position_gain_per_s"]["value"].get<double>();
+    const double kv = document["gains"]["velocity_gain_signal_per_m_per_s"]["value"].get<double>();
+    EXPECT_NEAR(kp, 160.18, 0.02 * 160.18);
+    EXPECT_NEAR(kv, 243.45, 0.02 * 243.45);
+    EXPECT_NEAR(document["nc_units"]["kv_m_per_min_per_mm"].get<double>(), 160.18 * 0.06, 0.02 * 9.61);
+    EXPECT_TRUE(document["gains"]["velocity_integral_gain_N_per_m"]["value"].is_null());
+    EXPECT_TRUE(document["nc_units"]["tn_ms"].is_null());
+}
+
+TEST(Gains, MissingReferenceIsBadInput) {
+    FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
+    const auto result = run_cli("gains '" + (shared_data() / "emps/DATA_EMPS.mat").string() +
+                                "' --channel position=qm --channel current=qg --channel reference_position=nothing "
+                                "--force-constant gtau");
+    EXPECT_EQ(result.exit_code, 2) << result.err;
+    EXPECT_EQ(feedid::testing::count_lines(result.err), 1) << result.err;
+}
+
+TEST(Gains, DocumentCarriesTheTraceAndReadsBackAsTheController) {
+    feedid::GainResult result;
+    result.position_gain_per_s = feedid::Estimate::of(50.0, 0.5);
+    result.velocity_gain_N_s_per_m = feedid::Estimate::of(2000.0, 10.0);
+    result.velocity_integral_gain_N_per_m = feedid::Estimate::of(1e5, 1e3);
+    result.reset_time_s = feedid::Estimate::of(0.02, 1e-4);
+    result.method = "structure";
+    result.velocity_difference_samples = 2;
+    result.current_lag_s = 3e-4;
+    result.controller.saturation_N = 900.0;
+    result.controller.velocity_cycle_s = 1e-3;
+    feedid::GainOptions options;
+    options.force_per_signal = 10.0;
+    options.signal_unit = "V";
+    feedid::Trace trace;
+    trace.source_path = "axis.csv";
+    trace.set("t", feedid::Role::time, "s", {0.0, 1e-3, 2e-3});
+
+    const auto document = feedid::gains_document(result, options, trace);
+    EXPECT_EQ(document["trace"]["path"], "axis.csv");
+    EXPECT_EQ(document["trace"]["samples"], 3);
+    EXPECT_DOUBLE_EQ(document["nc_units"]["kv_m_per_min_per_mm"].get<double>(), 3.0);  // 50 1/s = 3 (m/min)/mm
+    EXPECT_DOUBLE_EQ(document["nc_units"]["tn_ms"].get<double>(), 20.0);
+    EXPECT_DOUBLE_EQ(document["gains"]["velocity_gain_signal_per_m_per_s"]["value"].get<double>(), 200.0);
+    EXPECT_TRUE(document["gains"]["velocity_feedforward"]["value"].is_null());
+    EXPECT_TRUE(document["gains"]["velocity_feedforward"]["stderr"].is_null());
+    EXPECT_EQ(document["structure"]["velocity_loop"], "PI");
+
+    const auto model = feedid::controller_from_document(nlohmann::json::parse(document.dump()), "gains.json");
+    EXPECT_EQ(model.position_gain_per_s, 50.0);
+    EXPECT_EQ(model.velocity_gain_N_s_per_m, 2000.0);
+    EXPECT_EQ(model.velocity_integral_gain_N_per_m, 1e5);
+    EXPECT_EQ(model.velocity_difference_samples, 2);
+    EXPECT_EQ(model.current_lag_s, 3e-4);
+    EXPECT_EQ(model.saturation_N, 900.0);
+    EXPECT_EQ(model.position_cycle_s, 1e-3);
+    EXPECT_EQ(model.velocity_cycle_s, 1e-3);
+}
+
+}  // namespace

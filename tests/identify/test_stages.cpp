@@ -1,0 +1,202 @@
+// The stages of identify, one at a time, on small hand-made inputs whose answers are known: preprocess() (values used,
+// failures), select_samples() (a count per reason), and step 2's Levenberg-Marquardt Jacobian against finite
+// differences.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+#include "feedid/identify/stribeck_fit.hpp"
+#include "feedid/core/error.hpp"
+#include "feedid/identify/preprocess.hpp"
+#include "feedid/identify/selection.hpp"
+#include "feedid/numeric/signal.hpp"
+#include "feedid/identify/step1.hpp"
+
+namespace {
+
+using feedid::Derivatives;
+
+feedid::Trace sine_trace(double sample_rate_hz, std::size_t n, double amplitude_m = 0.01, double frequency_hz = 0.5) {
+    std::vector<double> t(n), x(n), i(n, 0.0);
+    for (std::size_t k = 0; k < n; ++k) {
+        t[k] = static_cast<double>(k) / sample_rate_hz;
+        x[k] = amplitude_m * std::sin(2.0 * std::numbers::pi * frequency_hz * t[k]);
+    }
+    feedid::Trace trace;
+    trace.format = "synthetic";
+    trace.set("t", feedid::Role::time, "s", t);
+    trace.set("x", feedid::Role::position, "m", x);
+    trace.set("F", feedid::Role::force, "N", i);
+    return trace;
+}
+
+TEST(Preprocess, ReportsTheDefaultsItResolved) {
+    for (const double fs : {1000.0, 250.0}) {
+        const auto trace = sine_trace(fs, 4000);
+        const std::vector<double> force(trace.samples(), 1.0);
+        const Derivatives d = feedid::preprocess(trace, force, {});
+        ASSERT_FALSE(d.failed()) << d.failure;
+        const double cutoff = std::min(100.0, fs / 10.0);  // min(100 Hz, fs/10)
+        EXPECT_DOUBLE_EQ(d.used.cutoff_hz, cutoff);
+        EXPECT_EQ(d.used.differentiation, "butterworth");
+        EXPECT_EQ(d.used.edge_samples, static_cast<std::size_t>(std::ceil(2.5 * fs / cutoff)));  // 2.5 filter periods
+        EXPECT_EQ(d.used.decimation, 1);
+        EXPECT_EQ(d.window, trace.samples() - 2 * d.used.edge_samples);
+        EXPECT_EQ(d.size(), d.window);
+        EXPECT_EQ(d.force.size(), d.size());
+        EXPECT_DOUBLE_EQ(d.time.front(), static_cast<double>(d.used.edge_samples) / fs);
+    }
+}
+
+TEST(Preprocess, DifferentiatesASineToItsDerivatives) {
+    const double fs = 1000.0, amplitude = 0.01, frequency = 0.5, w = 2.0 * std::numbers::pi * frequency;
+    const auto trace = sine_trace(fs, 6000, amplitude, frequency);
+    const std::vector<double> force(trace.samples(), 0.0);
+    for (const auto method : {feedid::Differentiation::butterworth, feedid::Differentiation::central,
+                              feedid::Differentiation::savitzky_golay}) {
+        feedid::PreprocessOptions options;
+        options.differentiation = method;
+        const Derivatives d = feedid::preprocess(trace, force, options);
+        ASSERT_FALSE(d.failed()) << d.failure;
+        // a 0.5 Hz sine is far below every cut-off: inside the trace (the first and last 5 % hold what is left of the
+        // filters' start-up), velocity and acceleration within 0.1 % of their amplitude
+        for (std::size_t k = d.size() / 20; k < d.size() - d.size() / 20; k += 97) {
+            EXPECT_NEAR(d.velocity[k], amplitude * w * std::cos(w * d.time[k]), 1e-3 * amplitude * w);
+            EXPECT_NEAR(d.acceleration[k], -amplitude * w * w * std::sin(w * d.time[k]), 1e-3 * amplitude * w * w);
+        }
+    }
+}
+
+TEST(Preprocess, DecimationKeepsEveryNthSampleOfEveryColumn) {
+    const auto trace = sine_trace(1000.0, 5000);
+    const std::vector<double> force(trace.samples(), 2.0);
+    feedid::PreprocessOptions options;
+    options.decimation = 4;
+    const Derivatives d = feedid::preprocess(trace, force, options);
+    ASSERT_FALSE(d.failed());
+    EXPECT_EQ(d.used.decimation, 4);
+    EXPECT_EQ(d.size(), feedid::decimation_indices(d.window, 4).size());
+    EXPECT_EQ(d.full_rate_velocity.size(), d.window);
+    EXPECT_EQ(d.time.size(), d.size());
+    // A constant comes out scaled by the Chebyshev filter's DC gain, applied twice (forwards and backwards): an even
+    // order's DC gain is the pass-band ripple floor, -0.05 dB, as MATLAB's decimate.
+    EXPECT_NEAR(d.force[d.size() / 2], 2.0 * std::pow(10.0, -2.0 * 0.05 / 20.0), 1e-9);
+}
+
+TEST(Preprocess, SaysWhyATraceIsUnusable) {
+    const auto trace = sine_trace(1000.0, 60);
+    const std::vector<double> force(trace.samples(), 0.0);
+    const Derivatives short_window = feedid::preprocess(trace, force, {});
+    EXPECT_NE(short_window.failure.find("dropped at each edge: too short"), std::string::npos) << short_window.failure;
+
+    auto still = sine_trace(1000.0, 2000, 0.0);
+    const Derivatives no_motion = feedid::preprocess(still, std::vector<double>(2000, 0.0), {});
+    EXPECT_NE(no_motion.failure.find("never changes"), std::string::npos) << no_motion.failure;
+
+    feedid::PreprocessOptions window;
+    window.from_s = 0.5;
+    window.to_s = 0.51;
+    const Derivatives tiny = feedid::preprocess(sine_trace(1000.0, 2000), std::vector<double>(2000, 0.0), window);
+    EXPECT_NE(tiny.failure.find("only 11 samples in the analysis window"), std::string::npos) << tiny.failure;
+
+    feedid::PreprocessOptions nyquist;
+    nyquist.cutoff_hz = 600.0;
+    EXPECT_THROW((void)feedid::preprocess(sine_trace(1000.0, 2000), std::vector<double>(2000, 0.0), nyquist),
+                 feedid::InputError);
+}
+
+// A velocity profile of constant pieces (1 kHz): 100 at rest, 400 at +0.1 m/s, 300 at +2 mm/s, 200 at rest, 400 at
+// -0.1 m/s, 300 at -2 mm/s, 100 at rest. With the threshold and the split given, every count is known.
+Derivatives piecewise_constant_motion() {
+    const std::vector<std::pair<std::size_t, double>> pieces{{100, 0.0},  {400, 0.1},    {300, 0.002}, {200, 0.0},
+                                                             {400, -0.1}, {300, -0.002}, {100, 0.0}};
+    Derivatives d;
+    d.sample_time_s = 0.001;
+    d.used.decimation = 1;
+    // central differences: the force is not low-passed here, so no stop's force reaches into the fast samples (the
+    // margin selection keeps around stops after a low-pass is tested in test_honest_numbers)
+    d.used.differentiation = "central";
+    d.source = "hand-made";
+    for (const auto& [count, velocity] : pieces) {
+        for (std::size_t i = 0; i < count; ++i) {
+            d.time.push_back(static_cast<double>(d.time.size()) * d.sample_time_s);
+            d.velocity.push_back(velocity);
+            d.acceleration.push_back(0.0);
+            d.force.push_back(50.0 * velocity + 20.0 * feedid::sign(velocity));
+        }
+    }
+    d.total = d.window = d.velocity.size();
+    return d;
+}
+
+TEST(Selection, CountsEverySampleByReason) {
+    const Derivatives d = piecewise_constant_motion();
+    const auto regressors = feedid::build_regressors(d, feedid::FrictionModelKind::symmetric, false);
+    feedid::SelectionOptions options;
+    options.moving_threshold = 1e-4;
+    options.split_velocity = 0.01;
+    const feedid::Selection s = feedid::select_samples(d, regressors, options);
+    EXPECT_EQ(s.report.total, 1800u);
+    EXPECT_EQ(s.report.moving, 1400u);  // 400 samples at rest
+    EXPECT_EQ(s.report.step1, 800u);    // the two fast pieces, ramps included: nothing is steady-gated in step 1
+    // quasi-static: 25 ms (25 samples) of constant velocity on either side, so each slow piece of 300 loses 25 at
+    // its start and 25 at its end (sample k is steady while [k-25, k+25] stays inside the piece)
+    EXPECT_EQ(s.report.step2, 2u * (300u - 50u));
+    EXPECT_DOUBLE_EQ(s.report.split_velocity, 0.01);
+    EXPECT_DOUBLE_EQ(s.report.moving_threshold, 1e-4);
+    bool rest_note = false;
+    for (const auto& note : s.report.notes) rest_note = rest_note || note.rfind("400 samples at rest", 0) == 0;
+    EXPECT_TRUE(rest_note) << s.report.notes.front();
+    for (const auto k : s.step2) EXPECT_TRUE(s.steady(k));
+    // step 2 holds exactly the inner samples of the slow pieces
+    EXPECT_EQ(s.step2.front(), 525u);
+    EXPECT_EQ(s.step2[249], 774u);
+    EXPECT_EQ(s.step2[250], 1425u);
+}
+
+TEST(Selection, WithoutStribeckEveryMovingSampleIsStep1) {
+    const Derivatives d = piecewise_constant_motion();
+    const auto regressors = feedid::build_regressors(d, feedid::FrictionModelKind::symmetric, false);
+    feedid::SelectionOptions options;
+    options.moving_threshold = 1e-4;
+    options.stribeck = false;
+    const feedid::Selection s = feedid::select_samples(d, regressors, options);
+    EXPECT_EQ(s.report.step1, 1400u);
+    EXPECT_EQ(s.report.step2, 0u);
+}
+
+TEST(CurveFit, TheJacobianMatchesFiniteDifferences) {
+    feedid::detail::FitSamples samples;
+    for (int k = -60; k <= 60; ++k) {
+        if (k == 0) continue;
+        const double v = 0.0005 * k * std::abs(k) / 60.0;  // speeds from 8 um/s to 30 mm/s, both directions
+        samples.push(0.3 * std::sin(k), v, 0.0, static_cast<std::size_t>(k + 60));
+    }
+    for (const bool asymmetric : {false, true}) {
+        const feedid::detail::CurveModel model{asymmetric, true, asymmetric, true, true};
+        const feedid::detail::CurveLayout layout(model);
+        Eigen::VectorXd x(layout.size);
+        for (int i = 0; i < layout.size; ++i) x(i) = 1.0 + 0.37 * i;
+        for (const int g : {0, 1}) {
+            if (layout.log_vs[g] >= 0) x(layout.log_vs[g]) = std::log(0.004 + 0.002 * g);
+        }
+        const Eigen::MatrixXd analytic = feedid::detail::curve_jacobian(samples, model, x);
+        for (int i = 0; i < layout.size; ++i) {
+            const double h = 1e-6 * std::max(1.0, std::abs(x(i)));
+            Eigen::VectorXd up = x, down = x;
+            up(i) += h;
+            down(i) -= h;
+            const Eigen::VectorXd numeric = (feedid::detail::curve_residuals(samples, model, up) -
+                                             feedid::detail::curve_residuals(samples, model, down)) /
+                                            (2.0 * h);
+            const double scale = std::max(1.0, numeric.cwiseAbs().maxCoeff());
+            EXPECT_LT((analytic.col(i) - numeric).cwiseAbs().maxCoeff(), 1e-7 * scale)
+                << (asymmetric ? "asymmetric" : "symmetric") << " column " << i;
+        }
+    }
+}
+
+}  // namespace

@@ -1,0 +1,191 @@
+// The preprocessing primitives (feedid/numeric/signal.hpp) against SciPy: tests/numeric/signal_reference.hpp, written by
+// scripts/reference/signal_reference.py, which also says how each SciPy call is made to follow feedid's (MATLAB's)
+// conventions. Agreement is scored in significant digits.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "signal_reference.hpp"
+#include "feedid/numeric/signal.hpp"
+#include "testing.hpp"
+
+namespace {
+
+namespace reference = feedid::signal_reference;
+
+// Where the algorithms are the same, only rounding separates feedid from SciPy: 13.5 to 17 digits agree here, a
+// convention that differs (padding, where the ends start) costs 2 to 6.
+constexpr double same_algorithm_digits = 12.0;
+
+// -log10 of the largest difference relative to the largest reference magnitude: elements near zero (a filtered
+// signal crossing zero, a small filter coefficient) are judged on the scale of the whole, not their own. 17 when equal.
+double significant_digits(std::span<const double> actual, std::span<const double> expected) {
+    if (actual.size() != expected.size()) return 0.0;
+    double error = 0.0;
+    double scale = 0.0;
+    for (std::size_t k = 0; k < expected.size(); ++k) {
+        error = std::max(error, std::abs(actual[k] - expected[k]));
+        scale = std::max(scale, std::abs(expected[k]));
+    }
+    if (error == 0.0) return 17.0;
+    if (!std::isfinite(error)) return 0.0;
+    return -std::log10(error / std::max(scale, std::numeric_limits<double>::min()));
+}
+
+std::vector<std::array<double, 6>> copied(std::span<const reference::Section> sections) {
+    return {sections.begin(), sections.end()};
+}
+
+// The denominators (b0 b1 b2 a0 a1 a2 -> a1 a2), sorted by pole radius^2 (a2) then a1: SciPy orders the sections by
+// the poles' distance from the unit circle, feedid by the analog poles' angle, and neither order changes the filter.
+std::vector<double> sorted_denominators(std::span<const std::array<double, 6>> sections) {
+    std::vector<std::array<double, 2>> rows;
+    for (const auto& s : sections) rows.push_back({s[5], s[4]});
+    std::sort(rows.begin(), rows.end());
+    std::vector<double> flat;
+    for (const auto& r : rows) flat.insert(flat.end(), {r[1], r[0]});
+    return flat;
+}
+
+// The product of the sections' numerators, as a polynomial in z^-1: SciPy gives an odd order's real pole two zeros
+// and a complex pair one, feedid the other way round, and puts the gain in another section; the product is the same.
+std::vector<double> numerator_polynomial(std::span<const std::array<double, 6>> sections) {
+    std::vector<double> product{1.0};
+    for (const auto& s : sections) {
+        std::vector<double> next(product.size() + 2, 0.0);
+        for (std::size_t i = 0; i < product.size(); ++i) {
+            for (std::size_t j = 0; j < 3; ++j) next[i + j] += product[i] * s[j];
+        }
+        product = next;
+    }
+    return product;
+}
+
+feedid::SecondOrderSections design_with_feedid(const reference::Design& design) {
+    if (design.ripple_db == 0.0) {
+        return feedid::butterworth_lowpass(design.order, design.cutoff_hz, design.sample_rate_hz);
+    }
+    return feedid::chebyshev1_lowpass(design.order, design.ripple_db, design.cutoff_hz, design.sample_rate_hz);
+}
+
+std::string describe(const reference::Design& design) {
+    if (design.ripple_db == 0.0) {
+        return fmt::format("butter({}, {} Hz, fs {} Hz)", design.order, design.cutoff_hz, design.sample_rate_hz);
+    }
+    return fmt::format("cheby1({}, {} dB, {} Hz, fs {} Hz)", design.order, design.ripple_db, design.cutoff_hz,
+                       design.sample_rate_hz);
+}
+
+}  // namespace
+
+// ---- Filter design -------------------------------------------------------------------------------------------------
+
+TEST(SignalReference, FilterDesignsHaveScipysPolesZerosAndGain) {
+    for (const auto& design : reference::designs) {
+        SCOPED_TRACE(describe(design));
+        const auto feedid_sections = design_with_feedid(design).sections;
+        ASSERT_EQ(feedid_sections.size(), design.sos.size());
+        for (const auto& s : feedid_sections) EXPECT_EQ(s[3], 1.0);
+        EXPECT_GE(significant_digits(sorted_denominators(feedid_sections), sorted_denominators(design.sos)),
+                  same_algorithm_digits);
+        EXPECT_GE(significant_digits(numerator_polynomial(feedid_sections), numerator_polynomial(design.sos)),
+                  same_algorithm_digits);
+    }
+}
+
+// ---- Zero-phase filtering ------------------------------------------------------------------------------------------
+
+// SciPy's sosfiltfilt with odd padding of 3 * (filter order) samples (padlen, clamped to n - 1 on the 10-sample case)
+// and steady-state initial conditions at both passes: the same algorithm, fed the same sections.
+TEST(SignalReference, FiltfiltWithScipysSectionsIsSosfiltfilt) {
+    for (const auto& c : reference::filtfilt_cases) {
+        SCOPED_TRACE(fmt::format("{} on {} samples", describe(c.design), c.samples));
+        EXPECT_EQ(c.padding, std::min<std::size_t>(3 * static_cast<std::size_t>(c.design.order), c.samples - 1));
+        const auto filtered =
+            feedid::filtfilt({copied(c.design.sos)}, std::span<const double>(reference::signal).first(c.samples));
+        EXPECT_GE(significant_digits(filtered, c.filtered), same_algorithm_digits);
+    }
+}
+
+// The whole chain: feedid's own design (other section order and gain placement, so other rounding) and filtfilt.
+TEST(SignalReference, FiltfiltWithFeedidsDesignIsSosfiltfilt) {
+    for (const auto& c : reference::filtfilt_cases) {
+        SCOPED_TRACE(fmt::format("{} on {} samples", describe(c.design), c.samples));
+        const auto filtered =
+            feedid::filtfilt(design_with_feedid(c.design), std::span<const double>(reference::signal).first(c.samples));
+        EXPECT_GE(significant_digits(filtered, c.filtered), same_algorithm_digits);
+    }
+}
+
+// ---- Derivatives ---------------------------------------------------------------------------------------------------
+
+TEST(SignalReference, CentralDifferenceIsNumpyGradient) {
+    const auto derivative = feedid::central_difference(reference::signal, reference::sample_time);
+    EXPECT_GE(significant_digits(derivative, reference::central_difference), same_algorithm_digits);
+}
+
+// The filter's weights, read off its response to a unit impulse well inside the signal:
+// y[m + half - i] = c[i] for savgol_coeffs(use="dot").
+TEST(SignalReference, SavitzkyGolayWeightsAreSavgolCoeffs) {
+    for (const auto& c : reference::savitzky_golay_cases) {
+        SCOPED_TRACE(fmt::format("window {}, polynomial {}, derivative {}", c.window, c.polynomial, c.derivative));
+        const auto window = static_cast<std::size_t>(c.window);
+        const std::size_t half = window / 2;
+        const std::size_t impulse_at = 2 * window;
+        std::vector<double> impulse(4 * window, 0.0);
+        impulse[impulse_at] = 1.0;
+        const auto response =
+            feedid::savitzky_golay(impulse, c.window, c.polynomial, c.derivative, reference::sample_time);
+        std::vector<double> weights(window);
+        for (std::size_t i = 0; i < window; ++i) weights[i] = response[impulse_at + half - i];
+        EXPECT_GE(significant_digits(weights, c.coefficients), same_algorithm_digits);
+    }
+}
+
+// savgol_filter(mode="interp"): the centred weights inside, the first and last window's polynomial at the ends.
+TEST(SignalReference, SavitzkyGolayIsSavgolFilterInterp) {
+    for (const auto& c : reference::savitzky_golay_cases) {
+        SCOPED_TRACE(fmt::format("window {}, polynomial {}, derivative {}", c.window, c.polynomial, c.derivative));
+        const auto filtered =
+            feedid::savitzky_golay(reference::signal, c.window, c.polynomial, c.derivative, reference::sample_time);
+        EXPECT_GE(significant_digits(filtered, c.filtered), same_algorithm_digits);
+    }
+}
+
+// ---- Decimation ----------------------------------------------------------------------------------------------------
+
+TEST(SignalReference, DecimationKeepsEveryFactorthSampleEndingOnTheLast) {
+    for (const auto& c : reference::index_cases) {
+        SCOPED_TRACE(fmt::format("{} samples by {}", c.samples, c.factor));
+        const std::vector<std::size_t> expected(c.indices.begin(), c.indices.end());
+        EXPECT_EQ(feedid::decimation_indices(c.samples, c.factor), expected);
+    }
+}
+
+// The order-8 Chebyshev I (0.05 dB) at 0.8 / factor of Nyquist, forwards and backwards with 24 reflected samples,
+// at the kept samples.
+TEST(SignalReference, DecimateIsChebyshevSosfiltfiltAtTheKeptSamples) {
+    for (const auto& c : reference::decimate_cases) {
+        SCOPED_TRACE(fmt::format("factor {}", c.factor));
+        EXPECT_GE(significant_digits(feedid::decimate(reference::signal, c.factor), c.decimated),
+                  same_algorithm_digits);
+    }
+}
+
+// ---- Noise floor ---------------------------------------------------------------------------------------------------
+
+// 1.4826 * MAD(diff x) / sqrt(2): the same as SciPy's median_abs_deviation for an odd number of differences, but for
+// the rounded constant (1.4826 instead of 1.482602218505602, 1.5e-6 relative).
+TEST(SignalReference, NoiseFloorIsTheScaledMedianAbsoluteDeviationOfTheDifferences) {
+    ASSERT_EQ(reference::signal.size() % 2, 0U);  // an odd number of differences: one middle value
+    const double floor = feedid::noise_floor(reference::signal);
+    EXPECT_NEAR(floor, reference::noise_floor_rounded_constant, 1e-13 * reference::noise_floor_rounded_constant);
+    EXPECT_NEAR(floor, reference::noise_floor, 2e-6 * reference::noise_floor);
+}
