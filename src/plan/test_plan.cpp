@@ -13,7 +13,7 @@
 
 #include "feedid/core/error.hpp"
 #include "feedid/core/parameters.hpp"
-#include "feedid/sim/synth.hpp"
+#include "feedid/model/demo_drives.hpp"
 #include "feedid/core/version.hpp"
 #include "motion_profile.hpp"
 
@@ -201,16 +201,7 @@ std::vector<double> parse_slow_feeds(const std::vector<std::string>& entries, co
 }
 
 AxisModel nominal_demo_drive(bool rotary) {
-    if (rotary) return rotary_demo_spec().axis;
-    AxisModel model;
-    model.mass = 69.1;
-    FrictionBranch branch;
-    branch.viscous = 54.2;
-    branch.coulomb = 742.8;
-    branch.breakaway = 946.2;
-    branch.stribeck_velocity = 0.005;
-    model.friction = Friction::symmetric(branch);
-    return model;
+    return demo_drive(rotary).axis;
 }
 
 TestPlanOptions default_plan_options(const std::string& axis) {

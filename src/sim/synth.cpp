@@ -31,23 +31,6 @@ constexpr double max_jitter_per_sample_time = 0.5;
 // A sample rate that is a whole number of hertz up to the rounding of 1/T gets time stamps k/f_s.
 constexpr double whole_rate_tolerance = 1e-12;
 
-// The demo controller (feedid synth --help): K_v 2 (m/min)/mm, T_n 20 ms, current lag 0.3 ms, and K_p high enough
-// that sliding is stable down to about 100 mm/min against the Stribeck slope (F_B - F_C)/v_s = 40 kN*s/m; below
-// that the axis stick-slips, as real axes do. The force limit is twice the demo motor's rated 18 A.
-constexpr double demo_kv_m_per_min_per_mm = 2.0;
-constexpr double demo_velocity_gain_N_s_per_m = 40000.0;
-constexpr double demo_integral_time_s = 0.020;
-constexpr double demo_current_lag_s = 0.3e-3;
-constexpr double demo_saturation_A = 36.0;
-
-// The rotary demo (a direct-drive rotary table): K_p such that the velocity loop's crossover K_p/J = 200 rad/s keeps
-// about 40 degrees of phase margin at a 2 ms cycle with a velocity measured over 4 ms, and above the Stribeck slope
-// (F_B - F_C)/v_s = 120 N*m*s/rad; the torque limit at 100 A.
-constexpr double rotary_demo_inertia_kgm2 = 2.0;
-constexpr double rotary_demo_velocity_gain_Nms_per_rad = 400.0;
-constexpr double rotary_demo_kt_Nm_per_A = 2.0;
-constexpr double rotary_demo_saturation_A = 100.0;
-
 // A rotary axis' test and sensor lengths are in degrees where the drive file says mm: 1 "m" of them is 1000 deg.
 constexpr double rotary_rad_per_length_unit = 1000.0 * std::numbers::pi / 180.0;
 
@@ -175,38 +158,19 @@ std::string SynthSpec::validate() const {
     return {};
 }
 
-SynthSpec demo_spec() {
+SynthSpec demo_spec(bool rotary) {
+    const DemoDrive drive = demo_drive(rotary);
     SynthSpec spec;
-    FrictionBranch branch;
-    branch.viscous = 54.2;
-    branch.coulomb = 742.8;
-    branch.breakaway = 946.2;
-    branch.stribeck_velocity = 0.005;
-    spec.axis.mass = 69.1;
-    spec.axis.friction = Friction::symmetric(branch);
-    spec.controller.position_gain_per_s = position_gain_from_kv(demo_kv_m_per_min_per_mm);
-    spec.controller.velocity_gain_N_s_per_m = demo_velocity_gain_N_s_per_m;
-    spec.controller.velocity_integral_gain_N_per_m = demo_velocity_gain_N_s_per_m / demo_integral_time_s;
-    spec.controller.current_lag_s = demo_current_lag_s;
-    spec.controller.saturation_N = demo_saturation_A * spec.force_constant_N_per_A();
+    spec.axis = drive.axis;
+    spec.controller = drive.controller;
+    spec.kt_Nm_per_A = drive.kt_Nm_per_A;
+    spec.lead_m = drive.lead_m;
+    spec.gear_ratio = drive.gear_ratio;
     return spec;
 }
 
 SynthSpec rotary_demo_spec() {
-    SynthSpec spec = demo_spec();
-    FrictionBranch branch;
-    branch.viscous = 5.0;
-    branch.coulomb = 20.0;
-    branch.breakaway = 26.0;
-    branch.stribeck_velocity = 0.05;
-    spec.axis.rotary = true;
-    spec.axis.mass = rotary_demo_inertia_kgm2;
-    spec.axis.friction = Friction::symmetric(branch);
-    spec.kt_Nm_per_A = rotary_demo_kt_Nm_per_A;
-    spec.controller.velocity_gain_N_s_per_m = rotary_demo_velocity_gain_Nms_per_rad;
-    spec.controller.velocity_integral_gain_N_per_m = rotary_demo_velocity_gain_Nms_per_rad / demo_integral_time_s;
-    spec.controller.saturation_N = rotary_demo_saturation_A * spec.force_constant_N_per_A();
-    return spec;
+    return demo_spec(true);
 }
 
 void apply_sinumerik_recording(SynthSpec& spec) {

@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "feedid/model/controller.hpp"
+#include "feedid/model/demo_drives.hpp"
 #include "feedid/model/friction.hpp"
 #include "feedid/sim/simulate.hpp"
 #include "feedid/core/trace.hpp"
@@ -105,12 +106,11 @@ struct SynthSpec {
     [[nodiscard]] std::string validate() const;
 };
 
-/// The demo drive: the paper's M 69.1 kg, B 54.2 N*s/m, F_C 742.8 N, F_B 946.2 N with a ball-screw-typical
-/// v_s = 5 mm/s, K_v = 2 (m/min)/mm, K_p = 40000 N*s/m, T_n = 20 ms, 1 kHz, with slow passes.
-SynthSpec demo_spec();
+/// The demo drive of model/demo_drives.hpp (linear, or the rotary table) with the default sensors (1 kHz) and test
+/// (with slow passes).
+SynthSpec demo_spec(bool rotary = false);
 
-/// The rotary demo drive (a direct-drive rotary table): J 2.0 kg*m^2, B 5.0 N*m*s/rad, F_C 20 N*m, F_B 26 N*m,
-/// v_s 0.05 rad/s; K_v 2 (1000 deg/min)/deg, K_p 400 N*m*s/rad, T_n 20 ms; K_t 2 N*m/A; 1 kHz.
+/// demo_spec(true).
 SynthSpec rotary_demo_spec();
 
 /// Records `spec` as a SINUMERIK servo trace does: 2 ms time base, the position loop (and so position, reference and
