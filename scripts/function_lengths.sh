@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Lists the functions in src/ longer than a limit (default 80 lines, STYLE.md: named stages, no long functions) and
+# Lists the functions in src/ longer than a limit (default 80 lines: named stages, no long functions) and
 # fails when there is one. Lengths from universal-ctags (first to last line of the definition).
 #   scripts/function_lengths.sh [LIMIT]
 set -euo pipefail

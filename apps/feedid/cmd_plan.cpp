@@ -242,7 +242,7 @@ struct PlanArguments {
 Action add_plan_command(CLI::App& app) {
     auto* sub = app.add_subcommand("plan", "Design the axis test and write it as a part program and a reference");
     sub->footer(
-        "The test (after the paper, METHOD.md step 5): at each centre, back-and-forth strokes at every feedrate, the\n"
+        "The test (after the paper's test procedure): at each centre, back-and-forth strokes at every feedrate, the\n"
         "slow Stribeck passes first (strokes shortened to --max-pass-time), then the ladder. Every move ends at rest\n"
         "(exact stop) with a dwell. A plan that leaves the travel or exceeds --max-feed is refused (exit 2) with the\n"
         "move named. The summary predicts which parameters the data will identify, from a nominal drive.\n"

@@ -1,4 +1,4 @@
-// feedid scan FILE: mass and friction from a production trace, no test needed (issue 15): the online identifier
+// feedid scan FILE: mass and friction from a production trace, no test needed: the online identifier
 // run over the file, windows that carry information pooled, the others counted by why.
 #include <algorithm>
 #include <cmath>

@@ -41,7 +41,7 @@ namespace {
 // The key of the advisory lock that serialises migrations ("FEID").
 constexpr long long migration_lock = 0x46454944;
 
-// Parameter keys that get a series_<key> view (DESIGN.md's result document: linear, rotary, asymmetric).
+// Parameter keys that get a series_<key> view (the result document's, docs/documents.md: linear, rotary, asymmetric).
 const char* const series_keys[] = {
     "mass_kg",
     "inertia_kgm2",

@@ -1,4 +1,4 @@
-// The gains document (`feedid gains --json`, DESIGN.md): the identified gains with their standard errors, in SI, in
+// The gains document (docs/documents.md): the identified gains with their standard errors, in SI, in
 // the drive signal's units and in the NC's units, with the structure and the fit; and the controller read back from
 // it for `feedid simulate --gains`.
 

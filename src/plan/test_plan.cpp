@@ -21,7 +21,7 @@ namespace feedid {
 
 namespace {
 
-// The paper's feedrate ladder (METHOD.md step 5): 1250 mm/min up to about 9350 mm/min; 1250 + 6 * 1350 = 9350. A
+// The paper's feedrate ladder (docs/method.md): 1250 mm/min up to about 9350 mm/min; 1250 + 6 * 1350 = 9350. A
 // rotary axis runs the same numbers in deg/min.
 constexpr double ladder_first_per_min = 1250.0;
 constexpr double ladder_step_per_min = 1350.0;

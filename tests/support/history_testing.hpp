@@ -46,7 +46,7 @@ inline std::string quoted(const std::string& location) {
     return "'" + location + "'";
 }
 
-/// A small identify result document (the shape of DESIGN.md's result document) naming `trace`: the store tests need
+/// A small identify result document (docs/documents.md's shape) naming `trace`: the store tests need
 /// many distinct runs quickly, not the identification itself.
 inline nlohmann::json small_result(const std::filesystem::path& trace, double coulomb) {
     const auto estimate = [](double value, double error) {

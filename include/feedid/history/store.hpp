@@ -254,7 +254,7 @@ std::string file_modification_time_utc(const std::filesystem::path& path);
 /// The current time, ISO 8601 UTC with milliseconds.
 std::string now_utc();
 
-/// Builds a run record from an identify result document (DESIGN.md, "result document"), copying every parameter key
+/// Builds a run record from an identify result document (docs/documents.md), copying every parameter key
 /// it holds. InputError naming `source` and the key when the document is not an identify result: every value is
 /// checked against the result document's schema (result_document.hpp's from_json), so a document that could not be
 /// read back later is never stored. Text beyond `limits` is cut, with a finding in recording_findings and in the

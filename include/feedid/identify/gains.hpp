@@ -92,7 +92,7 @@ struct GainResult {
 GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options = {},
                           std::span<const double> injection = {});
 
-/// The gain result document of DESIGN.md (`feedid gains --json`) of the gains identified from `trace` (its path and
+/// The gains document (`feedid gains --json`, docs/documents.md) of the gains identified from `trace` (its path and
 /// length are in the document).
 nlohmann::json gains_document(const GainResult& result, const GainOptions& options, const Trace& trace);
 

@@ -5,7 +5,7 @@
 //   select_samples()     selection.hpp   moving, quasi-static, step-1 and step-2 samples, each drop explained
 //   fit_step1()          step1.hpp       eq. (11) by batch QR and RLS (eq. 7-9), transient detected
 //   fit_friction_curve() step2.hpp       eq. (12-14) log-linear RLS, then the nonlinear fit of the whole curve
-// The result document (DESIGN.md keys) is written and read only by result_document.hpp.
+// The result document (its keys: docs/documents.md) is written and read only by result_document.hpp.
 
 #include <array>
 #include <optional>

@@ -1,5 +1,5 @@
 #pragma once
-// The online identifier (issue 15): mass and friction from the traces of ordinary production, sample by sample.
+// The online identifier: mass and friction from the traces of ordinary production, sample by sample.
 // Samples (t, x, F_d) are pushed one at a time or in blocks into a window buffer allocated once. Each full window is
 // preprocessed as identify does (zero-phase Butterworth of the position AND of the drive force, central differences;
 // the sgn(x') column through the same low-pass, IDIM's parallel filtering), tested (at rest, saturation, stick-slip,

@@ -1,5 +1,5 @@
 #pragma once
-// The identify result document (DESIGN.md): the one place where its keys are spelled. Keys carry their SI unit
+// The identify result document (docs/documents.md): the one place where its keys are spelled. Keys carry their SI unit
 // ("mass_kg", "coulomb_forward_N"; rotary "inertia_kgm2", ...); a value the data cannot determine is null.
 //   nlohmann::json document = result;               // to_json
 //   auto result = document.get<IdentifyResult>();   // from_json: what simulate, report, history, plan read back

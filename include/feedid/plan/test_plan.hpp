@@ -1,5 +1,5 @@
 #pragma once
-// Test-procedure design (METHOD.md, step 5): constant-velocity back-and-forth strokes at several centres along the
+// Test-procedure design (docs/method.md): constant-velocity back-and-forth strokes at several centres along the
 // axis at rising feedrates (the paper's ladder, 1250 to 9350 mm/min), plus slow passes for the Stribeck curve
 // (log-spaced, strokes shortened so that each pass stays brief). A plan is a list of moves the NC executes; from it
 // come the part program (ISO, SINUMERIK 840D, LinuxCNC; gcode_writer.hpp), the reference trajectory an ideal NC would

@@ -1,6 +1,6 @@
 #pragma once
 // The digital twin: fixed-step simulation of an identified axis in closed loop with its controller, driven by a
-// reference position (the paper's validation, METHOD.md step 7; the EMPS benchmark's simulation).
+// reference position (the paper's validation, docs/method.md; the EMPS benchmark's simulation).
 //   M*x'' = F_d + F_ext - F_f(x') - F_0,   F_d = current loop(F_cmd + u_inj),   F_cmd = controller(x_ref, x)
 // (F_ext: a force on the mass from outside the drive; u_inj: a test signal injected at the controller's output).
 // Stick-slip: at rest (x' = 0) the axis stays at rest while the applied force F_a = F_d + F_ext - F_0 lies within
@@ -81,7 +81,7 @@ SimulationOutput simulate(const AxisModel& axis, const ControllerModel& controll
 void simulate(const AxisModel& axis, const ControllerModel& controller, const SimulationInput& input,
               const SimulationOptions& options, SimulationOutput& out);
 
-/// The axis model from an identification result document (DESIGN.md keys: parameters.mass_kg.value, ...;
+/// The axis model from an identification result document (docs/documents.md keys: parameters.mass_kg.value, ...;
 /// per-direction `_forward`/`_reverse` keys; rotary-axis keys). A null breakaway force or Stribeck velocity means no
 /// Stribeck term; a missing offset means 0. Values may also be plain numbers (a drive file). InputError naming
 /// `source` and the key when the mass or a friction level is missing.
@@ -119,7 +119,7 @@ inline constexpr double model_scale_limit = 10.0;
 /// model in other units than the trace or of another axis. The reason gives the figures.
 std::string model_does_not_fit(const AxisModel& axis, const Trace& trace, std::span<const double> drive_force);
 
-/// The simulate document of DESIGN.md; a rotary axis's lengths in rad (`tracking_error_mae_rad`, ...).
+/// The simulate document (docs/documents.md); a rotary axis's lengths in rad (`tracking_error_mae_rad`, ...).
 nlohmann::json validation_document(const ValidationMetrics& metrics, bool rotary = false);
 
 /// The errors of the paper's Fig. 6 over time, thinned for plotting by extreme_preserving_indices() over all three
@@ -188,7 +188,7 @@ TraceSimulation simulate_trace(const Trace& trace, std::span<const double> drive
                                const ControllerModel& controller, SimulationOptions options = {},
                                std::span<const double> injection = {});
 
-/// The simulate document of DESIGN.md (`feedid simulate --json`): the validation figures of validation_document(),
+/// The simulate document (docs/documents.md): the validation figures of validation_document(),
 /// the trace (path, samples, sample time), the controller simulated, whether the axis is rotary, the series of errors
 /// (validation_series_document()) and the controller's notes as diagnostics; "status" "failed" when the controller or
 /// the simulation failed. It holds no NaN or infinity: a figure that is not a finite number is null, and every null is

@@ -22,7 +22,7 @@
 
 namespace feedid {
 
-/// The constant-velocity back-and-forth test of METHOD.md: strokes at stepwise increasing feedrates, plus optional
+/// The constant-velocity back-and-forth test (docs/method.md): strokes at stepwise increasing feedrates, plus optional
 /// slow passes (short strokes at log-spaced low feedrates) so that breakaway friction and Stribeck velocity are
 /// identifiable.
 struct TestReference {
