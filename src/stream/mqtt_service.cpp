@@ -287,12 +287,7 @@ private:
             for (const auto& series : history::analyse_trends(store_->series(filter), store_->pins(), trend)) {
                 for (const history::Alarm& alarm : series.alarms) {
                     if (alarm.run_id != outcome.id) continue;
-                    const nlohmann::json message = {{"machine", alarm.machine},       {"axis", alarm.axis},
-                                                    {"parameter", alarm.parameter},   {"run", alarm.run_id},
-                                                    {"direction", alarm.direction},   {"change", alarm.change},
-                                                    {"change_pct", alarm.change_pct}, {"z", alarm.z},
-                                                    {"cusum", alarm.cusum},           {"message", alarm.message()}};
-                    publish(prefix + "/feedid/alarm", message.dump(), 1, false);
+                    publish(prefix + "/feedid/alarm", history::alarm_document(alarm).dump(), 1, false);
                     if (options_.print) fmt::print("ALARM {}\n", alarm.message());
                 }
             }
