@@ -11,6 +11,7 @@
 #include "feedid/io/csv.hpp"
 #include "feedid/core/parameters.hpp"
 #include "feedid/sim/simulate.hpp"
+#include "feedid/sim/twin.hpp"
 #include "feedid/core/terminal_text.hpp"
 #include "gain_arguments.hpp"
 
@@ -39,44 +40,33 @@ struct SimulateCommand {
         inputs.push_back({"the --gains document", gains_path});
         require_separate_outputs({{"--out", out_path}, {"--json", json_path}}, inputs);
         // The documents first: a wrong path fails before the trace is read.
-        const AxisModel axis = axis_from_document(read_json(result_path), result_path);
+        const nlohmann::json result_document = read_json(result_path);
         const std::optional<nlohmann::json> gains_document =
             gains_path.empty() ? std::nullopt : std::optional<nlohmann::json>(read_json(gains_path));
         const Trace trace = read_trace_for_drive(trace_arguments, drive_arguments);
-        if (axis.rotary != trace.rotary) {
-            throw InputError(fmt::format("{}: the result is of a {} axis, the trace {} of a {} axis", result_path,
-                                         ParameterNaming{axis.rotary}.axis_kind(), trace.source_path,
-                                         ParameterNaming{trace.rotary}.axis_kind()));
-        }
-        const DriveConstants drive = drive_arguments.constants();
-        const std::vector<double> force = drive_force(trace, drive);
-        if (const auto misfit = model_does_not_fit(axis, trace, force); !misfit.empty()) {
-            throw InputError(
-                fmt::format("{}: the result does not fit the trace {}: {}", result_path, trace.source_path, misfit));
-        }
-        const std::vector<double> injection = injection_force(trace, drive);
-        const GainOptions gain_options = gain_arguments.options(trace, drive);
-        const TwinController controller =
-            gains_document ? documented_twin_controller(*gains_document, gains_path, gain_options, trace)
-                           : identified_twin_controller(trace, force, gain_options, injection);
-        SimulationOptions options;
-        options.substeps = substeps;
-        const TraceSimulation simulation = simulate_trace(trace, force, axis, controller.model, options, injection);
+        TwinOptions options;
+        options.drive = drive_arguments.constants();
+        options.gains = gain_arguments.given();
+        options.saturation = gain_arguments.saturation;
+        options.simulation.substeps = substeps;
+        const Twin twin = run_twin(
+            trace, {result_document, result_path},
+            gains_document ? std::optional<TwinDocument>({*gains_document, gains_path}) : std::nullopt, options);
 
-        if (!out_path.empty()) write_output(out_path, write_csv(simulation_trace(simulation.output, trace.rotary)));
-        if (!json_path.empty()) write_json(simulation_document(trace, controller, simulation), json_path);
-        if (json_path != "-") print(trace, controller, simulation);
-        // A twin with untrusted gains, or one that diverged, validates nothing.
-        if (controller.status == Status::failed || simulation.status == Status::failed) {
-            fmt::print(stderr, "feedid: {}\n",
-                       terminal_message(simulation.status == Status::failed ? simulation.diagnostics.front()
-                                                                            : controller.notes.front()));
+        if (!out_path.empty())
+            write_output(out_path, write_csv(simulation_trace(twin.simulation.output, trace.rotary)));
+        if (!json_path.empty()) write_json(twin_document(trace, twin), json_path);
+        if (json_path != "-") print(trace, twin);
+        if (twin.status == Status::failed) {
+            fmt::print(stderr, "feedid: {}\n", terminal_message(twin.failure));
             return 1;
         }
         return 0;
     }
 
-    static void print(const Trace& trace, const TwinController& controller, const TraceSimulation& simulation) {
+    static void print(const Trace& trace, const Twin& twin) {
+        const TwinController& controller = twin.controller;
+        const TraceSimulation& simulation = twin.simulation;
         const ValidationMetrics& metrics = simulation.metrics;
         const std::string unit = ParameterNaming{trace.rotary}.display_small_length_unit();
         fmt::print("{}: closed-loop simulation of the identified axis on the recorded reference ({} samples)\n",
@@ -97,7 +87,7 @@ struct SimulateCommand {
                    figure(metrics.acceleration_relative_error_pct, " %"),
                    figure(metrics.force_relative_error_pct, " %"));
         if (simulation.injected) fmt::print("  the injected signal added to the simulated controller output\n");
-        if (simulation.status == Status::failed || controller.status == Status::failed) {
+        if (twin.status == Status::failed) {
             fmt::print(
                 "  status         failed: the simulation validates nothing (— marks a figure that is not a "
                 "finite number)\n");

@@ -7,6 +7,7 @@
 
 #include "cli.hpp"
 #include "feedid/core/error.hpp"
+#include "feedid/core/parameters.hpp"
 #include "feedid/plan/gcode_reader.hpp"
 #include "feedid/io/csv.hpp"
 #include "feedid/sim/production_synth.hpp"
@@ -116,9 +117,10 @@ struct SynthCommand {
         SynthSpec spec = rotary ? rotary_demo_spec() : demo_spec();
         if (!drive_path.empty()) spec = read_spec(drive_path);
         if (rotary && !spec.axis.rotary) {
-            throw InputError(fmt::format("synth --rotary: the drive file {} describes a linear axis (give "
-                                         "axis.inertia_kgm2, or leave out --rotary)",
-                                         drive_path));
+            throw InputError(
+                fmt::format("synth --rotary: the drive file {} describes a linear axis (give "
+                            "axis.{}, or leave out --rotary)",
+                            drive_path, ParameterNaming{true}.key(Term::mass)));
         }
         if (preset == "sinumerik") apply_sinumerik_recording(spec);
         if (seed) spec.seed = *seed;

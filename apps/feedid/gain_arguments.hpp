@@ -39,7 +39,8 @@ struct GainArguments {
             ->check(allowed_range(1e-6, 1.0, ""));
     }
 
-    [[nodiscard]] GainOptions options(const Trace& trace, const DriveConstants& drive) const {
+    /// The options as given, before the trace's drive signal sets what it sets (simulate's twin does that).
+    [[nodiscard]] GainOptions given() const {
         GainOptions options;
         options.velocity_loop = velocity_loop == "p"    ? VelocityLoopStructure::p
                                 : velocity_loop == "pi" ? VelocityLoopStructure::pi
@@ -48,6 +49,11 @@ struct GainArguments {
         options.velocity_difference_samples = velocity_difference;
         if (current_lag_ms) options.current_lag_s = *current_lag_ms * 1e-3;
         options.rls.forgetting_factor = forgetting;
+        return options;
+    }
+
+    [[nodiscard]] GainOptions options(const Trace& trace, const DriveConstants& drive) const {
+        GainOptions options = given();
         set_drive_signal(options, trace, drive, saturation);
         if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
         return options;

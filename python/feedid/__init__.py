@@ -323,8 +323,11 @@ def simulate(trace: TraceArgument, result: Union[Result, Mapping[str, Any], Path
         modelling errors [m or rad]), ``signals`` (numpy arrays), ``to_pandas()``, ``to_dict()``.
 
     Raises:
-        InputError: bad options or input (e.g. a result of a rotary axis for a linear trace).
-        IdentificationError: the simulation diverged, or the gains identified here cannot be trusted.
+        InputError: bad options or input, with the command line's message: a result (or gains) of a rotary axis
+            for a linear trace, or a result whose forces do not fit the trace's drive force (other units, the drive
+            signal's sign flipped, another axis).
+        IdentificationError: the simulation diverged or does not follow the machine, or the gains identified here
+            cannot be trusted.
 
     Example (EMPS)::
 

@@ -9,6 +9,7 @@
 #include "feedid/core/parameters.hpp"
 #include "feedid/identify/result_document.hpp"
 #include "feedid/sim/simulate.hpp"
+#include "feedid/sim/twin.hpp"
 
 namespace feedid::python {
 
@@ -471,19 +472,28 @@ Example::
 
 // ---- gains and simulate
 
-GainOptions gain_options(const OptionReader& o, const Trace& trace, const DriveConstants& drive) {
+// The gain options as given; the allowed ranges are the command line's (gain_arguments.hpp).
+GainOptions given_gain_options(const OptionReader& o) {
     GainOptions options;
     options.velocity_loop = choice<VelocityLoopStructure>(o, "velocity_loop",
                                                           {{"auto", VelocityLoopStructure::automatic},
                                                            {"p", VelocityLoopStructure::p},
                                                            {"pi", VelocityLoopStructure::pi}});
     options.feedforward = o.flag("feedforward").value_or(false);
-    // the allowed ranges are the command line's (gain_arguments.hpp)
     if (const auto n = o.integer("velocity_difference", {1, 8, "samples"}))
         options.velocity_difference_samples = static_cast<int>(*n);
     if (const auto lag = o.number("current_lag_ms", {0.0, 1000.0, "ms"})) options.current_lag_s = *lag * 1e-3;
     options.rls.forgetting_factor = o.number("forgetting", {1e-6, 1.0, ""}).value_or(1.0);
-    set_drive_signal(options, trace, drive, o.number("saturation", {1e-9, 1e12, "drive signal units"}));
+    return options;
+}
+
+std::optional<double> saturation_option(const OptionReader& o) {
+    return o.number("saturation", {1e-9, 1e12, "drive signal units"});
+}
+
+GainOptions gain_options(const OptionReader& o, const Trace& trace, const DriveConstants& drive) {
+    GainOptions options = given_gain_options(o);
+    set_drive_signal(options, trace, drive, saturation_option(o));
     if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
     return options;
 }
@@ -574,8 +584,7 @@ nlohmann::json document_argument(py::handle value, const char* name, std::string
 }
 
 struct PySimulation {
-    TraceSimulation simulation;
-    TwinController controller;
+    Twin twin;
     nlohmann::json document;
 };
 
@@ -583,31 +592,25 @@ PySimulation simulate(py::handle trace_argument_object, py::handle result, py::h
                       const py::dict& kwargs) {
     const OptionReader o(kwargs);
     std::string result_source, gains_source;
-    const AxisModel axis = axis_from_document(document_argument(result, "result", result_source), result_source);
+    const nlohmann::json result_document = document_argument(result, "result", result_source);
     std::optional<nlohmann::json> gains_document;
     if (!gains_argument.is_none()) gains_document = document_argument(gains_argument, "gains", gains_source);
     nlohmann::json drive_record;
-    const DriveConstants drive = drive_constants(o, drive_record);
+    TwinOptions options;
+    options.drive = drive_constants(o, drive_record);
     std::optional<PyTrace> storage;
     const Trace& trace = trace_argument(trace_argument_object, o, storage).trace;
-    if (axis.rotary != trace.rotary) {
-        throw InputError(fmt::format("{}: the result is of a {} axis, the trace {} of a {} axis", result_source,
-                                     ParameterNaming{axis.rotary}.axis_kind(), trace.source_path,
-                                     ParameterNaming{trace.rotary}.axis_kind()));
-    }
-    const GainOptions options = gain_options(o, trace, drive);
-    SimulationOptions simulation_options;
-    simulation_options.substeps = static_cast<int>(o.integer("substeps", {1, 1000, "steps"}).value_or(8));
+    options.gains = given_gain_options(o);
+    options.saturation = saturation_option(o);
+    options.simulation.substeps = static_cast<int>(o.integer("substeps", {1, 1000, "steps"}).value_or(8));
     PySimulation out;
     {
         py::gil_scoped_release release;
-        const std::vector<double> force = drive_force(trace, drive);
-        const std::vector<double> injection = injection_force(trace, drive);
-        out.controller = gains_document ? documented_twin_controller(*gains_document, gains_source, options, trace)
-                                        : identified_twin_controller(trace, force, options, injection);
-        out.simulation = simulate_trace(trace, force, axis, out.controller.model, simulation_options, injection);
+        out.twin = run_twin(
+            trace, {result_document, result_source},
+            gains_document ? std::optional<TwinDocument>({*gains_document, gains_source}) : std::nullopt, options);
     }
-    out.document = simulation_document(trace, out.controller, out.simulation);
+    out.document = twin_document(trace, out.twin);
     return out;
 }
 
@@ -638,28 +641,19 @@ Example::
     >>> sim.metrics.position_relative_error_pct < 0.1, sorted(sim.signals)[:3]
     (True, ['acceleration', 'force', 'force_command'])
 )doc");
-    cls.def_property_readonly("status", [](const PySimulation& s) {
-        return to_string(s.controller.status == Status::failed ? Status::failed : s.simulation.status);
-    });
+    cls.def_property_readonly("status", [](const PySimulation& s) { return to_string(s.twin.status); });
     cls.def_property_readonly("metrics", [](py::object self) {
-        return py::cast(&self.cast<const PySimulation&>().simulation.metrics,
+        return py::cast(&self.cast<const PySimulation&>().twin.simulation.metrics,
                         py::return_value_policy::reference_internal, self);
     });
-    cls.def_property_readonly("injected", [](const PySimulation& s) { return s.simulation.injected; });
-    cls.def_property_readonly("diagnostics", [](const PySimulation& s) {
-        std::vector<std::string> all = s.controller.notes;
-        all.insert(all.end(), s.simulation.diagnostics.begin(), s.simulation.diagnostics.end());
-        return all;
-    });
+    cls.def_property_readonly("injected", [](const PySimulation& s) { return s.twin.simulation.injected; });
+    cls.def_property_readonly("diagnostics", [](const PySimulation& s) { return s.twin.diagnostics(); });
     cls.def_property_readonly("failure", [](const PySimulation& s) -> py::object {
-        if (s.simulation.status == Status::failed && !s.simulation.diagnostics.empty())
-            return py::str(s.simulation.diagnostics.front());
-        if (s.controller.status == Status::failed && !s.controller.notes.empty())
-            return py::str(s.controller.notes.front());
-        return py::none();
+        if (s.twin.status != Status::failed) return py::none();
+        return py::str(s.twin.failure);
     });
     cls.def_property_readonly("signals", [](py::object self) {
-        const auto& out = self.cast<const PySimulation&>().simulation.output;
+        const auto& out = self.cast<const PySimulation&>().twin.simulation.output;
         py::dict signals;
         const std::pair<const char*, const std::vector<double>*> columns[] = {
             {"time", &out.time},
@@ -678,8 +672,8 @@ Example::
     cls.def("to_dict", [](const PySimulation& s) { return to_python(s.document); });
     cls.def("__repr__", [](const PySimulation& s) {
         return fmt::format("<feedid.Simulation position {:.4g} %, force {:.4g} %>",
-                           s.simulation.metrics.position_relative_error_pct,
-                           s.simulation.metrics.force_relative_error_pct);
+                           s.twin.simulation.metrics.position_relative_error_pct,
+                           s.twin.simulation.metrics.force_relative_error_pct);
     });
 }
 

@@ -7,6 +7,7 @@
 #include "binding.hpp"
 #include "feedid/model/drive.hpp"
 #include "feedid/core/error.hpp"
+#include "feedid/core/parameters.hpp"
 #include "feedid/plan/gcode_writer.hpp"
 #include "feedid/io/csv.hpp"
 #include "feedid/io/join.hpp"
@@ -361,8 +362,8 @@ SynthSpec synth_spec(const OptionReader& o) {
     if (rotary && !spec.axis.rotary) {
         throw InputError(
             fmt::format("synth(rotary=True): the drive {} describes a linear axis (give "
-                        "axis.inertia_kgm2, or leave out rotary=True)",
-                        source));
+                        "axis.{}, or leave out rotary=True)",
+                        source, ParameterNaming{true}.key(Term::mass)));
     }
     if (const auto preset = o.text("preset")) {
         if (*preset != "sinumerik") throw InputError(fmt::format("preset='{}': the presets are 'sinumerik'", *preset));

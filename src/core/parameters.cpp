@@ -1,5 +1,6 @@
 #include "feedid/core/parameters.hpp"
 
+#include <algorithm>
 #include <array>
 #include <numbers>
 
@@ -78,17 +79,27 @@ std::string ParameterNaming::symbol(Term term, Direction direction) {
 }
 
 std::optional<ParameterKey> parse_parameter_key(std::string_view key) {
-    constexpr std::array terms{Term::mass,      Term::viscous,           Term::coulomb,
-                               Term::breakaway, Term::stribeck_velocity, Term::offset};
-    constexpr std::array directions{Direction::both, Direction::forward, Direction::reverse};
     for (const bool rotary : {false, true}) {
-        for (const auto term : terms) {
-            for (const auto direction : directions) {
+        for (const auto term : all_terms) {
+            for (const auto direction : all_directions) {
                 if (ParameterNaming{rotary}.key(term, direction) == key) return ParameterKey{term, direction, rotary};
             }
         }
     }
     return std::nullopt;
+}
+
+std::vector<std::string> parameter_keys() {
+    std::vector<std::string> keys;
+    for (const bool rotary : {false, true}) {
+        for (const auto term : all_terms) {
+            for (const auto direction : all_directions) {
+                std::string key = ParameterNaming{rotary}.key(term, direction);
+                if (std::find(keys.begin(), keys.end(), key) == keys.end()) keys.push_back(std::move(key));
+            }
+        }
+    }
+    return keys;
 }
 
 }  // namespace feedid

@@ -1,10 +1,11 @@
 // The history store (store.hpp): its PostgreSQL implementation, through libpq (built only when libpq is found).
 //
-// Layout (schema 1 of this backend): the same tables as the SQLite file's schema 5 (runs, parameters, documents,
+// Layout (schema 2 of this backend): the same tables as the SQLite file's schema 5 (runs, parameters, documents,
 // baselines) with PostgreSQL's types, plus feedid_schema (one row per applied migration) and views for dashboards:
 // parameter_series (every parameter of every run with its time as timestamptz), one series_<key> view per parameter
-// key, fit_series and axes. Text that is ordered (names, times, keys) uses the "C" collation, so that listings come
-// in the byte order SQLite gives them, whatever the database's locale.
+// key (schema 2; schema 1 had a hand-written list that missed keys), fit_series and axes. Text that is ordered
+// (names, times, keys) uses the "C" collation, so that listings come in the byte order SQLite gives them, whatever
+// the database's locale.
 //
 // Concurrency: a run is written in one transaction. The run of the same trace with the same options is looked up
 // first (so that a duplicate uses no id) and the unique index on (trace_sha256, options_sha256) settles a race
@@ -30,6 +31,7 @@
 #include <fmt/core.h>
 
 #include "feedid/core/error.hpp"
+#include "feedid/core/parameters.hpp"
 #include "feedid/history/sha256.hpp"
 #include "feedid/history/store.hpp"
 #include "feedid/io/json_input.hpp"
@@ -40,34 +42,6 @@ namespace {
 
 // The key of the advisory lock that serialises migrations ("FEID").
 constexpr long long migration_lock = 0x46454944;
-
-// Parameter keys that get a series_<key> view (the result document's, docs/documents.md: linear, rotary, asymmetric).
-const char* const series_keys[] = {
-    "mass_kg",
-    "inertia_kgm2",
-    "viscous_Ns_per_m",
-    "viscous_forward_Ns_per_m",
-    "viscous_reverse_Ns_per_m",
-    "viscous_Nms_per_rad",
-    "viscous_forward_Nms_per_rad",
-    "viscous_reverse_Nms_per_rad",
-    "coulomb_N",
-    "coulomb_forward_N",
-    "coulomb_reverse_N",
-    "coulomb_Nm",
-    "coulomb_forward_Nm",
-    "coulomb_reverse_Nm",
-    "breakaway_N",
-    "breakaway_forward_N",
-    "breakaway_reverse_N",
-    "breakaway_Nm",
-    "breakaway_forward_Nm",
-    "breakaway_reverse_Nm",
-    "stribeck_velocity_m_per_s",
-    "stribeck_velocity_rad_per_s",
-    "offset_N",
-    "offset_Nm",
-};
 
 // recorded_at as a time stamp: ISO 8601 text, UTC when it names no zone (is_iso8601_utc allows leaving out the Z).
 constexpr const char* recorded_time =
@@ -105,12 +79,21 @@ std::string schema_one() {
         "CREATE VIEW axes AS SELECT r.machine, r.axis, max(r.axis_kind) AS axis_kind, count(*) AS runs, "
         "min({}) AS first_run, max({}) AS last_run FROM runs r GROUP BY r.machine, r.axis;",
         recorded_time, recorded_time, recorded_time, recorded_time);
-    for (const char* key : series_keys) {
+    return sql;
+}
+
+// Schema 2: one series_<key> view per parameter key (parameter_keys(): linear and rotary, symmetric and per
+// direction, offset), named in lower case as PostgreSQL folds unquoted names. A database of schema 1 has the views of
+// a hand-written list that missed the per-direction Stribeck velocities; CREATE OR REPLACE leaves those as they were
+// and adds the missing ones.
+std::string schema_two() {
+    std::string sql;
+    for (const std::string& key : parameter_keys()) {
         std::string name = key;
         for (auto& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
         sql += fmt::format(
-            "CREATE VIEW series_{} AS SELECT time, machine, axis, location, run_id, value, stderr, systematic, "
-            "uncertainty FROM parameter_series WHERE key = '{}';",
+            "CREATE OR REPLACE VIEW series_{} AS SELECT time, machine, axis, location, run_id, value, stderr, "
+            "systematic, uncertainty FROM parameter_series WHERE key = '{}';",
             name, key);
     }
     return sql;
@@ -681,7 +664,7 @@ void PostgresStore::migrate() {
         query("CREATE TABLE IF NOT EXISTS feedid_schema (version integer PRIMARY KEY, applied_at text NOT NULL)");
         int version =
             static_cast<int>(query("SELECT coalesce(max(version), 0)::bigint FROM feedid_schema").integer(0, 0));
-        const std::string migrations[] = {schema_one()};
+        const std::string migrations[] = {schema_one(), schema_two()};
         static_assert(std::size(migrations) == postgres_schema_version);
         for (; version < postgres_schema_version; ++version) {
             script(migrations[version]);

@@ -315,6 +315,20 @@ std::vector<SeriesTrend> analyse_trends(const std::vector<RunRecord>& runs, cons
     return analyse_trends(series_of(runs), pins, options);
 }
 
+nlohmann::json alarm_document(const Alarm& alarm) {
+    return {{"machine", alarm.machine},
+            {"axis", alarm.axis},
+            {"parameter", alarm.parameter},
+            {"run", alarm.run_id},
+            {"recorded_at", alarm.recorded_at},
+            {"direction", alarm.direction},
+            {"cusum", alarm.cusum},
+            {"change", alarm.change},
+            {"change_pct", alarm.change_pct},
+            {"z", alarm.z},
+            {"message", alarm.message()}};
+}
+
 nlohmann::json to_json(const SeriesTrend& trend) {
     nlohmann::json parameters = nlohmann::json::object();
     for (const auto& parameter : trend.parameters) {
@@ -340,19 +354,7 @@ nlohmann::json to_json(const SeriesTrend& trend) {
                                      {"points", points}};
     }
     nlohmann::json alarms = nlohmann::json::array();
-    for (const auto& alarm : trend.alarms) {
-        alarms.push_back({{"machine", alarm.machine},
-                          {"axis", alarm.axis},
-                          {"parameter", alarm.parameter},
-                          {"run", alarm.run_id},
-                          {"recorded_at", alarm.recorded_at},
-                          {"direction", alarm.direction},
-                          {"cusum", alarm.cusum},
-                          {"change", alarm.change},
-                          {"change_pct", alarm.change_pct},
-                          {"z", alarm.z},
-                          {"message", alarm.message()}});
-    }
+    for (const auto& alarm : trend.alarms) alarms.push_back(alarm_document(alarm));
     return {{"machine", trend.machine},
             {"axis", trend.axis},
             {"baseline_runs", trend.baseline_run_ids},

@@ -394,37 +394,34 @@ AxisModel axis_from_drive_file(const nlohmann::json& document, const std::string
     AxisModel axis;
     if (document.contains("rotary") && !document["rotary"].is_boolean())
         throw InputError(fmt::format("{}: rotary: must be true or false", source));
-    axis.rotary =
-        present(parameters, "inertia_kgm2") || (document.contains("rotary") && document["rotary"].get<bool>());
-    const std::string mass_key = axis.rotary ? "inertia_kgm2" : "mass_kg";
-    const std::string viscous_unit = axis.rotary ? "Nms_per_rad" : "Ns_per_m";
-    const std::string force_unit = axis.rotary ? "Nm" : "N";
-    const std::string speed_unit = axis.rotary ? "rad_per_s" : "m_per_s";
+    axis.rotary = present(parameters, ParameterNaming{true}.key(Term::mass)) ||
+                  (document.contains("rotary") && document["rotary"].get<bool>());
+    const ParameterNaming naming{axis.rotary};
+    const std::string mass_key = naming.key(Term::mass);
     const auto mass = number_at(parameters, mass_key);
     if (!mass) throw InputError(fmt::format("{}: parameters.{}.value is missing or null", source, mass_key));
     axis.mass = *mass;
-    axis.offset = number_at(parameters, "offset_" + force_unit).value_or(0.0);
+    axis.offset = number_at(parameters, naming.key(Term::offset)).value_or(0.0);
 
     // "coulomb_N" or "coulomb_forward_N" / "coulomb_reverse_N" (reverse as a positive magnitude).
-    const auto directional = [&](const std::string& base, const std::string& unit,
-                                 const std::string& direction) -> std::pair<std::optional<double>, bool> {
-        const std::string per_direction = base + "_" + direction + "_" + unit;
+    const auto directional = [&](Term term, Direction direction) -> std::pair<std::optional<double>, bool> {
+        const std::string per_direction = naming.key(term, direction);
         if (present(parameters, per_direction)) return {number_at(parameters, per_direction), true};
-        const std::string both = base + "_" + unit;
+        const std::string both = naming.key(term);
         return {number_at(parameters, both), present(parameters, both)};
     };
-    for (const auto& direction : {std::string("forward"), std::string("reverse")}) {
-        FrictionBranch& branch = direction == "forward" ? axis.friction.forward : axis.friction.reverse;
-        const auto [viscous, has_viscous] = directional("viscous", viscous_unit, direction);
-        const auto [coulomb, has_coulomb] = directional("coulomb", force_unit, direction);
+    for (const auto direction : {Direction::forward, Direction::reverse}) {
+        FrictionBranch& branch = direction == Direction::forward ? axis.friction.forward : axis.friction.reverse;
+        const auto [viscous, has_viscous] = directional(Term::viscous, direction);
+        const auto [coulomb, has_coulomb] = directional(Term::coulomb, direction);
         if (!coulomb) {
-            throw InputError(fmt::format("{}: the Coulomb friction (parameters.coulomb_{}{}) is missing or null",
-                                         source, has_coulomb ? "" : direction + "_", force_unit));
+            throw InputError(fmt::format("{}: the Coulomb friction (parameters.{}) is missing or null", source,
+                                         naming.key(Term::coulomb, has_coulomb ? Direction::both : direction)));
         }
         branch.viscous = viscous.value_or(0.0);
         branch.coulomb = std::abs(*coulomb);
-        const auto [breakaway, has_breakaway] = directional("breakaway", force_unit, direction);
-        const auto [stribeck, has_stribeck] = directional("stribeck_velocity", speed_unit, direction);
+        const auto [breakaway, has_breakaway] = directional(Term::breakaway, direction);
+        const auto [stribeck, has_stribeck] = directional(Term::stribeck_velocity, direction);
         if (breakaway && stribeck && *stribeck > 0.0) {
             branch.breakaway = std::abs(*breakaway);
             branch.stribeck_velocity = *stribeck;

@@ -12,6 +12,7 @@
 #include <toml++/toml.h>
 
 #include "feedid/core/error.hpp"
+#include "feedid/core/parameters.hpp"
 #include "feedid/io/import.hpp"
 #include "feedid/io/json_input.hpp"
 #include "feedid/core/units.hpp"
@@ -261,10 +262,7 @@ private:
 void read_axis(const nlohmann::json& axis, const std::string& source, SynthSpec& spec) {
     spec.axis = axis_from_document(axis, source);
     for (const auto& [key, value] : axis.items()) {
-        static const std::set<std::string> keys{"mass_kg", "inertia_kgm2", "offset_N", "offset_Nm", "rotary"};
-        const bool friction_key = key.starts_with("viscous_") || key.starts_with("coulomb_") ||
-                                  key.starts_with("breakaway_") || key.starts_with("stribeck_velocity_");
-        if (!keys.contains(key) && !friction_key)
+        if (key != "rotary" && !parse_parameter_key(key))
             throw InputError(fmt::format("{}: unknown key 'axis.{}'", source, key));
     }
 }
@@ -437,20 +435,18 @@ namespace {
 
 // The axis keys of a drive file: a linear axis' (mass_kg, ..._N) or a rotary one's (inertia_kgm2, ..._Nm).
 nlohmann::json axis_to_json(const AxisModel& model) {
-    const bool rotary = model.rotary;
-    const std::string force = rotary ? "Nm" : "N", viscous = rotary ? "Nms_per_rad" : "Ns_per_m",
-                      speed = rotary ? "rad_per_s" : "m_per_s";
+    const ParameterNaming naming{model.rotary};
     nlohmann::json axis;
-    if (rotary) axis["rotary"] = true;
-    axis[rotary ? "inertia_kgm2" : "mass_kg"] = model.mass;
-    axis["offset_" + force] = model.offset;
-    for (const auto& [direction, branch] : {std::pair{std::string("forward"), &model.friction.forward},
-                                            std::pair{std::string("reverse"), &model.friction.reverse}}) {
-        axis["viscous_" + direction + "_" + viscous] = branch->viscous;
-        axis["coulomb_" + direction + "_" + force] = branch->coulomb;
-        axis["breakaway_" + direction + "_" + force] =
+    if (model.rotary) axis["rotary"] = true;
+    axis[naming.key(Term::mass)] = model.mass;
+    axis[naming.key(Term::offset)] = model.offset;
+    for (const auto& [direction, branch] : {std::pair{Direction::forward, &model.friction.forward},
+                                            std::pair{Direction::reverse, &model.friction.reverse}}) {
+        axis[naming.key(Term::viscous, direction)] = branch->viscous;
+        axis[naming.key(Term::coulomb, direction)] = branch->coulomb;
+        axis[naming.key(Term::breakaway, direction)] =
             branch->has_stribeck() ? nlohmann::json(*branch->breakaway) : nlohmann::json();
-        axis["stribeck_velocity_" + direction + "_" + speed] =
+        axis[naming.key(Term::stribeck_velocity, direction)] =
             branch->has_stribeck() ? nlohmann::json(*branch->stribeck_velocity) : nlohmann::json();
     }
     return axis;
@@ -638,8 +634,8 @@ SensorReadings read_sensors(const SynthSpec& spec, const std::vector<double>& fo
 // The drive constants and the true values, keyed with the axis kind's units.
 void true_values(const SynthSpec& spec, const ControllerModel& controller, std::map<std::string, double>& constants) {
     const bool rotary = spec.axis.rotary;
-    const std::string force = rotary ? "Nm" : "N", viscous = rotary ? "Nms_per_rad" : "Ns_per_m",
-                      speed = rotary ? "rad_per_s" : "m_per_s", length = rotary ? "rad" : "m";
+    const ParameterNaming naming{rotary};
+    const std::string length = naming.length_unit();
     constants["kt_Nm_per_A"] = spec.kt_Nm_per_A;
     constants["gear_ratio"] = spec.gear_ratio;
     if (rotary) {
@@ -649,15 +645,16 @@ void true_values(const SynthSpec& spec, const ControllerModel& controller, std::
         constants["force_constant_N_per_A"] = spec.force_constant_N_per_A();
     }
     constants["seed"] = static_cast<double>(spec.seed);
-    constants[rotary ? "true_inertia_kgm2" : "true_mass_kg"] = spec.axis.mass;
-    constants["true_offset_" + force] = spec.axis.offset;
-    for (const auto& [direction, branch] : {std::pair{std::string("forward"), &spec.axis.friction.forward},
-                                            std::pair{std::string("reverse"), &spec.axis.friction.reverse}}) {
-        constants["true_viscous_" + direction + "_" + viscous] = branch->viscous;
-        constants["true_coulomb_" + direction + "_" + force] = branch->coulomb;
+    // the true values under their result-document keys
+    constants["true_" + naming.key(Term::mass)] = spec.axis.mass;
+    constants["true_" + naming.key(Term::offset)] = spec.axis.offset;
+    for (const auto& [direction, branch] : {std::pair{Direction::forward, &spec.axis.friction.forward},
+                                            std::pair{Direction::reverse, &spec.axis.friction.reverse}}) {
+        constants["true_" + naming.key(Term::viscous, direction)] = branch->viscous;
+        constants["true_" + naming.key(Term::coulomb, direction)] = branch->coulomb;
         if (branch->has_stribeck()) {
-            constants["true_breakaway_" + direction + "_" + force] = *branch->breakaway;
-            constants["true_stribeck_velocity_" + direction + "_" + speed] = *branch->stribeck_velocity;
+            constants["true_" + naming.key(Term::breakaway, direction)] = *branch->breakaway;
+            constants["true_" + naming.key(Term::stribeck_velocity, direction)] = *branch->stribeck_velocity;
         }
     }
     const double zone_scale = rotary ? rotary_rad_per_length_unit : 1.0;
@@ -668,10 +665,8 @@ void true_values(const SynthSpec& spec, const ControllerModel& controller, std::
         constants[fmt::format("true_friction_zone{}_coulomb_factor", z + 1)] = zone.coulomb_factor;
     }
     constants["true_position_gain_per_s"] = controller.position_gain_per_s;
-    constants[rotary ? "true_velocity_gain_Nms_per_rad" : "true_velocity_gain_N_s_per_m"] =
-        controller.velocity_gain_N_s_per_m;
-    constants[rotary ? "true_velocity_integral_gain_Nm_per_rad" : "true_velocity_integral_gain_N_per_m"] =
-        controller.velocity_integral_gain_N_per_m;
+    constants["true_" + naming.velocity_gain_key()] = controller.velocity_gain_N_s_per_m;
+    constants["true_" + naming.velocity_integral_gain_key()] = controller.velocity_integral_gain_N_per_m;
     constants["true_current_lag_s"] = controller.current_lag_s;
 }
 

@@ -19,6 +19,7 @@
 #include <fmt/core.h>
 
 #include "feedid/core/error.hpp"
+#include "feedid/core/parameters.hpp"
 #include "feedid/history/sha256.hpp"
 #include "feedid/history/store.hpp"
 #include "feedid/history/trend.hpp"
@@ -168,13 +169,13 @@ void connect_or_throw(mosquitto* client, const BrokerAddress& broker) {
 std::string estimate_line(const std::string& machine, const std::string& axis, const nlohmann::json& document) {
     std::string line = fmt::format("{}/{}:", machine, axis);
     const auto& p = document["parameters"];
-    for (const auto& [key, symbol, unit] :
-         {std::tuple{"mass_kg", "M", "kg"}, std::tuple{"viscous_Ns_per_m", "B", "N*s/m"},
-          std::tuple{"coulomb_N", "F_C", "N"}}) {
-        const auto& e = p[key];
+    const ParameterNaming naming;  // the watch identifies a linear axis's symmetric model
+    for (const auto term : {Term::mass, Term::viscous, Term::coulomb}) {
+        const std::string symbol = ParameterNaming::symbol(term, Direction::both);
+        const auto& e = p[naming.key(term)];
         if (e["value"].is_number() && e["stderr"].is_number())
             line += fmt::format("  {} {:.4g} ± {:.2g} {}", symbol, e["value"].get<double>(), e["stderr"].get<double>(),
-                                unit);
+                                naming.unit(term));
         else
             line += fmt::format("  {} -", symbol);
     }
@@ -287,12 +288,7 @@ private:
             for (const auto& series : history::analyse_trends(store_->series(filter), store_->pins(), trend)) {
                 for (const history::Alarm& alarm : series.alarms) {
                     if (alarm.run_id != outcome.id) continue;
-                    const nlohmann::json message = {{"machine", alarm.machine},       {"axis", alarm.axis},
-                                                    {"parameter", alarm.parameter},   {"run", alarm.run_id},
-                                                    {"direction", alarm.direction},   {"change", alarm.change},
-                                                    {"change_pct", alarm.change_pct}, {"z", alarm.z},
-                                                    {"cusum", alarm.cusum},           {"message", alarm.message()}};
-                    publish(prefix + "/feedid/alarm", message.dump(), 1, false);
+                    publish(prefix + "/feedid/alarm", history::alarm_document(alarm).dump(), 1, false);
                     if (options_.print) fmt::print("ALARM {}\n", alarm.message());
                 }
             }

@@ -256,11 +256,11 @@ nlohmann::json online_result_document(const OnlineEstimate& e, const OnlineOptio
             result.diagnostics.push_back(p.key + " is null: the identifier gives no standard error for it");
         }
     }
-    const auto value = [&](const char* key) { return result.find(key) && result.find(key)->estimate.value; };
-    const bool determined = value("mass_kg") && value("viscous_Ns_per_m") && value("coulomb_N");
-    result.status = !value("coulomb_N")                  ? Status::failed
-                    : determined && value("breakaway_N") ? Status::ok
-                                                         : Status::partial;
+    const auto value = [&](Term term) { return result.find(term) && result.find(term)->estimate.value; };
+    const bool determined = value(Term::mass) && value(Term::viscous) && value(Term::coulomb);
+    result.status = !value(Term::coulomb)                  ? Status::failed
+                    : determined && value(Term::breakaway) ? Status::ok
+                                                           : Status::partial;
     // the scan's document (windows, information per parameter), marked as the watch's
     ScanResult scan;
     scan.result = std::move(result);

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cctype>
 #include <csignal>
 #include <set>
 #include <sstream>
@@ -15,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "feedid/core/error.hpp"
+#include "feedid/core/parameters.hpp"
 #include "feedid/history/sha256.hpp"
 #include "feedid/history/store.hpp"
 #include "history_testing.hpp"
@@ -356,6 +358,74 @@ TEST_F(HistoryPostgres, DashboardViewsGiveEachParameterSeries) {
     EXPECT_EQ(value(location, "SELECT max(time) AT TIME ZONE 'UTC' FROM parameter_series"), "2026-03-03 06:00:00");
     EXPECT_EQ(value(location, "SELECT runs FROM axes WHERE machine = 'DMU 50' AND axis = 'X'"), "3");
     EXPECT_EQ(value(location, "SELECT count(*) FROM fit_series WHERE relative_error_pct = 3.1"), "3");
+}
+
+/// Every key ParameterNaming gives, enumerated from it: linear and rotary, symmetric and per direction, offset.
+std::set<std::string> every_parameter_key() {
+    std::set<std::string> keys;
+    for (const bool rotary : {false, true})
+        for (const auto term : feedid::all_terms)
+            for (const auto direction : feedid::all_directions)
+                keys.insert(feedid::ParameterNaming{rotary}.key(term, direction));
+    return keys;
+}
+
+/// The series view of a key, as PostgreSQL folds its unquoted name.
+std::string series_view(std::string key) {
+    for (auto& c : key) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return "series_" + key;
+}
+
+// Each parameter key has its series view, and the view gives that key's values: a value stored under each key (into
+// the run's parameters table) comes out of its view, and only there. A database made by schema 1 (whose hand-written
+// list of views missed the per-direction Stribeck velocities) gains the missing views on its next write.
+TEST_F(HistoryPostgres, SeriesViewsCoverEveryParameterKey) {
+    const auto location = server().create_database();
+    const auto results = write_small_results(folder_, "run", 2);
+    const auto record = [&](const std::filesystem::path& result) {
+        return run_shell(
+            fmt::format("{} history '{}' --record {} --machine M --axis X", cli(), location, quoted(result)), folder_);
+    };
+    ASSERT_EQ(record(results[0]).exit_code, 0);
+    const auto keys = every_parameter_key();
+    // 2 axis kinds x (mass, offset, and 4 friction terms each symmetric, forward, reverse)
+    EXPECT_EQ(keys.size(), 28u);
+    const std::string run = value(location, "SELECT min(id) FROM runs");
+    const auto check_views = [&] {
+        double stored = 1.0;
+        for (const auto& key : keys) {
+            ASSERT_EQ(server().execute(fmt::format("INSERT INTO parameters (run_id, key, value) VALUES ({}, '{}', {}) "
+                                                   "ON CONFLICT (run_id, key) DO UPDATE SET value = EXCLUDED.value",
+                                                   run, key, stored),
+                                       database_of(location)),
+                      "");
+            EXPECT_EQ(value(location, fmt::format("SELECT count(*) FROM {} WHERE run_id = {} AND value = {}",
+                                                  series_view(key), run, stored)),
+                      "1")
+                << series_view(key) << " misses " << key;
+            stored += 1.0;
+        }
+        // no view gives another key's values: each holds the one row of its key
+        for (const auto& key : keys)
+            EXPECT_EQ(value(location, fmt::format("SELECT count(*) FROM {}", series_view(key))), "1") << key;
+    };
+    check_views();
+
+    // As schema 1 left it: without the per-direction Stribeck views, at version 1.
+    const std::string stribeck_forward =
+        series_view(feedid::ParameterNaming{}.key(feedid::Term::stribeck_velocity, feedid::Direction::forward));
+    ASSERT_EQ(
+        server().execute(fmt::format("DROP VIEW {}; DELETE FROM feedid_schema WHERE version > 1", stribeck_forward),
+                         database_of(location)),
+        "");
+    ASSERT_EQ(value(location, fmt::format("SELECT to_regclass('{}') IS NULL", stribeck_forward)), "t");
+    ASSERT_EQ(record(results[1]).exit_code, 0);
+    EXPECT_EQ(value(location, "SELECT max(version) FROM feedid_schema"),
+              std::to_string(history::postgres_schema_version));
+    EXPECT_EQ(value(location, fmt::format("SELECT to_regclass('{}') IS NOT NULL", stribeck_forward)), "t");
+    ASSERT_EQ(server().execute(fmt::format("DELETE FROM parameters WHERE run_id != {}", run), database_of(location)),
+              "");
+    check_views();
 }
 
 /// The outputs of the history commands that must not depend on where the history is.

@@ -169,6 +169,39 @@ def test_simulate_refuses_and_fails(ladder):
         error.value.result.diagnostics
 
 
+def test_simulate_refuses_a_result_that_does_not_fit_the_trace(ladder, folder):
+    """The command line's check that the result is of this axis in these units, made by Python too (both call the
+    one twin): a result whose mass and friction are 1000 times too large (mm or mN read as m or N), or a drive signal
+    of the opposite sign, is refused with the command line's message."""
+    path = folder / "fit.csv"
+    ladder.to_csv(str(path))
+    result = feedid.identify(ladder, force_constant=FORCE).to_dict()
+    scaled = json.loads(json.dumps(result))
+    for key, entry in scaled["parameters"].items():
+        if key.startswith(("mass", "viscous", "coulomb", "breakaway")) and entry["value"] is not None:
+            entry["value"] *= 1000.0
+    scaled_path = folder / "scaled.json"
+    scaled_path.write_text(json.dumps(scaled))
+    expected = cli_error("simulate", path, "--force-constant", FORCE, "--result", scaled_path, expect=2)
+    assert expected.startswith(f"{scaled_path}: the result does not fit the trace {path}: "), expected
+    with pytest.raises(feedid.InputError) as error:
+        feedid.simulate(str(path), str(scaled_path), force_constant=FORCE)
+    assert str(error.value) == expected
+    with pytest.raises(feedid.InputError, match="^result: the result does not fit the trace .*0.001"):
+        feedid.simulate(ladder, scaled, force_constant=FORCE)
+
+    result_path = folder / "fit.json"
+    result_path.write_text(json.dumps(result))
+    flipped = -ladder.constants[FORCE]
+    expected = cli_error("simulate", path, "--force-constant", repr(flipped), "--result", result_path, expect=2)
+    assert "does not fit" in expected and "opposite" in expected, expected
+    with pytest.raises(feedid.InputError) as error:
+        feedid.simulate(str(path), str(result_path), force_constant=flipped)
+    assert str(error.value) == expected
+    # the result as it is, with the drive signal's own sign: simulated
+    assert feedid.simulate(str(path), str(result_path), force_constant=FORCE).status == "ok"
+
+
 def test_synth_and_plan_refuse(folder):
     cases = [
         (dict(preset="fanuc"), "preset='fanuc': the presets are 'sinumerik'"),

@@ -274,6 +274,14 @@ feedrates_mm_per_min = [1250, 9350]
     EXPECT_EQ(feedid::testing::count_lines(bad.err), 1) << bad.err;
     feedid::testing::write_text(dir / "typo.toml", "[sensors]\nsample_time = 1\n");
     EXPECT_THROW(feedid::read_spec(dir / "typo.toml"), feedid::InputError);
+    // an axis key that looks like a friction key but is none is not ignored
+    feedid::testing::write_text(dir / "axis_typo.toml", "[axis]\nmass_kg = 120\ncoulomb_N = 300\ncoulomb_typo_N = 1\n");
+    try {
+        (void)feedid::read_spec(dir / "axis_typo.toml");
+        ADD_FAILURE() << "axis.coulomb_typo_N was accepted";
+    } catch (const feedid::InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("unknown key 'axis.coulomb_typo_N'"), std::string::npos) << e.what();
+    }
 }
 
 }  // namespace

@@ -394,6 +394,27 @@ TEST(WatchMqtt, DriftingCoulombFrictionAlarmsOnThatAxisOnly) {
     EXPECT_NE(check.out.find("axis 'X' parameter coulomb_N"), std::string::npos) << check.out;
     EXPECT_EQ(check.out.find("axis 'Y'"), std::string::npos) << check.out;
     EXPECT_EQ(check.out.find("axis 'Z'"), std::string::npos) << check.out;
+    // One alarm document: each alarm watch published is the one history --check --json lists for that run and
+    // parameter, key for key (recorded_at included) and value for value.
+    const auto checked = run_cli("history '" + (dir / "history.db").string() + "' --check --json -");
+    EXPECT_EQ(checked.exit_code, 1) << checked.err;
+    const auto document = nlohmann::json::parse(checked.out);
+    std::vector<nlohmann::json> listed;
+    for (const auto& series : document.at("trends"))
+        for (const auto& alarm : series.at("alarms")) listed.push_back(alarm);
+    ASSERT_FALSE(listener.alarms().empty());
+    for (const auto& published : listener.alarms()) {
+        EXPECT_TRUE(published.contains("recorded_at")) << published.dump();
+        const auto same = std::find_if(listed.begin(), listed.end(), [&](const nlohmann::json& alarm) {
+            return alarm.at("run") == published.at("run") && alarm.at("parameter") == published.at("parameter");
+        });
+        ASSERT_NE(same, listed.end()) << "history --check --json does not list " << published.dump();
+        std::vector<std::string> published_keys, listed_keys;
+        for (const auto& item : published.items()) published_keys.push_back(item.key());
+        for (const auto& item : same->items()) listed_keys.push_back(item.key());
+        EXPECT_EQ(published_keys, listed_keys);
+        EXPECT_EQ(published, *same);
+    }
 }
 
 // A flood: the queue between the network thread and the identifiers holds at most queue_mb; what does not fit is

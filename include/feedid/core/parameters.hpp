@@ -3,9 +3,11 @@
 // ("mass_kg", "coulomb_forward_N"; rotary "inertia_kgm2", "coulomb_forward_Nm"), symbols ("M", "F_C+") and units.
 // The one place where a parameter key is spelled.
 
+#include <array>
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace feedid {
 
@@ -13,6 +15,11 @@ namespace feedid {
 enum class Term { mass, viscous, coulomb, breakaway, stribeck_velocity, offset };
 /// Which branch of the friction law a parameter belongs to: both (symmetric model), forward (v > 0), reverse (v < 0).
 enum class Direction { both, forward, reverse };
+
+/// Every term and every direction, in the order of the result document.
+inline constexpr std::array all_terms{Term::mass,      Term::viscous,           Term::coulomb,
+                                      Term::breakaway, Term::stribeck_velocity, Term::offset};
+inline constexpr std::array all_directions{Direction::both, Direction::forward, Direction::reverse};
 
 /// Sign of v: +1, -1, or 0 at v == 0 (the paper's sgn in eq. 3 and 11).
 [[nodiscard]] constexpr double sign(double v) {
@@ -75,5 +82,9 @@ struct ParameterKey {
 };
 /// The inverse of ParameterNaming::key; nullopt for a key that is not one of feedid's parameters.
 [[nodiscard]] std::optional<ParameterKey> parse_parameter_key(std::string_view key);
+
+/// Every key ParameterNaming::key gives, each once: linear, then rotary; per term (all_terms) the symmetric key, then
+/// the per-direction ones (mass and offset have no per-direction keys).
+[[nodiscard]] std::vector<std::string> parameter_keys();
 
 }  // namespace feedid

@@ -197,7 +197,7 @@ struct OpenOptions {
 };
 
 /// The newest schema of the PostgreSQL backend (the highest version in its feedid_schema table).
-inline constexpr int postgres_schema_version = 1;
+inline constexpr int postgres_schema_version = 2;
 
 /// True when `location` names a PostgreSQL database (a URI starting postgresql:// or postgres://) rather than a
 /// SQLite file.

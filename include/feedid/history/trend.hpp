@@ -118,7 +118,12 @@ std::vector<SeriesRuns> series_of(const std::vector<RunRecord>& runs);
 std::vector<SeriesTrend> analyse_trends(const std::vector<RunRecord>& runs, const std::vector<BaselinePin>& pins,
                                         const TrendOptions& options);
 
-/// The `feedid history --json` "trends" element of one series.
+/// The alarm document, the one spelling of an alarm: an element of the "alarms" of `feedid history --json`'s trends
+/// and the payload `feedid watch` publishes on <prefix>/feedid/alarm (machine, axis, parameter, run, recorded_at,
+/// direction, cusum, change, change_pct, z, message).
+nlohmann::json alarm_document(const Alarm& alarm);
+
+/// The `feedid history --json` "trends" element of one series (its alarms as alarm_document() writes them).
 nlohmann::json to_json(const SeriesTrend& trend);
 
 }  // namespace feedid::history

@@ -8,7 +8,8 @@
 //   <prefix>/feedid/estimate  retained, QoS 1, every estimate_interval_s for the axes that received data;
 //   <prefix>/feedid/error     one per malformed message: {"topic", "error", "malformed"} (QoS 0);
 //   <prefix>/feedid/run       QoS 1, each completed identification recorded in the history (run id, document);
-//   <prefix>/feedid/alarm     QoS 1, a drift alarm of history --check's logic raised by that run;
+//   <prefix>/feedid/alarm     QoS 1, a drift alarm of history --check's logic raised by that run (the alarm
+//                             document, history::alarm_document());
 //   status_topic              "online" (retained) on connect, "offline" as the last will and on a clean exit.
 // The broker going away: the network thread reconnects with exponential backoff (1 s to 32 s) and subscribes
 // again; the identifiers keep their state. SIGTERM or SIGINT: the queue is drained, the identifiers flushed, the final
