@@ -14,8 +14,9 @@
 #include "feedid/core/error.hpp"
 #include "feedid/core/parameters.hpp"
 #include "feedid/model/demo_drives.hpp"
+#include "feedid/plan/motion_profile.hpp"
 #include "feedid/core/version.hpp"
-#include "motion_profile.hpp"
+#include "timeline.hpp"
 
 namespace feedid {
 
@@ -115,7 +116,7 @@ std::string describe_center(int index, double position, const PlanUnits& units) 
 }  // namespace
 
 double move_duration(double distance, double feed, double acceleration, std::optional<double> jerk) {
-    return detail::make_profile(std::abs(distance), feed, acceleration, jerk).duration;
+    return MotionProfile::rest_to_rest(std::abs(distance), feed, acceleration, jerk).duration;
 }
 
 bool is_rotary_axis(std::string_view axis) {
@@ -350,7 +351,7 @@ void append_pass_moves(TestPlan& plan, const Pass& pass, double positioning_feed
 
 // The pass's duration and time at constant feedrate, with a note when its strokes never reach the feedrate.
 void time_pass(const TestPlanOptions& options, Pass& pass, std::vector<std::string>& notes) {
-    const auto profile = detail::make_profile(pass.stroke, pass.feed, options.acceleration, options.jerk);
+    const auto profile = MotionProfile::rest_to_rest(pass.stroke, pass.feed, options.acceleration, options.jerk);
     pass.duration = 2.0 * options.cycles * (profile.duration + options.dwell);
     pass.cruise_time = 2.0 * options.cycles * profile.cruise_time;
     if (profile.cruise_time <= 0.0) {
