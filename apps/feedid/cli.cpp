@@ -10,6 +10,7 @@
 #include <fmt/core.h>
 
 #include "feedid/core/error.hpp"
+#include "feedid/io/config_file.hpp"
 #include "feedid/io/json_input.hpp"
 #include "feedid/io/output_file.hpp"
 #include "feedid/core/terminal_text.hpp"
@@ -18,13 +19,13 @@ namespace feedid::cli {
 
 CLI::Validator allowed_range(double low, double high, const std::string& unit) {
     const std::string range = fmt::format("{:g} to {:g}{}", low, high, unit.empty() ? "" : " " + unit);
-    auto check = [low, high, range](std::string& text) -> std::string {
+    auto check = [low, high, unit, range](std::string& text) -> std::string {
         char* end = nullptr;
         const double value = std::strtod(text.c_str(), &end);
         if (text.empty() || end != text.c_str() + text.size())
             return fmt::format("'{}' is not a number (allowed: {})", text, range);
         if (!std::isfinite(value)) return fmt::format("{} is not a finite number (allowed: {})", text, range);
-        if (value < low || value > high) return fmt::format("{} is outside the allowed range {}", text, range);
+        if (const ValueRange allowed{low, high, unit.c_str()}; !allowed.contains(value)) return allowed.refusal(text);
         return {};
     };
     return CLI::Validator(std::move(check), "in " + range);

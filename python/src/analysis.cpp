@@ -8,6 +8,7 @@
 #include "feedid/identify/identify.hpp"
 #include "feedid/core/parameters.hpp"
 #include "feedid/identify/result_document.hpp"
+#include "feedid/io/json_input.hpp"
 #include "feedid/sim/simulate.hpp"
 
 namespace feedid::python {
@@ -559,12 +560,7 @@ Example::
 nlohmann::json document_argument(py::handle value, const char* name, std::string& source) {
     if (const auto path = as_path(value)) {
         source = *path;
-        const std::string text = read_file_bytes(*path);
-        try {
-            return nlohmann::json::parse(text);
-        } catch (const nlohmann::json::parse_error& e) {
-            throw InputError(fmt::format("{}: not a JSON document (byte {})", *path, e.byte));
-        }
+        return read_json_file(*path);  // the command line's reader, with its limits
     }
     source = name;
     if (py::isinstance<IdentifyResult>(value)) return nlohmann::json(value.cast<const IdentifyResult&>());
