@@ -168,7 +168,7 @@ void DriveArguments::add_to(CLI::App& app) {
         ->check(allowed_range(allowed_torque_constant_Nm_per_A.low, allowed_torque_constant_Nm_per_A.high, "N*m/A"));
     app.add_option("--lead", lead_mm, "Ball-screw lead [mm per revolution]")->check(lead_range());
     app.add_option("--gear-ratio", gear_ratio, "Motor revolutions per screw revolution")
-        ->default_val(1.0)
+        ->capture_default_str()
         ->check(gear_ratio_range());
     app.add_option("--force-constant", force_constant,
                    "Force per unit of the drive signal [N per signal unit], a number or the name of a scalar in the "

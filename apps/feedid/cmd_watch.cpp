@@ -77,7 +77,7 @@ struct PublishCommand {
     TraceArguments trace;
     DriveArguments drive;
     std::string broker;
-    std::string rate{"1x"};
+    std::string rate{fmt::format("{:g}x", watch::PublishOptions{}.rate)};  // the library's rate as written here
     double time_offset_s{0.0};
     std::optional<double> duration_s;
     watch::PublishOptions options;
@@ -136,7 +136,7 @@ Action add_watch_command(CLI::App& app) {
     sub->add_option(
            "--topic", command->options.topic_filter,
            "Topic filter of the data; machine and axis are the 2nd and 3rd levels (plant/<machine>/<axis>/...)")
-        ->default_val("plant/+/+/axis/#");
+        ->capture_default_str();
     sub->add_option(
         "--db", command->options.database,
         "History (a SQLite file or a postgresql:// database) to record each completed identification in, and to "
@@ -166,9 +166,9 @@ Action add_publish_command(CLI::App& app) {
     command->drive.add_to(*sub);
     sub->add_option("--broker", command->broker, "The broker: mqtt://HOST[:PORT]")->required();
     sub->add_option("--topic", command->options.topic, "Topic to publish to, e.g. plant/M1/X/axis")->required();
-    sub->add_option("--rate", command->rate, "Times real time ('20x'), or 'max'")->default_val("1x");
+    sub->add_option("--rate", command->rate, "Times real time ('20x'), or 'max'")->capture_default_str();
     sub->add_option("--batch", command->options.batch_s, "Stream time per message [s]")
-        ->default_val(0.1)
+        ->capture_default_str()
         ->check(allowed_range(1e-4, 60.0, "s"));
     sub->add_option("--client-id", command->options.client_id,
                     "MQTT client id: a persistent session under it; default feedid-publish-PID with a clean session");
@@ -176,19 +176,19 @@ Action add_publish_command(CLI::App& app) {
         ->check(allowed_range(1e-3, 1e9, "s"));
     sub->add_option("--buffer", command->options.buffer_s,
                     "Stream time held while the broker is away, sent when it is back [s]")
-        ->default_val(60.0)
+        ->capture_default_str()
         ->check(allowed_range(0.0, 1e6, "s"));
     sub->add_option("--replay", command->options.replay_s,
                     "QoS 1/2: after a reconnect, send again what was sent in this much time before the connection "
                     "was lost (a killed broker loses what it acknowledged since its last save) [s]")
-        ->default_val(5.0)
+        ->capture_default_str()
         ->check(allowed_range(0.0, 3600.0, "s"));
     sub->add_option("--copies", command->options.copies,
                     "Publish the stream on N topics at once, '{n}' in --topic replaced by 1..N (a benchmark's load)")
         ->check(CLI::Range(1, 100000));
     sub->add_flag("--binary", command->options.binary, "The binary payload (default JSON)");
     sub->add_option("--qos", command->options.qos, "MQTT QoS of the data messages")
-        ->default_val(0)
+        ->capture_default_str()
         ->check(CLI::Range(0, 2));
     sub->add_option("--time-offset", command->time_offset_s, "Added to the trace's time stamps [s] (a later recording)")
         ->check(allowed_range(-1e12, 1e12, "s"));

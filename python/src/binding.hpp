@@ -84,5 +84,6 @@ void bind_trace(py::module_& module);     // trace.cpp: Trace, read_trace, synth
 void bind_analysis(py::module_& module);  // analysis.cpp: identify and its Result, gains, simulate
 void bind_rls(py::module_& module);       // rls.cpp: Rls
 void bind_history(py::module_& module);   // history.cpp: History
+void bind_defaults(py::module_& module);  // defaults.cpp: defaults(), the keyword defaults of the functions
 
 }  // namespace feedid::python

@@ -333,4 +333,5 @@ PYBIND11_MODULE(_feedid, m) {
     feedid::python::bind_analysis(m);
     feedid::python::bind_rls(m);
     feedid::python::bind_history(m);
+    feedid::python::bind_defaults(m);
 }

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <numbers>
 #include <system_error>
 
 #include <fmt/core.h>
@@ -205,18 +206,33 @@ AxisModel nominal_demo_drive(bool rotary) {
     return demo_drive(rotary).axis;
 }
 
+PredictionOptions default_prediction_options(bool rotary) {
+    PredictionOptions options;
+    if (!rotary) return options;
+    // The rotary demo table's current noise 0.02 A through 2 N*m/A; its level error, as the linear drive's, 0.67 % of
+    // F_C; an encoder of 1 millidegree.
+    constexpr double torque_noise_Nm = 0.04;
+    constexpr double level_error_Nm = 0.135;
+    constexpr double resolution_deg = 1e-3;
+    options.drive = nominal_demo_drive(true);
+    options.force_noise = torque_noise_Nm;
+    options.level_error = level_error_Nm;
+    options.position_resolution = resolution_deg * std::numbers::pi / 180.0;
+    return options;
+}
+
 TestPlanOptions default_plan_options(const std::string& axis) {
     TestPlanOptions options;
     options.axis = axis;
     const PlanUnits units = options.units();
     if (!units.rotary) return options;
-    // every length and feed of the linear defaults, read in degrees instead of mm
-    const PlanUnits linear;
-    const double scale = units.length() / linear.length();
-    options.stroke *= scale;
-    for (auto* feeds : {&options.feeds, &options.slow_feeds})
-        for (double& feed : *feeds) feed *= scale;
-    options.positioning_feed *= scale;
+    // every length and feed of the linear defaults, the same numbers in degrees instead of mm
+    options.stroke = TestPlanOptions::default_stroke * units.length();
+    options.feeds = paper_feed_ladder(units);
+    options.slow_feeds = log_spaced_feeds(TestPlanOptions::default_slowest_feed * units.feed(),
+                                          TestPlanOptions::default_fastest_slow_feed * units.feed(),
+                                          TestPlanOptions::default_slow_feed_count, units);
+    options.positioning_feed = TestPlanOptions::default_positioning_feed * units.feed();
     options.acceleration *= 1000.0 * units.acceleration();  // 1 m/s^2 = 1000 mm/s^2 -> 1000 deg/s^2
     return options;
 }
