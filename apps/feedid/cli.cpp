@@ -10,6 +10,7 @@
 #include <fmt/core.h>
 
 #include "feedid/core/error.hpp"
+#include "feedid/io/config_file.hpp"
 #include "feedid/io/json_input.hpp"
 #include "feedid/io/output_file.hpp"
 #include "feedid/core/terminal_text.hpp"
@@ -18,13 +19,13 @@ namespace feedid::cli {
 
 CLI::Validator allowed_range(double low, double high, const std::string& unit) {
     const std::string range = fmt::format("{:g} to {:g}{}", low, high, unit.empty() ? "" : " " + unit);
-    auto check = [low, high, range](std::string& text) -> std::string {
+    auto check = [low, high, unit, range](std::string& text) -> std::string {
         char* end = nullptr;
         const double value = std::strtod(text.c_str(), &end);
         if (text.empty() || end != text.c_str() + text.size())
             return fmt::format("'{}' is not a number (allowed: {})", text, range);
         if (!std::isfinite(value)) return fmt::format("{} is not a finite number (allowed: {})", text, range);
-        if (value < low || value > high) return fmt::format("{} is outside the allowed range {}", text, range);
+        if (const ValueRange allowed{low, high, unit.c_str()}; !allowed.contains(value)) return allowed.refusal(text);
         return {};
     };
     return CLI::Validator(std::move(check), "in " + range);
@@ -167,7 +168,7 @@ void DriveArguments::add_to(CLI::App& app) {
         ->check(allowed_range(allowed_torque_constant_Nm_per_A.low, allowed_torque_constant_Nm_per_A.high, "N*m/A"));
     app.add_option("--lead", lead_mm, "Ball-screw lead [mm per revolution]")->check(lead_range());
     app.add_option("--gear-ratio", gear_ratio, "Motor revolutions per screw revolution")
-        ->default_val(1.0)
+        ->capture_default_str()
         ->check(gear_ratio_range());
     app.add_option("--force-constant", force_constant,
                    "Force per unit of the drive signal [N per signal unit], a number or the name of a scalar in the "

@@ -61,7 +61,7 @@ struct DriveArguments;
 struct DriveArguments {
     std::optional<double> kt;
     std::optional<double> lead_mm;
-    double gear_ratio{1.0};
+    double gear_ratio{DriveConstants{}.gear_ratio};
     std::string force_constant;
 
     void add_to(CLI::App& app);

@@ -392,13 +392,13 @@ Action add_history_command(CLI::App& app) {
     sub->add_option("--baseline-from", arguments->baseline_from,
                     "For this listing only: the baseline starts at run ID");
     sub->add_option("--baseline-runs", arguments->trend.baseline_runs, "Runs in the baseline")
-        ->default_val(8)
+        ->capture_default_str()
         ->check(allowed_range(1, 1000, "runs"));
     sub->add_option("--cusum-k", arguments->trend.cusum_k, "CUSUM allowance [combined standard errors]")
-        ->default_val(1.0)
+        ->capture_default_str()
         ->check(allowed_range(0.0, 100.0, "combined standard errors"));
     sub->add_option("--cusum-h", arguments->trend.cusum_h, "CUSUM alarm threshold [combined standard errors]")
-        ->default_val(6.0)
+        ->capture_default_str()
         ->check(allowed_range(1e-3, 1000.0, "combined standard errors"));
     sub->footer(
         "Trend: each run's change against the baseline (mean of the first --baseline-runs runs of the axis, or of the\n"

@@ -10,6 +10,7 @@
 #include "feedid/core/error.hpp"
 #include "feedid/identify/friction_map.hpp"
 #include "feedid/identify/identify.hpp"
+#include "feedid/identify/option_names.hpp"
 #include "feedid/core/parameters.hpp"
 #include "feedid/identify/result_document.hpp"
 #include "feedid/core/terminal_text.hpp"
@@ -22,11 +23,11 @@ namespace {
 struct IdentifyCommand {
     TraceArguments trace_arguments;
     DriveArguments drive_arguments;
-    IdentifyOptions options;
-    std::string model{"symmetric"};
-    std::string differentiation{"butterworth"};
-    std::string velocity_source{"auto"};
-    std::string rls_variant{"directional"};
+    IdentifyOptions options;  // the defaults: the library's
+    std::string model{name_of(friction_model_names, options.model)};
+    std::string differentiation{name_of(differentiation_names, options.preprocess.differentiation)};
+    std::string velocity_source{name_of(velocity_source_names, options.preprocess.velocity_source)};
+    std::string rls_variant{name_of(rls_variant_names, options.step1.rls.variant)};
     bool no_stribeck{false};
     std::string json_path;
     bool by_location{false};
@@ -38,7 +39,7 @@ struct IdentifyCommand {
         trace_arguments.add_to(sub);
         drive_arguments.add_to(sub);
         sub.add_option("--model", model, "Friction model: symmetric (the paper's eq. 11) or asymmetric (per direction)")
-            ->check(CLI::IsMember({"symmetric", "asymmetric"}))
+            ->check(CLI::IsMember(names_of(friction_model_names)))
             ->capture_default_str();
         sub.add_flag("--offset", options.offset, "Also estimate a constant force offset (gravity, sensor offset)");
         sub.add_flag("--no-stribeck", no_stribeck, "Skip step 2 (breakaway friction and Stribeck velocity)");
@@ -58,13 +59,13 @@ struct IdentifyCommand {
         pre->add_option("--differentiation", differentiation,
                         "How velocity and acceleration are obtained from position: butterworth (zero-phase low-pass, "
                         "then central differences), central (the paper), savitzky-golay")
-            ->check(CLI::IsMember({"butterworth", "central", "savitzky-golay"}))
+            ->check(CLI::IsMember(names_of(differentiation_names)))
             ->capture_default_str();
         pre->add_option("--velocity-source", velocity_source,
                         "Where velocity comes from: position (differentiated), velocity (the logged velocity channel, "
                         "filtered like the position; acceleration is its derivative) or auto (the logged velocity "
                         "when there is no position or it is too coarse)")
-            ->check(CLI::IsMember({"auto", "position", "velocity"}))
+            ->check(CLI::IsMember(names_of(velocity_source_names)))
             ->capture_default_str();
         pre->add_option("--filter-order", options.preprocess.filter_order, "Butterworth order")
             ->capture_default_str()
@@ -117,21 +118,20 @@ struct IdentifyCommand {
         rls->add_option("--rls", rls_variant,
                         "RLS variant: directional (forgetting only where the data excites; robust) or paper "
                         "(exponential forgetting, eq. 7-9)")
-            ->check(CLI::IsMember({"directional", "paper"}))
+            ->check(CLI::IsMember(names_of(rls_variant_names)))
             ->capture_default_str();
     }
 
     IdentifyOptions resolved() const {
         IdentifyOptions o = options;
         o.drive = drive_arguments.constants();
-        o.model = model == "asymmetric" ? FrictionModelKind::asymmetric : FrictionModelKind::symmetric;
-        o.preprocess.differentiation = differentiation == "central"          ? Differentiation::central
-                                       : differentiation == "savitzky-golay" ? Differentiation::savitzky_golay
-                                                                             : Differentiation::butterworth;
-        o.preprocess.velocity_source = velocity_source == "position"   ? VelocitySource::position
-                                       : velocity_source == "velocity" ? VelocitySource::logged
-                                                                       : VelocitySource::automatic;
-        o.step1.rls.variant = rls_variant == "paper" ? RlsVariant::exponential : RlsVariant::directional;
+        // the names were checked while parsing (IsMember)
+        o.model = value_named(friction_model_names, model).value_or(o.model);
+        o.preprocess.differentiation =
+            value_named(differentiation_names, differentiation).value_or(o.preprocess.differentiation);
+        o.preprocess.velocity_source =
+            value_named(velocity_source_names, velocity_source).value_or(o.preprocess.velocity_source);
+        o.step1.rls.variant = value_named(rls_variant_names, rls_variant).value_or(o.step1.rls.variant);
         o.stribeck = !no_stribeck;
         o.systematic = !no_systematic;
         return o;

@@ -21,15 +21,6 @@ namespace feedid::cli {
 
 namespace {
 
-// The nominal drive's noise where the options give none: the demo drives' (feedid synth): 0.02 A of current noise
-// through 453.6 N/A, or through 2 N*m/A on the rotary table; one pass's level error 0.67 % of F_C.
-constexpr double linear_force_noise_N = 10.0;
-constexpr double rotary_torque_noise_Nm = 0.04;
-constexpr double linear_level_error_N = 5.0;
-constexpr double rotary_level_error_Nm = 0.135;
-// An encoder of 1 um, or of 1 millidegree on a rotary axis.
-constexpr double resolution_um_or_mdeg = 1.0;
-
 // A comma-separated list option, one value per occurrence (write --centers=-300,0,300): CLI11 splits it.
 CLI::Option* add_list_option(CLI::App& app, const std::string& name, std::vector<std::string>& entries,
                              const std::string& description) {
@@ -78,24 +69,60 @@ void print_summary(std::FILE* out, const TestPlan& plan, const IdentifiabilityPr
 
 }  // namespace
 
+// The help's statement of a default: a number as %g ("30", "0.001", "5000").
+std::string shown(double value) {
+    return fmt::format("{:g}", value);
+}
+
+// The defaults of TestPlanOptions and PredictionOptions as the command line writes them: lengths and feeds in mm
+// and mm/min (the rotary defaults are the same numbers in degrees), the encoder in um, and where an option's
+// default depends on the axis kind, the linear and the rotary one ("69.1 kg, 2 kg*m^2").
+struct PlanDefaults {
+    PlanUnits linear{false};
+    PlanUnits rotary{true};
+    TestPlanOptions plan{default_plan_options("X")};
+    TestPlanOptions rotary_plan{default_plan_options("A")};
+    PredictionOptions prediction{default_prediction_options(false)};
+    PredictionOptions rotary_prediction{default_prediction_options(true)};
+
+    [[nodiscard]] std::string slow_feeds() const {
+        if (plan.slow_feeds.empty()) return "none";
+        return fmt::format("{}:{}:{}", shown(plan.slow_feeds.front() / linear.feed()),
+                           shown(plan.slow_feeds.back() / linear.feed()), plan.slow_feeds.size());
+    }
+    [[nodiscard]] std::string ladder() const {
+        std::string text;
+        for (const double feed : plan.feeds) text += (text.empty() ? "" : ",") + shown(feed / linear.feed());
+        return text;
+    }
+    // "default 69.1 kg, 2 kg*m^2": one value of the linear and the rotary nominal drive
+    template <class Get>
+    [[nodiscard]] std::string both(Get&& get, double linear_scale, double rotary_scale, const char* linear_unit,
+                                   const char* rotary_unit) const {
+        return fmt::format("default {} {}, {} {}", shown(get(prediction) * linear_scale), linear_unit,
+                           shown(get(rotary_prediction) * rotary_scale), rotary_unit);
+    }
+};
+
 /// The options of `feedid plan`, as given; the library turns them into a plan and a prediction. Lengths and feeds are
 /// in mm and mm/min, or in degrees and deg/min on a rotary axis (A, B, C); the nominal drive in the SI units of the
-/// axis's parameters (kg or kg*m^2, N or N*m), its Stribeck velocity in mm/s or rad/s as identify prints it.
+/// axis's parameters (kg or kg*m^2, N or N*m), its Stribeck velocity in mm/s or rad/s as identify prints it. An
+/// option not given keeps the library's default (default_plan_options, default_prediction_options).
 struct PlanArguments {
-    std::string axis{"X"};
+    std::string axis{TestPlanOptions{}.axis};
     std::string travel;
     std::vector<std::string> centers;
-    double stroke{30.0};
+    std::optional<double> stroke;
     std::vector<std::string> feeds;
-    std::vector<std::string> slow_feeds{"10:1000:7"};
-    double max_pass_time_s{8.0};
-    int cycles{2};
+    std::vector<std::string> slow_feeds;
+    std::optional<double> max_pass_time_s;
+    std::optional<int> cycles;
     std::optional<double> acceleration;
     std::optional<double> jerk;
-    double dwell_s{0.2};
-    double sample_time_s{0.001};
+    std::optional<double> dwell_s;
+    std::optional<double> sample_time_s;
     std::optional<double> max_feed;
-    double positioning_feed{5000.0};
+    std::optional<double> positioning_feed;
     std::optional<double> start;
     std::string dialect{"iso"};
     std::string output;
@@ -109,77 +136,109 @@ struct PlanArguments {
     std::optional<double> stribeck_velocity;
     std::optional<double> force_noise;
     std::optional<double> level_error;
-    double resolution{resolution_um_or_mdeg};
+    std::optional<double> resolution;
 
     void add_to(CLI::App& sub) {
+        add_plan_options(sub);
+        add_prediction_options(sub);
+    }
+
+    void add_plan_options(CLI::App& sub) {
+        const PlanDefaults d;
         sub.add_option("--axis", axis,
                        "Axis name as the NC knows it (X, Y, Z, A, ...; X1 on SINUMERIK); A, B and C are rotary: their "
                        "lengths in deg, feeds in deg/min")
-            ->default_val("X");
+            ->capture_default_str();
         sub.add_option("--travel", travel, "Travel limits MIN:MAX [mm; deg] (write --travel=-400:400)")->required();
         add_list_option(sub, "--centers", centers,
                         "Centres of the strokes C1,C2,... [mm; deg] (write --centers=-300,0,300)")
             ->required()
             ->check(allowed_range(-1e6, 1e6, "mm or deg"));
         sub.add_option("--stroke", stroke, "Stroke of the ladder passes [mm; deg]")
-            ->default_val(30.0)
+            ->default_str(shown(d.plan.stroke / d.linear.length()))
             ->check(allowed_range(0.01, 1e5, "mm or deg"));
         add_list_option(sub, "--feeds", feeds,
-                        "Ladder feedrates F1,F2,... [mm/min; deg/min]; default the paper's "
-                        "1250,2600,3950,5300,6650,8000,9350")
+                        "Ladder feedrates F1,F2,... [mm/min; deg/min]; default the paper's " + d.ladder())
             ->check(allowed_range(1e-3, 1e6, "mm/min or deg/min"));
         add_list_option(sub, "--slow-feeds", slow_feeds,
                         "Slow Stribeck passes: LO:HI[:N] log-spaced, F1,F2,... [mm/min; deg/min], or none")
-            ->default_val("10:1000:7");
+            ->default_str(d.slow_feeds());
         sub.add_option("--max-pass-time", max_pass_time_s, "Longest slow pass; its stroke is shortened to fit [s]")
-            ->default_val(8.0)
+            ->default_str(shown(d.plan.max_pass_time))
             ->check(allowed_range(0.01, 3600.0, "s"));
         sub.add_option("--cycles", cycles, "Back-and-forth cycles per feedrate")
-            ->default_val(2)
+            ->default_str(std::to_string(d.plan.cycles))
             ->check(allowed_range(1, 100, "cycles"));
         sub.add_option("--acceleration", acceleration,
-                       "Axis acceleration (machine data) [m/s^2; deg/s^2]; default 1 m/s^2, 1000 deg/s^2")
+                       fmt::format("Axis acceleration (machine data) [m/s^2; deg/s^2]; default {} m/s^2, {} deg/s^2",
+                                   shown(d.plan.acceleration / d.linear.acceleration()),
+                                   shown(d.rotary_plan.acceleration / d.rotary.acceleration())))
             ->check(allowed_range(1e-3, 1e6, "m/s^2 or deg/s^2"));
         sub.add_option("--jerk", jerk, "Jerk limit [m/s^3; deg/s^3] (SINUMERIK SOFT); default none (BRISK)")
             ->check(allowed_range(1e-3, 1e9, "m/s^3 or deg/s^3"));
         sub.add_option("--dwell", dwell_s, "Dwell at every reversal [s]")
-            ->default_val(0.2)
+            ->default_str(shown(d.plan.dwell))
             ->check(allowed_range(0.0, 60.0, "s"));
         sub.add_option("--sample-time", sample_time_s, "Trace sample time [s] (the reference file's step)")
-            ->default_val(0.001)
+            ->default_str(shown(d.plan.sample_time))
             ->check(allowed_range(1e-6, 1.0, "s"));
         sub.add_option("--max-feed", max_feed, "Feedrate limit of the axis [mm/min; deg/min]; refuse moves above it")
             ->check(allowed_range(1e-3, 1e6, "mm/min or deg/min"));
         sub.add_option("--positioning-feed", positioning_feed, "Feedrate between passes [mm/min; deg/min]")
-            ->default_val(5000.0)
+            ->default_str(shown(d.plan.positioning_feed / d.linear.feed()))
             ->check(allowed_range(1e-3, 1e6, "mm/min or deg/min"));
         sub.add_option("--start", start, "Where the axis stands at the program start [mm; deg]; default the first pass")
             ->check(allowed_range(-1e6, 1e6, "mm or deg"));
         sub.add_option("--dialect", dialect, "Part-program dialect")
             ->check(CLI::IsMember({"iso", "sinumerik", "linuxcnc"}))
-            ->default_val("iso");
+            ->capture_default_str();
         sub.add_option("-o,--out", output, "Write the part program here ('-' for stdout)");
         sub.add_option("--reference", reference,
                        "Write the reference trajectory (CSV: t [s], x_ref [m; rad on a rotary axis]) here");
         sub.add_option("--json", json, "Write the plan and its prediction as JSON ('-' for stdout)");
-        sub.add_option("--mass", mass, "Nominal mass [kg; inertia kg*m^2]; default the demo drive's 69.1 kg, 2 kg*m^2")
+    }
+
+    void add_prediction_options(CLI::App& sub) {
+        const PlanDefaults d;
+        const auto mass = [](const PredictionOptions& o) { return o.drive.mass; };
+        const auto viscous = [](const PredictionOptions& o) { return o.drive.friction.forward.viscous; };
+        const auto coulomb = [](const PredictionOptions& o) { return o.drive.friction.forward.coulomb; };
+        const auto breakaway = [](const PredictionOptions& o) {
+            return o.drive.friction.forward.breakaway.value_or(0.0);
+        };
+        const auto stribeck = [](const PredictionOptions& o) {
+            return o.drive.friction.forward.stribeck_velocity.value_or(0.0);
+        };
+        const auto noise = [](const PredictionOptions& o) { return o.force_noise; };
+        const auto level = [](const PredictionOptions& o) { return o.level_error; };
+        const double mm_per_s = ParameterNaming{false}.display_velocity_scale();
+        const double rad_per_s = ParameterNaming{true}.display_velocity_scale();
+        sub.add_option("--mass", this->mass,
+                       "Nominal mass [kg; inertia kg*m^2]; " + d.both(mass, 1.0, 1.0, "kg", "kg*m^2") +
+                           " (the demo drives)")
             ->check(allowed_range(1e-6, 1e6, "kg or kg*m^2"));
-        sub.add_option("--viscous", viscous, "Nominal viscous friction [N*s/m; N*m*s/rad]; default 54.2, 5")
+        sub.add_option("--viscous", this->viscous,
+                       "Nominal viscous friction [N*s/m; N*m*s/rad]; " +
+                           d.both(viscous, 1.0, 1.0, "N*s/m", "N*m*s/rad"))
             ->check(allowed_range(0.0, 1e7, "N*s/m or N*m*s/rad"));
-        sub.add_option("--coulomb", coulomb, "Nominal Coulomb friction [N; N*m]; default 742.8 N, 20 N*m")
+        sub.add_option("--coulomb", this->coulomb,
+                       "Nominal Coulomb friction [N; N*m]; " + d.both(coulomb, 1.0, 1.0, "N", "N*m"))
             ->check(allowed_range(0.0, 1e7, "N or N*m"));
-        sub.add_option("--breakaway", breakaway, "Nominal breakaway friction [N; N*m]; default 946.2 N, 26 N*m")
+        sub.add_option("--breakaway", this->breakaway,
+                       "Nominal breakaway friction [N; N*m]; " + d.both(breakaway, 1.0, 1.0, "N", "N*m"))
             ->check(allowed_range(0.0, 1e7, "N or N*m"));
         sub.add_option("--stribeck-velocity", stribeck_velocity,
-                       "Nominal Stribeck velocity [mm/s; rad/s]; default 5 mm/s, 0.05 rad/s")
+                       "Nominal Stribeck velocity [mm/s; rad/s]; " +
+                           d.both(stribeck, mm_per_s, rad_per_s, "mm/s", "rad/s"))
             ->check(allowed_range(1e-6, 1e4, "mm/s or rad/s"));
-        sub.add_option("--force-noise", force_noise, "Expected force noise per sample [N; N*m]; default 10 N, 0.04 N*m")
+        sub.add_option("--force-noise", force_noise,
+                       "Expected force noise per sample [N; N*m]; " + d.both(noise, 1.0, 1.0, "N", "N*m"))
             ->check(allowed_range(1e-9, 1e9, "N or N*m"));
         sub.add_option("--level-error", level_error,
-                       "Expected error of one pass's friction level [N; N*m]; default 5 N, 0.135 N*m")
+                       "Expected error of one pass's friction level [N; N*m]; " + d.both(level, 1.0, 1.0, "N", "N*m"))
             ->check(allowed_range(1e-9, 1e9, "N or N*m"));
         sub.add_option("--position-resolution", resolution, "Position measurement resolution [um; millidegree]")
-            ->default_val(1.0)
+            ->default_str(shown(d.prediction.position_resolution * 1e6))
             ->check(allowed_range(1e-6, 1e4, "um or mdeg"));
     }
 
@@ -190,17 +249,17 @@ struct PlanArguments {
         TestPlanOptions options = default_plan_options(axis);
         std::tie(options.travel_min, options.travel_max) = parse_travel(travel, u);
         options.centers = parse_number_list(centers, "--centers", u.length());
-        options.stroke = stroke * u.length();
-        options.feeds = feeds.empty() ? paper_feed_ladder(u) : parse_feeds(feeds, u);
-        options.slow_feeds = parse_slow_feeds(slow_feeds, u);
-        options.max_pass_time = max_pass_time_s;
-        options.cycles = cycles;
+        if (stroke) options.stroke = *stroke * u.length();
+        if (!feeds.empty()) options.feeds = parse_feeds(feeds, u);
+        if (!slow_feeds.empty()) options.slow_feeds = parse_slow_feeds(slow_feeds, u);
+        if (max_pass_time_s) options.max_pass_time = *max_pass_time_s;
+        if (cycles) options.cycles = *cycles;
         if (acceleration) options.acceleration = *acceleration * u.acceleration();
         if (jerk) options.jerk = *jerk * u.acceleration();
-        options.dwell = dwell_s;
-        options.sample_time = sample_time_s;
+        if (dwell_s) options.dwell = *dwell_s;
+        if (sample_time_s) options.sample_time = *sample_time_s;
         if (max_feed) options.max_feed = *max_feed * u.feed();
-        options.positioning_feed = positioning_feed * u.feed();
+        if (positioning_feed) options.positioning_feed = *positioning_feed * u.feed();
         if (start) options.start_position = *start * u.length();
         return options;
     }
@@ -208,8 +267,7 @@ struct PlanArguments {
     [[nodiscard]] PredictionOptions prediction_options() const {
         const bool rotary = units().rotary;
         const ParameterNaming naming{rotary};
-        PredictionOptions nominal;
-        nominal.drive = nominal_demo_drive(rotary);
+        PredictionOptions nominal = default_prediction_options(rotary);
         FrictionBranch branch = nominal.drive.friction.forward;
         if (viscous) branch.viscous = *viscous;
         if (coulomb) branch.coulomb = *coulomb;
@@ -217,10 +275,11 @@ struct PlanArguments {
         if (stribeck_velocity) branch.stribeck_velocity = *stribeck_velocity / naming.display_velocity_scale();
         if (mass) nominal.drive.mass = *mass;
         nominal.drive.friction = Friction::symmetric(branch);
-        nominal.force_noise = force_noise.value_or(rotary ? rotary_torque_noise_Nm : linear_force_noise_N);
-        nominal.level_error = level_error.value_or(rotary ? rotary_level_error_Nm : linear_level_error_N);
+        if (force_noise) nominal.force_noise = *force_noise;
+        if (level_error) nominal.level_error = *level_error;
         // um -> m; millidegree -> rad
-        nominal.position_resolution = rotary ? resolution * 1e-3 * std::numbers::pi / 180.0 : resolution * 1e-6;
+        if (resolution)
+            nominal.position_resolution = rotary ? *resolution * 1e-3 * std::numbers::pi / 180.0 : *resolution * 1e-6;
         return nominal;
     }
 

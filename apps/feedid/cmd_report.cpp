@@ -110,13 +110,13 @@ Action add_report_command(CLI::App& app) {
     sub->add_option("--axis", arguments->filter.axis, "History: only this axis");
     sub->add_option("--location", arguments->filter.location, "History: only this location / site");
     sub->add_option("--baseline-runs", arguments->trend.baseline_runs, "History: runs in the baseline")
-        ->default_val(8)
+        ->capture_default_str()
         ->check(allowed_range(1, 1000, "runs"));
     sub->add_option("--cusum-k", arguments->trend.cusum_k, "History: CUSUM allowance [combined standard errors]")
-        ->default_val(1.0)
+        ->capture_default_str()
         ->check(allowed_range(0.0, 100.0, "combined standard errors"));
     sub->add_option("--cusum-h", arguments->trend.cusum_h, "History: CUSUM alarm threshold [combined standard errors]")
-        ->default_val(6.0)
+        ->capture_default_str()
         ->check(allowed_range(1e-3, 1000.0, "combined standard errors"));
     sub->footer(
         "From a result: the RLS estimates over time with the end of the transient, and the friction curve per\n"

@@ -55,9 +55,12 @@ struct ScanCommand {
         sub.add_flag("--offset", options.offset, "Also estimate a constant force offset (gravity, sensor offset)");
         sub.add_option("--cutoff", options.cutoff_hz, "Butterworth cut-off [Hz] (default: min(100 Hz, fs / 10))")
             ->check(allowed_range(1e-3, 1e6, "Hz"));
+        OnlineOptions rotary_options;
+        rotary_options.rotary = true;
         sub.add_option("--split-velocity", options.split_velocity,
-                       "Step 1 uses |v| above, the Stribeck bins the quasi-static samples below [m/s; rad/s]; default "
-                       "0.02 m/s, 0.2 rad/s on a rotary axis")
+                       fmt::format("Step 1 uses |v| above, the Stribeck bins the quasi-static samples below [m/s; "
+                                   "rad/s]; default {:g} m/s, {:g} rad/s on a rotary axis",
+                                   OnlineOptions{}.split(), rotary_options.split()))
             ->check(allowed_range(1e-6, 1e4, "m/s or rad/s"));
         sub.add_option("--force-limit", options.force_limit,
                        "The drive's force limit [N]: a window reaching 99 % of it is rejected as saturated")

@@ -32,7 +32,7 @@ struct SimulateCommand {
     std::string gains_path;
     std::string json_path;
     std::string out_path;
-    int substeps{8};
+    int substeps{SimulationOptions{}.substeps};
 
     int run() const {
         std::vector<GuardedFile> inputs = trace_arguments.inputs();
@@ -112,7 +112,7 @@ Action add_simulate_command(CLI::App& app) {
     sub->add_option("--json", command->json_path, "Write the validation document to PATH ('-' for stdout)");
     sub->add_option("--out", command->out_path, "Write the simulated signals as CSV");
     sub->add_option("--substeps", command->substeps, "Integration steps per sample")
-        ->default_val(8)
+        ->capture_default_str()
         ->check(allowed_range(1, 1000, "steps"));
     sub->footer(
         "Examples:\n"

@@ -65,6 +65,23 @@ SquareWaveInjection parse_injection(std::string_view text) {
     return {*amplitude, *frequency};
 }
 
+// The demo drive's values (demo_spec), for the help.
+std::string demo_drive_text() {
+    const SynthSpec demo = demo_spec();
+    const FrictionBranch& friction = demo.axis.friction.forward;
+    const ControllerModel& c = demo.controller;
+    const SensorModel& sensors = demo.sensors;
+    return fmt::format(
+        "The default drive: the paper's M {:g} kg, B {:g} N*s/m, F_C {:g} N, F_B {:g} N, v_s {:g} mm/s; K_v {:g} "
+        "(m/min)/mm, K_p {:g} N*s/m, T_n {:g} ms, current lag {:g} ms; {:g} kHz, {:g} nm encoder, current noise "
+        "{:g} A, quantum {:g} mA.",
+        demo.axis.mass, friction.viscous, friction.coulomb, friction.breakaway.value_or(0.0),
+        friction.stribeck_velocity.value_or(0.0) * 1e3, c.position_gain_per_s / position_gain_from_kv(1.0),
+        c.velocity_gain_N_s_per_m, c.velocity_gain_N_s_per_m / c.velocity_integral_gain_N_per_m * 1e3,
+        c.current_lag_s * 1e3, 1e-3 / sensors.sample_time_s, sensors.position_resolution_m * 1e9,
+        sensors.current_noise_A, sensors.current_resolution_A * 1e3);
+}
+
 struct SynthCommand {
     std::string out_path;
     std::string drive_path;
@@ -174,8 +191,9 @@ Action add_synth_command(CLI::App& app) {
                     "With --program: the machine file (JSON or TOML: limits, per-axis drives, cutting; see the "
                     "README); default: the built-in machining centre");
     sub->add_option("--cutting-force", command->cutting_force,
-                    "With --program: the peak cutting force as a fraction of the drive force (default 0.3; 0 = no "
-                    "cutting force)");
+                    fmt::format("With --program: the peak cutting force as a fraction of the drive force "
+                                "(default {:g}; 0 = no cutting force)",
+                                ProductionOptions{}.cutting_force_fraction));
     sub->add_flag("--no-slow-passes", command->no_slow_passes,
                   "Leave out the slow passes: the paper's feedrate ladder (1250..9350 mm/min) alone");
     sub->add_flag("--print-drive", command->print_drive, "Print the drive file in use (every key) as JSON");
@@ -188,10 +206,8 @@ Action add_synth_command(CLI::App& app) {
                     "every 2 ms; positions in deg or mm, velocities in rpm or mm/min)")
         ->check(CLI::IsMember({"sinumerik"}));
     sub->footer(
-        "The default drive: the paper's M 69.1 kg, B 54.2 N*s/m, F_C 742.8 N, F_B 946.2 N, v_s 5 mm/s; K_v 2 "
-        "(m/min)/mm, "
-        "K_p 40000 N*s/m, T_n 20 ms, current lag 0.3 ms; 1 kHz, 10 nm encoder, current noise 0.02 A, quantum 5 mA.\n"
-        "The trace carries the drive constants (force_constant_N_per_A, kt_Nm_per_A, lead_m) and the true values as "
+        demo_drive_text() +
+        "\nThe trace carries the drive constants (force_constant_N_per_A, kt_Nm_per_A, lead_m) and the true values as "
         "`# name = value` lines.\n"
         "Examples:\n"
         "  feedid synth --out synth.csv\n"

@@ -6,90 +6,54 @@
 #include <memory>
 
 #include <fmt/core.h>
-#include <toml++/toml.h>
 
 #include "cli.hpp"
 #include "feedid/core/error.hpp"
+#include "feedid/io/config_file.hpp"
+#include "feedid/io/import.hpp"
 #include "feedid/history/record.hpp"
 #include "feedid/stream/service.hpp"
 
 namespace feedid::cli {
 namespace {
 
-/// A number from a TOML table, checked to lie in [low, high]; InputError naming file and key otherwise.
-double config_number(const toml::table& table, const std::string& section, const std::string& key, double fallback,
-                     double low, double high, const std::string& path) {
-    const toml::node* node = table.get(key);
-    if (!node) return fallback;
-    const auto value = node->value<double>();
-    if (!value || !std::isfinite(*value) || *value < low || *value > high)
-        throw InputError(fmt::format("{}: [{}] {} must be a number from {} to {}", path, section, key, low, high));
-    return *value;
-}
-
-void check_keys(const toml::table& table, const std::string& section, std::initializer_list<std::string_view> known,
-                const std::string& path) {
-    for (const auto& [key, node] : table) {
-        bool found = false;
-        for (const auto k : known) found = found || key.str() == k;
-        if (!found) throw InputError(fmt::format("{}: unknown key '{}' in [{}]", path, key.str(), section));
-    }
-}
-
 /// watch.toml: [online] window_s offset robust cutoff_hz; [force_constants] AXIS or "MACHINE/AXIS" = N/A;
 /// [run] windows period_s gap_s reorder_s; [service] estimate_interval_s queue_mb max_samples.
 void read_config(const std::string& path, watch::ServiceOptions& options) {
-    toml::table root;
-    try {
-        root = toml::parse_file(path);
-    } catch (const toml::parse_error& e) {
-        throw InputError(fmt::format("{}: line {}: {}", path, e.source().begin.line, e.description()));
-    }
-    check_keys(root, "", {"online", "force_constants", "run", "service"}, path);
-    const auto table = [&](const char* name) -> const toml::table* {
-        const toml::node* node = root.get(name);
-        if (node && !node->is_table()) throw InputError(fmt::format("{}: '{}' must be a table", path, name));
-        return node ? node->as_table() : nullptr;
-    };
+    const nlohmann::json document = parse_toml(read_file_bytes(path), path);
+    ConfigSection root(document, path);
     auto& online = options.watch.online;
-    if (const auto* t = table("online")) {
-        check_keys(*t, "online", {"window_s", "offset", "robust", "cutoff_hz"}, path);
-        online.window_s = config_number(*t, "online", "window_s", online.window_s, 0.1, 600.0, path);
-        if (t->get("cutoff_hz")) online.cutoff_hz = config_number(*t, "online", "cutoff_hz", 0.0, 1e-3, 1e6, path);
-        for (auto [key, flag] : {std::pair{"offset", &online.offset}, std::pair{"robust", &online.robust}}) {
-            if (const toml::node* node = t->get(key)) {
-                if (!node->is_boolean())
-                    throw InputError(fmt::format("{}: [online] {} must be true or false", path, key));
-                *flag = node->value<bool>().value();
-            }
+    if (auto t = root.section("online")) {
+        if (const auto v = t->number("window_s", {0.1, 600.0, "s"})) online.window_s = *v;
+        if (const auto v = t->number("cutoff_hz", {1e-3, 1e6, "Hz"})) online.cutoff_hz = *v;
+        if (const auto v = t->boolean("offset")) online.offset = *v;
+        if (const auto v = t->boolean("robust")) online.robust = *v;
+        t->reject_unknown();
+    }
+    if (auto t = root.section("force_constants")) {
+        for (const auto& key : t->keys()) {
+            const auto value = t->number(key);
+            if (!value || *value == 0.0) t->refuse(key, "must be a non-zero number [N/A]");
+            options.watch.force_constants[key] = *value;
         }
     }
-    if (const auto* t = table("force_constants")) {
-        for (const auto& [key, node] : *t) {
-            const auto value = node.value<double>();
-            if (!value || !std::isfinite(*value) || *value == 0.0)
-                throw InputError(
-                    fmt::format("{}: [force_constants] {} must be a non-zero number [N/A]", path, key.str()));
-            options.watch.force_constants[std::string(key.str())] = *value;
-        }
+    if (auto t = root.section("run")) {
+        if (const auto v = t->number("windows", {0.0, 1e9, "windows"}))
+            options.watch.run_windows = static_cast<std::size_t>(*v);
+        if (const auto v = t->number("period_s", {0.0, 1e9, "s"})) options.watch.run_period_s = *v;
+        if (const auto v = t->number("gap_s", {1e-3, 1e9, "s"})) options.watch.run_gap_s = *v;
+        if (const auto v = t->number("reorder_s", {0.0, 3600.0, "s"})) options.watch.reorder_s = *v;
+        t->reject_unknown();
     }
-    if (const auto* t = table("run")) {
-        check_keys(*t, "run", {"windows", "period_s", "gap_s", "reorder_s"}, path);
-        options.watch.run_windows = static_cast<std::size_t>(config_number(*t, "run", "windows", 0, 0, 1e9, path));
-        options.watch.run_period_s = config_number(*t, "run", "period_s", 0.0, 0.0, 1e9, path);
-        options.watch.run_gap_s = config_number(*t, "run", "gap_s", options.watch.run_gap_s, 1e-3, 1e9, path);
-        options.watch.reorder_s = config_number(*t, "run", "reorder_s", options.watch.reorder_s, 0.0, 3600.0, path);
+    if (auto t = root.section("service")) {
+        if (const auto v = t->number("estimate_interval_s", {0.01, 3600.0, "s"})) options.estimate_interval_s = *v;
+        if (const auto v = t->number("queue_mb", {1.0, 65536.0, "MiB"}))
+            options.queue_bytes = static_cast<std::size_t>(*v * (1u << 20));
+        if (const auto v = t->number("max_samples", {1.0, 1e8, "samples"}))
+            options.watch.limits.max_samples = static_cast<std::size_t>(*v);
+        t->reject_unknown();
     }
-    if (const auto* t = table("service")) {
-        check_keys(*t, "service", {"estimate_interval_s", "queue_mb", "max_samples"}, path);
-        options.estimate_interval_s =
-            config_number(*t, "service", "estimate_interval_s", options.estimate_interval_s, 0.01, 3600.0, path);
-        options.queue_bytes = static_cast<std::size_t>(
-            config_number(*t, "service", "queue_mb", static_cast<double>(options.queue_bytes >> 20), 1, 65536, path) *
-            (1u << 20));
-        options.watch.limits.max_samples = static_cast<std::size_t>(config_number(
-            *t, "service", "max_samples", static_cast<double>(options.watch.limits.max_samples), 1, 1e8, path));
-    }
+    root.reject_unknown();
 }
 
 struct WatchCommand {
@@ -113,7 +77,7 @@ struct PublishCommand {
     TraceArguments trace;
     DriveArguments drive;
     std::string broker;
-    std::string rate{"1x"};
+    std::string rate{fmt::format("{:g}x", watch::PublishOptions{}.rate)};  // the library's rate as written here
     double time_offset_s{0.0};
     std::optional<double> duration_s;
     watch::PublishOptions options;
@@ -172,7 +136,7 @@ Action add_watch_command(CLI::App& app) {
     sub->add_option(
            "--topic", command->options.topic_filter,
            "Topic filter of the data; machine and axis are the 2nd and 3rd levels (plant/<machine>/<axis>/...)")
-        ->default_val("plant/+/+/axis/#");
+        ->capture_default_str();
     sub->add_option(
         "--db", command->options.database,
         "History (a SQLite file or a postgresql:// database) to record each completed identification in, and to "
@@ -202,9 +166,9 @@ Action add_publish_command(CLI::App& app) {
     command->drive.add_to(*sub);
     sub->add_option("--broker", command->broker, "The broker: mqtt://HOST[:PORT]")->required();
     sub->add_option("--topic", command->options.topic, "Topic to publish to, e.g. plant/M1/X/axis")->required();
-    sub->add_option("--rate", command->rate, "Times real time ('20x'), or 'max'")->default_val("1x");
+    sub->add_option("--rate", command->rate, "Times real time ('20x'), or 'max'")->capture_default_str();
     sub->add_option("--batch", command->options.batch_s, "Stream time per message [s]")
-        ->default_val(0.1)
+        ->capture_default_str()
         ->check(allowed_range(1e-4, 60.0, "s"));
     sub->add_option("--client-id", command->options.client_id,
                     "MQTT client id: a persistent session under it; default feedid-publish-PID with a clean session");
@@ -212,19 +176,19 @@ Action add_publish_command(CLI::App& app) {
         ->check(allowed_range(1e-3, 1e9, "s"));
     sub->add_option("--buffer", command->options.buffer_s,
                     "Stream time held while the broker is away, sent when it is back [s]")
-        ->default_val(60.0)
+        ->capture_default_str()
         ->check(allowed_range(0.0, 1e6, "s"));
     sub->add_option("--replay", command->options.replay_s,
                     "QoS 1/2: after a reconnect, send again what was sent in this much time before the connection "
                     "was lost (a killed broker loses what it acknowledged since its last save) [s]")
-        ->default_val(5.0)
+        ->capture_default_str()
         ->check(allowed_range(0.0, 3600.0, "s"));
     sub->add_option("--copies", command->options.copies,
                     "Publish the stream on N topics at once, '{n}' in --topic replaced by 1..N (a benchmark's load)")
         ->check(CLI::Range(1, 100000));
     sub->add_flag("--binary", command->options.binary, "The binary payload (default JSON)");
     sub->add_option("--qos", command->options.qos, "MQTT QoS of the data messages")
-        ->default_val(0)
+        ->capture_default_str()
         ->check(CLI::Range(0, 2));
     sub->add_option("--time-offset", command->time_offset_s, "Added to the trace's time stamps [s] (a later recording)")
         ->check(allowed_range(-1e12, 1e12, "s"));

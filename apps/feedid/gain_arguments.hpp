@@ -7,22 +7,23 @@
 #include "cli.hpp"
 #include "feedid/core/error.hpp"
 #include "feedid/identify/gains.hpp"
+#include "feedid/identify/option_names.hpp"
 
 namespace feedid::cli {
 
 /// Options shared by `feedid gains` and `feedid simulate` (which identifies the gains when none are given).
 struct GainArguments {
-    std::string velocity_loop{"auto"};
-    bool feedforward{false};
+    std::string velocity_loop{name_of(velocity_loop_names, GainOptions{}.velocity_loop)};
+    bool feedforward{GainOptions{}.feedforward};
     std::optional<int> velocity_difference;
     std::optional<double> current_lag_ms;
     std::optional<double> saturation;
-    double forgetting{1.0};
+    double forgetting{GainOptions{}.rls.forgetting_factor};
 
     void add_to(CLI::App& app) {
         app.add_option("--velocity-loop", velocity_loop,
                        "Velocity loop structure: pi, p, or auto (PI, or P when the integral gain is not significant)")
-            ->check(CLI::IsMember({"auto", "p", "pi"}));
+            ->check(CLI::IsMember(names_of(velocity_loop_names)));
         app.add_flag("--feedforward", feedforward, "Also identify a velocity feed-forward in the position loop");
         app.add_option("--velocity-difference", velocity_difference,
                        "The controller measures velocity as (x_k - x_{k-N})/(N*T); default: N chosen from the data")
@@ -35,16 +36,14 @@ struct GainArguments {
                        "out and the simulation saturates there")
             ->check(allowed_range(1e-9, 1e12, "drive signal units"));
         app.add_option("--forgetting", forgetting, "RLS forgetting factor lambda (1 = none: gains are constant)")
-            ->default_val(1.0)
+            ->capture_default_str()
             ->check(allowed_range(1e-6, 1.0, ""));
     }
 
     /// The options as given, before the trace's drive signal sets what it sets (simulate's twin does that).
     [[nodiscard]] GainOptions given() const {
         GainOptions options;
-        options.velocity_loop = velocity_loop == "p"    ? VelocityLoopStructure::p
-                                : velocity_loop == "pi" ? VelocityLoopStructure::pi
-                                                        : VelocityLoopStructure::automatic;
+        options.velocity_loop = value_named(velocity_loop_names, velocity_loop).value_or(options.velocity_loop);
         options.feedforward = feedforward;
         options.velocity_difference_samples = velocity_difference;
         if (current_lag_ms) options.current_lag_s = *current_lag_ms * 1e-3;

@@ -78,6 +78,12 @@ __all__ = [
 ROLES = ("time", "position", "reference_position", "velocity", "velocity_command", "current", "force",
          "external_force", "injection")
 
+# The keyword defaults are the library's: each read from a default-constructed Options struct (identify's
+# IdentifyOptions, plan's TestPlanOptions and PredictionOptions, ...) in the unit the keyword's name states.
+_DEFAULTS = _native.defaults()
+_IDENTIFY, _GAINS, _SIMULATE = _DEFAULTS["identify"], _DEFAULTS["gains"], _DEFAULTS["simulate"]
+_SYNTH, _PLAN = _DEFAULTS["synth"], _DEFAULTS["plan"]
+
 PathLike = Union[str, "os.PathLike[str]"]
 TraceArgument = Union[Trace, str, "os.PathLike[str]"]
 
@@ -187,20 +193,22 @@ Simulation.to_pandas = _pandas.simulation_to_pandas  # type: ignore[attr-defined
 History.to_pandas = _pandas.history_to_pandas  # type: ignore[attr-defined]
 
 
-def identify(trace: TraceArgument, *, model: str = "symmetric", offset: bool = False, stribeck: bool = True,
-             force_constant: Union[float, str, None] = None, kt_Nm_per_A: Optional[float] = None,
-             lead_mm: Optional[float] = None, gear_ratio: float = 1.0, differentiation: str = "butterworth",
-             velocity_source: str = "auto", filter_order: int = 4, cutoff_hz: Optional[float] = None,
-             savitzky_golay_window: Optional[int] = None, savitzky_golay_order: int = 3,
-             decimation: Optional[int] = None, edge_samples: Optional[int] = None, from_s: Optional[float] = None,
-             to_s: Optional[float] = None, split_velocity: Optional[float] = None,
-             moving_threshold: Optional[float] = None, rls: str = "directional", forgetting_factor: float = 0.99995,
-             initial_covariance: float = 1e6, channels: Optional[Mapping[str, str]] = None,
+def identify(trace: TraceArgument, *, model: str = _IDENTIFY["model"], offset: bool = _IDENTIFY["offset"],
+             stribeck: bool = _IDENTIFY["stribeck"], force_constant: Union[float, str, None] = None,
+             kt_Nm_per_A: Optional[float] = None, lead_mm: Optional[float] = None,
+             gear_ratio: float = _IDENTIFY["gear_ratio"], differentiation: str = _IDENTIFY["differentiation"],
+             velocity_source: str = _IDENTIFY["velocity_source"], filter_order: int = _IDENTIFY["filter_order"],
+             cutoff_hz: Optional[float] = None, savitzky_golay_window: Optional[int] = None,
+             savitzky_golay_order: int = _IDENTIFY["savitzky_golay_order"], decimation: Optional[int] = None,
+             edge_samples: Optional[int] = None, from_s: Optional[float] = None, to_s: Optional[float] = None,
+             split_velocity: Optional[float] = None, moving_threshold: Optional[float] = None,
+             rls: str = _IDENTIFY["rls"], forgetting_factor: float = _IDENTIFY["forgetting_factor"],
+             initial_covariance: float = _IDENTIFY["initial_covariance"], channels: Optional[Mapping[str, str]] = None,
              units: Optional[Mapping[str, str]] = None, axis: Optional[str] = None, format: Optional[str] = None,
              sample_time_s: Optional[float] = None, skip_rows: Optional[int] = None, rated: Optional[str] = None,
-             join: Optional[str] = None, join_max_shift_s: Optional[float] = None,
-             tare: Optional[Sequence[str]] = None, invert: Optional[Sequence[str]] = None,
-             systematic: bool = True, threads: int = 0) -> Result:
+             join: Optional[str] = None, join_max_shift_s: Optional[float] = None, tare: Optional[Sequence[str]] = None,
+             invert: Optional[Sequence[str]] = None, systematic: bool = _IDENTIFY["systematic"],
+             threads: int = _IDENTIFY["threads"]) -> Result:
     """Mass and friction of the axis, each with a standard error: ``feedid identify`` (README, "Identification").
 
     The options are the command line's, with the same defaults; the reading options (``channels`` to ``invert``, see
@@ -256,10 +264,11 @@ def identify(trace: TraceArgument, *, model: str = "symmetric", offset: bool = F
     return result
 
 
-def gains(trace: TraceArgument, *, force_constant: Union[float, str, None] = None,
-          kt_Nm_per_A: Optional[float] = None, lead_mm: Optional[float] = None, gear_ratio: float = 1.0,
-          velocity_loop: str = "auto", feedforward: bool = False, velocity_difference: Optional[int] = None,
-          current_lag_ms: Optional[float] = None, saturation: Optional[float] = None, forgetting: float = 1.0,
+def gains(trace: TraceArgument, *, force_constant: Union[float, str, None] = None, kt_Nm_per_A: Optional[float] = None,
+          lead_mm: Optional[float] = None, gear_ratio: float = _GAINS["gear_ratio"],
+          velocity_loop: str = _GAINS["velocity_loop"], feedforward: bool = _GAINS["feedforward"],
+          velocity_difference: Optional[int] = None, current_lag_ms: Optional[float] = None,
+          saturation: Optional[float] = None, forgetting: float = _GAINS["forgetting"],
           channels: Optional[Mapping[str, str]] = None, units: Optional[Mapping[str, str]] = None,
           axis: Optional[str] = None, format: Optional[str] = None, sample_time_s: Optional[float] = None,
           skip_rows: Optional[int] = None, rated: Optional[str] = None, join: Optional[str] = None,
@@ -301,14 +310,15 @@ def gains(trace: TraceArgument, *, force_constant: Union[float, str, None] = Non
 def simulate(trace: TraceArgument, result: Union[Result, Mapping[str, Any], PathLike],
              gains: Union[Gains, Mapping[str, Any], PathLike, None] = None, *,
              force_constant: Union[float, str, None] = None, kt_Nm_per_A: Optional[float] = None,
-             lead_mm: Optional[float] = None, gear_ratio: float = 1.0, velocity_loop: str = "auto",
-             feedforward: bool = False, velocity_difference: Optional[int] = None,
-             current_lag_ms: Optional[float] = None, saturation: Optional[float] = None, forgetting: float = 1.0,
-             substeps: int = 8, channels: Optional[Mapping[str, str]] = None,
+             lead_mm: Optional[float] = None, gear_ratio: float = _SIMULATE["gear_ratio"],
+             velocity_loop: str = _SIMULATE["velocity_loop"], feedforward: bool = _SIMULATE["feedforward"],
+             velocity_difference: Optional[int] = None, current_lag_ms: Optional[float] = None,
+             saturation: Optional[float] = None, forgetting: float = _SIMULATE["forgetting"],
+             substeps: int = _SIMULATE["substeps"], channels: Optional[Mapping[str, str]] = None,
              units: Optional[Mapping[str, str]] = None, axis: Optional[str] = None, format: Optional[str] = None,
              sample_time_s: Optional[float] = None, skip_rows: Optional[int] = None, rated: Optional[str] = None,
-             join: Optional[str] = None, join_max_shift_s: Optional[float] = None,
-             tare: Optional[Sequence[str]] = None, invert: Optional[Sequence[str]] = None) -> Simulation:
+             join: Optional[str] = None, join_max_shift_s: Optional[float] = None, tare: Optional[Sequence[str]] = None,
+             invert: Optional[Sequence[str]] = None) -> Simulation:
     """The identified axis in closed loop on the trace's reference, compared with the machine: ``feedid simulate``.
 
     Args:
@@ -341,10 +351,9 @@ def simulate(trace: TraceArgument, result: Union[Result, Mapping[str, Any], Path
     return _raise_failure(_native.simulate(trace, result, gains, options))
 
 
-def synth(drive: Union[Mapping[str, Any], PathLike, None] = None, *, rotary: bool = False,
-          preset: Optional[str] = None, seed: Optional[int] = None,
-          injection: Optional[Tuple[float, float]] = None, slow_passes: bool = True, reference: Any = None,
-          out: Optional[PathLike] = None) -> Trace:
+def synth(drive: Union[Mapping[str, Any], PathLike, None] = None, *, rotary: bool = False, preset: Optional[str] = None,
+          seed: Optional[int] = None, injection: Optional[Tuple[float, float]] = None,
+          slow_passes: bool = _SYNTH["slow_passes"], reference: Any = None, out: Optional[PathLike] = None) -> Trace:
     """The trace an NC would record for a known drive, controller and test: ``feedid synth``.
 
     Args:
@@ -387,15 +396,19 @@ def demo_drive(rotary: bool = False) -> dict:
     return _native.demo_drive(rotary)
 
 
-def plan(*, travel_mm: Union[Tuple[float, float], str], centers_mm: Sequence[float], axis: str = "X",
-         stroke_mm: float = 30.0, feeds_mm_per_min: Union[Sequence[float], str, None] = None,
-         slow_feeds_mm_per_min: Union[Sequence[float], str, None] = "10:1000:7", max_pass_time_s: float = 8.0,
-         cycles: int = 2, acceleration_m_per_s2: float = 1.0, jerk_m_per_s3: Optional[float] = None,
-         dwell_s: float = 0.2, sample_time_s: float = 0.001, max_feed_mm_per_min: Optional[float] = None,
-         positioning_feed_mm_per_min: float = 5000.0, start_mm: Optional[float] = None, mass_kg: float = 69.1,
-         viscous_Ns_per_m: float = 54.2, coulomb_N: float = 742.8, breakaway_N: float = 946.2,
-         stribeck_velocity_mm_per_s: float = 5.0, force_noise_N: float = 10.0, level_error_N: float = 5.0,
-         position_resolution_um: float = 1.0) -> Plan:
+def plan(*, travel_mm: Union[Tuple[float, float], str], centers_mm: Sequence[float], axis: str = _PLAN["axis"],
+         stroke_mm: float = _PLAN["stroke_mm"], feeds_mm_per_min: Union[Sequence[float], str, None] = None,
+         slow_feeds_mm_per_min: Union[Sequence[float], str, None] = _PLAN["slow_feeds_mm_per_min"],
+         max_pass_time_s: float = _PLAN["max_pass_time_s"], cycles: int = _PLAN["cycles"],
+         acceleration_m_per_s2: float = _PLAN["acceleration_m_per_s2"], jerk_m_per_s3: Optional[float] = None,
+         dwell_s: float = _PLAN["dwell_s"], sample_time_s: float = _PLAN["sample_time_s"],
+         max_feed_mm_per_min: Optional[float] = None,
+         positioning_feed_mm_per_min: float = _PLAN["positioning_feed_mm_per_min"], start_mm: Optional[float] = None,
+         mass_kg: float = _PLAN["mass_kg"], viscous_Ns_per_m: float = _PLAN["viscous_Ns_per_m"],
+         coulomb_N: float = _PLAN["coulomb_N"], breakaway_N: float = _PLAN["breakaway_N"],
+         stribeck_velocity_mm_per_s: float = _PLAN["stribeck_velocity_mm_per_s"],
+         force_noise_N: float = _PLAN["force_noise_N"], level_error_N: float = _PLAN["level_error_N"],
+         position_resolution_um: float = _PLAN["position_resolution_um"]) -> Plan:
     """Designs the axis test and predicts what its data will identify: ``feedid plan``.
 
     At each centre, back-and-forth strokes at every feedrate of the ladder, the slow Stribeck passes first (strokes

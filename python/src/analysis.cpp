@@ -6,8 +6,10 @@
 #include "feedid/core/error.hpp"
 #include "feedid/identify/gains.hpp"
 #include "feedid/identify/identify.hpp"
+#include "feedid/identify/option_names.hpp"
 #include "feedid/core/parameters.hpp"
 #include "feedid/identify/result_document.hpp"
+#include "feedid/io/json_input.hpp"
 #include "feedid/sim/simulate.hpp"
 #include "feedid/sim/twin.hpp"
 
@@ -27,7 +29,7 @@ DriveConstants drive_constants(const OptionReader& o, nlohmann::json& record) {
     const Range gear_range{allowed_gear_ratio.low, allowed_gear_ratio.high, "motor turns per screw turn"};
     drive.torque_constant_Nm_per_A = o.number("kt_Nm_per_A", kt_range);
     if (const auto lead = o.number("lead_mm", lead_range)) drive.lead_m = *lead * 1e-3;
-    drive.gear_ratio = o.number("gear_ratio", gear_range).value_or(1.0);
+    drive.gear_ratio = o.number("gear_ratio", gear_range).value_or(drive.gear_ratio);
     std::string force_constant;
     if (o.given("force_constant")) {
         const py::object value = o.object("force_constant");
@@ -50,27 +52,20 @@ DriveConstants drive_constants(const OptionReader& o, nlohmann::json& record) {
     return drive;
 }
 
-template <class Enum>
-Enum choice(const OptionReader& o, const char* name, std::initializer_list<std::pair<const char*, Enum>> choices) {
+/// The value named by option `name` (the command line's names, option_names.hpp); `fallback` when not given.
+template <class Enum, std::size_t N>
+Enum choice(const OptionReader& o, const char* name, Enum fallback, const std::array<NamedChoice<Enum>, N>& choices) {
     const auto text = o.text(name);
-    if (!text) return choices.begin()->second;
+    if (!text) return fallback;
+    if (const auto value = value_named(choices, *text)) return *value;
     std::string names;
-    for (const auto& [key, value] : choices) {
-        if (*text == key) return value;
-        names += fmt::format("{}'{}'", names.empty() ? "" : ", ", key);
-    }
+    for (const auto& key : names_of(choices)) names += fmt::format("{}'{}'", names.empty() ? "" : ", ", key);
     throw InputError(fmt::format("{}='{}': one of {}", name, *text, names));
 }
 
 void preprocess_options(const OptionReader& o, PreprocessOptions& p) {
-    p.differentiation = choice<Differentiation>(o, "differentiation",
-                                                {{"butterworth", Differentiation::butterworth},
-                                                 {"central", Differentiation::central},
-                                                 {"savitzky-golay", Differentiation::savitzky_golay}});
-    p.velocity_source = choice<VelocitySource>(o, "velocity_source",
-                                               {{"auto", VelocitySource::automatic},
-                                                {"position", VelocitySource::position},
-                                                {"velocity", VelocitySource::logged}});
+    p.differentiation = choice(o, "differentiation", p.differentiation, differentiation_names);
+    p.velocity_source = choice(o, "velocity_source", p.velocity_source, velocity_source_names);
     const auto integer = [&](const char* name, int fallback, Range range) {
         return static_cast<int>(o.integer(name, range).value_or(fallback));
     };
@@ -90,18 +85,16 @@ void preprocess_options(const OptionReader& o, PreprocessOptions& p) {
 /// the drive constants.
 IdentifyOptions identify_options(const OptionReader& o, nlohmann::json& drive_record) {
     IdentifyOptions options;
-    options.model = choice<FrictionModelKind>(
-        o, "model", {{"symmetric", FrictionModelKind::symmetric}, {"asymmetric", FrictionModelKind::asymmetric}});
-    options.offset = o.flag("offset").value_or(false);
-    options.stribeck = o.flag("stribeck").value_or(true);
-    options.systematic = o.flag("systematic").value_or(true);
-    options.threads = static_cast<unsigned>(o.integer("threads", {0, 1024, ""}).value_or(0));
+    options.model = choice(o, "model", options.model, friction_model_names);
+    options.offset = o.flag("offset").value_or(options.offset);
+    options.stribeck = o.flag("stribeck").value_or(options.stribeck);
+    options.systematic = o.flag("systematic").value_or(options.systematic);
+    if (const auto threads = o.integer("threads", {0, 1024, ""})) options.threads = static_cast<unsigned>(*threads);
     options.drive = drive_constants(o, drive_record);
     preprocess_options(o, options.preprocess);
     options.selection.split_velocity = o.number("split_velocity", {0.0, 1e4, "m/s or rad/s"});
     options.selection.moving_threshold = o.number("moving_threshold", {0.0, 1e4, "m/s or rad/s"});
-    options.step1.rls.variant =
-        choice<RlsVariant>(o, "rls", {{"directional", RlsVariant::directional}, {"paper", RlsVariant::exponential}});
+    options.step1.rls.variant = choice(o, "rls", options.step1.rls.variant, rls_variant_names);
     if (const auto lambda = o.number("forgetting_factor", {1e-6, 1.0, ""}))
         options.step1.rls.forgetting_factor = *lambda;
     if (const auto p0 = o.number("initial_covariance", {1e-12, 1e12, ""})) options.step1.rls.initial_covariance = *p0;
@@ -475,15 +468,12 @@ Example::
 // The gain options as given; the allowed ranges are the command line's (gain_arguments.hpp).
 GainOptions given_gain_options(const OptionReader& o) {
     GainOptions options;
-    options.velocity_loop = choice<VelocityLoopStructure>(o, "velocity_loop",
-                                                          {{"auto", VelocityLoopStructure::automatic},
-                                                           {"p", VelocityLoopStructure::p},
-                                                           {"pi", VelocityLoopStructure::pi}});
-    options.feedforward = o.flag("feedforward").value_or(false);
+    options.velocity_loop = choice(o, "velocity_loop", options.velocity_loop, velocity_loop_names);
+    options.feedforward = o.flag("feedforward").value_or(options.feedforward);
     if (const auto n = o.integer("velocity_difference", {1, 8, "samples"}))
         options.velocity_difference_samples = static_cast<int>(*n);
     if (const auto lag = o.number("current_lag_ms", {0.0, 1000.0, "ms"})) options.current_lag_s = *lag * 1e-3;
-    options.rls.forgetting_factor = o.number("forgetting", {1e-6, 1.0, ""}).value_or(1.0);
+    options.rls.forgetting_factor = o.number("forgetting", {1e-6, 1.0, ""}).value_or(options.rls.forgetting_factor);
     return options;
 }
 
@@ -569,12 +559,7 @@ Example::
 nlohmann::json document_argument(py::handle value, const char* name, std::string& source) {
     if (const auto path = as_path(value)) {
         source = *path;
-        const std::string text = read_file_bytes(*path);
-        try {
-            return nlohmann::json::parse(text);
-        } catch (const nlohmann::json::parse_error& e) {
-            throw InputError(fmt::format("{}: not a JSON document (byte {})", *path, e.byte));
-        }
+        return read_json_file(*path);  // the command line's reader, with its limits
     }
     source = name;
     if (py::isinstance<IdentifyResult>(value)) return nlohmann::json(value.cast<const IdentifyResult&>());
@@ -602,7 +587,8 @@ PySimulation simulate(py::handle trace_argument_object, py::handle result, py::h
     const Trace& trace = trace_argument(trace_argument_object, o, storage).trace;
     options.gains = given_gain_options(o);
     options.saturation = saturation_option(o);
-    options.simulation.substeps = static_cast<int>(o.integer("substeps", {1, 1000, "steps"}).value_or(8));
+    if (const auto substeps = o.integer("substeps", {1, 1000, "steps"}))
+        options.simulation.substeps = static_cast<int>(*substeps);
     PySimulation out;
     {
         py::gil_scoped_release release;

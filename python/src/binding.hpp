@@ -14,6 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "feedid/io/config_file.hpp"
 #include "feedid/io/import.hpp"
 #include "feedid/core/trace.hpp"
 
@@ -28,11 +29,7 @@ py::object to_python(const nlohmann::json& value);
 nlohmann::json to_json_value(py::handle value, const std::string& what);
 
 /// The values an option allows, as the command line states them (apps/feedid: allowed_range) [the option's unit].
-struct Range {
-    double low;
-    double high;
-    const char* unit;
-};
+using Range = ValueRange;
 
 /// The keyword arguments of one call, read by name with a type check: a wrong type is an InputError naming the
 /// option; None reads as "not given". No number may be nan or infinite; one with a Range must lie in it.
@@ -87,5 +84,6 @@ void bind_trace(py::module_& module);     // trace.cpp: Trace, read_trace, synth
 void bind_analysis(py::module_& module);  // analysis.cpp: identify and its Result, gains, simulate
 void bind_rls(py::module_& module);       // rls.cpp: Rls
 void bind_history(py::module_& module);   // history.cpp: History
+void bind_defaults(py::module_& module);  // defaults.cpp: defaults(), the keyword defaults of the functions
 
 }  // namespace feedid::python

@@ -9,6 +9,7 @@
 #include "feedid/history/trend.hpp"
 #include "feedid/identify/identify.hpp"
 #include "feedid/identify/result_document.hpp"
+#include "feedid/io/json_input.hpp"
 
 namespace feedid::python {
 
@@ -39,11 +40,7 @@ public:
             document = to_json_value(result, "result");
         } else if (const auto path = as_path(result)) {
             source = *path;
-            try {
-                document = nlohmann::json::parse(read_file_bytes(*path));
-            } catch (const nlohmann::json::parse_error& e) {
-                throw InputError(fmt::format("{}: not a JSON document (byte {})", *path, e.byte));
-            }
+            document = read_json_file(*path);  // the command line's reader, with its limits
         } else {
             throw InputError("History.record: expected a feedid.Result, its dict or the path of its JSON document");
         }

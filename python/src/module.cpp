@@ -108,10 +108,7 @@ std::optional<double> OptionReader::number(const char* name) const {
 }
 
 void check_range(const char* name, double value, const std::string& text, Range range) {
-    if (value >= range.low && value <= range.high) return;
-    const std::string unit = *range.unit ? std::string(" ") + range.unit : std::string();
-    throw InputError(
-        fmt::format("{}={} is outside the allowed range {:g} to {:g}{}", name, text, range.low, range.high, unit));
+    if (!range.contains(value)) throw InputError(fmt::format("{}={}", name, range.refusal(text)));
 }
 
 std::optional<double> OptionReader::number(const char* name, Range range) const {
@@ -336,4 +333,5 @@ PYBIND11_MODULE(_feedid, m) {
     feedid::python::bind_analysis(m);
     feedid::python::bind_rls(m);
     feedid::python::bind_history(m);
+    feedid::python::bind_defaults(m);
 }

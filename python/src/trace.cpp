@@ -78,8 +78,8 @@ void add_join_and_tare(const OptionReader& o, ImportOptions& options, nlohmann::
 ImportOptions import_options(const OptionReader& o, nlohmann::json& record) {
     ImportOptions options;
     add_roles(o, options, record);
-    options.axis = o.text("axis").value_or("");
-    options.format = o.text("format").value_or("");
+    options.axis = o.text("axis").value_or(options.axis);
+    options.format = o.text("format").value_or(options.format);
     record["axis"] = options.axis;
     record["format"] = options.format;
     add_join_and_tare(o, options, record);
@@ -89,9 +89,10 @@ ImportOptions import_options(const OptionReader& o, nlohmann::json& record) {
         options.skip_rows = static_cast<std::size_t>(*skip);
     if (const auto lead = o.number("lead_mm", {allowed_lead_m.low * 1e3, allowed_lead_m.high * 1e3, "mm"}))
         options.unit_context.lead_m = *lead * 1e-3;
+    // the drive's gear ratio, as the command line's reading takes it (cli.cpp, read_trace_for_drive)
     options.unit_context.gear_ratio =
         o.number("gear_ratio", {allowed_gear_ratio.low, allowed_gear_ratio.high, "motor turns per screw turn"})
-            .value_or(1.0);
+            .value_or(DriveConstants{}.gear_ratio);
     record["rated"] = nullptr;
     if (const auto rated = o.text("rated")) {
         const Rating rating = parse_rating(*rated);
@@ -474,15 +475,17 @@ void plan_feeds(const OptionReader& o, TestPlanOptions& options) {
     }
 }
 
+// An option not given keeps the library's default (default_plan_options, default_prediction_options).
 TestPlanOptions plan_options(const OptionReader& o) {
     TestPlanOptions options;
-    options.axis = o.text("axis").value_or("X");
+    options.axis = o.text("axis").value_or(options.axis);
     // The keywords name mm and mm/min; a rotary axis's test is planned in degrees by the command line.
     if (is_rotary_axis(options.axis))
         throw InputError(
             fmt::format("axis '{}' is a rotary axis: feedid.plan takes mm and mm/min (travel_mm, ...); "
                         "plan it with `feedid plan --axis {}` (degrees, deg/min)",
                         options.axis, options.axis));
+    options = default_plan_options(options.axis);
     const py::object travel = o.object("travel_mm");
     if (py::isinstance<py::str>(travel)) {
         std::tie(options.travel_min, options.travel_max) = parse_travel(travel.cast<std::string>());
@@ -493,32 +496,35 @@ TestPlanOptions plan_options(const OptionReader& o) {
         options.travel_max = limits[1];
     }
     options.centers = numbers_times(o.object("centers_mm"), "centers_mm", mm, position_range);
-    options.stroke = o.number("stroke_mm", {0.01, 1e5, "mm"}).value_or(30.0) * mm;
+    if (const auto stroke = o.number("stroke_mm", {0.01, 1e5, "mm"})) options.stroke = *stroke * mm;
     plan_feeds(o, options);
-    options.max_pass_time = o.number("max_pass_time_s", {0.01, 3600.0, "s"}).value_or(8.0);
-    options.cycles = static_cast<int>(o.integer("cycles", {1, 100, "cycles"}).value_or(2));
-    options.acceleration = o.number("acceleration_m_per_s2", {1e-3, 1e6, "m/s^2"}).value_or(1.0);
+    options.max_pass_time = o.number("max_pass_time_s", {0.01, 3600.0, "s"}).value_or(options.max_pass_time);
+    if (const auto cycles = o.integer("cycles", {1, 100, "cycles"})) options.cycles = static_cast<int>(*cycles);
+    options.acceleration = o.number("acceleration_m_per_s2", {1e-3, 1e6, "m/s^2"}).value_or(options.acceleration);
     options.jerk = o.number("jerk_m_per_s3", {1e-3, 1e9, "m/s^3"});
-    options.dwell = o.number("dwell_s", {0.0, 60.0, "s"}).value_or(0.2);
-    options.sample_time = o.number("sample_time_s", {1e-6, 1.0, "s"}).value_or(0.001);
+    options.dwell = o.number("dwell_s", {0.0, 60.0, "s"}).value_or(options.dwell);
+    options.sample_time = o.number("sample_time_s", {1e-6, 1.0, "s"}).value_or(options.sample_time);
     if (const auto feed = o.number("max_feed_mm_per_min", feed_range)) options.max_feed = *feed * mm_per_min;
-    options.positioning_feed = o.number("positioning_feed_mm_per_min", feed_range).value_or(5000.0) * mm_per_min;
+    if (const auto feed = o.number("positioning_feed_mm_per_min", feed_range))
+        options.positioning_feed = *feed * mm_per_min;
     if (const auto start = o.number("start_mm", position_range)) options.start_position = *start * mm;
     return options;
 }
 
 PredictionOptions prediction_options(const OptionReader& o) {
-    PredictionOptions nominal;
-    FrictionBranch branch;
-    branch.viscous = o.number("viscous_Ns_per_m", {0.0, 1e7, "N*s/m"}).value_or(54.2);
-    branch.coulomb = o.number("coulomb_N", {0.0, 1e7, "N"}).value_or(742.8);
-    branch.breakaway = o.number("breakaway_N", {0.0, 1e7, "N"}).value_or(946.2);
-    branch.stribeck_velocity = o.number("stribeck_velocity_mm_per_s", {1e-6, 1e4, "mm/s"}).value_or(5.0) * mm;
-    nominal.drive.mass = o.number("mass_kg", {1e-6, 1e6, "kg"}).value_or(69.1);
+    PredictionOptions nominal = default_prediction_options(false);
+    FrictionBranch branch = nominal.drive.friction.forward;
+    branch.viscous = o.number("viscous_Ns_per_m", {0.0, 1e7, "N*s/m"}).value_or(branch.viscous);
+    branch.coulomb = o.number("coulomb_N", {0.0, 1e7, "N"}).value_or(branch.coulomb);
+    if (const auto breakaway = o.number("breakaway_N", {0.0, 1e7, "N"})) branch.breakaway = *breakaway;
+    if (const auto speed = o.number("stribeck_velocity_mm_per_s", {1e-6, 1e4, "mm/s"}))
+        branch.stribeck_velocity = *speed * mm;
+    nominal.drive.mass = o.number("mass_kg", {1e-6, 1e6, "kg"}).value_or(nominal.drive.mass);
     nominal.drive.friction = Friction::symmetric(branch);
-    nominal.force_noise = o.number("force_noise_N", {1e-9, 1e9, "N"}).value_or(10.0);
-    nominal.level_error = o.number("level_error_N", {1e-9, 1e9, "N"}).value_or(5.0);
-    nominal.position_resolution = o.number("position_resolution_um", {1e-6, 1e4, "um"}).value_or(1.0) * 1e-6;
+    nominal.force_noise = o.number("force_noise_N", {1e-9, 1e9, "N"}).value_or(nominal.force_noise);
+    nominal.level_error = o.number("level_error_N", {1e-9, 1e9, "N"}).value_or(nominal.level_error);
+    if (const auto resolution = o.number("position_resolution_um", {1e-6, 1e4, "um"}))
+        nominal.position_resolution = *resolution * 1e-6;
     return nominal;
 }
 

@@ -194,9 +194,7 @@ Json read_json_file(const std::string& path, const JsonLimits& limits) {
 
 // ---- JsonField
 
-namespace {
-
-const char* type_name(const Json& value) {
+const char* json_type_name(const Json& value) {
     switch (value.type()) {
         case Json::value_t::null: return "null";
         case Json::value_t::object: return "an object";
@@ -209,6 +207,8 @@ const char* type_name(const Json& value) {
     }
 }
 
+namespace {
+
 std::string member_path(const std::string& parent, const std::string& key) {
     return parent.empty() ? key : parent + "." + key;
 }
@@ -217,7 +217,7 @@ std::string member_path(const std::string& parent, const std::string& key) {
 
 void JsonField::wrong(const std::string& expected) const {
     throw InputError(
-        fmt::format("{}: must be {}, not {}", path_.empty() ? "the document" : path_, expected, type_name(*value_)));
+        fmt::format("{}: must be {}, not {}", path_.empty() ? "the document" : path_, expected, json_type_name(*value_)));
 }
 
 bool JsonField::has(const std::string& key) const {

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <numbers>
 #include <system_error>
 
 #include <fmt/core.h>
@@ -14,8 +15,9 @@
 #include "feedid/core/error.hpp"
 #include "feedid/core/parameters.hpp"
 #include "feedid/model/demo_drives.hpp"
+#include "feedid/plan/motion_profile.hpp"
 #include "feedid/core/version.hpp"
-#include "motion_profile.hpp"
+#include "timeline.hpp"
 
 namespace feedid {
 
@@ -115,7 +117,7 @@ std::string describe_center(int index, double position, const PlanUnits& units) 
 }  // namespace
 
 double move_duration(double distance, double feed, double acceleration, std::optional<double> jerk) {
-    return detail::make_profile(std::abs(distance), feed, acceleration, jerk).duration;
+    return MotionProfile::rest_to_rest(std::abs(distance), feed, acceleration, jerk).duration;
 }
 
 bool is_rotary_axis(std::string_view axis) {
@@ -204,18 +206,33 @@ AxisModel nominal_demo_drive(bool rotary) {
     return demo_drive(rotary).axis;
 }
 
+PredictionOptions default_prediction_options(bool rotary) {
+    PredictionOptions options;
+    if (!rotary) return options;
+    // The rotary demo table's current noise 0.02 A through 2 N*m/A; its level error, as the linear drive's, 0.67 % of
+    // F_C; an encoder of 1 millidegree.
+    constexpr double torque_noise_Nm = 0.04;
+    constexpr double level_error_Nm = 0.135;
+    constexpr double resolution_deg = 1e-3;
+    options.drive = nominal_demo_drive(true);
+    options.force_noise = torque_noise_Nm;
+    options.level_error = level_error_Nm;
+    options.position_resolution = resolution_deg * std::numbers::pi / 180.0;
+    return options;
+}
+
 TestPlanOptions default_plan_options(const std::string& axis) {
     TestPlanOptions options;
     options.axis = axis;
     const PlanUnits units = options.units();
     if (!units.rotary) return options;
-    // every length and feed of the linear defaults, read in degrees instead of mm
-    const PlanUnits linear;
-    const double scale = units.length() / linear.length();
-    options.stroke *= scale;
-    for (auto* feeds : {&options.feeds, &options.slow_feeds})
-        for (double& feed : *feeds) feed *= scale;
-    options.positioning_feed *= scale;
+    // every length and feed of the linear defaults, the same numbers in degrees instead of mm
+    options.stroke = TestPlanOptions::default_stroke * units.length();
+    options.feeds = paper_feed_ladder(units);
+    options.slow_feeds = log_spaced_feeds(TestPlanOptions::default_slowest_feed * units.feed(),
+                                          TestPlanOptions::default_fastest_slow_feed * units.feed(),
+                                          TestPlanOptions::default_slow_feed_count, units);
+    options.positioning_feed = TestPlanOptions::default_positioning_feed * units.feed();
     options.acceleration *= 1000.0 * units.acceleration();  // 1 m/s^2 = 1000 mm/s^2 -> 1000 deg/s^2
     return options;
 }
@@ -350,7 +367,7 @@ void append_pass_moves(TestPlan& plan, const Pass& pass, double positioning_feed
 
 // The pass's duration and time at constant feedrate, with a note when its strokes never reach the feedrate.
 void time_pass(const TestPlanOptions& options, Pass& pass, std::vector<std::string>& notes) {
-    const auto profile = detail::make_profile(pass.stroke, pass.feed, options.acceleration, options.jerk);
+    const auto profile = MotionProfile::rest_to_rest(pass.stroke, pass.feed, options.acceleration, options.jerk);
     pass.duration = 2.0 * options.cycles * (profile.duration + options.dwell);
     pass.cruise_time = 2.0 * options.cycles * profile.cruise_time;
     if (profile.cruise_time <= 0.0) {

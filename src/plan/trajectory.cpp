@@ -8,81 +8,18 @@
 #include <fmt/core.h>
 
 #include "feedid/core/error.hpp"
+#include "feedid/plan/motion_profile.hpp"
 
 namespace feedid {
 
 namespace {
 
-// Bisection steps for the peak speed of a move too short to reach its speed limit: 2^-100 of the limit.
-constexpr int peak_speed_iterations = 100;
 // A move shorter than this is no move [m] (a rounding remainder of a program's coordinates).
 constexpr double shortest_move_m = 1e-12;
 // Sweeps within this of zero are full circles [rad] (LinuxCNC: an arc that ends where it starts turns once).
 constexpr double full_circle_tolerance_rad = 1e-9;
 
-// Acceleration phase of a rest-to-`speed` S-curve under a and j: (jerk phase, constant-acceleration phase) [s].
-std::pair<double, double> acceleration_phases(double speed, double acceleration, double jerk) {
-    if (speed * jerk >= acceleration * acceleration) {
-        const double jerk_time = acceleration / jerk;
-        return {jerk_time, speed / acceleration - jerk_time};
-    }
-    return {std::sqrt(speed / jerk), 0.0};
-}
-
-// Distance covered while accelerating from rest to `speed`: the speed profile is point-symmetric about its middle.
-double acceleration_distance(double speed, double acceleration, double jerk) {
-    const auto [tj, tc] = acceleration_phases(speed, acceleration, jerk);
-    return 0.5 * speed * (2.0 * tj + tc);
-}
-
-// Distance from rest after time t of the acceleration phase (jerk up, constant acceleration, jerk down).
-double accelerating_distance(const SCurve& c, double t) {
-    const double j = c.jerk, tj = c.jerk_time, tc = c.constant_accel_time;
-    const double a = j * tj;
-    if (t <= tj) return j * t * t * t / 6.0;
-    const double s1 = j * tj * tj * tj / 6.0, v1 = 0.5 * j * tj * tj;
-    if (t <= tj + tc) {
-        const double tau = t - tj;
-        return s1 + v1 * tau + 0.5 * a * tau * tau;
-    }
-    const double s2 = s1 + v1 * tc + 0.5 * a * tc * tc, v2 = v1 + a * tc;
-    const double tau = std::min(t - tj - tc, tj);
-    return s2 + v2 * tau + 0.5 * a * tau * tau - j * tau * tau * tau / 6.0;
-}
-
 }  // namespace
-
-SCurve plan_s_curve(double length, double velocity, double acceleration, double jerk) {
-    SCurve c;
-    c.length = length;
-    c.jerk = jerk;
-    if (!(length > 0.0)) return c;
-    double speed = velocity;
-    if (2.0 * acceleration_distance(speed, acceleration, jerk) > length) {
-        double low = 0.0, high = velocity;
-        for (int k = 0; k < peak_speed_iterations; ++k) {
-            const double middle = 0.5 * (low + high);
-            (2.0 * acceleration_distance(middle, acceleration, jerk) > length ? high : low) = middle;
-        }
-        speed = low;
-    }
-    const auto [tj, tc] = acceleration_phases(speed, acceleration, jerk);
-    c.jerk_time = tj;
-    c.constant_accel_time = tc;
-    c.peak_speed = speed;
-    c.cruise_time = std::max(0.0, (length - 2.0 * acceleration_distance(speed, acceleration, jerk)) / speed);
-    return c;
-}
-
-double SCurve::distance(double t) const {
-    const double ramp = 2.0 * jerk_time + constant_accel_time;
-    if (t <= 0.0) return 0.0;
-    if (t >= duration()) return length;
-    if (t <= ramp) return accelerating_distance(*this, t);
-    if (t <= ramp + cruise_time) return accelerating_distance(*this, ramp) + peak_speed * (t - ramp);
-    // the deceleration is the acceleration backwards in time
-    return length - accelerating_distance(*this, duration() - t);
-}
 
 std::string MachineLimits::validate() const {
     for (int axis = 0; axis < 3; ++axis) {
@@ -218,17 +155,18 @@ Trajectory plan_trajectory(const GcodeProgram& program, const MachineLimits& lim
         const auto& block = program.blocks[b];
         double duration = block.dwell_s;
         PathSegment segment;
-        SCurve curve;
+        MotionProfile curve;
         if (block.kind != BlockKind::dwell) {
             segment = segment_of(block, limits);
             if (segment.length <= shortest_move_m) continue;
-            curve = plan_s_curve(segment.length, segment.speed, segment.acceleration, segment.jerk);
-            duration = curve.duration();
+            curve = MotionProfile::rest_to_rest(segment.length, segment.speed, segment.acceleration, segment.jerk);
+            duration = curve.duration;
         }
         const double end = block_start + duration;
         for (; static_cast<double>(k) * dt < end; ++k) {
             const double tau = static_cast<double>(k) * dt - block_start;
-            const auto p = block.kind == BlockKind::dwell ? block.end : point_at(block, segment, curve.distance(tau));
+            const auto p =
+                block.kind == BlockKind::dwell ? block.end : point_at(block, segment, curve.at(tau).position);
             push_sample(out, block, b, p, limits.stock_top_m);
         }
         block_start = end;

@@ -6,12 +6,11 @@
 #include <random>
 
 #include <fmt/core.h>
-#include <toml++/toml.h>
 
 #include "feedid/model/controller.hpp"
 #include "feedid/core/error.hpp"
+#include "feedid/io/config_file.hpp"
 #include "feedid/io/import.hpp"
-#include "feedid/io/json_input.hpp"
 
 namespace feedid {
 
@@ -237,126 +236,63 @@ Trace synthesize_production(const GcodeProgram& program, const MachineSpec& mach
 
 namespace {
 
-// Known keys of a machine-file section; InputError naming the file and the key for any other.
-void reject_unknown(const nlohmann::json& object, const std::string& path, std::initializer_list<std::string_view> keys,
-                    const std::string& source) {
-    if (!object.is_object()) throw InputError(fmt::format("{}: '{}' must be an object", source, path));
-    for (const auto& [key, value] : object.items()) {
-        if (std::find(keys.begin(), keys.end(), key) == keys.end())
-            throw InputError(fmt::format("{}: unknown key '{}.{}'", source, path, key));
-    }
-}
-
-// The number at object[key] times `scale` into `target` when present.
-void read_number(const nlohmann::json& object, const std::string& path, const char* key, double scale, double& target,
-                 const std::string& source) {
-    if (!object.contains(key) || object[key].is_null()) return;
-    if (!object[key].is_number() || !std::isfinite(object[key].get<double>()))
-        throw InputError(fmt::format("{}: {}.{} must be a number", source, path, key));
-    target = object[key].get<double>() * scale;
-}
-
-void read_limits(const nlohmann::json& object, const std::string& source, MachineLimits& limits) {
-    reject_unknown(object, "limits",
-                   {"rapid_mm_per_min", "max_feed_mm_per_min", "stock_top_mm", "sample_time_ms", "X", "Y", "Z"},
-                   source);
-    read_number(object, "limits", "rapid_mm_per_min", 1.0 / 60000.0, limits.rapid_m_per_s, source);
-    read_number(object, "limits", "max_feed_mm_per_min", 1.0 / 60000.0, limits.max_feed_m_per_s, source);
-    read_number(object, "limits", "stock_top_mm", 1e-3, limits.stock_top_m, source);
-    read_number(object, "limits", "sample_time_ms", 1e-3, limits.sample_time_s, source);
+void read_limits(ConfigSection& top, MachineLimits& limits) {
+    auto section = top.section("limits");
+    if (!section) return;
+    section->read("rapid_mm_per_min", limits.rapid_m_per_s, 1.0 / 60000.0);
+    section->read("max_feed_mm_per_min", limits.max_feed_m_per_s, 1.0 / 60000.0);
+    section->read("stock_top_mm", limits.stock_top_m, 1e-3);
+    section->read("sample_time_ms", limits.sample_time_s, 1e-3);
     for (std::size_t i = 0; i < 3; ++i) {
-        if (!object.contains(axis_names[i])) continue;
-        const std::string path = std::string("limits.") + axis_names[i];
-        const auto& axis = object[axis_names[i]];
-        reject_unknown(axis, path, {"velocity_mm_per_min", "acceleration_m_per_s2", "jerk_m_per_s3"}, source);
+        auto axis = section->section(axis_names[i]);
+        if (!axis) continue;
         auto& a = limits.axes[i];
-        read_number(axis, path, "velocity_mm_per_min", 1.0 / 60000.0, a.velocity_m_per_s, source);
-        read_number(axis, path, "acceleration_m_per_s2", 1.0, a.acceleration_m_per_s2, source);
-        read_number(axis, path, "jerk_m_per_s3", 1.0, a.jerk_m_per_s3, source);
+        axis->read("velocity_mm_per_min", a.velocity_m_per_s, 1.0 / 60000.0);
+        axis->read("acceleration_m_per_s2", a.acceleration_m_per_s2);
+        axis->read("jerk_m_per_s3", a.jerk_m_per_s3);
+        axis->reject_unknown();
     }
+    section->reject_unknown();
 }
 
-void read_cutting(const nlohmann::json& object, const std::string& source, CuttingModel& cutting) {
-    reject_unknown(object, "cutting",
-                   {"teeth", "tool_diameter_mm", "radial_ratio", "axial_ratio", "harmonics", "noise_fraction",
-                    "spindle_power_kW", "spindle_load_noise_pct"},
-                   source);
-    double teeth = cutting.teeth;
-    read_number(object, "cutting", "teeth", 1.0, teeth, source);
-    cutting.teeth = static_cast<int>(std::lround(teeth));
-    read_number(object, "cutting", "tool_diameter_mm", 1e-3, cutting.tool_diameter_m, source);
-    read_number(object, "cutting", "radial_ratio", 1.0, cutting.radial_ratio, source);
-    read_number(object, "cutting", "axial_ratio", 1.0, cutting.axial_ratio, source);
-    read_number(object, "cutting", "noise_fraction", 1.0, cutting.noise_fraction, source);
-    read_number(object, "cutting", "spindle_power_kW", 1e3, cutting.spindle_power_W, source);
-    read_number(object, "cutting", "spindle_load_noise_pct", 1.0, cutting.spindle_load_noise_pct, source);
-    if (object.contains("harmonics")) {
-        const auto& list = object["harmonics"];
-        if (!list.is_array()) throw InputError(fmt::format("{}: cutting.harmonics must be a list of numbers", source));
-        cutting.harmonics.clear();
-        for (const auto& item : list) {
-            if (!item.is_number())
-                throw InputError(fmt::format("{}: cutting.harmonics must be a list of numbers", source));
-            cutting.harmonics.push_back(item.get<double>());
-        }
-    }
+void read_cutting(ConfigSection& top, CuttingModel& cutting) {
+    auto section = top.section("cutting");
+    if (!section) return;
+    if (const auto teeth = section->number("teeth")) cutting.teeth = static_cast<int>(std::lround(*teeth));
+    section->read("tool_diameter_mm", cutting.tool_diameter_m, 1e-3);
+    section->read("radial_ratio", cutting.radial_ratio);
+    section->read("axial_ratio", cutting.axial_ratio);
+    section->read("noise_fraction", cutting.noise_fraction);
+    section->read("spindle_power_kW", cutting.spindle_power_W, 1e3);
+    section->read("spindle_load_noise_pct", cutting.spindle_load_noise_pct);
+    if (auto harmonics = section->numbers("harmonics")) cutting.harmonics = std::move(*harmonics);
+    section->reject_unknown();
 }
 
 }  // namespace
 
 MachineSpec machine_from_json(const nlohmann::json& document, const std::string& source) {
     MachineSpec machine = default_machine();
-    reject_unknown(document, "(top)", {"limits", "axes", "cutting", "description", "$schema"}, source);
-    if (document.contains("limits")) read_limits(document["limits"], source, machine.limits);
+    ConfigSection top(document, source);
+    read_limits(top, machine.limits);
     for (auto& drive : machine.drives) drive.sensors.sample_time_s = machine.limits.sample_time_s;
-    if (document.contains("axes")) {
-        const auto& axes = document["axes"];
-        reject_unknown(axes, "axes", {"X", "Y", "Z"}, source);
+    if (auto axes = top.section("axes")) {
         for (std::size_t i = 0; i < 3; ++i) {
-            if (axes.contains(axis_names[i]))
-                machine.drives[i] = spec_from_json(
-                    axes[axis_names[i]], fmt::format("{} (axes.{})", source, axis_names[i]), machine.drives[i]);
+            if (auto axis = axes->section(axis_names[i]))
+                machine.drives[i] = spec_from_config(*axis, machine.drives[i]);
         }
+        axes->reject_unknown();
     }
-    if (document.contains("cutting")) read_cutting(document["cutting"], source, machine.cutting);
+    read_cutting(top, machine.cutting);
+    top.accept("description");
+    top.accept("$schema");
+    top.reject_unknown();
     if (auto problem = machine.validate(); !problem.empty()) throw InputError(fmt::format("{}: {}", source, problem));
     return machine;
 }
 
-namespace {
-
-// TOML as JSON (tables as objects), so that one reader checks both formats' keys.
-nlohmann::json toml_to_json(const toml::node& node) {
-    if (const auto* table = node.as_table()) {
-        nlohmann::json object = nlohmann::json::object();
-        for (const auto& [key, value] : *table) object[std::string(key.str())] = toml_to_json(value);
-        return object;
-    }
-    if (const auto* array = node.as_array()) {
-        nlohmann::json list = nlohmann::json::array();
-        for (const auto& item : *array) list.push_back(toml_to_json(item));
-        return list;
-    }
-    if (const auto* integer = node.as_integer()) return integer->get();
-    if (const auto* floating = node.as_floating_point()) return floating->get();
-    if (const auto* boolean = node.as_boolean()) return boolean->get();
-    if (const auto* text = node.as_string()) return text->get();
-    return nullptr;
-}
-
-}  // namespace
-
 MachineSpec read_machine(const std::filesystem::path& path) {
-    const std::string text = read_file_bytes(path);
-    if (path.extension() == ".toml") {
-        try {
-            return machine_from_json(toml_to_json(toml::parse(text, path.string())), path.string());
-        } catch (const toml::parse_error& e) {
-            throw InputError(
-                fmt::format("{}:{}: not valid TOML: {}", path.string(), e.source().begin.line, e.description()));
-        }
-    }
-    return machine_from_json(parse_json(text, path.string()), path.string());
+    return machine_from_json(read_config_file(path), path.string());
 }
 
 }  // namespace feedid

@@ -9,10 +9,10 @@
 #include <span>
 
 #include <fmt/core.h>
-#include <toml++/toml.h>
 
 #include "feedid/core/error.hpp"
 #include "feedid/core/parameters.hpp"
+#include "feedid/io/config_file.hpp"
 #include "feedid/io/import.hpp"
 #include "feedid/io/json_input.hpp"
 #include "feedid/core/units.hpp"
@@ -192,169 +192,111 @@ void apply_sinumerik_recording(SynthSpec& spec) {
 
 namespace {
 
-// Walks a JSON object, taking known keys and rejecting unknown ones (a typo must not pass silently).
-class Section {
-public:
-    Section(const nlohmann::json& object, std::string path, std::string source)
-        : object_(object), path_(std::move(path)), source_(std::move(source)) {
-        if (!object_.is_object()) throw InputError(fmt::format("{}: '{}' must be an object", source_, path_));
-    }
-    ~Section() = default;
-    Section(const Section&) = delete;
-    Section& operator=(const Section&) = delete;
-
-    bool has(const std::string& key) const { return object_.contains(key) && !object_[key].is_null(); }
-
-    std::optional<double> number(const std::string& key) {
-        known_.insert(key);
-        if (!has(key)) return std::nullopt;
-        const auto& value = object_[key];
-        if (!value.is_number() || !std::isfinite(value.get<double>())) {
-            throw InputError(fmt::format("{}: {}.{} must be a number", source_, path_, key));
-        }
-        return value.get<double>();
-    }
-    std::optional<bool> boolean(const std::string& key) {
-        known_.insert(key);
-        if (!has(key)) return std::nullopt;
-        if (!object_[key].is_boolean())
-            throw InputError(fmt::format("{}: {}.{} must be true or false", source_, path_, key));
-        return object_[key].get<bool>();
-    }
-    std::optional<std::string> text(const std::string& key) {
-        known_.insert(key);
-        if (!has(key)) return std::nullopt;
-        if (!object_[key].is_string()) throw InputError(fmt::format("{}: {}.{} must be a text", source_, path_, key));
-        return object_[key].get<std::string>();
-    }
-    std::optional<std::vector<double>> numbers(const std::string& key) {
-        known_.insert(key);
-        if (!has(key)) return std::nullopt;
-        const auto& value = object_[key];
-        if (!value.is_array())
-            throw InputError(fmt::format("{}: {}.{} must be a list of numbers", source_, path_, key));
-        std::vector<double> out;
-        for (const auto& item : value) {
-            if (!item.is_number())
-                throw InputError(fmt::format("{}: {}.{} must be a list of numbers", source_, path_, key));
-            out.push_back(item.get<double>());
-        }
-        return out;
-    }
-    void accept(const std::string& key) { known_.insert(key); }
-    void reject_unknown() const {
-        for (const auto& [key, value] : object_.items()) {
-            if (!known_.contains(key)) {
-                throw InputError(
-                    fmt::format("{}: unknown key '{}{}{}'", source_, path_, path_.empty() ? "" : ".", key));
-            }
-        }
-    }
-
-private:
-    const nlohmann::json& object_;
-    std::string path_;
-    std::string source_;
-    std::set<std::string> known_;
-};
-
 // axis: the friction and mass keys axis_from_document reads, and no other.
-void read_axis(const nlohmann::json& axis, const std::string& source, SynthSpec& spec) {
-    spec.axis = axis_from_document(axis, source);
-    for (const auto& [key, value] : axis.items()) {
-        if (key != "rotary" && !parse_parameter_key(key))
-            throw InputError(fmt::format("{}: unknown key 'axis.{}'", source, key));
+void read_axis(ConfigSection& top, SynthSpec& spec) {
+    auto axis = top.section("axis");
+    if (!axis) return;
+    const std::string where = top.path().empty() ? top.source() : fmt::format("{} ({})", top.source(), top.path());
+    spec.axis = axis_from_document(axis->json(), where);
+    // the parameter keys (core/parameters.hpp), and no other
+    for (const auto& key : axis->keys()) {
+        if (key == "rotary" || parse_parameter_key(key)) axis->accept(key);
     }
+    axis->reject_unknown();
 }
 
 // controller: gains in SI or NC units (K_v in (m/min)/mm, T_n in ms), cycles and lags in ms; saturation_N null
 // removes the limit.
-void read_controller(const nlohmann::json& object, const std::string& source, ControllerModel& model) {
-    Section c(object, "controller", source);
-    if (const auto v = c.number("position_gain_per_s")) model.position_gain_per_s = *v;
-    if (const auto v = c.number("kv_m_per_min_per_mm")) model.position_gain_per_s = position_gain_from_kv(*v);
-    if (const auto v = c.number("velocity_gain_N_s_per_m")) model.velocity_gain_N_s_per_m = *v;
-    if (const auto v = c.number("velocity_integral_gain_N_per_m")) model.velocity_integral_gain_N_per_m = *v;
-    if (const auto v = c.number("tn_ms")) {
+void read_controller(ConfigSection& top, ControllerModel& model) {
+    auto c = top.section("controller");
+    if (!c) return;
+    c->read("position_gain_per_s", model.position_gain_per_s);
+    if (const auto v = c->number("kv_m_per_min_per_mm")) model.position_gain_per_s = position_gain_from_kv(*v);
+    c->read("velocity_gain_N_s_per_m", model.velocity_gain_N_s_per_m);
+    c->read("velocity_integral_gain_N_per_m", model.velocity_integral_gain_N_per_m);
+    if (const auto v = c->number("tn_ms")) {
         model.velocity_integral_gain_N_per_m = *v > 0.0 ? model.velocity_gain_N_s_per_m / (*v * 1e-3) : 0.0;
     }
-    if (const auto v = c.number("velocity_feedforward")) model.velocity_feedforward = *v;
-    if (c.has("saturation_N"))
-        model.saturation_N = c.number("saturation_N");
-    else if (object.contains("saturation_N"))
+    c->read("velocity_feedforward", model.velocity_feedforward);
+    if (c->is_null("saturation_N"))
         model.saturation_N.reset();
-    c.accept("saturation_N");
-    if (const auto v = c.number("current_lag_ms")) model.current_lag_s = *v * 1e-3;
-    if (const auto v = c.number("position_cycle_ms")) model.position_cycle_s = *v * 1e-3;
-    if (const auto v = c.number("velocity_cycle_ms")) model.velocity_cycle_s = *v * 1e-3;
-    if (const auto v = c.number("velocity_difference_samples"))
+    else if (const auto v = c->number("saturation_N"))
+        model.saturation_N = *v;
+    c->accept("saturation_N");
+    c->read("current_lag_ms", model.current_lag_s, 1e-3);
+    c->read("position_cycle_ms", model.position_cycle_s, 1e-3);
+    c->read("velocity_cycle_ms", model.velocity_cycle_s, 1e-3);
+    if (const auto v = c->number("velocity_difference_samples"))
         model.velocity_difference_samples = static_cast<int>(std::lround(*v));
-    c.reject_unknown();
+    c->reject_unknown();
 }
 
-void read_drive(const nlohmann::json& object, const std::string& source, SynthSpec& spec) {
-    Section d(object, "drive", source);
-    if (const auto v = d.number("kt_Nm_per_A")) spec.kt_Nm_per_A = *v;
-    if (const auto v = d.number("lead_mm")) spec.lead_m = *v * 1e-3;
-    if (const auto v = d.number("gear_ratio")) spec.gear_ratio = *v;
-    d.reject_unknown();
+void read_drive(ConfigSection& top, SynthSpec& spec) {
+    auto d = top.section("drive");
+    if (!d) return;
+    d->read("kt_Nm_per_A", spec.kt_Nm_per_A);
+    d->read("lead_mm", spec.lead_m, 1e-3);
+    d->read("gear_ratio", spec.gear_ratio);
+    d->reject_unknown();
 }
 
-void read_sensors(const nlohmann::json& object, const std::string& source, SensorModel& sensors) {
-    Section s(object, "sensors", source);
-    if (const auto v = s.number("sample_time_ms")) sensors.sample_time_s = *v * 1e-3;
-    if (const auto v = s.number("jitter_us")) sensors.jitter_s = *v * 1e-6;
-    if (const auto v = s.number("position_resolution_um")) sensors.position_resolution_m = *v * 1e-6;
-    if (const auto v = s.number("current_noise_A")) sensors.current_noise_A = *v;
-    if (const auto v = s.number("current_resolution_A")) sensors.current_resolution_A = *v;
-    if (const auto v = s.number("substeps")) sensors.substeps = static_cast<int>(std::lround(*v));
-    s.reject_unknown();
+void read_sensors(ConfigSection& top, SensorModel& sensors) {
+    auto s = top.section("sensors");
+    if (!s) return;
+    s->read("sample_time_ms", sensors.sample_time_s, 1e-3);
+    s->read("jitter_us", sensors.jitter_s, 1e-6);
+    s->read("position_resolution_um", sensors.position_resolution_m, 1e-6);
+    s->read("current_noise_A", sensors.current_noise_A);
+    s->read("current_resolution_A", sensors.current_resolution_A);
+    if (const auto v = s->number("substeps")) sensors.substeps = static_cast<int>(std::lround(*v));
+    s->reject_unknown();
 }
 
 // recording: each signal group's interval in ms (0 = every sample), which signals are logged, the units written.
-void read_recording(const nlohmann::json& object, const std::string& source, RecordingModel& recording) {
-    Section r(object, "recording", source);
-    if (const auto v = r.number("position_interval_ms")) recording.position_interval_s = *v * 1e-3;
-    if (const auto v = r.number("velocity_interval_ms")) recording.velocity_interval_s = *v * 1e-3;
-    if (const auto v = r.number("drive_interval_ms")) recording.drive_interval_s = *v * 1e-3;
-    if (const auto v = r.boolean("log_velocity")) recording.log_velocity = *v;
-    if (const auto v = r.boolean("log_torque")) recording.log_torque = *v;
-    if (auto v = r.text("position_unit")) recording.position_unit = std::move(*v);
-    if (auto v = r.text("velocity_unit")) recording.velocity_unit = std::move(*v);
-    r.reject_unknown();
+void read_recording(ConfigSection& top, RecordingModel& recording) {
+    auto r = top.section("recording");
+    if (!r) return;
+    r->read("position_interval_ms", recording.position_interval_s, 1e-3);
+    r->read("velocity_interval_ms", recording.velocity_interval_s, 1e-3);
+    r->read("drive_interval_ms", recording.drive_interval_s, 1e-3);
+    if (const auto v = r->boolean("log_velocity")) recording.log_velocity = *v;
+    if (const auto v = r->boolean("log_torque")) recording.log_torque = *v;
+    if (auto v = r->text("position_unit")) recording.position_unit = std::move(*v);
+    if (auto v = r->text("velocity_unit")) recording.velocity_unit = std::move(*v);
+    r->reject_unknown();
 }
 
-void read_test(const nlohmann::json& object, const std::string& source, TestReference& test) {
-    Section t(object, "test", source);
-    if (auto v = t.numbers("feedrates_mm_per_min")) test.feedrates_mm_per_min = std::move(*v);
-    if (const auto v = t.number("stroke_mm")) test.stroke_m = *v * 1e-3;
-    if (const auto v = t.number("cycles")) test.cycles = static_cast<int>(std::lround(*v));
-    if (const auto v = t.boolean("slow_passes")) test.slow_passes = *v;
-    if (auto v = t.numbers("slow_feedrates_mm_per_min")) test.slow_feedrates_mm_per_min = std::move(*v);
-    if (const auto v = t.number("slow_pass_duration_s")) test.slow_pass_duration_s = *v;
-    if (const auto v = t.number("slow_stroke_min_mm")) test.slow_stroke_min_m = *v * 1e-3;
-    if (const auto v = t.number("acceleration_m_per_s2")) test.acceleration_m_per_s2 = *v;
-    if (const auto v = t.number("dwell_s")) test.dwell_s = *v;
-    if (const auto v = t.number("start_mm")) test.start_m = *v * 1e-3;
-    t.reject_unknown();
+void read_test(ConfigSection& top, TestReference& test) {
+    auto t = top.section("test");
+    if (!t) return;
+    if (auto v = t->numbers("feedrates_mm_per_min")) test.feedrates_mm_per_min = std::move(*v);
+    t->read("stroke_mm", test.stroke_m, 1e-3);
+    if (const auto v = t->number("cycles")) test.cycles = static_cast<int>(std::lround(*v));
+    if (const auto v = t->boolean("slow_passes")) test.slow_passes = *v;
+    if (auto v = t->numbers("slow_feedrates_mm_per_min")) test.slow_feedrates_mm_per_min = std::move(*v);
+    t->read("slow_pass_duration_s", test.slow_pass_duration_s);
+    t->read("slow_stroke_min_mm", test.slow_stroke_min_m, 1e-3);
+    t->read("acceleration_m_per_s2", test.acceleration_m_per_s2);
+    t->read("dwell_s", test.dwell_s);
+    t->read("start_mm", test.start_m, 1e-3);
+    t->reject_unknown();
 }
 
 // friction_zones: a list of {from_mm, to_mm, coulomb_factor}, each key required; replaces the demo's zones.
-std::vector<FrictionZone> read_friction_zones(const nlohmann::json& list, const std::string& source) {
-    if (!list.is_array()) throw InputError(fmt::format("{}: friction_zones must be a list of objects", source));
-    std::vector<FrictionZone> zones;
-    for (std::size_t k = 0; k < list.size(); ++k) {
-        Section z(list[k], fmt::format("friction_zones[{}]", k), source);
+void read_friction_zones(ConfigSection& top, std::vector<FrictionZone>& zones) {
+    if (!top.has("friction_zones")) {
+        top.accept("friction_zones");
+        return;
+    }
+    zones.clear();
+    for (auto& z : top.sections("friction_zones")) {
         const auto from = z.number("from_mm");
         const auto to = z.number("to_mm");
         const auto factor = z.number("coulomb_factor");
         z.reject_unknown();
-        if (!from || !to || !factor) {
-            throw InputError(fmt::format("{}: friction_zones[{}] needs from_mm, to_mm and coulomb_factor", source, k));
-        }
+        if (!from || !to || !factor) z.refuse("", "needs from_mm, to_mm and coulomb_factor");
         zones.push_back({*from * 1e-3, *to * 1e-3, *factor});
     }
-    return zones;
 }
 
 }  // namespace
@@ -364,71 +306,40 @@ SynthSpec spec_from_json(const nlohmann::json& document, const std::string& sour
 }
 
 SynthSpec spec_from_json(const nlohmann::json& document, const std::string& source, const SynthSpec& base) {
+    ConfigSection top(document, source);
+    return spec_from_config(top, base);
+}
+
+SynthSpec spec_from_config(ConfigSection& top, const SynthSpec& base) {
     SynthSpec spec = base;
-    Section top(document, "", source);
-    if (top.has("axis")) read_axis(document["axis"], source, spec);
-    top.accept("axis");
-    if (top.has("controller")) read_controller(document["controller"], source, spec.controller);
-    top.accept("controller");
-    if (top.has("drive")) read_drive(document["drive"], source, spec);
-    top.accept("drive");
-    if (top.has("sensors")) read_sensors(document["sensors"], source, spec.sensors);
-    top.accept("sensors");
-    if (top.has("recording")) read_recording(document["recording"], source, spec.recording);
-    top.accept("recording");
-    if (top.has("test")) read_test(document["test"], source, spec.test);
-    top.accept("test");
-    if (top.has("friction_zones")) spec.friction_zones = read_friction_zones(document["friction_zones"], source);
-    top.accept("friction_zones");
+    read_axis(top, spec);
+    read_controller(top, spec.controller);
+    read_drive(top, spec);
+    read_sensors(top, spec.sensors);
+    read_recording(top, spec.recording);
+    read_test(top, spec.test);
+    read_friction_zones(top, spec.friction_zones);
     if (const auto v = top.boolean("slow_passes")) spec.test.slow_passes = *v;
     if (const auto v = top.number("seed")) {
-        if (*v < 0.0) throw InputError(fmt::format("{}: seed must be >= 0", source));
+        if (*v < 0.0) top.refuse("seed", "must be >= 0");
         spec.seed = static_cast<std::uint64_t>(*v);
     }
     top.accept("$schema");
     top.accept("description");
     top.reject_unknown();
-    if (const auto problem = spec.validate(); !problem.empty())
-        throw InputError(fmt::format("{}: {}", source, problem));
+    if (const auto problem = spec.validate(); !problem.empty()) {
+        const std::string where = top.path().empty() ? top.source() : fmt::format("{} ({})", top.source(), top.path());
+        throw InputError(fmt::format("{}: {}", where, problem));
+    }
     return spec;
 }
 
-namespace {
-
-// TOML values as JSON, so that one reader (spec_from_json) checks the keys of both formats.
-nlohmann::json to_json(const toml::node& node) {
-    if (const auto* table = node.as_table()) {
-        nlohmann::json object = nlohmann::json::object();
-        for (const auto& [key, value] : *table) object[std::string(key.str())] = to_json(value);
-        return object;
-    }
-    if (const auto* array = node.as_array()) {
-        nlohmann::json list = nlohmann::json::array();
-        for (const auto& item : *array) list.push_back(to_json(item));
-        return list;
-    }
-    if (const auto* integer = node.as_integer()) return integer->get();
-    if (const auto* floating = node.as_floating_point()) return floating->get();
-    if (const auto* boolean = node.as_boolean()) return boolean->get();
-    if (const auto* text = node.as_string()) return text->get();
-    return nullptr;  // dates and times: no drive key takes one, so the key check reports it
-}
-
-}  // namespace
-
 SynthSpec spec_from_toml(std::string_view text, const std::string& source) {
-    try {
-        const toml::table table = toml::parse(text, source);
-        return spec_from_json(to_json(table), source);
-    } catch (const toml::parse_error& e) {
-        throw InputError(fmt::format("{}:{}: not valid TOML: {}", source, e.source().begin.line, e.description()));
-    }
+    return spec_from_json(parse_toml(text, source), source);
 }
 
 SynthSpec read_spec(const std::filesystem::path& path) {
-    const std::string text = read_file_bytes(path);
-    if (path.extension() == ".toml") return spec_from_toml(text, path.string());
-    return spec_from_json(parse_json(text, path.string()), path.string());
+    return spec_from_json(read_config_file(path), path.string());
 }
 
 namespace {

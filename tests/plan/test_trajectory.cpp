@@ -9,6 +9,7 @@
 #include <iostream>
 
 #include "feedid/plan/gcode_reader.hpp"
+#include "feedid/plan/motion_profile.hpp"
 #include "feedid/plan/trajectory.hpp"
 
 namespace {
@@ -123,21 +124,22 @@ TEST_P(ProgramTrajectory, KeepsLimitsReachesEndsTakesPlausibleTime) {
 INSTANTIATE_TEST_SUITE_P(Examples, ProgramTrajectory, ::testing::Values("pocket.ngc", "contour.ngc", "drilling.ngc"));
 
 TEST(SCurve, ReachesItsSpeedOrPeaksOnAShortMove) {
+    // The blocks' path-speed profile (motion_profile.hpp) with the default machine's limits.
     // long move: v 0.5, a 3, j 50 -> jerk phases 0.06 s, constant acceleration 0.1067 s
-    const auto c = feedid::plan_s_curve(0.3, 0.5, 3.0, 50.0);
+    const auto c = feedid::MotionProfile::rest_to_rest(0.3, 0.5, 3.0, 50.0);
     EXPECT_DOUBLE_EQ(c.peak_speed, 0.5);
     EXPECT_NEAR(c.jerk_time, 0.06, 1e-15);
-    EXPECT_NEAR(c.constant_accel_time, 0.5 / 3.0 - 0.06, 1e-15);
+    EXPECT_NEAR(c.constant_acceleration_time, 0.5 / 3.0 - 0.06, 1e-15);
     // ramp distance v * (2 tj + tc) / 2 at each end, the rest at 0.5 m/s
-    EXPECT_NEAR(c.duration(), 2 * (0.12 + 0.5 / 3.0 - 0.06) + (0.3 - 0.5 * (0.06 + 0.5 / 3.0)) / 0.5, 1e-12);
-    EXPECT_DOUBLE_EQ(c.distance(c.duration()), 0.3);
-    EXPECT_NEAR(c.distance(c.duration() / 2), 0.15, 1e-12);  // symmetric
+    EXPECT_NEAR(c.duration, 2 * (0.12 + 0.5 / 3.0 - 0.06) + (0.3 - 0.5 * (0.06 + 0.5 / 3.0)) / 0.5, 1e-12);
+    EXPECT_DOUBLE_EQ(c.at(c.duration).position, 0.3);
+    EXPECT_NEAR(c.at(c.duration / 2).position, 0.15, 1e-12);  // symmetric
     // short move: the speed limit is not reached, the move is still exactly its length
-    const auto s = feedid::plan_s_curve(0.001, 0.5, 3.0, 50.0);
+    const auto s = feedid::MotionProfile::rest_to_rest(0.001, 0.5, 3.0, 50.0);
     EXPECT_LT(s.peak_speed, 0.5);
     EXPECT_NEAR(s.cruise_time, 0.0, 1e-9);
-    EXPECT_NEAR(s.distance(s.duration() / 2), 0.0005, 1e-12);
-    EXPECT_DOUBLE_EQ(s.distance(s.duration()), 0.001);
+    EXPECT_NEAR(s.at(s.duration / 2).position, 0.0005, 1e-12);
+    EXPECT_DOUBLE_EQ(s.at(s.duration).position, 0.001);
 }
 
 }  // namespace

@@ -41,6 +41,9 @@ nlohmann::json read_json_file(const std::string& path, const JsonLimits& limits 
 /// and last keys ("options.a.b.c. … .y.z").
 std::string json_key_path(const std::vector<std::string>& keys);
 
+/// What a value is, for messages: "null", "an object", "an array", "a string", "true or false", "a number".
+const char* json_type_name(const nlohmann::json& value);
+
 /// A value inside a document with its key path, for readers that check every type against the schema they read:
 /// each accessor throws InputError "PATH: must be EXPECTED, not TYPE" ("rotary: must be true or false, not a
 /// string", "parameters.mass_kg.value: must be a number or null, not a string"). Callers put the source in front.

@@ -67,14 +67,24 @@ std::vector<double> parse_slow_feeds(const std::vector<std::string>& entries, co
 /// The defaults are a linear axis's; a rotary axis (A, B, C) takes every length in rad (its options' text in degrees:
 /// PlanUnits) and needs its own values.
 struct TestPlanOptions {
+    // Defaults in the units the options are written in: mm and mm/min here; default_plan_options() reads the same
+    // numbers in degrees and deg/min on a rotary axis.
+    static constexpr double default_stroke{30.0};
+    static constexpr double default_slowest_feed{10.0};
+    static constexpr double default_fastest_slow_feed{1000.0};
+    static constexpr int default_slow_feed_count{7};
+    static constexpr double default_positioning_feed{5000.0};
+
     std::string axis{"X"};        ///< axis letter as the NC knows it (X, Y, Z, A, ..., X1 on SINUMERIK)
     double travel_min{0.0};       ///< lower travel limit (software limit switch) [m]
     double travel_max{0.0};       ///< upper travel limit [m]
     std::vector<double> centers;  ///< centres of the strokes along the axis [m]
-    double stroke{0.030};         ///< stroke of the ladder passes (the paper: 30 mm) [m]
+    double stroke{default_stroke * PlanUnits{}.length()};  ///< stroke of the ladder passes (the paper: 30 mm) [m]
     std::vector<double> feeds{paper_feed_ladder()};  ///< ladder feedrates [m/s]
-    /// Slow feedrates for the Stribeck curve [m/s]; default 10 to 1000 mm/min, log-spaced, 7 values.
-    std::vector<double> slow_feeds{log_spaced_feeds(10.0 / 60000.0, 1000.0 / 60000.0, 7)};
+    /// Slow feedrates for the Stribeck curve, log-spaced [m/s].
+    std::vector<double> slow_feeds{log_spaced_feeds(default_slowest_feed * PlanUnits{}.feed(),
+                                                    default_fastest_slow_feed * PlanUnits{}.feed(),
+                                                    default_slow_feed_count)};
     double max_pass_time{8.0};                  ///< a slow pass takes at most this long: its stroke is shortened [s]
     int cycles{2};                              ///< back-and-forth cycles per feedrate
     double acceleration{1.0};                   ///< path acceleration the NC uses (machine data) [m/s^2]
@@ -82,7 +92,8 @@ struct TestPlanOptions {
     double dwell{0.2};                          ///< dwell at every reversal [s]
     double sample_time{0.001};                  ///< trace sample time (servo trace / reference file) [s]
     std::optional<double> max_feed;             ///< feedrate limit of the axis [m/s]; none = not checked
-    double positioning_feed{5000.0 / 60000.0};  ///< feedrate of the moves between passes and centres [m/s]
+    /// Feedrate of the moves between passes and centres [m/s].
+    double positioning_feed{default_positioning_feed * PlanUnits{}.feed()};
     /// Where the axis stands when the program starts [m]; none = at the first pass's start (the reference trajectory
     /// then begins there).
     std::optional<double> start_position;
@@ -160,6 +171,11 @@ struct PredictionOptions {
     std::optional<double> split_velocity;      ///< step 1 above this speed [m/s]; default 5 * nominal v_s
     double identifiable_relative_error{0.10};  ///< a parameter counts as identifiable below this relative std. error
 };
+
+/// The defaults for an axis kind: a linear axis's as PredictionOptions has them (the demo drive; the force noise of
+/// its 0.02 A of current noise through 453.6 N/A; one pass's level error 0.67 % of F_C; a 1 um encoder), a rotary
+/// axis's the rotary demo table's (0.02 A through 2 N*m/A: 0.04 N*m; 0.135 N*m; 1 millidegree), in SI.
+PredictionOptions default_prediction_options(bool rotary);
 
 struct ParameterPrediction {
     std::string key;     ///< result-document key ("mass_kg", "breakaway_N", ...)

@@ -1,7 +1,8 @@
 #pragma once
 // The reference trajectory an NC's interpolator makes of a part program: per-axis reference positions every sample
 // time, with the machine's limits. Every block starts and ends at rest (exact stop, G61) and follows a jerk-limited
-// (S-curve, seven-phase) path-speed profile; its path limits come from the axis limits projected on the block:
+// (S-curve, seven-phase) path-speed profile (motion_profile.hpp); its path limits come from the axis limits
+// projected on the block:
 //  - straight move along unit direction u: v <= min(F, v_i/|u_i|), a <= min a_i/|u_i|, j <= min j_i/|u_i|;
 //  - arc (helix) of radius r, curvature k = r/(r^2 + c^2), c = dz/dtheta: the axis acceleration is bounded by the
 //    tangential s'' plus the centripetal s'^2 k, and the jerk by s''' + s'^3 k^2 + 3 s' s'' k (the derivative of
@@ -53,21 +54,5 @@ struct Trajectory {
 /// The reference of `program` with `limits`. InputError when the limits are invalid. Each block's end is reached
 /// exactly (the sample after a block's end time holds it, as do dwells).
 Trajectory plan_trajectory(const GcodeProgram& program, const MachineLimits& limits);
-
-/// The path-speed profile of one rest-to-rest move of `length` [m] under limits v, a, j (seven phases; shorter moves
-/// do not reach v or a). Exposed for tests.
-struct SCurve {
-    double length{0.0};
-    double jerk_time{0.0};          ///< duration of each jerk phase [s]
-    double constant_accel_time{0};  ///< duration of the constant-acceleration phase [s]
-    double cruise_time{0.0};        ///< duration at constant speed [s]
-    double jerk{0.0};               ///< [m/s^3]
-    double peak_speed{0.0};         ///< [m/s]
-
-    [[nodiscard]] double duration() const { return 2.0 * (2.0 * jerk_time + constant_accel_time) + cruise_time; }
-    /// Distance travelled at time t in [0, duration()] [m].
-    [[nodiscard]] double distance(double t) const;
-};
-SCurve plan_s_curve(double length, double velocity, double acceleration, double jerk);
 
 }  // namespace feedid

@@ -14,6 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "feedid/io/config_file.hpp"
 #include "feedid/model/controller.hpp"
 #include "feedid/model/demo_drives.hpp"
 #include "feedid/model/friction.hpp"
@@ -128,6 +129,8 @@ Trace in_recording_units(const Trace& trace, const RecordingModel& recording);
 SynthSpec spec_from_json(const nlohmann::json& document, const std::string& source);
 /// The same starting from `base` instead of the demo (a machine file's axis over the machine's default drive).
 SynthSpec spec_from_json(const nlohmann::json& document, const std::string& source, const SynthSpec& base);
+/// The same from a section of a configuration file (a machine file's axes.X), which names the keys in messages.
+SynthSpec spec_from_config(ConfigSection& section, const SynthSpec& base);
 /// The same from TOML text (the same keys; tables for the sections). InputError with the line on a syntax error.
 SynthSpec spec_from_toml(std::string_view text, const std::string& source);
 /// Reads a drive file: TOML when the name ends in .toml, JSON otherwise.
