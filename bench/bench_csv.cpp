@@ -22,6 +22,7 @@
 
 #include "feedid/io/csv.hpp"
 #include "feedid/io/import.hpp"
+#include "stribeck_trace.hpp"
 
 namespace {
 
@@ -77,6 +78,32 @@ void BM_ParseCsvInMemory(benchmark::State& state) {
     state.counters["columns"] = static_cast<double>(columns);
 }
 BENCHMARK(BM_ParseCsvInMemory)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// The 1,000,000-sample trace bench_identify reads (t, x, i written by write_csv: shortest round-trip digits, about
+// 47 MB): the parser's throughput on the file of the end-to-end figure (issue 29: at least 300 MB/s).
+const std::string& identify_csv_text() {
+    static const std::string text = [] {
+        auto [t, x, i] = feedid::bench::stribeck_columns(rows);
+        feedid::Trace trace;
+        trace.set("t", feedid::Role::time, "s", std::move(t));
+        trace.set("x", feedid::Role::position, "m", std::move(x));
+        trace.set("i", feedid::Role::current, "A", std::move(i));
+        trace.constants["force_constant"] = 450.0;
+        return feedid::write_csv(trace);
+    }();
+    return text;
+}
+
+void BM_ParseIdentifyCsvInMemory(benchmark::State& state) {
+    const std::string& text = identify_csv_text();
+    for (auto _ : state) {
+        auto trace = feedid::parse_csv(text, "identify.csv");
+        benchmark::DoNotOptimize(trace.channels.data());
+    }
+    state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations() * rows));
+    state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations() * text.size()));
+}
+BENCHMARK(BM_ParseIdentifyCsvInMemory)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 void BM_ReadCsvFile(benchmark::State& state) {
     const auto& path = csv_file();

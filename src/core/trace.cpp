@@ -1,5 +1,7 @@
 #include "feedid/core/trace.hpp"
 
+#include "feedid/core/large_columns.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -171,8 +173,10 @@ TimeBase Trace::time_base() const {
     if (const auto known = remembered_time_base(this, time)) return *known;
     TimeBase base;
     if (time.size() < 2) return base;
-    std::vector<double> steps(time.size() - 1);
-    for (std::size_t k = 0; k + 1 < time.size(); ++k) steps[k] = time[k + 1] - time[k];
+    std::vector<double> steps;
+    steps.reserve(time.size() - 1);
+    prefer_huge_pages(steps);
+    for (std::size_t k = 0; k + 1 < time.size(); ++k) steps.push_back(time[k + 1] - time[k]);
     auto middle = steps.begin() + static_cast<std::ptrdiff_t>(steps.size() / 2);
     std::nth_element(steps.begin(), middle, steps.end());
     const double median = *middle;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <utility>
 #include <vector>
 
 #include <fmt/core.h>
@@ -13,61 +14,94 @@ namespace feedid {
 
 namespace {
 
-struct Change {
-    std::size_t index;  ///< grid index of the new value
-    double step;        ///< |new - old|
-};
-
-// Where the value changes (NaN samples skipped: a change is between two finite values).
-std::vector<Change> value_changes(std::span<const double> values) {
-    std::vector<Change> changes;
-    std::optional<double> last;
+// Calls change(index, step) where the value changes (NaN samples skipped: a change is between two finite values):
+// index is the grid index of the new value, step |new - old|. Streamed, not gathered: a noisy channel changes on
+// every sample, and a list of its changes would be twice the column.
+template <class Change>
+void for_each_change(std::span<const double> values, Change&& change) {
+    double last = 0.0;
+    bool have_last = false;
     for (std::size_t j = 0; j < values.size(); ++j) {
-        if (!std::isfinite(values[j])) continue;
-        if (last && values[j] != *last) changes.push_back({j, std::abs(values[j] - *last)});
-        last = values[j];
+        const double value = values[j];
+        if (!std::isfinite(value)) continue;
+        if (have_last && value != last) change(j, std::abs(value - last));
+        last = value;
+        have_last = true;
     }
-    return changes;
 }
 
-// The most frequent gap between a moving change (a step above 1.5 smallest steps) and the change before it, and how
-// many moving changes there are; {0, 0} without any.
-std::pair<std::size_t, std::size_t> moving_gap(const std::vector<Change>& changes) {
+std::size_t count_changes(std::span<const double> values) {
+    std::size_t count = 0;
+    for_each_change(values, [&](std::size_t, double) { ++count; });
+    return count;
+}
+
+// The most frequent gap between a moving change (a step above 1.5 smallest steps) and the change before it (the
+// smallest gap of those as frequent), and how many moving changes there are; {0, 0} without any.
+std::pair<std::size_t, std::size_t> moving_gap(std::span<const double> values, std::size_t changes) {
     std::vector<double> steps;
-    steps.reserve(changes.size());
-    for (const auto& change : changes) steps.push_back(change.step);
+    steps.reserve(changes);
+    for_each_change(values, [&](std::size_t, double step) { steps.push_back(step); });
     // The smallest step, ignoring round-off: the 1st percentile (as position_quantum()).
-    const double smallest = percentile(std::move(steps), 0.01);
-    std::map<std::size_t, std::size_t> gaps;
+    const double smallest = percentile_in_place(steps, 0.01);
+    // gaps counted in an array up to a bound that covers every hold factor looked for, beyond it in a map
+    constexpr std::size_t counted = 4096;
+    std::vector<std::size_t> short_gaps(counted, 0);
+    std::map<std::size_t, std::size_t> long_gaps;
     std::size_t moving = 0;
-    for (std::size_t c = 1; c < changes.size(); ++c) {
-        if (!(changes[c].step > 1.5 * smallest)) continue;
+    std::size_t previous = 0;
+    bool first = true;
+    for_each_change(values, [&](std::size_t index, double step) {
+        const std::size_t gap = index - previous;
+        previous = index;
+        if (std::exchange(first, false) || !(step > 1.5 * smallest)) return;
         ++moving;
-        ++gaps[changes[c].index - changes[c - 1].index];
+        if (gap < counted)
+            ++short_gaps[gap];
+        else
+            ++long_gaps[gap];
+    });
+    if (moving == 0) return {0, 0};
+    std::size_t mode = 0;
+    std::size_t mode_count = 0;
+    for (std::size_t gap = 0; gap < counted; ++gap) {
+        if (short_gaps[gap] > mode_count) {
+            mode = gap;
+            mode_count = short_gaps[gap];
+        }
     }
-    if (gaps.empty()) return {0, 0};
-    const auto mode = std::max_element(gaps.begin(), gaps.end(),
-                                       [](const auto& a, const auto& b) { return a.second < b.second; });
-    return {mode->first, moving};
+    for (const auto& [gap, count] : long_gaps) {
+        if (count > mode_count) {
+            mode = gap;
+            mode_count = count;
+        }
+    }
+    return {mode, moving};
+}
+
+// Changes per residue of their index modulo `factor`.
+std::vector<std::size_t> changes_on_residue(std::span<const double> values, std::size_t factor) {
+    std::vector<std::size_t> on_residue(factor, 0);
+    for_each_change(values, [&](std::size_t index, double) { ++on_residue[index % factor]; });
+    return on_residue;
 }
 
 }  // namespace
 
 std::optional<SampleAndHold> detect_sample_and_hold(std::span<const double> values,
                                                     const HoldDetectionOptions& options) {
-    const auto changes = value_changes(values);
-    if (changes.size() < options.minimum_moving_changes + 1) return std::nullopt;
-    const auto [gap, moving] = moving_gap(changes);
+    const std::size_t changes = count_changes(values);
+    if (changes < options.minimum_moving_changes + 1) return std::nullopt;
+    const auto [gap, moving] = moving_gap(values, changes);
     if (moving < options.minimum_moving_changes || gap < 2 || gap > static_cast<std::size_t>(options.max_factor))
         return std::nullopt;
-    std::vector<std::size_t> on_residue(gap, 0);
-    for (const auto& change : changes) ++on_residue[change.index % gap];
+    const auto on_residue = changes_on_residue(values, gap);
     const auto best = std::max_element(on_residue.begin(), on_residue.end());
     SampleAndHold hold;
     hold.factor = static_cast<int>(gap);
     hold.phase = static_cast<int>(best - on_residue.begin());
-    hold.changes = changes.size();
-    hold.off_grid = changes.size() - *best;
+    hold.changes = changes;
+    hold.off_grid = changes - *best;
     if (static_cast<double>(hold.off_grid) > options.exception_fraction * static_cast<double>(hold.changes))
         return std::nullopt;
     return hold;
@@ -75,8 +109,7 @@ std::optional<SampleAndHold> detect_sample_and_hold(std::span<const double> valu
 
 int hold_phase(std::span<const double> values, int factor) {
     if (factor < 2) return 0;
-    std::vector<std::size_t> on_residue(static_cast<std::size_t>(factor), 0);
-    for (const auto& change : value_changes(values)) ++on_residue[change.index % on_residue.size()];
+    const auto on_residue = changes_on_residue(values, static_cast<std::size_t>(factor));
     return static_cast<int>(std::max_element(on_residue.begin(), on_residue.end()) - on_residue.begin());
 }
 
