@@ -58,23 +58,54 @@ double prewarped(double cutoff_hz, double sample_rate_hz) {
     return 2.0 * sample_rate_hz * std::tan(std::numbers::pi * cutoff_hz / sample_rate_hz);
 }
 
-// One pass of the cascade over x (transposed direct form II), starting from steady state for the level x[0].
-void filter_in_place(const SecondOrderSections& filter, std::span<double> x) {
-    if (x.empty()) return;
-    double level = x.front();
+// One section over x forwards (transposed direct form II) from steady state for `level`, its output written `shift`
+// samples earlier (the first `shift` outputs dropped): the write goes where the input was already read.
+void section_forward(const std::array<double, 6>& s, double level, std::span<double> x, std::size_t shift) {
+    const double b0 = s[0], b1 = s[1], b2 = s[2], a1 = s[4], a2 = s[5];
+    const double g = (b0 + b1 + b2) / (1.0 + a1 + a2);
+    double s2 = (b2 - a2 * g) * level;
+    double s1 = (b1 - a1 * g) * level + s2;
+    for (std::size_t k = 0; k < x.size(); ++k) {
+        const double in = x[k];
+        const double out = b0 * in + s1;
+        s1 = b1 * in - a1 * out + s2;
+        s2 = b2 * in - a2 * out;
+        if (k >= shift) x[k - shift] = out;
+    }
+}
+
+// The same section over x backwards, in place, from steady state for `level`.
+void section_backward(const std::array<double, 6>& s, double level, std::span<double> x) {
+    const double b0 = s[0], b1 = s[1], b2 = s[2], a1 = s[4], a2 = s[5];
+    const double g = (b0 + b1 + b2) / (1.0 + a1 + a2);
+    double s2 = (b2 - a2 * g) * level;
+    double s1 = (b1 - a1 * g) * level + s2;
+    for (std::size_t k = x.size(); k-- > 0;) {
+        const double in = x[k];
+        const double out = b0 * in + s1;
+        s1 = b1 * in - a1 * out + s2;
+        s2 = b2 * in - a2 * out;
+        x[k] = out;
+    }
+}
+
+// filtfilt's two passes over the padded signal y (pad samples before and after the n of the signal), without
+// reversing it twice and without moving it: the forward pass writes its last section's output `pad` samples earlier,
+// dropping the front padding's outputs, which the backward pass would only have carried into outputs that are cut
+// off anyway; the backward pass then runs over y[0, n + pad), and the signal is in y[0, n). The same arithmetic, in
+// the same order, as filtering y, reversing, filtering and reversing.
+void filtfilt_passes(const SecondOrderSections& filter, std::span<double> y, std::size_t pad) {
+    double level = y.front();
+    for (std::size_t i = 0; i < filter.sections.size(); ++i) {
+        const auto& s = filter.sections[i];
+        section_forward(s, level, y, i + 1 == filter.sections.size() ? pad : 0);
+        level *= (s[0] + s[1] + s[2]) / (1.0 + s[4] + s[5]);
+    }
+    const auto kept = y.first(y.size() - pad);
+    level = kept.back();
     for (const auto& s : filter.sections) {
-        const double b0 = s[0], b1 = s[1], b2 = s[2], a1 = s[4], a2 = s[5];
-        const double g = (b0 + b1 + b2) / (1.0 + a1 + a2);
-        double s2 = (b2 - a2 * g) * level;
-        double s1 = (b1 - a1 * g) * level + s2;
-        for (double& v : x) {
-            const double in = v;
-            const double out = b0 * in + s1;
-            s1 = b1 * in - a1 * out + s2;
-            s2 = b2 * in - a2 * out;
-            v = out;
-        }
-        level *= g;
+        section_backward(s, level, kept);
+        level *= (s[0] + s[1] + s[2]) / (1.0 + s[4] + s[5]);
     }
 }
 
@@ -126,8 +157,7 @@ std::vector<double> filtfilt(const SecondOrderSections& filter, std::span<const 
     const std::size_t pad = std::min(std::max<std::size_t>(1, 3 * filter_order(filter)), x.size() - 1);
     workspace.reserve(x.size() + 2 * pad);
     filtfilt(filter, x, std::span<double>(), workspace);
-    workspace.erase(workspace.begin(), workspace.begin() + static_cast<std::ptrdiff_t>(pad));
-    workspace.resize(x.size());
+    workspace.resize(x.size());  // the signal is at the front (filtfilt_passes)
     return workspace;
 }
 
@@ -147,13 +177,14 @@ void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std:
     for (std::size_t k = pad; k >= 1; --k) y[pad - k] = 2.0 * x[0] - x[k];
     std::copy(x.begin(), x.end(), y.begin() + static_cast<std::ptrdiff_t>(pad));
     for (std::size_t k = 1; k <= pad; ++k) y[pad + n - 1 + k] = 2.0 * x[n - 1] - x[n - 1 - k];
-    filter_in_place(filter, y);
-    std::reverse(y.begin(), y.end());
-    filter_in_place(filter, y);
-    std::reverse(y.begin(), y.end());
-    if (out.empty()) return;  // the caller takes the filtered signal from the workspace (filtfilt above)
-    std::copy(y.begin() + static_cast<std::ptrdiff_t>(pad), y.begin() + static_cast<std::ptrdiff_t>(pad + n),
-              out.begin());
+    if (filter.sections.empty()) {
+        std::copy(y.begin() + static_cast<std::ptrdiff_t>(pad), y.begin() + static_cast<std::ptrdiff_t>(pad + n),
+                  y.begin());
+    } else {
+        filtfilt_passes(filter, y, pad);
+    }
+    if (out.empty()) return;  // the caller takes the filtered signal from the front of the workspace
+    std::copy(y.begin(), y.begin() + static_cast<std::ptrdiff_t>(n), out.begin());
 }
 
 std::vector<double> central_difference(std::span<const double> x, double dt) {
