@@ -16,6 +16,7 @@ job in a fresh process, the jobs interleaved round by round, medians of --rounds
 
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -48,10 +49,14 @@ print(estimate, np.sqrt(np.diag(np.linalg.inv(phi.T @ phi)) * variance))
 '''
 
 
-def wall(command):
+def measure(command):
+    """Wall time and CPU time (user + system of the process and its threads) [s] of one run."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     subprocess.run(command, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return time.perf_counter() - start
+    elapsed = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return elapsed, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
 def main():
@@ -76,21 +81,26 @@ def main():
         jobs[f"{label} info"] = [binary, "info", args.csv]
         jobs[f"{label} identify"] = identify
         jobs[f"{label} identify --no-systematic"] = identify + ["--no-systematic"]
-    times = {name: [] for name in jobs}
+    walls = {name: [] for name in jobs}
+    cpus = {name: [] for name in jobs}
+    load_before = os.getloadavg()
     for _ in range(args.rounds):
         for name, command in jobs.items():
-            times[name].append(wall(command))
+            elapsed, cpu = measure(command)
+            walls[name].append(elapsed)
+            cpus[name].append(cpu)
     os.unlink(script.name)
-    pipeline = statistics.median(times["pandas + numpy/scipy pipeline"])
-    read = statistics.median(times["pandas.read_csv"])
     load = os.getloadavg()
-    print(f"{os.cpu_count()} cores, load average {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f}; "
-          f"wall s, medians of {args.rounds}, interleaved")
-    for name, values in times.items():
-        median = statistics.median(values)
-        against = read if name.endswith("read_csv") or name.endswith(" info") else pipeline
-        print(f"{name:40s} {median:7.3f} s  ({min(values):.3f}-{max(values):.3f})  {median / against:5.2f}x "
-              f"{'pandas.read_csv' if against is read else 'the pipeline'}")
+    print(f"{os.cpu_count()} cores, load average {load_before[0]:.1f} before, {load[0]:.1f} after; medians of "
+          f"{args.rounds} runs, interleaved round by round; CPU = user + system of the process and its threads")
+    print(f"{'job':40s} {'CPU s':>7s} {'ratio':>6s}  {'wall s':>7s} {'ratio':>6s}  against")
+    for name in jobs:
+        cpu, elapsed = statistics.median(cpus[name]), statistics.median(walls[name])
+        reference = "pandas.read_csv" if name.endswith("read_csv") or name.endswith(" info") else \
+            "pandas + numpy/scipy pipeline"
+        cpu_ratio = cpu / statistics.median(cpus[reference])
+        wall_ratio = elapsed / statistics.median(walls[reference])
+        print(f"{name:40s} {cpu:7.3f} {cpu_ratio:5.2f}x  {elapsed:7.3f} {wall_ratio:5.2f}x  {reference}")
 
 
 if __name__ == "__main__":
