@@ -20,8 +20,12 @@ double position_quantum(std::span<const double> position) {
         const auto [low, high] = std::minmax_element(position.begin(), position.end());
         range = *high - *low;
     }
+    // the steps of an evenly spread sample above robust_sample_size (a quantum is a threshold: the 1st percentile of
+    // an encoder's steps is the quantum itself, in any sample of them)
+    const std::size_t stride = position.empty() ? 1 : robust_sample_stride(position.size() - 1);
     std::vector<double> steps;
-    for (std::size_t k = 1; k < position.size(); ++k) {
+    steps.reserve(position.size() / stride + 1);
+    for (std::size_t k = 1; k < position.size(); k += stride) {
         const double d = std::abs(position[k] - position[k - 1]);
         if (d > 1e-12 * std::max(range, 1e-300)) steps.push_back(d);
     }

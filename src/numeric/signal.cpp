@@ -301,8 +301,13 @@ std::vector<std::size_t> extreme_preserving_indices(std::span<const std::span<co
 
 double noise_floor(std::span<const double> x) {
     if (x.size() < 3) return 0.0;
-    std::vector<double> d(x.size() - 1);
-    for (std::size_t k = 0; k + 1 < x.size(); ++k) d[k] = x[k + 1] - x[k];
+    // A threshold, not a result: above robust_sample_size differences, every stride-th (evenly spread over the
+    // signal) stands for all, at a relative standard error of about 1.2 / sqrt(robust_sample_size / 2) = 0.5 %
+    // (that of a median absolute deviation of Gaussian noise) instead of a copy and two selections of the whole column.
+    const std::size_t stride = robust_sample_stride(x.size() - 1);
+    std::vector<double> d;
+    d.reserve((x.size() - 2) / stride + 1);
+    for (std::size_t k = 0; k + 1 < x.size(); k += stride) d.push_back(x[k + 1] - x[k]);
     auto median_of = [](std::vector<double>& v) {
         auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
         std::nth_element(v.begin(), mid, v.end());

@@ -51,8 +51,18 @@ std::vector<std::size_t> decimation_indices(std::size_t n, int factor);
 std::vector<std::size_t> extreme_preserving_indices(std::span<const std::span<const double>> signals, std::size_t n,
                                                     std::size_t max_points);
 
+/// Robust statistics used as thresholds (a noise floor, a quantum) look at every sample up to this many values, and
+/// above it at an evenly spread sample of between half this many and this many.
+inline constexpr std::size_t robust_sample_size = std::size_t{1} << 18;
+
+/// The stride of that sample for `n` values (1 up to robust_sample_size).
+inline std::size_t robust_sample_stride(std::size_t n) {
+    return n <= robust_sample_size ? 1 : (n + robust_sample_size - 1) / robust_sample_size;
+}
+
 /// Robust noise floor of a signal: 1.4826 * median absolute deviation of its first differences / sqrt(2)
-/// (the standard deviation of white noise on the samples).
+/// (the standard deviation of white noise on the samples); above robust_sample_size differences from an evenly spread
+/// sample of them (0.5 % relative standard error).
 double noise_floor(std::span<const double> x);
 
 /// The value below which `fraction` (0..1) of the values lie: the element of rank floor(fraction * (n - 1)), no
