@@ -10,6 +10,7 @@
 #include <Eigen/LU>
 
 #include "feedid/core/parameters.hpp"
+#include "feedid/identify/stick_slip.hpp"
 
 namespace feedid {
 
@@ -68,7 +69,8 @@ std::string OnlineOptions::validate() const {
     return "";
 }
 
-OnlineIdentifier::OnlineIdentifier(OnlineOptions options) : options_(std::move(options)) {
+OnlineIdentifier::OnlineIdentifier(OnlineOptions options)
+    : options_(std::move(options)), stick_slip_(options_.moving_threshold, options_.stick_slip) {
     p_ = options_.offset ? 4 : 3;
     counts_ = {};
     sum_cc_ = Mat::Zero(static_cast<Eigen::Index>(p_), static_cast<Eigen::Index>(p_));
@@ -165,11 +167,17 @@ void OnlineIdentifier::filter(std::span<const double> in, std::span<double> out,
 
 void OnlineIdentifier::process_window(std::size_t count) {
     ++counts_.total;
-    const auto verdict = [&](WindowVerdict v) { ++counts_.by_verdict[static_cast<std::size_t>(v)]; };
+    last_window_ = {t_[margin_], t_[count - margin_ - 1], WindowVerdict::gap, false};
+    const auto verdict = [&](WindowVerdict v) {
+        last_window_.verdict = v;
+        ++counts_.by_verdict[static_cast<std::size_t>(v)];
+    };
     for (std::size_t k = 1; k < count; ++k) {
         // a gap, time running backwards, or a value that is not a number: the window is not used
-        if (t_[k] - t_[k - 1] > 1.5 * dt_ || !(t_[k] > t_[k - 1]) || !std::isfinite(x_[k]) || !std::isfinite(f_[k]))
+        if (t_[k] - t_[k - 1] > 1.5 * dt_ || !(t_[k] > t_[k - 1]) || !std::isfinite(x_[k]) || !std::isfinite(f_[k])) {
+            stick_slip_ = StickSlipTracker(options_.moving_threshold, options_.stick_slip);  // a pass ends at a gap
             return verdict(WindowVerdict::gap);
+        }
     }
     filter(x_, xf_, count);
     filter(f_, ff_, count);
@@ -187,7 +195,9 @@ void OnlineIdentifier::process_window(std::size_t count) {
     const std::size_t first = margin_;
     const std::size_t last = count - margin_;
     const std::size_t deferred_before = deferred_count_;
+    last_window_.stick_slip = stick_slips(first, last);
     const WindowVerdict v = judge_window(first, last);
+    last_window_.verdict = v;
     if (v != WindowVerdict::pending) verdict(v);
     // the slow samples only of windows whose fast rows fit the model: a slow cutting move (a helix, an arc's slow
     // stretch) adds a force opposing the motion that the bins cannot tell from Stribeck friction (a deferred window,
@@ -206,7 +216,7 @@ WindowVerdict OnlineIdentifier::judge_window(std::size_t first, std::size_t last
     }
     if (static_cast<double>(moving) < options_.minimum_moving_fraction * static_cast<double>(n))
         return WindowVerdict::at_rest;
-    if (stick_slips(first, last)) return WindowVerdict::stick_slip;
+    if (last_window_.stick_slip) return WindowVerdict::stick_slip;
     const std::size_t rows = build_rows(first, last);
     if (static_cast<double>(rows) < options_.minimum_row_fraction * static_cast<double>(window_)) {
         std::size_t ungated = 0;
@@ -221,38 +231,18 @@ WindowVerdict OnlineIdentifier::judge_window(std::size_t first, std::size_t last
     return fit_window(rows);
 }
 
-// Stick-slip without a reference (stick_slip.hpp's rule for traces without one, on the window): a slow pass that
-// stops and restarts in the same direction, each burst and each stop brief, at least stick_slip_stops times.
-bool OnlineIdentifier::stick_slips(std::size_t first, std::size_t last) const {
-    const auto brief = [&](std::size_t samples) { return static_cast<double>(samples) * dt_ < options_.max_stick_s; };
-    int stops = 0;
-    int direction = 0;
-    std::size_t burst_start = first;
-    std::size_t stopped_at = 0;
-    std::size_t burst = 0;
-    double peak = 0.0;
+// Stick-slip: identify's rule without a reference (stick_slip.hpp), run over the stream's window cores in order, so
+// that a pass that began in an earlier window is judged whole. The window stick-slips when a pass with moving samples
+// in it stick-slips (the pass in progress: on what has been seen of it).
+bool OnlineIdentifier::stick_slips(std::size_t first, std::size_t last) {
+    const std::size_t start = stick_slip_.samples();
+    bool found = false;
     for (std::size_t k = first; k < last; ++k) {
-        const double speed = std::abs(v_[k]);
-        if (direction != 0 && speed < options_.stick_stop_fraction * peak) {
-            if (stopped_at == 0) {
-                stopped_at = k;
-                burst = k - burst_start;
-            }
-        } else if (speed > options_.moving_threshold) {
-            const int d = v_[k] > 0.0 ? 1 : -1;
-            if (stopped_at != 0 || d != direction) {
-                if (stopped_at != 0 && d == direction && peak < 2.0 * options_.split() && brief(burst) &&
-                    brief(k - stopped_at))
-                    ++stops;
-                burst_start = k;
-                peak = 0.0;
-            }
-            direction = d;
-            stopped_at = 0;
-            peak = std::max(peak, speed);
-        }
+        const auto ended = stick_slip_.add(t_[k], v_[k]);
+        found = found || (ended && ended->stick_slip && ended->last > start);
     }
-    return stops >= options_.stick_slip_stops;
+    const auto open = stick_slip_.current();
+    return found || (open && open->stick_slip && open->last > start);
 }
 
 std::size_t OnlineIdentifier::build_rows(std::size_t first, std::size_t last) {
@@ -1000,4 +990,11 @@ void OnlineIdentifier::estimate_stribeck(const Vec& theta, const Vec& standard_e
     e.stribeck_bins_used = nominal.used;
 }
 
+}  // namespace feedid
+
+namespace feedid {
+std::optional<WindowRecord> OnlineIdentifier::last_window() const {
+    if (counts_.total == 0) return std::nullopt;
+    return last_window_;
+}
 }  // namespace feedid

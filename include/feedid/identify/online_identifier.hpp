@@ -30,6 +30,7 @@
 
 #include "feedid/core/estimate.hpp"
 #include "feedid/core/parameters.hpp"
+#include "feedid/identify/stick_slip.hpp"
 #include "feedid/numeric/signal.hpp"
 
 namespace feedid {
@@ -76,9 +77,8 @@ struct OnlineOptions {
     /// ... and this many such windows in a row that disagree with the pooled estimate are a change of the axis.
     std::size_t change_windows{8};      ///< the IRLS scale is at most this multiple of the clean windows' scale
     std::optional<double> force_limit;  ///< saturation: |F_d| at or above 0.99 of it in a window [N]
-    double stick_stop_fraction{0.2};    ///< stick-slip: |x'| falls below this fraction of the pass's speed ...
-    int stick_slip_stops{2};            ///< ... and restarts in the same direction this often in a window
-    double max_stick_s{0.15};           ///< ... each stop and each burst between them shorter than this [s]
+    /// Stick-slip: identify's rule without a reference (stick_slip.hpp), on each window, with its options.
+    StickSlipOptions stick_slip;
     // Stribeck bins: log-spaced speed bins from stribeck_lowest_speed to split_velocity, per direction.
     double stribeck_lowest_speed{1e-4};  ///< [m/s]
     std::size_t minimum_bin_samples{20};
@@ -155,6 +155,14 @@ struct OnlineEstimate {
     std::size_t stribeck_bins_used{0};
 };
 
+/// One window as it was judged: its core's first and last time stamps [s] and its verdict.
+struct WindowRecord {
+    double first_s{0.0};
+    double last_s{0.0};
+    WindowVerdict verdict{WindowVerdict::pending};  ///< pending: held until the clean windows' scale is known
+    bool stick_slip{false};  ///< the stick-slip rule found it in the window (whatever decided the verdict first)
+};
+
 class OnlineIdentifier {
 public:
     explicit OnlineIdentifier(OnlineOptions options);
@@ -170,6 +178,8 @@ public:
     void flush();
     /// The current estimates (cheap: fixed-size algebra).
     [[nodiscard]] OnlineEstimate estimate() const;
+    /// The window processed last (none before the first).
+    [[nodiscard]] std::optional<WindowRecord> last_window() const;
     [[nodiscard]] const OnlineOptions& options() const { return options_; }
     /// Columns of the step-1 model: 3, or 4 with the offset.
     [[nodiscard]] std::size_t parameters() const { return p_; }
@@ -223,7 +233,7 @@ private:
     void settle_deferred();
     void bin_slow_samples(std::size_t first, std::size_t last);
     void filter(std::span<const double> in, std::span<double> out, std::size_t count);
-    [[nodiscard]] bool stick_slips(std::size_t first, std::size_t last) const;
+    [[nodiscard]] bool stick_slips(std::size_t first, std::size_t last);
     std::size_t build_rows(std::size_t first, std::size_t last);
     [[nodiscard]] Vec pooled_theta() const;
     void estimate_stribeck(const Vec& theta, const Vec& standard_error, OnlineEstimate& e) const;
@@ -266,6 +276,8 @@ private:
     std::size_t changes_{0};
     double last_outlier_fraction_{0.0};
     WindowCounts counts_;
+    WindowRecord last_window_;
+    StickSlipTracker stick_slip_;
     std::array<std::vector<StribeckBin>, 2> bins_;  ///< forward, reverse
 };
 
