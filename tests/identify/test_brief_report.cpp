@@ -15,6 +15,12 @@
 namespace feedid {
 namespace {
 
+using testing::run_cli;
+
+std::string quoted(const std::filesystem::path& path) {
+    return "'" + path.string() + "'";
+}
+
 TEST(BriefReport, ShowsTraceModelStatusAndEveryParameterWithItsUncertainties) {
     IdentifyResult result;
     result.status = Status::partial;
@@ -55,6 +61,26 @@ TEST(BriefReport, NamesAFailedResultAndARotaryAxisInItsUnits) {
     for (const auto& p : result.parameters) {
         EXPECT_NE(text.find(fmt::format("  {:<6} {:>14}", p.symbol, "—")), std::string::npos) << p.symbol;
         EXPECT_NE(text.find(p.unit), std::string::npos) << p.unit;
+    }
+}
+
+TEST(BriefReport, IsWhatFeedidIdentifyPrintsFirst) {
+    const auto work = std::filesystem::canonical(testing::temp_dir());
+    ASSERT_EQ(run_cli("synth --out " + quoted(work / "demo.csv") + " --seed 1").exit_code, 0);
+    const auto run = run_cli("identify " + quoted(work / "demo.csv") +
+                             " --force-constant force_constant_N_per_A --json " + quoted(work / "demo.json"));
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    const auto result = nlohmann::json::parse(testing::read_text(work / "demo.json")).get<IdentifyResult>();
+    const std::string brief = brief_report(result);
+    EXPECT_EQ(run.out.substr(0, brief.size()), brief);
+    EXPECT_NE(brief.find("status: ok"), std::string::npos) << brief;
+    for (const auto& p : result.parameters) {
+        ASSERT_TRUE(p.estimate.value && p.estimate.standard_error) << p.key;
+        EXPECT_NE(brief.find(fmt::format("  {:<6} {:>14.6g} ± {:<12.3g}", p.symbol, *p.estimate.value,
+                                         *p.estimate.standard_error)),
+                  std::string::npos)
+            << p.key << "\n"
+            << brief;
     }
 }
 
