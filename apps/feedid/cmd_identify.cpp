@@ -8,6 +8,7 @@
 
 #include "cli.hpp"
 #include "feedid/core/error.hpp"
+#include "feedid/identify/brief_report.hpp"
 #include "feedid/identify/friction_map.hpp"
 #include "feedid/identify/identify.hpp"
 #include "feedid/identify/option_names.hpp"
@@ -258,21 +259,7 @@ struct IdentifyCommand {
     }
 
     static void print_table(const IdentifyResult& result) {
-        fmt::print("{} ({} samples, {:.6g} s)\n", terminal_text(result.trace.path), result.trace.samples,
-                   result.trace.duration_s);
-        fmt::print("model: {}{}\n\n", result.model_name(), result.offset ? " with offset" : "");
-        // the standard error (statistical) and the combined uncertainty (with the preprocessing's systematic part)
-        fmt::print("  {:<6} {:>14}   {:<12} {:<12} {:<10}\n", "", "value", "std. error", "uncertainty", "unit");
-        for (const auto& p : result.parameters) {
-            if (p.estimate.value) {
-                const std::string combined =
-                    p.estimate.uncertainty ? fmt::format("{:.3g}", *p.estimate.uncertainty) : std::string("—");
-                fmt::print("  {:<6} {:>14.6g} ± {:<12.3g} {:<12} {:<10}\n", p.symbol, *p.estimate.value,
-                           p.estimate.standard_error.value_or(NAN), combined, p.unit);
-            } else {
-                fmt::print("  {:<6} {:>14}   {:<12} {:<12} {:<10}\n", p.symbol, "—", "", "", p.unit);
-            }
-        }
+        fmt::print("{}", brief_report(result));
         if (result.step1) {
             fmt::print("\n  step-1 batch QR: relative error {:.3f} %, condition number {:.3g}, {} samples\n",
                        result.step1->relative_error_pct, result.step1->condition_number, result.step1->samples_used);

@@ -4,6 +4,7 @@
 
 #include "binding.hpp"
 #include "feedid/core/error.hpp"
+#include "feedid/identify/brief_report.hpp"
 #include "feedid/identify/gains.hpp"
 #include "feedid/identify/identify.hpp"
 #include "feedid/identify/option_names.hpp"
@@ -427,12 +428,11 @@ void add_result_documents(py::class_<IdentifyResult>& cls) {
             return r;
         },
         py::arg("document"), "A result read back from its document (what feedid identify --json wrote)");
+    // the lines feedid identify prints first: the trace, model and status, and the parameter table
     cls.def("__repr__", [](const IdentifyResult& r) {
-        std::string values;
-        for (const auto& p : r.parameters) {
-            if (p.estimate.value) values += fmt::format(", {} {:.6g} {}", p.symbol, *p.estimate.value, p.unit);
-        }
-        return fmt::format("<feedid.Result {} {}{}>", to_string(r.status), r.model_name(), values);
+        std::string text = brief_report(r);
+        while (!text.empty() && text.back() == '\n') text.pop_back();
+        return text;
     });
 }
 

@@ -6,6 +6,7 @@
 #include <fmt/core.h>
 
 #include "feedid/core/error.hpp"
+#include "feedid/core/json_adapters.hpp"
 #include "feedid/core/parameters.hpp"
 #include "feedid/identify/result_document.hpp"
 #include "feedid/core/version.hpp"

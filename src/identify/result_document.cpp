@@ -8,6 +8,7 @@
 #include <fmt/core.h>
 
 #include "feedid/core/error.hpp"
+#include "feedid/core/json_adapters.hpp"
 #include "feedid/io/json_input.hpp"
 
 namespace feedid {

@@ -8,6 +8,7 @@
 #include <fmt/core.h>
 
 #include "feedid/core/error.hpp"
+#include "feedid/core/json_adapters.hpp"
 #include "feedid/numeric/native_interval.hpp"
 #include "feedid/core/null_reasons.hpp"
 #include "feedid/identify/result_document.hpp"
