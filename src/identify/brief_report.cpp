@@ -1,5 +1,6 @@
 #include "feedid/identify/brief_report.hpp"
 
+#include <cmath>
 #include <optional>
 
 #include <fmt/core.h>
@@ -31,11 +32,25 @@ std::string parameter_table_text(const IdentifyResult& result) {
     return text;
 }
 
+/// The drive signal's delay behind the position where identify applied it, as a line; "" where it did not.
+std::string timing_line(const IdentifyResult& result) {
+    if (!result.model_choice || !result.model_choice->delay_applied || !result.model_choice->delay_s) return {};
+    const ModelChoice& choice = *result.model_choice;
+    const double delay = *choice.delay_s;
+    return fmt::format("timing: the drive signal {} the position by {:.3g} ms{} ({}): read {}\n",
+                       delay >= 0.0 ? "lags" : "leads", std::abs(delay) * 1e3,
+                       choice.delay_standard_error ? fmt::format(" +/- {:.2g}", *choice.delay_standard_error * 1e3)
+                                                   : std::string(),
+                       choice.delay_source, delay >= 0.0 ? "that much later" : "that much earlier");
+}
+
 std::string brief_report(const IdentifyResult& result) {
     const std::string trace = result.trace.path.empty() ? std::string("trace") : terminal_text(result.trace.path);
-    return fmt::format("{} ({} samples, {:.6g} s)\nmodel: {}{}, status: {}\n\n{}", trace, result.trace.samples,
+    const bool chosen = result.model_choice && result.model_choice->automatic;
+    return fmt::format("{} ({} samples, {:.6g} s)\nmodel: {}{}{}, status: {}\n{}\n{}", trace, result.trace.samples,
                        result.trace.duration_s, result.model_name(), result.offset ? " with offset" : "",
-                       to_string(result.status), parameter_table_text(result));
+                       chosen ? " (chosen from the data)" : "", to_string(result.status), timing_line(result),
+                       parameter_table_text(result));
 }
 
 }  // namespace feedid
