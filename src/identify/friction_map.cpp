@@ -318,7 +318,7 @@ nlohmann::json map_document(const Trace& trace, const FrictionMapOptions& option
 
 /// Every location is identified with one model, or the locations could not be compared key by key: where the model is
 /// left to the data, it is chosen (with the drive signal's delay) on the whole trace and then given to each location.
-FrictionMapOptions with_one_model(const Trace& trace, const FrictionMapOptions& options, FrictionMap& map) {
+FrictionMapOptions with_one_model(const Trace& trace, const FrictionMapOptions& options) {
     FrictionMapOptions chosen = options;
     IdentifyOptions& o = chosen.identify;
     if (!o.model_selection.automatic) return chosen;
@@ -333,8 +333,6 @@ FrictionMapOptions with_one_model(const Trace& trace, const FrictionMapOptions& 
         o.model = result.model;
         o.offset = result.offset;
         if (result.model_choice->delay_applied) o.model_selection.known_delay_s = result.model_choice->delay_s;
-        map.findings.push_back(fmt::format("every location identified with the model the whole trace shows: {}{}",
-                                           result.model_name(), result.offset ? " with offset" : ""));
     } catch (const InputError&) {
         // the locations say what is wrong with the data, each for its own
     } catch (const AnalysisError&) {
@@ -351,7 +349,7 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
     map.rotary = trace.rotary;
     const std::vector<double> centers = map_centers(trace, options, where, map);
     const auto x = stroke_signal(trace);
-    const FrictionMapOptions chosen = with_one_model(trace, options, map);
+    const FrictionMapOptions chosen = with_one_model(trace, options);
     identify_segments(trace, x, centers, segment_spans(x, centers, where, map), chosen, map);
     std::vector<nlohmann::json> deviations;
     std::vector<std::vector<std::string>> stands_out;
