@@ -215,37 +215,12 @@ void apply_sinumerik_recording(SynthSpec& spec) {
 
 namespace {
 
-nlohmann::json axis_to_json(const AxisModel& model);
-
-// The axis keys a drive file gives over the drive's own (the demo's): a file need give only what differs. A key for
-// both directions replaces the drive's per-direction ones, and the other way round; an axis of the other kind
-// (rotary against linear) is taken as given.
-nlohmann::json axis_over_drive(const nlohmann::json& given, const AxisModel& drive) {
-    const bool given_rotary = (given.contains("rotary") && given["rotary"] == true) ||
-                              given.contains(ParameterNaming{true}.key(Term::mass));
-    if (given_rotary != drive.rotary) return given;
-    nlohmann::json merged = axis_to_json(drive);
-    const ParameterNaming naming{drive.rotary};
-    for (const auto& [key, value] : given.items()) {
-        if (const auto parsed = parse_parameter_key(key)) {
-            if (parsed->direction == Direction::both) {
-                merged.erase(naming.key(parsed->term, Direction::forward));
-                merged.erase(naming.key(parsed->term, Direction::reverse));
-            } else {
-                merged.erase(naming.key(parsed->term));
-            }
-        }
-        merged[key] = value;
-    }
-    return merged;
-}
-
 // axis: the friction and mass keys axis_from_document reads, and no other.
 void read_axis(ConfigSection& top, SynthSpec& spec) {
     auto axis = top.section("axis");
     if (!axis) return;
     const std::string where = top.path().empty() ? top.source() : fmt::format("{} ({})", top.source(), top.path());
-    spec.axis = axis_from_document(axis_over_drive(axis->json(), spec.axis), where);
+    spec.axis = axis_from_document(axis->json(), where);
     // the parameter keys (core/parameters.hpp), and no other
     for (const auto& key : axis->keys()) {
         if (key == "rotary" || parse_parameter_key(key)) axis->accept(key);
