@@ -799,6 +799,12 @@ ModelCandidate low_speed_asymmetry(const Derivatives& d, const Selection& select
     return candidate;
 }
 
+/// A fit's estimates as a vector; empty when the fit could not separate them.
+std::vector<double> estimates_of(const LeastSquaresResult& fit) {
+    if (fit.rank_deficient) return {};
+    return {fit.estimate.data(), fit.estimate.data() + fit.estimate.size()};
+}
+
 /// Symmetric within symmetric with an offset within per direction, tested on the (aligned) force.
 void choose_friction_model(const Derivatives& d, const Selection& selection, FrictionModelKind forced_model,
                            bool forced_offset, const ModelSelectionOptions& options, double threshold,
@@ -830,11 +836,8 @@ void choose_friction_model(const Derivatives& d, const Selection& selection, Fri
         choice.model = per_direction ? FrictionModelKind::asymmetric : FrictionModelKind::symmetric;
         choice.offset = !per_direction && offset.taken;
         // the chosen model's estimates on these samples, which a selection under the chosen model may change
-        const LeastSquaresResult& chosen_fit = per_direction ? direction_fit : offset_fit;
-        if ((per_direction || choice.offset) && !chosen_fit.rank_deficient) {
-            choice.first_selection_estimate.assign(chosen_fit.estimate.data(),
-                                                   chosen_fit.estimate.data() + chosen_fit.estimate.size());
-        }
+        if (per_direction || choice.offset)
+            choice.first_selection_estimate = estimates_of(per_direction ? direction_fit : offset_fit);
         asymmetric.verdict = asymmetric.taken ? "taken: the viscous friction differs by direction"
                                               : "not needed: the viscous friction is the same both ways";
         slow.verdict = slow.taken ? "taken: the friction at low speed differs by direction beyond a constant force"
@@ -858,8 +861,7 @@ void choose_friction_model(const Derivatives& d, const Selection& selection, Fri
     } else {
         choice.model = forced_model;
         choice.offset = forced_offset;
-        offset.verdict = "forced";
-        asymmetric.verdict = "forced";
+        offset.verdict = asymmetric.verdict = slow.verdict = "forced";
         if (!forced_offset && forced_model == FrictionModelKind::symmetric && offset.taken) {
             choice.findings.push_back(fmt::format(
                 "the data reject the forced model: they show a constant force ({}); --offset, or leave the model to "
@@ -879,7 +881,6 @@ void choose_friction_model(const Derivatives& d, const Selection& selection, Fri
                 describe(asymmetric, Term::viscous)));
         }
     }
-    if (!options.automatic) slow.verdict = "forced";
     choice.candidates.push_back(offset);
     choice.candidates.push_back(asymmetric);
     choice.candidates.push_back(slow);
