@@ -519,8 +519,13 @@ void find_bursts(const Derivatives& d, const std::vector<std::size_t>& index, co
 void detect_process_forces(const Derivatives& d, const Selection& selection, bool one_way,
                            const ModelSelectionOptions& options, ModelChoice& choice) {
     const auto& rows = selection.step1;
-    const Regressors largest =
+    Regressors largest =
         build_regressors(d, one_way ? FrictionModelKind::symmetric : FrictionModelKind::asymmetric, false);
+    // with the timing term: a drive signal out of step with the position leaves one-sided stretches wherever the
+    // force changes, which are not a process force (the column is not a friction term: Term::offset marks it)
+    largest.owned.push_back(delay_column(d));
+    largest.values.emplace_back(largest.owned.back());
+    largest.columns.push_back(RegressorColumn{Term::offset, Direction::both});
     const Eigen::VectorXd theta = robust_fit(largest, rows, options.tukey_constant);
     const double mass = theta(0);
     Eigen::VectorXd phi(static_cast<Eigen::Index>(largest.parameters()));
