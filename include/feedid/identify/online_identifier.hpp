@@ -174,6 +174,12 @@ public:
     /// Columns of the step-1 model: 3, or 4 with the offset.
     [[nodiscard]] std::size_t parameters() const { return p_; }
 
+    /// Samples in the buffers (a window and its filter margins) of an identifier with these options on a stream
+    /// sampled every sample_time_s [s].
+    [[nodiscard]] static std::size_t buffer_samples(const OnlineOptions& options, double sample_time_s);
+    /// The memory such an identifier takes: its buffers and its fixed state [bytes]. For a service that holds many.
+    [[nodiscard]] static std::size_t memory_bytes(const OnlineOptions& options, double sample_time_s);
+
 private:
     static constexpr int max_p = 4;
     using Vec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, max_p, 1>;
@@ -191,6 +197,12 @@ private:
         WindowVerdict own{WindowVerdict::low_excitation};  ///< its verdict on its own
     };
 
+    /// The low-pass cut-off [Hz], the window's core samples and its filter margin at a sample time.
+    struct Layout {
+        double cutoff_hz{0.0};
+        std::size_t window{0}, margin{0};
+    };
+    static Layout layout(const OnlineOptions& options, double sample_time_s);
     void setup(double sample_time_s);
     void process_window(std::size_t count);
     /// Why the pool gives no value ("" when it does): no window, one window, or windows that disagree.
