@@ -51,11 +51,11 @@ struct WatchOptions {
     bool trust_payload_names{false};
     std::size_t max_axes{1'000};  ///< more (machine, axis) pairs than this are refused (a runaway publisher)
     /// The identifiers of all axes take at most this much memory [bytes] (OnlineIdentifier::memory_bytes); an axis
-    /// beyond is refused. The default holds about 600 axes at 1 kHz with 2 s windows.
-    std::size_t axes_bytes{192u << 20};
+    /// beyond is refused. The default holds about 360 axes at 1 kHz with 2 s windows.
+    std::size_t axes_bytes{128u << 20};
     /// An axis whose window (and its filter margins) would hold more samples than this is refused (a window of 2 s
-    /// at 100 kHz holds 200,000).
-    std::size_t max_window_samples{200'000};
+    /// at 100 kHz and its margins hold 205,000).
+    std::size_t max_window_samples{250'000};
     /// Batches held after a hole, of all axes, take at most this much memory [bytes].
     std::size_t held_bytes{32u << 20};
     /// A completed identification (recorded when the service has a history): this many qualified windows since
