@@ -285,6 +285,65 @@ TEST(WatchPlant, TlsWithLoginsIdentifiesEndToEndAndRefusalsAreExitTwo) {
         EXPECT_EQ(everything.find(secret), std::string::npos) << "a password was shown";
 }
 
+/// A TCP port on 127.0.0.1 that takes connections (the kernel completes the handshake) and never answers: a broker
+/// that hangs, a firewall that lets the SYN through to a dead service. Closed with the object.
+class SilentPort {
+public:
+    SilentPort() {
+        fd_ = ::socket(AF_INET, SOCK_STREAM, 0);
+        sockaddr_in address{};
+        address.sin_family = AF_INET;
+        address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+        socklen_t length = sizeof address;
+        if (fd_ >= 0 && ::bind(fd_, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0 &&
+            ::listen(fd_, 16) == 0 && ::getsockname(fd_, reinterpret_cast<sockaddr*>(&address), &length) == 0)
+            port_ = ntohs(address.sin_port);
+    }
+    ~SilentPort() {
+        if (fd_ >= 0) ::close(fd_);
+    }
+    SilentPort(const SilentPort&) = delete;
+    SilentPort& operator=(const SilentPort&) = delete;
+    [[nodiscard]] int port() const { return port_; }
+
+private:
+    int fd_{-1};
+    int port_{0};
+};
+
+// A broker that takes the connection and never answers (neither CONNACK nor a TLS handshake) is exit 2 with the
+// reason within the connect timeout (10 s by default), for watch and publish: once, watch ran on silently, exit 0.
+TEST(WatchPlant, ABrokerThatNeverAnswersIsExitTwoWithinTheConnectTimeout) {
+    const auto dir = temp_dir();
+    const SilentPort silent;
+    ASSERT_GT(silent.port(), 0);
+    const double k = write_trace(dir / "x.csv", 7, 5.0);
+    const auto started = Clock::now();
+    Process watch({FEEDID_CLI, "watch", "--broker", fmt::format("mqtt://127.0.0.1:{}", silent.port())},
+                  dir / "watch.out", dir / "watch.err");
+    Process publish(publish_arguments(dir / "x.csv", k, fmt::format("mqtts://127.0.0.1:{}", silent.port()),
+                                      "plant/M1/X/axis"),
+                    dir / "publish.out", dir / "publish.err");
+    EXPECT_EQ(watch.wait(), 2) << read_text(dir / "watch.err");
+    const double watch_s = std::chrono::duration<double>(Clock::now() - started).count();
+    EXPECT_EQ(publish.wait(), 2) << read_text(dir / "publish.err");
+    const double publish_s = std::chrono::duration<double>(Clock::now() - started).count();
+    std::cout << fmt::format("a broker that never answers: watch exit 2 after {:.1f} s, publish (TLS) after {:.1f} s\n",
+                             watch_s, publish_s);
+    EXPECT_LT(watch_s, 15.0);
+    EXPECT_LT(publish_s, 15.0);
+    for (const char* err : {"watch.err", "publish.err"}) {
+        const std::string text = read_text(dir / err);
+        // one line, the last (publish says first which channels of the trace it took)
+        const auto line = text.rfind('\n', text.size() - 2) + 1;
+        EXPECT_EQ(text.substr(line), fmt::format("feedid: cannot reach the MQTT broker at mqtt{}://127.0.0.1:{}: no "
+                                                 "answer within 10 s{}\n",
+                                                 err[0] == 'p' ? "s" : "", silent.port(),
+                                                 err[0] == 'p' ? "" : " (a TLS port? then give mqtts://)"))
+            << text;
+    }
+}
+
 /// The watch's resident memory now and at most so far [MB].
 struct Memory {
     double now_mb{0.0}, peak_mb{0.0};
