@@ -115,15 +115,40 @@ State::State(OnlineOptions options)
     }
 }
 
+State::Layout State::layout(const OnlineOptions& options, double sample_time_s) {
+    const double fs = 1.0 / sample_time_s;
+    Layout l;
+    l.cutoff_hz = options.cutoff_hz.value_or(std::min(100.0, 0.1 * fs));
+    l.window = std::max<std::size_t>(20, static_cast<std::size_t>(std::llround(options.window_s / sample_time_s)));
+    l.margin = std::max<std::size_t>(
+        3, static_cast<std::size_t>(std::ceil(options.filter_settling_periods * fs / l.cutoff_hz)));
+    return l;
+}
+
+std::size_t OnlineIdentifier::buffer_samples(const OnlineOptions& options, double sample_time_s) {
+    const State::Layout l = State::layout(options, sample_time_s);
+    return l.window + 2 * l.margin;
+}
+
+std::size_t OnlineIdentifier::memory_bytes(const OnlineOptions& options, double sample_time_s) {
+    // the state behind the pointer, the buffers of setup() (12 of doubles, one of flags, the workspace, the rows),
+    // the start-up buffers they grow from, the deferred windows and the Stribeck bins
+    const std::size_t capacity = std::max(buffer_samples(options, sample_time_s), startup_samples);
+    const std::size_t per_sample =
+        12 * sizeof(double) + sizeof(char) + sizeof(double) + (State::max_p + 1) * sizeof(double);
+    return sizeof(OnlineIdentifier) + sizeof(State) + capacity * per_sample + 64 * sizeof(double) +
+           options.deferred_windows * sizeof(State::OneSpeedWindow) +
+           2 * State::bins_per_direction * sizeof(State::StribeckBin);
+}
+
 void State::setup(double sample_time_s) {
     dt_ = sample_time_s;
     const double fs = 1.0 / dt_;
-    const double cutoff = options_.cutoff_hz.value_or(std::min(100.0, 0.1 * fs));
-    cutoff_hz_ = cutoff;
-    filter_ = butterworth_lowpass(options_.filter_order, std::min(cutoff, 0.45 * fs), fs);
-    window_ = std::max<std::size_t>(20, static_cast<std::size_t>(std::llround(options_.window_s / dt_)));
-    margin_ =
-        std::max<std::size_t>(3, static_cast<std::size_t>(std::ceil(options_.filter_settling_periods * fs / cutoff)));
+    const Layout l = layout(options_, dt_);
+    cutoff_hz_ = l.cutoff_hz;
+    filter_ = butterworth_lowpass(options_.filter_order, std::min(l.cutoff_hz, 0.45 * fs), fs);
+    window_ = l.window;
+    margin_ = l.margin;
     const std::size_t capacity = window_ + 2 * margin_;
     for (auto* b : {&t_, &x_, &f_, &xf_, &ff_, &v_, &a_, &s_, &sf_, &residual_, &scratch_, &weights_})
         b->resize(capacity);

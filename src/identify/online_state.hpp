@@ -45,9 +45,16 @@ struct OnlineIdentifier::State {
         std::size_t rows{0};
     };
 
+    /// The low-pass cut-off [Hz], the window's core samples and its filter margin at a sample time.
+    struct Layout {
+        double cutoff_hz{0.0};
+        std::size_t window{0}, margin{0};
+    };
+
     explicit State(OnlineOptions options);
 
     // the stream into windows (online_identifier.cpp)
+    static Layout layout(const OnlineOptions& options, double sample_time_s);
     void setup(double sample_time_s);
     void push(double t, double x, double force, bool use);
     void flush();

@@ -375,8 +375,8 @@ void read_parameters(const JsonField& j, IdentifyResult& r) {
     r.offset = offset;
     r.parameters = model_parameters(r.model, r.offset, r.rotary);
     for (const auto& [key, entry] : parameters.members()) {
-        auto it =
-            std::find_if(r.parameters.begin(), r.parameters.end(), [&](const Parameter& p) { return p.key == key; });
+        auto it = std::find_if(r.parameters.begin(), r.parameters.end(),
+                               [&name = key](const Parameter& p) { return p.key == name; });
         if (it == r.parameters.end()) {
             throw InputError(fmt::format("parameter \"{}\" does not belong to a {} {} model", key, r.model_name(),
                                          r.rotary ? "rotary" : "linear"));

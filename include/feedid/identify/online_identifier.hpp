@@ -191,6 +191,12 @@ public:
     /// Columns of the step-1 model: 3, or 4 with the offset.
     [[nodiscard]] std::size_t parameters() const;
 
+    /// Samples in the buffers (a window and its filter margins) of an identifier with these options on a stream
+    /// sampled every sample_time_s [s].
+    [[nodiscard]] static std::size_t buffer_samples(const OnlineOptions& options, double sample_time_s);
+    /// The memory such an identifier takes: its buffers and its fixed state [bytes]. For a service that holds many.
+    [[nodiscard]] static std::size_t memory_bytes(const OnlineOptions& options, double sample_time_s);
+
     struct State;  ///< opaque: defined in the library's sources only
 
 private:
