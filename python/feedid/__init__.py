@@ -262,7 +262,7 @@ def identify(trace: TraceArgument, *, model: str = _IDENTIFY["model"], offset: O
         ...                          offset=True)
         >>> m = result.parameters["mass_kg"]        # standard error and combined uncertainty, both in kg
         >>> print(f"M = {m.value:.2f} +- {m.standard_error:.3f} kg (uncertainty {m.uncertainty:.3f} kg)")
-        M = 95.01 +- 0.177 kg (uncertainty 0.527 kg)
+        M = 95.01 +- 0.951 kg (uncertainty 1.073 kg)
     """
     options = _options(locals(), "trace")
     result = _native.identify(trace, options)
