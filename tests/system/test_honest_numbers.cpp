@@ -225,7 +225,7 @@ TEST(Findings, APoorFitSaysWhichSamplesCarryItsResidual) {
     auto& current = trace.find(feedid::Role::current)->values;
     std::rotate(current.rbegin(), current.rbegin() + 20, current.rend());
     const auto r = feedid::identify(trace, with_the_files_constant());
-    ASSERT_TRUE(r.step1);
+    ASSERT_TRUE(r.step1) << nlohmann::json(r.diagnostics).dump(1);
     ASSERT_GT(r.step1->relative_error_pct, 10.0);
     EXPECT_TRUE(has_diagnostic_with(r, "step 1 fits poorly")) << nlohmann::json(r.diagnostics).dump(1);
     EXPECT_TRUE(has_diagnostic_with(r, "most likely cause:")) << nlohmann::json(r.diagnostics).dump(1);

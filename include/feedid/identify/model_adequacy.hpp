@@ -58,11 +58,12 @@ struct ModelSelectionOptions {
     /// Process forces (cutting, a load the drive's model does not have): a stretch of samples whose residual (from a
     /// robust fit: Tukey's biweight with this constant, in robust standard deviations) stays beyond
     /// burst_deviations robust standard deviations on one side for at least burst_correlation_lengths lengths of
-    /// the low-pass's correlation (and burst_min_s) is a burst; a trace with one is refused.
+    /// the low-pass's correlation and burst_min_s (longer than the transient a late drive signal leaves at a jerk) is a
+    /// burst; a trace with one is refused.
     double tukey_constant{4.685};
     double burst_deviations{4.0};
     double burst_correlation_lengths{3.0};
-    double burst_min_s{0.03};
+    double burst_min_s{0.1};
     /// ... and beyond this fraction of the Coulomb friction (a force too small to matter is not refused).
     double burst_friction_fraction{0.05};
     /// Standard errors count residuals as correlated over blocks of at least this many integrated autocorrelation
