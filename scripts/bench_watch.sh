@@ -25,7 +25,9 @@ pids+=($!)
 sleep 0.5
 # the demo drive's synthetic test trace, replayed in a loop (each pass a later recording)
 "$feedid" synth --out "$dir/trace.csv" > /dev/null 2>&1
-printf '[service]\nestimate_interval_s = 5\n' > "$dir/watch.toml"
+# the service's memory bounds raised for AXES axes (0.35 MB of identifier each at 1 kHz), the queue as before
+printf '[service]\nestimate_interval_s = 5\nqueue_mb = 256\nmax_axes = %s\naxes_mb = %s\n' "$axes" \
+  $(( axes * 2 / 5 + 16 )) > "$dir/watch.toml"
 taskset -c "$core" "$feedid" watch --broker "mqtt://127.0.0.1:$port" --config "$dir/watch.toml" --topic 'bench/+/+/axis/#' --quiet \
   > "$dir/watch.out" 2> "$dir/watch.err" &
 watch=$!

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Robustness of the trace readers (CSV, MATLAB .mat, SINUMERIK trace XML, TwinCAT Scope CSV, halscope/halsampler,
-# MR Configurator2 and NI DAQ CSV):
-#   1. libFuzzer: each reader's fuzz target (fuzz/) built with clang into build-fuzz/ and run for a bounded time,
+# MR Configurator2 and NI DAQ CSV) and of feedid watch's MQTT payload decoder (payload):
+#   1. libFuzzer: each fuzz target (fuzz/) built with clang into build-fuzz/ and run for a bounded time,
 #      seeded from the hand-made corpus in tests/fuzz/corpus/<reader>/, the kept regression inputs in
 #      tests/fuzz/regressions/<reader>/ and the real files in ../shared/data (read only);
 #   2. the reader tests (tests/io/test_readers.cpp) built with -DFEEDID_SANITIZE=ON (AddressSanitizer + UBSan) into
@@ -13,7 +13,7 @@
 #   scripts/fuzz.sh              both parts, 30 s per fuzzer
 #   scripts/fuzz.sh fuzz         only the fuzzers        scripts/fuzz.sh asan   only the sanitized tests
 #   FUZZ_SECONDS=60 JOBS=2 scripts/fuzz.sh
-#   FUZZ_READERS="mr_configurator ni_daq" scripts/fuzz.sh fuzz   only these fuzzers
+#   FUZZ_READERS="mr_configurator ni_daq" scripts/fuzz.sh fuzz   only these fuzzers (payload: the MQTT decoder)
 #   FUZZ_SEED=1 scripts/fuzz.sh  the same mutations on every run (CI): a fixed seed makes a short run a repeatable
 #                                check, clean on every machine once it is clean here for longer; without it each run
 #                                explores anew (what to run locally, for minutes)
@@ -29,7 +29,7 @@ seed_option=()
 [ -n "${FUZZ_SEED:-}" ] && seed_option=(-seed="$FUZZ_SEED")
 jobs=${JOBS:-2}
 shared=${FEEDID_SHARED_DATA:-$root/../shared/data}
-readers=(${FUZZ_READERS:-csv mat sinumerik_trace twincat_scope halscope mr_configurator ni_daq})
+readers=(${FUZZ_READERS:-csv mat sinumerik_trace twincat_scope halscope mr_configurator ni_daq payload})
 status=0
 # HDF5's own leaks on damaged v7.3 files are not feedid's (see the file); every other leak still fails.
 export LSAN_OPTIONS="suppressions=$root/fuzz/lsan.supp${LSAN_OPTIONS:+:$LSAN_OPTIONS}"
@@ -60,7 +60,9 @@ run_fuzzers() {
   rm -rf "$probe"
 
   cmake -S fuzz -B build-fuzz -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
-  cmake --build build-fuzz -j"$jobs"
+  local targets=()
+  for reader in "${readers[@]}"; do targets+=("fuzz_$reader"); done
+  cmake --build build-fuzz -j"$jobs" --target "${targets[@]}"
   for reader in "${readers[@]}"; do
     local corpus=build-fuzz/corpus/$reader artifacts=build-fuzz/artifacts/$reader
     mkdir -p "$corpus" "$artifacts"

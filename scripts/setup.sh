@@ -11,8 +11,9 @@ packages=(cmake g++ make pkg-config libeigen3-dev libcli11-dev libfmt-dev nlohma
           libtomlplusplus-dev
           # the history on PostgreSQL: libpq (the client the backend is built with) and the server its tests start
           libpq-dev postgresql
-          # feedid watch / publish: Eclipse Mosquitto's C client library, and its broker for the tests and make demo
-          libmosquitto-dev mosquitto
+          # feedid watch / publish: Eclipse Mosquitto's C client library, and its broker (with mosquitto_passwd) for the
+          # tests and make demo; openssl makes the TLS tests' CA and certificates
+          libmosquitto-dev mosquitto openssl
           # the Python module (pybind11, numpy) and its tests: pytest, pandas, scipy (the benchmark's reference),
           # Dask (feedid.fleet), and an offline `pip install --no-build-isolation .` into a venv
           python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest python3-pandas python3-scipy

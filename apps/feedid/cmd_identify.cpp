@@ -1,5 +1,10 @@
 // feedid identify FILE: mass and friction of the axis, with uncertainty (the paper's two-step RLS, done right).
 #include <algorithm>
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <optional>
+#include <string_view>
 #include <cstdio>
 #include <memory>
 #include <vector>
@@ -8,6 +13,7 @@
 
 #include "cli.hpp"
 #include "feedid/core/error.hpp"
+#include "feedid/identify/brief_report.hpp"
 #include "feedid/identify/friction_map.hpp"
 #include "feedid/identify/identify.hpp"
 #include "feedid/identify/option_names.hpp"
@@ -20,11 +26,46 @@ namespace feedid::cli {
 
 namespace {
 
+/// A delay with its unit ("0.5ms", "-250us", "0.001s"; a bare number is seconds) [s]; nullopt when not one.
+std::optional<double> delay_seconds(const std::string& text) {
+    const std::array<std::pair<const char*, double>, 3> units{{{"us", 1e-6}, {"ms", 1e-3}, {"s", 1.0}}};
+    double scale = 1.0;
+    std::string number = text;
+    for (const auto& [suffix, factor] : units) {
+        const std::string_view unit(suffix);
+        if (number.size() > unit.size() && number.ends_with(unit)) {
+            number.resize(number.size() - unit.size());
+            scale = factor;
+            break;
+        }
+    }
+    double value = 0.0;
+    const auto [end, error] = std::from_chars(number.data(), number.data() + number.size(), value);
+    if (error != std::errc{} || end != number.data() + number.size() || !std::isfinite(value)) return std::nullopt;
+    return value * scale;
+}
+
+std::string delay_problem(const std::string& text) {
+    if (text == "auto" || text == "none") return {};
+    const auto seconds = delay_seconds(text);
+    if (!seconds) return fmt::format("'{}' is not auto, none or a time with its unit (0.5ms, 250us, 0.001s)", text);
+    if (std::abs(*seconds) > 1.0) return fmt::format("'{}' is more than 1 s: two recorders' clocks? (--join)", text);
+    return {};
+}
+
+double parse_delay(const std::string& text) {
+    return *delay_seconds(text);
+}
+
 struct IdentifyCommand {
     TraceArguments trace_arguments;
     DriveArguments drive_arguments;
     IdentifyOptions options;  // the defaults: the library's
-    std::string model{name_of(friction_model_names, options.model)};
+    // "auto" (the library's default, ModelSelectionOptions::automatic) or a forced friction model
+    std::string model{options.model_selection.automatic ? automatic_model_name
+                                                        : name_of(friction_model_names, options.model)};
+    bool no_offset{false};
+    std::string delay;
     std::string differentiation{name_of(differentiation_names, options.preprocess.differentiation)};
     std::string velocity_source{name_of(velocity_source_names, options.preprocess.velocity_source)};
     std::string rls_variant{name_of(rls_variant_names, options.step1.rls.variant)};
@@ -38,10 +79,29 @@ struct IdentifyCommand {
     void add_to(CLI::App& sub) {
         trace_arguments.add_to(sub);
         drive_arguments.add_to(sub);
-        sub.add_option("--model", model, "Friction model: symmetric (the paper's eq. 11) or asymmetric (per direction)")
-            ->check(CLI::IsMember(names_of(friction_model_names)))
+        auto* model_group = sub.add_option_group("Model");
+        std::vector<std::string> models{automatic_model_name};
+        for (const auto& name : names_of(friction_model_names)) models.push_back(name);
+        model_group
+            ->add_option("--model", model,
+                         "Friction model: auto (chosen from the data with the offset and the drive signal's delay), "
+                         "symmetric (the paper's eq. 11) or asymmetric (per direction); symmetric or asymmetric "
+                         "forces the model")
+            ->check(CLI::IsMember(models))
             ->capture_default_str();
-        sub.add_flag("--offset", options.offset, "Also estimate a constant force offset (gravity, sensor offset)");
+        auto* offset_flag = model_group->add_flag(
+            "--offset", options.offset,
+            "Force a constant force offset F_0 into the model (a weight, a sensor's zero); without --offset, --no-offset "
+            "or --model, the data decide");
+        model_group
+            ->add_flag("--no-offset", no_offset, "Force the model without an offset")
+            ->excludes(offset_flag);
+        model_group
+            ->add_option("--delay", delay,
+                         "The drive signal's delay behind the position: auto (estimated, applied where significant; "
+                         "the default with an automatic model), none (the default with a forced model, which only "
+                         "says a significant one), or a known one, e.g. 0.5ms")
+            ->check([](const std::string& text) { return delay_problem(text); });
         sub.add_flag("--no-stribeck", no_stribeck, "Skip step 2 (breakaway friction and Stribeck velocity)");
         sub.add_option("--json", json_path, "Write the result document to PATH ('-' for stdout)");
         record.add_to(sub);
@@ -126,7 +186,15 @@ struct IdentifyCommand {
         IdentifyOptions o = options;
         o.drive = drive_arguments.constants();
         // the names were checked while parsing (IsMember)
-        o.model = value_named(friction_model_names, model).value_or(o.model);
+        if (model != automatic_model_name) o.model = value_named(friction_model_names, model).value_or(o.model);
+        // any of --model symmetric|asymmetric, --offset, --no-offset forces the whole model
+        o.model_selection.automatic = model == automatic_model_name && !options.offset && !no_offset;
+        if (delay == "auto")
+            o.model_selection.delay = ModelSelectionOptions::Delay::estimate;
+        else if (delay == "none")
+            o.model_selection.delay = ModelSelectionOptions::Delay::none;
+        else if (!delay.empty())
+            o.model_selection.known_delay_s = parse_delay(delay);
         o.preprocess.differentiation =
             value_named(differentiation_names, differentiation).value_or(o.preprocess.differentiation);
         o.preprocess.velocity_source =
@@ -258,21 +326,7 @@ struct IdentifyCommand {
     }
 
     static void print_table(const IdentifyResult& result) {
-        fmt::print("{} ({} samples, {:.6g} s)\n", terminal_text(result.trace.path), result.trace.samples,
-                   result.trace.duration_s);
-        fmt::print("model: {}{}\n\n", result.model_name(), result.offset ? " with offset" : "");
-        // the standard error (statistical) and the combined uncertainty (with the preprocessing's systematic part)
-        fmt::print("  {:<6} {:>14}   {:<12} {:<12} {:<10}\n", "", "value", "std. error", "uncertainty", "unit");
-        for (const auto& p : result.parameters) {
-            if (p.estimate.value) {
-                const std::string combined =
-                    p.estimate.uncertainty ? fmt::format("{:.3g}", *p.estimate.uncertainty) : std::string("—");
-                fmt::print("  {:<6} {:>14.6g} ± {:<12.3g} {:<12} {:<10}\n", p.symbol, *p.estimate.value,
-                           p.estimate.standard_error.value_or(NAN), combined, p.unit);
-            } else {
-                fmt::print("  {:<6} {:>14}   {:<12} {:<12} {:<10}\n", p.symbol, "—", "", "", p.unit);
-            }
-        }
+        fmt::print("{}", brief_report(result));
         if (result.step1) {
             fmt::print("\n  step-1 batch QR: relative error {:.3f} %, condition number {:.3g}, {} samples\n",
                        result.step1->relative_error_pct, result.step1->condition_number, result.step1->samples_used);

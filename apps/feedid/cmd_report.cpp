@@ -10,7 +10,8 @@
 #include "feedid/history/store.hpp"
 #include "feedid/history/trend.hpp"
 #include "feedid/io/json_input.hpp"
-#include "feedid/report/report.hpp"
+#include "feedid/report/history_report.hpp"
+#include "feedid/report/result_report.hpp"
 
 namespace feedid::cli {
 namespace {

@@ -12,6 +12,7 @@
 
 #include "cli.hpp"
 #include "feedid/core/error.hpp"
+#include "feedid/identify/brief_report.hpp"
 #include "feedid/stream/scan.hpp"
 #include "feedid/core/terminal_text.hpp"
 #include "record_arguments.hpp"
@@ -163,18 +164,7 @@ struct ScanCommand {
                    r.trace.duration_s);
         fmt::print("windows: {}\n\n", counts_text(s.online.windows));
         // the standard error (statistical) and the combined uncertainty (with the split speed's systematic part)
-        fmt::print("  {:<6} {:>14}   {:<12} {:<12} {:<10}\n", "", "value", "std. error", "uncertainty", "unit");
-        const auto figure = [](const std::optional<double>& v) {
-            return v ? fmt::format("{:.3g}", *v) : std::string("—");
-        };
-        for (const auto& p : r.parameters) {
-            if (p.estimate.value) {
-                fmt::print("  {:<6} {:>14.6g} ± {:<12} {:<12} {:<10}\n", p.symbol, *p.estimate.value,
-                           figure(p.estimate.standard_error), figure(p.estimate.uncertainty), p.unit);
-            } else {
-                fmt::print("  {:<6} {:>14}   {:<12} {:<12} {:<10}\n", p.symbol, "—", "", "", p.unit);
-            }
-        }
+        fmt::print("{}", parameter_table_text(r));
         fmt::print("\n");
         for (const auto& line : scan_verdicts(s)) fmt::print("  {}\n", terminal_message(line));
         // the findings the verdicts above have not said already (they say the reasons of the null parameters)

@@ -193,8 +193,9 @@ Simulation.to_pandas = _pandas.simulation_to_pandas  # type: ignore[attr-defined
 History.to_pandas = _pandas.history_to_pandas  # type: ignore[attr-defined]
 
 
-def identify(trace: TraceArgument, *, model: str = _IDENTIFY["model"], offset: bool = _IDENTIFY["offset"],
-             stribeck: bool = _IDENTIFY["stribeck"], force_constant: Union[float, str, None] = None,
+def identify(trace: TraceArgument, *, model: str = _IDENTIFY["model"], offset: Optional[bool] = None,
+             delay: Union[str, float, None] = None, stribeck: bool = _IDENTIFY["stribeck"],
+             force_constant: Union[float, str, None] = None,
              kt_Nm_per_A: Optional[float] = None, lead_mm: Optional[float] = None,
              gear_ratio: float = _IDENTIFY["gear_ratio"], differentiation: str = _IDENTIFY["differentiation"],
              velocity_source: str = _IDENTIFY["velocity_source"], filter_order: int = _IDENTIFY["filter_order"],
@@ -218,8 +219,14 @@ def identify(trace: TraceArgument, *, model: str = _IDENTIFY["model"], offset: b
 
     Args:
         trace: a Trace, or the path of a trace file.
-        model: ``"symmetric"`` (the paper's eq. 11) or ``"asymmetric"`` (friction per direction).
-        offset: also estimate a constant force offset F_0 [N].
+        model: ``"auto"`` (chosen from the data, with the offset and the drive signal's delay: the
+            result's ``model_selection``), ``"symmetric"`` (the paper's eq. 11) or ``"asymmetric"`` (friction per
+            direction); a model given forces it.
+        offset: None (the data decide), True (force a constant force offset F_0 [N] into the model) or False
+            (force the model without one).
+        delay: the drive signal's delay behind the position: None (estimated and applied where significant with an
+            automatic model; with a forced one only said), ``"auto"`` (estimated and applied where significant),
+            ``"none"``, or a known delay [s].
         stribeck: run step 2 (breakaway friction F_B [N], Stribeck velocity v_s [m/s]).
         differentiation: ``"butterworth"`` (zero-phase low-pass, then central differences), ``"central"``,
             ``"savitzky-golay"``.
@@ -255,7 +262,7 @@ def identify(trace: TraceArgument, *, model: str = _IDENTIFY["model"], offset: b
         ...                          offset=True)
         >>> m = result.parameters["mass_kg"]        # standard error and combined uncertainty, both in kg
         >>> print(f"M = {m.value:.2f} +- {m.standard_error:.3f} kg (uncertainty {m.uncertainty:.3f} kg)")
-        M = 95.01 +- 0.177 kg (uncertainty 0.527 kg)
+        M = 95.01 +- 0.951 kg (uncertainty 1.073 kg)
     """
     options = _options(locals(), "trace")
     result = _native.identify(trace, options)

@@ -227,7 +227,8 @@ class Result:
     @staticmethod
     def from_dict(document: Mapping[str, Any]) -> Result: ...
 
-def identify(trace: TraceArgument, *, model: Literal["symmetric", "asymmetric"] = ..., offset: bool = ...,
+def identify(trace: TraceArgument, *, model: Optional[Literal["auto", "symmetric", "asymmetric"]] = ...,
+             offset: Optional[bool] = ..., delay: Union[Literal["auto", "none"], float, None] = ...,
              stribeck: bool = ..., force_constant: Union[float, str, None] = ..., kt_Nm_per_A: Optional[float] = ...,
              lead_mm: Optional[float] = ..., gear_ratio: float = ...,
              differentiation: Literal["butterworth", "central", "savitzky-golay"] = ...,

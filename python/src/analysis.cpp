@@ -4,6 +4,7 @@
 
 #include "binding.hpp"
 #include "feedid/core/error.hpp"
+#include "feedid/identify/brief_report.hpp"
 #include "feedid/identify/gains.hpp"
 #include "feedid/identify/identify.hpp"
 #include "feedid/identify/option_names.hpp"
@@ -85,8 +86,25 @@ void preprocess_options(const OptionReader& o, PreprocessOptions& p) {
 /// the drive constants.
 IdentifyOptions identify_options(const OptionReader& o, nlohmann::json& drive_record) {
     IdentifyOptions options;
-    options.model = choice(o, "model", options.model, friction_model_names);
-    options.offset = o.flag("offset").value_or(options.offset);
+    // as the command line: model "auto" and offset=None leave the model to the data; a model or an offset given
+    // forces it
+    const auto model = o.text("model");
+    const auto offset = o.flag("offset");
+    const bool automatic_model = !model || *model == automatic_model_name;
+    if (!automatic_model) options.model = choice(o, "model", options.model, friction_model_names);
+    options.offset = offset.value_or(options.offset);
+    options.model_selection.automatic = automatic_model && !offset;
+    if (o.given("delay") && py::isinstance<py::str>(o.object("delay"))) {
+        const auto delay = o.text("delay");
+        if (*delay == "auto")
+            options.model_selection.delay = ModelSelectionOptions::Delay::estimate;
+        else if (*delay == "none")
+            options.model_selection.delay = ModelSelectionOptions::Delay::none;
+        else
+            throw InputError(fmt::format("delay='{}': 'auto', 'none' or a delay in seconds", *delay));
+    } else if (const auto seconds = o.number("delay", {-1.0, 1.0, "s"})) {
+        options.model_selection.known_delay_s = *seconds;
+    }
     options.stribeck = o.flag("stribeck").value_or(options.stribeck);
     options.systematic = o.flag("systematic").value_or(options.systematic);
     if (const auto threads = o.integer("threads", {0, 1024, ""})) options.threads = static_cast<unsigned>(*threads);
@@ -427,12 +445,11 @@ void add_result_documents(py::class_<IdentifyResult>& cls) {
             return r;
         },
         py::arg("document"), "A result read back from its document (what feedid identify --json wrote)");
+    // the lines feedid identify prints first: the trace, model and status, and the parameter table
     cls.def("__repr__", [](const IdentifyResult& r) {
-        std::string values;
-        for (const auto& p : r.parameters) {
-            if (p.estimate.value) values += fmt::format(", {} {:.6g} {}", p.symbol, *p.estimate.value, p.unit);
-        }
-        return fmt::format("<feedid.Result {} {}{}>", to_string(r.status), r.model_name(), values);
+        std::string text = brief_report(r);
+        while (!text.empty() && text.back() == '\n') text.pop_back();
+        return text;
     });
 }
 

@@ -33,8 +33,9 @@ py::dict drive_defaults() {
 py::dict identify_defaults() {
     const IdentifyOptions options;
     py::dict out = drive_defaults();
-    out["model"] = name_of(friction_model_names, options.model);
-    out["offset"] = options.offset;
+    // "auto": the data choose the model (and an offset and delay) unless a model or offset= is given
+    out["model"] = options.model_selection.automatic ? std::string(automatic_model_name)
+                                                     : name_of(friction_model_names, options.model);
     out["stribeck"] = options.stribeck;
     out["differentiation"] = name_of(differentiation_names, options.preprocess.differentiation);
     out["velocity_source"] = name_of(velocity_source_names, options.preprocess.velocity_source);

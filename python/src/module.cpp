@@ -9,6 +9,7 @@
 #include "binding.hpp"
 #include "feedid/core/error.hpp"
 #include "feedid/core/estimate.hpp"
+#include "feedid/core/json_adapters.hpp"
 #include "feedid/core/version.hpp"
 
 namespace feedid::python {

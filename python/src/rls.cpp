@@ -1,5 +1,8 @@
 // feedid.Rls: the fixed-size RLS of rls.hpp for 1 to 8 parameters, one sample at a time or a whole array at once
-// (the loop in C++, without the GIL).
+// (the loop in C++, without the GIL). Each Rls has a lock of its own: update_many runs without the GIL, so two Python
+// threads could otherwise update one estimator at once and interleave their samples; with the lock, each call is
+// whole, and two threads give the result of one order or the other.
+#include <mutex>
 #include <variant>
 
 #include <fmt/core.h>
@@ -66,11 +69,7 @@ public:
             throw InputError(
                 fmt::format("Rls: initial_covariance={}: must be positive and finite", initial_covariance));
         std::vector<double> start;
-        if (!initial_estimate.is_none()) {
-            start = vector_of(initial_estimate, "initial_estimate", n);
-            for (const double value : start)
-                if (!std::isfinite(value)) throw InputError("Rls: initial_estimate holds a value that is not finite");
-        }
+        if (!initial_estimate.is_none()) start = finite_vector_of(initial_estimate, "initial_estimate", n);
         n_ = n;
         rls_ = make_rls<1>(n, options, start.empty() ? nullptr : start.data());
     }
@@ -79,6 +78,7 @@ public:
 
     std::string update(const py::object& phi, double y) {
         const auto values = vector_of(phi, "phi", n_);
+        const auto lock = acquire();
         return std::visit(
             [&](auto& rls) {
                 using Vector = typename std::decay_t<decltype(rls)>::Vector;
@@ -110,15 +110,18 @@ public:
         }
         UpdateCounts counts;
         {
+            // the lock is taken and released without the GIL: a thread waiting for it never blocks the others
             py::gil_scoped_release release;
+            const std::lock_guard lock(mutex_);
             std::visit([&](auto& rls) { counts = run(rls, phi.data(), y.data(), rows, out); }, rls_);
+            last_counts_ = counts;
         }
-        last_counts_ = counts;
         if (history) return estimates;
         return py::none();
     }
 
     [[nodiscard]] py::array_t<double> estimate() const {
+        const auto lock = acquire();
         return std::visit(
             [&](const auto& rls) {
                 py::array_t<double> out(n_);
@@ -129,6 +132,7 @@ public:
     }
 
     [[nodiscard]] py::array_t<double> covariance() const {
+        const auto lock = acquire();
         return std::visit(
             [&](const auto& rls) {
                 py::array_t<double> out({n_, n_});
@@ -140,9 +144,11 @@ public:
     }
 
     [[nodiscard]] std::size_t updates() const {
+        const auto lock = acquire();
         return std::visit([](const auto& rls) { return rls.updates(); }, rls_);
     }
     [[nodiscard]] bool wound_up() const {
+        const auto lock = acquire();
         return std::visit([](const auto& rls) { return rls.wound_up(); }, rls_);
     }
     [[nodiscard]] RlsOptions options() const {
@@ -150,7 +156,8 @@ public:
     }
     void reset(const py::object& initial_estimate) {
         std::vector<double> start(static_cast<std::size_t>(n_), 0.0);
-        if (!initial_estimate.is_none()) start = vector_of(initial_estimate, "initial_estimate", n_);
+        if (!initial_estimate.is_none()) start = finite_vector_of(initial_estimate, "initial_estimate", n_);
+        const auto lock = acquire();
         std::visit(
             [&](auto& rls) {
                 using Vector = typename std::decay_t<decltype(rls)>::Vector;
@@ -159,14 +166,37 @@ public:
             rls_);
     }
     [[nodiscard]] py::dict last_counts() const {
+        UpdateCounts counts;
+        {
+            const auto lock = acquire();
+            counts = last_counts_;
+        }
         py::dict out;
-        out["updated"] = last_counts_.updated;
-        out["no_excitation"] = last_counts_.no_excitation;
-        out["non_finite"] = last_counts_.non_finite;
+        out["updated"] = counts.updated;
+        out["no_excitation"] = counts.no_excitation;
+        out["non_finite"] = counts.non_finite;
         return out;
     }
 
 private:
+    /// This estimator's lock, taken with the GIL released (so that a thread waiting for it lets the others run,
+    /// among them the one that holds it and needs the GIL to return).
+    [[nodiscard]] std::unique_lock<std::mutex> acquire() const {
+        std::unique_lock lock(mutex_, std::defer_lock);
+        if (!lock.try_lock()) {
+            py::gil_scoped_release release;
+            lock.lock();
+        }
+        return lock;
+    }
+
+    static std::vector<double> finite_vector_of(const py::object& object, const char* name, int n) {
+        auto values = vector_of(object, name, n);
+        for (const double value : values)
+            if (!std::isfinite(value)) throw InputError(fmt::format("Rls: {} holds a value that is not finite", name));
+        return values;
+    }
+
     static std::vector<double> vector_of(const py::object& object, const char* name, int n) {
         using Values = py::array_t<double, py::array::c_style | py::array::forcecast>;
         const Values values = Values::ensure(object);
@@ -196,6 +226,7 @@ private:
     int n_{1};
     AnyRls rls_;
     UpdateCounts last_counts_;
+    mutable std::mutex mutex_;
 };
 
 }  // namespace
@@ -214,7 +245,8 @@ exactly symmetric and stays bounded: use it for long streams. Units are those of
 
 ``update(phi, y)`` takes one sample; ``update_many(Phi, Y)`` takes m samples at once (Phi: m x n, Y: m) and runs the
 loop in C++ without the GIL (other Python threads run meanwhile); Phi and Y are converted to C-ordered float64 first
-when they are not. A sample with a value that is not finite is skipped (``"non_finite"``); one with no excitation
+when they are not. Each Rls has a lock: calls from several threads on one Rls each run whole, one after the other (two
+update_many calls give the result of one order or the other, never a mix). A sample with a value that is not finite is skipped (``"non_finite"``); one with no excitation
 changes nothing (``"no_excitation"``); ``last_counts`` counts them for the last ``update_many``.
 
 Example::
@@ -259,7 +291,7 @@ Example::
         .def_property_readonly("last_counts", &PyRls::last_counts,
                                "The last update_many's samples: {'updated', 'no_excitation', 'non_finite'}")
         .def("reset", &PyRls::reset, py::arg("initial_estimate") = py::none(),
-             "Starts again: theta = initial_estimate (zeros), P = P(0)")
+             "Starts again: theta = initial_estimate (zeros; finite numbers), P = P(0)")
         .def("__repr__", [](const PyRls& r) {
             return fmt::format("<feedid.Rls n={}, {} forgetting {}, {} updates>", r.n(),
                                r.options().variant == RlsVariant::exponential ? "exponential" : "directional",

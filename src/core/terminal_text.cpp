@@ -80,4 +80,28 @@ std::string terminal_message(std::string_view text) {
     return escaped(text, true);
 }
 
+bool is_storable_text(std::string_view text) {
+    while (!text.empty()) {
+        std::uint32_t c = 0;
+        const std::size_t length = utf8_sequence(text, c);
+        if (length == 0 || c == 0) return false;
+        text.remove_prefix(length);
+    }
+    return true;
+}
+
+std::string name_problem(std::string_view name, std::size_t max_bytes) {
+    if (name.empty()) return "empty";
+    if (name.size() > max_bytes) return fmt::format("longer than {} bytes", max_bytes);
+    while (!name.empty()) {
+        std::uint32_t c = 0;
+        const std::size_t length = utf8_sequence(name, c);
+        if (length == 0) return "not UTF-8";
+        if (c < 0x20 || c == 0x7F || (c >= 0x80 && c <= 0x9F)) return "a control character";
+        if (bidirectional_control(c)) return "a bidirectional override";
+        name.remove_prefix(length);
+    }
+    return "";
+}
+
 }  // namespace feedid

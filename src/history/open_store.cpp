@@ -51,6 +51,24 @@ std::string shown_location(const std::string& location) {
     return shown + kept + (parameters.empty() ? "" : "?" + parameters);
 }
 
+bool location_has_password(const std::string& location) {
+    if (!is_postgresql_location(location)) return false;
+    const std::size_t authority = location.find("://") + 3;
+    const std::size_t authority_end = std::min(location.find_first_of("/?", authority), location.size());
+    const std::string host_part = location.substr(authority, authority_end - authority);
+    if (const std::size_t at = host_part.rfind('@');
+        at != std::string::npos && host_part.substr(0, at).find(':') != std::string::npos)
+        return true;
+    const std::size_t query = location.find('?', authority);
+    if (query == std::string::npos) return false;
+    for (std::size_t start = query + 1; start <= location.size();) {
+        const std::size_t end = std::min(location.find('&', start), location.size());
+        if (location.compare(start, 9, "password=") == 0) return true;
+        start = end + 1;
+    }
+    return false;
+}
+
 #ifndef FEEDID_HAVE_POSTGRESQL
 std::unique_ptr<HistoryStore> open_postgres_store(const std::string& location, const OpenOptions&) {
     throw InputError(
@@ -61,7 +79,14 @@ std::unique_ptr<HistoryStore> open_postgres_store(const std::string& location, c
 #endif
 
 std::unique_ptr<HistoryStore> open_store(const std::string& location, const OpenOptions& options) {
-    if (is_postgresql_location(location)) return open_postgres_store(location, options);
+    if (is_postgresql_location(location)) {
+        if (postgresql_supported() && location_has_password(location))
+            throw InputError(fmt::format(
+                "{}: a password in the location is refused (it would show in ps and in logs); put it in ~/.pgpass, "
+                "a file named by PGPASSFILE, a service file (PGSERVICEFILE) or PGPASSWORD",
+                shown_location(location)));
+        return open_postgres_store(location, options);
+    }
     SqliteOpenOptions sqlite;
     sqlite.read_only = options.read_only;
     sqlite.create = options.create;

@@ -11,7 +11,8 @@
 // first (so that a duplicate uses no id) and the unique index on (trace_sha256, options_sha256) settles a race
 // between two writers: INSERT ... ON CONFLICT DO NOTHING, then the winner's id. Writers of one axis take an advisory
 // lock of that axis, so that the check that an axis holds runs of one kind cannot race. A lost connection (a server
-// restart, a network cut) is retried on a new connection; the content hash keeps the retry from storing the run twice.
+// restart, a network cut) is retried on a new connection, with backoff, for OpenOptions::retry_s (then Unavailable);
+// the content hash keeps the retry from storing the run twice.
 
 #include <libpq-fe.h>
 
@@ -39,6 +40,8 @@
 
 namespace feedid::history {
 namespace {
+
+using Clock = std::chrono::steady_clock;
 
 // The key of the advisory lock that serialises migrations ("FEID").
 constexpr long long migration_lock = 0x46454944;
@@ -208,7 +211,7 @@ std::string connection_failure(const std::string& reason) {
 class PostgresStore final : public HistoryStore {
 public:
     PostgresStore(const std::string& location, const OpenOptions& options)
-        : location_(location), read_only_(options.read_only) {
+        : location_(location), read_only_(options.read_only), retry_s_(options.retry_s), cancel_(options.cancel) {
         connect();
         try {
             guarded([&] {
@@ -366,7 +369,7 @@ public:
 
 private:
     void connect();
-    void reconnect();
+    void reconnect() const;
     void check_and_migrate();
     void migrate();
 
@@ -388,15 +391,20 @@ private:
         return fmt::format("{}: {}", shown_, e.what());
     }
 
-    /// Runs `step`, turning the server's errors into one-line InputErrors that name the database.
+    /// Runs `step`, turning the server's errors into one-line InputErrors that name the database; a lost connection
+    /// is connected again (for retry_s, with backoff) and `step` run again, Unavailable when it does not come back.
     template <class Step>
     auto guarded(Step&& step) const -> decltype(step()) {
-        try {
-            return step();
-        } catch (const ServerError& e) {
-            throw InputError(described(e));
-        } catch (const ConnectionLost& e) {
-            throw InputError(fmt::format("{}: lost the connection to the server ({})", shown_, e.what()));
+        std::optional<Clock::time_point> deadline;
+        while (true) {
+            try {
+                return step();
+            } catch (const ServerError& e) {
+                throw InputError(described(e));
+            } catch (const ConnectionLost& e) {
+                if (!deadline) deadline = Clock::now() + seconds(retry_s_);
+                reconnect_until(*deadline, e.what());
+            }
         }
     }
 
@@ -439,22 +447,22 @@ private:
         return result;
     }
 
-    /// Runs `body(retried)` inside BEGIN ... COMMIT; a lost connection, a serialization failure or a deadlock is
-    /// retried (on a new connection when it was lost) a bounded number of times.
+    /// Runs `body(retried)` inside BEGIN ... COMMIT. A lost connection is retried on a new one for retry_s (with
+    /// backoff), a serialization failure or a deadlock a bounded number of times.
     template <class Body>
     auto write_transaction(Body&& body) -> decltype(body(false)) {
         constexpr int attempts = 8;
         bool retried = false;
+        std::optional<Clock::time_point> deadline;
         for (int attempt = 1;; ++attempt) {
             try {
                 write("BEGIN");
                 auto result = body(retried);
                 write("COMMIT");
                 return result;
-            } catch (const ConnectionLost&) {
-                if (attempt >= attempts) throw;
-                std::this_thread::sleep_for(std::chrono::milliseconds(100 * attempt));
-                reconnect();
+            } catch (const ConnectionLost& e) {
+                if (!deadline) deadline = Clock::now() + seconds(retry_s_);
+                reconnect_until(*deadline, e.what());
                 retried = true;
             } catch (const ServerError& e) {
                 rollback();
@@ -466,6 +474,34 @@ private:
             }
         }
     }
+
+    static Clock::duration seconds(double s) {
+        return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
+    }
+
+    /// Connects again after a lost connection: after 0.1 s, then every 0.2, 0.4, ... 5 s, until it succeeds;
+    /// Unavailable once `deadline` has passed or the cancel flag is set.
+    void reconnect_until(Clock::time_point deadline, std::string reason) const {
+        for (double delay = 0.1;; delay = std::min(5.0, 2.0 * delay)) {
+            const auto until = std::min(deadline, Clock::now() + seconds(delay));
+            while (Clock::now() < until && !cancelled())
+                std::this_thread::sleep_for(
+                    std::min<Clock::duration>(std::chrono::milliseconds(50), until - Clock::now()));
+            if (cancelled() || Clock::now() >= deadline)
+                throw Unavailable(
+                    fmt::format("{}: lost the connection to the server and could not connect again "
+                                "within {:g} s ({})",
+                                shown_, retry_s_, reason));
+            try {
+                reconnect();
+                return;
+            } catch (const ConnectionLost& e) {
+                reason = e.what();
+            }
+        }
+    }
+
+    [[nodiscard]] bool cancelled() const { return cancel_ != nullptr && cancel_->load(); }
 
     void rollback() const {
         if (PQstatus(connection_) == CONNECTION_OK) PQclear(PQexec(connection_, "ROLLBACK"));
@@ -583,6 +619,8 @@ private:
     std::string location_;
     std::string shown_;
     bool read_only_;
+    double retry_s_;
+    const std::atomic<bool>* cancel_;
     PGconn* connection_{nullptr};
     int schema_version_{0};
     long write_statements_{0};
@@ -617,7 +655,7 @@ void PostgresStore::connect() {
     }
 }
 
-void PostgresStore::reconnect() {
+void PostgresStore::reconnect() const {
     PQreset(connection_);
     if (PQstatus(connection_) != CONNECTION_OK)
         throw ConnectionLost(fmt::format("cannot connect again: {}", first_line(PQerrorMessage(connection_))));

@@ -6,8 +6,9 @@
 #include <fmt/core.h>
 
 #include "feedid/core/error.hpp"
-#include "feedid/history/sha256.hpp"
+#include "feedid/core/terminal_text.hpp"
 #include "feedid/core/version.hpp"
+#include "feedid/history/sha256.hpp"
 #include "sqlite_access.hpp"
 
 namespace feedid::history {
@@ -20,6 +21,12 @@ bool is_iso8601_utc(const std::string& text) {
 std::string RecordContext::validate(std::string_view requester) const {
     if (machine.empty()) return fmt::format("{} needs the machine's name (--machine NAME)", requester);
     if (axis.empty()) return fmt::format("{} needs the axis (--axis X)", requester);
+    // what one history backend refuses, none takes: SQLite and PostgreSQL hold the same runs
+    for (const auto& [option, name] :
+         {std::pair{"--machine", &machine}, std::pair{"--axis", &axis}, std::pair{"--location", &location}})
+        if (!is_storable_text(*name))
+            return fmt::format("{} '{}': not valid UTF-8 (every history backend stores names as UTF-8)", option,
+                               terminal_text(*name));
     if (!recorded_at.empty() && !is_iso8601_utc(recorded_at))
         return fmt::format("--recorded-at '{}': not an ISO 8601 UTC time (e.g. 2026-11-23T09:30:00Z)", recorded_at);
     return {};

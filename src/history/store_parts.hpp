@@ -6,11 +6,13 @@
 #include <string>
 #include <string_view>
 #include <unordered_map>
+#include <utility>
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
 #include "feedid/core/error.hpp"
+#include "feedid/core/terminal_text.hpp"
 #include "feedid/history/store.hpp"
 
 namespace feedid::history {
@@ -35,13 +37,47 @@ struct StoredText {
     std::string stored_at;
 };
 
-/// The text a run is stored as; a run larger than the store takes is refused (InputError naming `where`) before
-/// anything is written.
+/// Refuses (InputError naming `where`, the run and the field) a run with a text that not every backend stores: not
+/// valid UTF-8, or holding a NUL (PostgreSQL refuses both; a SQLite file would take them, and `history --copy` could
+/// then not copy it).
+inline void require_storable_text(const RunRecord& run, std::string_view where) {
+    const std::pair<const char*, const std::string*> fields[] = {{"machine", &run.machine},
+                                                                 {"axis", &run.axis},
+                                                                 {"location", &run.location},
+                                                                 {"recorded_at", &run.recorded_at},
+                                                                 {"trace path", &run.trace_path},
+                                                                 {"trace hash", &run.trace_sha256},
+                                                                 {"feedid version", &run.feedid_version},
+                                                                 {"model", &run.model},
+                                                                 {"status", &run.status},
+                                                                 {"axis kind", &run.axis_kind}};
+    for (const auto& [name, text] : fields)
+        if (!is_storable_text(*text))
+            throw InputError(
+                fmt::format("{}: the run's {} '{}' is not valid UTF-8 without NUL, which every history "
+                            "backend needs",
+                            where, name, terminal_text(*text)));
+    for (const auto& [key, estimate] : run.parameters)
+        if (!is_storable_text(key))
+            throw InputError(
+                fmt::format("{}: the parameter key '{}' is not valid UTF-8 without NUL", where, terminal_text(key)));
+}
+
+/// The text a run is stored as; a run larger than the store takes, or with a text not every backend stores, is
+/// refused (InputError naming `where`) before anything is written.
 inline StoredText stored_text_of(const RunRecord& run, std::string_view where) {
     const StoredTextLimits limits;
-    StoredText text{run.options.dump(), run.fit.is_object() ? run.fit.dump() : std::string("{}"),
-                    nlohmann::json(run.diagnostics).dump(),
-                    run.result.is_object() ? run.result.dump() : std::string("{}"),
+    require_storable_text(run, where);
+    const auto dump = [&](const nlohmann::json& document, const char* what) {
+        try {
+            return document.dump();
+        } catch (const nlohmann::json::type_error&) {  // a string of it is not UTF-8
+            throw InputError(fmt::format("{}: the run's {} holds text that is not valid UTF-8", where, what));
+        }
+    };
+    StoredText text{dump(run.options, "options"), run.fit.is_object() ? dump(run.fit, "fit") : std::string("{}"),
+                    dump(nlohmann::json(run.diagnostics), "diagnostics"),
+                    run.result.is_object() ? dump(run.result, "result document") : std::string("{}"),
                     run.stored_at.empty() ? now_utc() : run.stored_at};
     if (text.result_json.size() > limits.document_bytes || text.options_json.size() > limits.options_bytes)
         throw InputError(

@@ -6,6 +6,7 @@
 #include <fmt/core.h>
 
 #include "feedid/core/error.hpp"
+#include "feedid/core/json_adapters.hpp"
 #include "feedid/core/parameters.hpp"
 #include "feedid/identify/result_document.hpp"
 #include "feedid/core/version.hpp"
@@ -315,6 +316,30 @@ nlohmann::json map_document(const Trace& trace, const FrictionMapOptions& option
             {"findings", map.findings}};
 }
 
+/// Every location is identified with one model, or the locations could not be compared key by key: where the model is
+/// left to the data, it is chosen (with the drive signal's delay) on the whole trace and then given to each location.
+FrictionMapOptions with_one_model(const Trace& trace, const FrictionMapOptions& options) {
+    FrictionMapOptions chosen = options;
+    IdentifyOptions& o = chosen.identify;
+    if (!o.model_selection.automatic) return chosen;
+    o.model_selection.automatic = false;
+    o.model_selection.test_forced = false;
+    o.model_selection.delay = ModelSelectionOptions::Delay::none;
+    IdentifyOptions whole = options.identify;
+    whole.systematic = false;
+    try {
+        const IdentifyResult result = identify(trace, whole);
+        if (result.status == Status::failed || !result.model_choice) return chosen;
+        o.model = result.model;
+        o.offset = result.offset;
+        if (result.model_choice->delay_applied) o.model_selection.known_delay_s = result.model_choice->delay_s;
+    } catch (const InputError&) {
+        // the locations say what is wrong with the data, each for its own
+    } catch (const AnalysisError&) {
+    }
+    return chosen;
+}
+
 }  // namespace
 
 FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) {
@@ -324,11 +349,12 @@ FrictionMap friction_map(const Trace& trace, const FrictionMapOptions& options) 
     map.rotary = trace.rotary;
     const std::vector<double> centers = map_centers(trace, options, where, map);
     const auto x = stroke_signal(trace);
-    identify_segments(trace, x, centers, segment_spans(x, centers, where, map), options, map);
+    const FrictionMapOptions chosen = with_one_model(trace, options);
+    identify_segments(trace, x, centers, segment_spans(x, centers, where, map), chosen, map);
     std::vector<nlohmann::json> deviations;
     std::vector<std::vector<std::string>> stands_out;
-    find_outstanding(options, map, deviations, stands_out);
-    map.document = map_document(trace, options, map, deviations, stands_out);
+    find_outstanding(chosen, map, deviations, stands_out);
+    map.document = map_document(trace, chosen, map, deviations, stands_out);
     return map;
 }
 

@@ -7,6 +7,7 @@
 #include <fmt/core.h>
 
 #include "feedid/core/error.hpp"
+#include "feedid/core/json_adapters.hpp"
 #include "feedid/identify/gains.hpp"
 #include "feedid/core/null_reasons.hpp"
 #include "feedid/core/parameters.hpp"

@@ -9,6 +9,7 @@
 
 #include <fmt/core.h>
 
+#include "feedid/io/tare.hpp"
 #include "feedid/io/unit_checks.hpp"
 #include "feedid/core/error.hpp"
 #include "feedid/numeric/native_interval.hpp"
@@ -19,6 +20,7 @@ namespace feedid {
 
 std::string IdentifyOptions::validate() const {
     if (const auto problem = drive.validate(); !problem.empty()) return problem;
+    if (const auto problem = model_selection.validate(); !problem.empty()) return problem;
     const auto& p = preprocess;
     if (p.filter_order < 1 || p.filter_order > 12) return "--filter-order must be between 1 and 12";
     if (p.cutoff_hz && !(*p.cutoff_hz > 0.0 && std::isfinite(*p.cutoff_hz)))
@@ -174,9 +176,12 @@ Step1Report batch_report(const std::vector<RegressorColumn>& columns, const Leas
         report.correlation.assign(static_cast<std::size_t>(p), std::vector<double>(static_cast<std::size_t>(p), 0.0));
         for (Eigen::Index i = 0; i < p; ++i) {
             for (Eigen::Index j = 0; j < p; ++j) {
+                // from the symmetrised covariance, and within [-1, 1]: rounding in a near-singular sandwich must not
+                // print a correlation of 1.0027
                 const double scale = std::sqrt(batch.covariance(i, i) * batch.covariance(j, j));
+                const double covariance = 0.5 * (batch.covariance(i, j) + batch.covariance(j, i));
                 report.correlation[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)] =
-                    scale > 0.0 ? batch.covariance(i, j) / scale : (i == j ? 1.0 : 0.0);
+                    i == j ? 1.0 : scale > 0.0 ? std::clamp(covariance / scale, -1.0, 1.0) : 0.0;
             }
         }
     }
@@ -433,9 +438,127 @@ void null_inseparable_friction(IdentifyResult& result, const Derivatives& d, con
     }
 }
 
+/// The parameter of (term, direction), or nullptr when the model has none.
+Parameter* find_parameter(IdentifyResult& result, Term term, Direction direction) {
+    for (auto& p : result.parameters) {
+        if (p.term == term && p.direction == direction) return &p;
+    }
+    return nullptr;
+}
+
+/// Pairs of step-1 estimates correlated beyond the limit: the data determine only a combination of them, so both
+/// are null, with the reason.
+void null_collinear(IdentifyResult& result, const std::vector<RegressorColumn>& columns, double limit) {
+    if (!result.step1 || result.step1->correlation.empty()) return;
+    const auto& correlation = result.step1->correlation;
+    for (std::size_t i = 0; i < columns.size(); ++i) {
+        for (std::size_t j = i + 1; j < columns.size(); ++j) {
+            if (!(std::abs(correlation[i][j]) > limit)) continue;
+            Parameter* a = find_parameter(result, columns[i].term, columns[i].direction);
+            Parameter* b = find_parameter(result, columns[j].term, columns[j].direction);
+            if (a == nullptr || b == nullptr || (!a->estimate.value && !b->estimate.value)) continue;
+            result.diagnostics.push_back(fmt::format(
+                "{} and {} are {:.4f} correlated (beyond {:g}): the data determine only a combination of them, not "
+                "each; both left null",
+                a->symbol, b->symbol, correlation[i][j], limit));
+            a->estimate = Estimate{};
+            b->estimate = Estimate{};
+        }
+    }
+}
+
+/// The RLS report without the columns `drop` names (a number the data cannot determine is not printed, not even as
+/// the recursive estimate's).
+template <typename Drop>
+void drop_rls_columns(RlsReport& rls, Drop drop) {
+    for (std::size_t c = rls.keys.size(); c-- > 0;) {
+        if (!drop(rls.keys[c])) continue;
+        const auto at = static_cast<std::ptrdiff_t>(c);
+        rls.keys.erase(rls.keys.begin() + at);
+        if (c < rls.final_estimate.size()) rls.final_estimate.erase(rls.final_estimate.begin() + at);
+        if (c < rls.averaged.size()) rls.averaged.erase(rls.averaged.begin() + at);
+        if (c < rls.history.size()) rls.history.erase(rls.history.begin() + at);
+    }
+}
+
+/// What the model-adequacy stage found, into the result: friction that a constant force aliases null; the delay's
+/// standard error carried into the linear parameters it moves.
+void apply_model_choice(IdentifyResult& result, const ModelChoice& choice, const std::vector<RegressorColumn>& columns) {
+    if (!choice.aliased_friction.empty()) {
+        result.diagnostics.push_back(choice.aliased_friction);
+        const auto aliased = [](Term term) {
+            return term == Term::coulomb || term == Term::breakaway || term == Term::offset;
+        };
+        for (auto& p : result.parameters) {
+            if (aliased(p.term)) p.estimate = Estimate{};
+        }
+        if (result.rls) drop_rls_columns(*result.rls, [&](const std::string& key) {
+            const auto parsed = parse_parameter_key(key);
+            return parsed && aliased(parsed->term);
+        });
+    }
+    if (!choice.delay_applied || !choice.delay_standard_error || choice.delay_sensitivity.size() != columns.size())
+        return;
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+        Parameter* p = find_parameter(result, columns[c].term, columns[c].direction);
+        if (p == nullptr || !p->estimate.value || !p->estimate.standard_error) continue;
+        // d theta / d tau * sigma_tau, in quadrature with the fit's own standard error
+        p->estimate.standard_error =
+            std::hypot(*p->estimate.standard_error, choice.delay_sensitivity[c] * *choice.delay_standard_error);
+    }
+}
+
+/// Where to look when the residual shows structure by `grouping`.
+std::string lack_of_fit_hint(const std::string& grouping) {
+    if (grouping == "speed")
+        return "the friction at those speeds is not the model's (a Stribeck rise step 2 could not fit, friction that "
+               "is not linear in the speed)";
+    if (grouping == "acceleration")
+        return "a force goes with the acceleration that the mass does not explain (a drive signal out of step with "
+               "the position: --delay auto; an elastic transmission; a current loop's lag)";
+    return "a force changes over the recording (a load, warm-up, friction that changes along the axis: "
+           "--by-location)";
+}
+
+/// The lack-of-fit checks of the identified model (where its mass and friction were identified; without a Stribeck
+/// term on step 1's samples only), into the model choice. Where one fails, the standard errors are scaled by the
+/// largest Birge ratio sqrt(chi-square / groups) of the failed checks, and the diagnostics say so. False when one
+/// failed: the standard errors are those of a model the data reject.
+bool check_model_fit(IdentifyResult& result, const Derivatives& derivatives, const Selection& selection,
+                     const IdentifyOptions& options) {
+    const bool core_null = std::any_of(result.parameters.begin(), result.parameters.end(), [](const Parameter& p) {
+        return !p.estimate.value && p.term != Term::breakaway && p.term != Term::stribeck_velocity;
+    });
+    if (!result.model_choice || core_null) return true;
+    auto& checks = result.model_choice->fit_checks;
+    checks = check_fit(derivatives, selection, result.axis, options.model_selection);
+    const ParameterNaming naming{derivatives.rotary};
+    double scale = 1.0;
+    for (const FitCheck& check : checks) {
+        if (check.passed) continue;
+        const double ratio = std::sqrt(check.chi_square / static_cast<double>(check.groups));
+        scale = std::max(scale, ratio);
+        result.diagnostics.push_back(fmt::format(
+            "the model does not fit the data: its residual by {} holds {:.3g} +/- {:.2g} {} {} ({:.1f} % of the "
+            "typical drive force; {:.1f} standard deviates over {} groups, chi-square per group {:.3g}), which no "
+            "parameter of the model explains; {}",
+            check.name, check.largest, check.largest_standard_error, naming.force_unit(), check.where,
+            100.0 * check.relative, *check.statistic, check.groups, ratio * ratio, lack_of_fit_hint(check.name)));
+    }
+    if (scale == 1.0) return true;
+    for (auto& p : result.parameters) {
+        if (p.estimate.standard_error) *p.estimate.standard_error *= scale;
+    }
+    result.diagnostics.push_back(fmt::format(
+        "standard errors scaled by {:.3g}, the square root of the largest chi-square per group of the failed fit "
+        "checks: they hold for the model only as far as its lack of fit is random",
+        scale));
+    return false;
+}
+
 /// Steps 1 and 2 on the selected samples, and the result's final touches.
 IdentifyResult fit_steps(IdentifyResult result, const Derivatives& derivatives, const Regressors& regressors,
-                         const Selection& selection, const IdentifyOptions& options) {
+                         const Selection& selection, const IdentifyOptions& options, const ModelChoice& choice) {
     const Step1Fit step1 = fit_step1(regressors, derivatives, selection.step1, options.step1);
     if (step1.batch.samples > 0) result.step1 = step1_report(step1, ParameterNaming{derivatives.rotary});
     if (step1.failed()) {
@@ -456,13 +579,16 @@ IdentifyResult fit_steps(IdentifyResult result, const Derivatives& derivatives, 
         result.diagnostics.push_back("Stribeck step skipped (--no-stribeck): F_B and v_s not estimated");
     }
     null_inseparable_friction(result, derivatives, selection, options);
+    apply_model_choice(result, choice, step1.columns);
+    null_collinear(result, step1.columns, options.model_selection.collinearity_limit);
     flag_undetermined(result);
     result.axis = axis_from_parameters(result.parameters, result.model, result.rotary);
     result.friction_curve = FrictionCurveReport{bin_friction_curve(derivatives, selection, result.axis, true),
                                                 bin_friction_curve(derivatives, selection, result.axis, false)};
     const bool any_null = std::any_of(result.parameters.begin(), result.parameters.end(),
                                       [](const Parameter& p) { return !p.estimate.value; });
-    result.status = any_null ? Status::partial : Status::ok;
+    const bool fits = check_model_fit(result, derivatives, selection, options);
+    result.status = any_null || !fits ? Status::partial : Status::ok;
     return result;
 }
 
@@ -472,13 +598,46 @@ struct Preprocessed {
     Regressors regressors;
 };
 
-/// Stages 2 to 4 (selection, resolution check, steps 1 and 2) on preprocessed samples.
-IdentifyResult run_stages_on(IdentifyResult result, const Preprocessed& p, const IdentifyOptions& options) {
-    const Derivatives& derivatives = p.derivatives;
+/// Standard errors over blocks long enough for step 1's residual: where the residual stays correlated beyond the
+/// low-pass's reach (a force the model misses that varies slowly), the blocks of both steps lengthen to
+/// autocorrelation_blocks integrated autocorrelation times, and the result records it.
+void widen_correlation_block(const Derivatives& d, const Regressors& regressors, const Selection& selection,
+                             IdentifyOptions& options, std::optional<ModelChoice>& choice) {
+    const double tau = residual_autocorrelation_time(d, regressors, selection.step1);
+    const double needed = options.model_selection.autocorrelation_blocks * tau;
+    const double current = options.step1.correlation_blocks * static_cast<double>(d.correlation_samples);
+    if (choice) choice->residual_autocorrelation_samples = tau;
+    if (needed <= current || d.correlation_samples == 0) return;
+    options.step1.correlation_blocks = needed / static_cast<double>(d.correlation_samples);
+    if (choice) choice->correlation_block_samples = static_cast<std::size_t>(std::ceil(needed));
+}
+
+/// What the model-adequacy stage needs to know of the drive signal beyond the Derivatives: whether its zero was
+/// removed at import (--tare), and its level at rest before the move.
+struct DriveSignalFacts {
+    bool tared{false};
+    std::optional<RestLevel> rest;
+};
+
+bool drive_tared(const Trace& trace) {
+    const Channel* drive = trace.has(Role::force) ? trace.find(Role::force) : trace.find(Role::current);
+    return drive != nullptr && drive->tare_removed.has_value();
+}
+
+DriveSignalFacts drive_signal_facts(const Trace& trace, std::span<const double> force) {
+    return DriveSignalFacts{drive_tared(trace), rest_level(force, leading_rest_samples(trace))};
+}
+
+/// Stages 2 to 4 (selection, resolution check, model adequacy, steps 1 and 2) on preprocessed samples. The
+/// model-adequacy stage may read the drive force later (a delay) and choose another model than the regressors were
+/// built for: the force in `p` is then shifted and the regressors rebuilt.
+IdentifyResult run_stages_on(IdentifyResult result, Preprocessed& p, const IdentifyOptions& options,
+                             const DriveSignalFacts& drive) {
+    Derivatives& derivatives = p.derivatives;
     SelectionOptions selection_options = options.selection;
     selection_options.stribeck = options.stribeck;
     selection_options.minimum_step1_samples_per_parameter = options.step1.minimum_samples_per_parameter;
-    const Selection selection = select_samples(derivatives, p.regressors, selection_options);
+    Selection selection = select_samples(derivatives, p.regressors, selection_options);
     result.preprocessing = derivatives.used;
     result.selection = selection.report;
     // what was left out because the data there is not the model's, said where every reader looks
@@ -488,7 +647,36 @@ IdentifyResult run_stages_on(IdentifyResult result, const Preprocessed& p, const
     }
     if (const Resolution resolution = assess_resolution(derivatives, options.friction_only); resolution.coarse())
         return friction_only_result(std::move(result), derivatives, selection, resolution, {}, options);
-    return fit_steps(std::move(result), derivatives, p.regressors, selection, options);
+    const ModelChoice choice = choose_model(derivatives, selection, options.model, options.offset, drive.tared,
+                                            drive.rest, options.model_selection, options.step1.correlation_blocks);
+    if (!choice.process_forces.empty()) {
+        result.model_choice = choice;
+        return failed(std::move(result), choice.process_forces);
+    }
+    IdentifyOptions chosen = options;
+    chosen.model = choice.model;
+    chosen.offset = choice.offset;
+    const auto wanted = linear_columns(choice.model, choice.offset);
+    const bool same_columns = std::equal(wanted.begin(), wanted.end(), p.regressors.columns.begin(),
+                                         p.regressors.columns.end(), [](const auto& a, const auto& b) {
+                                             return a.term == b.term && a.direction == b.direction;
+                                         });
+    if (!same_columns) {
+        // the Stribeck checks of the selection fit the step-1 model: the chosen one
+        p.regressors = build_regressors(derivatives, choice.model, choice.offset);
+        selection = select_samples(derivatives, p.regressors, selection_options);
+        result.selection = selection.report;
+    }
+    if (result.model != choice.model || result.offset != choice.offset) {
+        result.model = choice.model;
+        result.offset = choice.offset;
+        result.parameters = model_parameters(choice.model, choice.offset, result.rotary);
+    }
+    result.diagnostics.insert(result.diagnostics.end(), choice.findings.begin(), choice.findings.end());
+    result.model_choice = choice;
+    widen_correlation_block(derivatives, p.regressors, selection, chosen, result.model_choice);
+    const ModelChoice final_choice = *result.model_choice;  // result moves into fit_steps
+    return fit_steps(std::move(result), derivatives, p.regressors, selection, chosen, final_choice);
 }
 
 /// The four stages on a drive force (N, or the drive signal's own unit when no constant is known). A trace too
@@ -500,13 +688,14 @@ IdentifyResult run_stages_on(IdentifyResult result, const Preprocessed& p, const
 IdentifyResult run_stages(const Trace& trace, const DriveConstants& drive, const IdentifyOptions& options,
                           std::optional<Preprocessed>* keep = nullptr) {
     std::vector<double> force = drive_force(trace, drive);  // throws without a constant
+    const DriveSignalFacts facts = drive_signal_facts(trace, force);
     IdentifyResult result = start_result(trace, options);
     Preprocessed p{preprocess(trace, force, options.preprocess), {}};
     std::vector<double>().swap(force);
     result.diagnostics.insert(result.diagnostics.end(), p.derivatives.notes.begin(), p.derivatives.notes.end());
     if (p.derivatives.failed()) return failed(std::move(result), p.derivatives.failure);
     p.regressors = build_regressors(p.derivatives, options.model, options.offset);
-    result = run_stages_on(std::move(result), p, options);
+    result = run_stages_on(std::move(result), p, options, facts);
     if (keep != nullptr) keep->emplace(std::move(p));
     return result;
 }
@@ -571,12 +760,44 @@ std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, const 
 /// The preprocessing family's estimates (preprocessing_family.hpp): each parameter's systematic part is the largest deviation
 /// of a variant's estimate from the nominal one (variants that leave it undetermined do not count; with none left it
 /// stays unassessed), said in a finding where it exceeds the multiple of the standard error.
+/// The samples step 1 takes depend on the model the selection assumed (its Stribeck checks fit it): where the model
+/// chosen from the data made the selection run again, how far the final linear estimates lie from the chosen model's
+/// on the first selection's samples counts with the preprocessing family's spread.
+void add_selection_sensitivity(const IdentifyResult& result, std::vector<std::optional<double>>& spread,
+                               std::vector<std::string>& widest) {
+    if (!result.model_choice || result.model_choice->first_selection_estimate.empty()) return;
+    const auto& first = result.model_choice->first_selection_estimate;
+    const auto columns = linear_columns(result.model, result.offset);
+    if (columns.size() != first.size()) return;
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+        for (std::size_t i = 0; i < result.parameters.size(); ++i) {
+            const Parameter& p = result.parameters[i];
+            if (p.term != columns[c].term || p.direction != columns[c].direction || !p.estimate.value) continue;
+            const double deviation = std::abs(*p.estimate.value - first[c]);
+            if (!spread[i] || deviation > *spread[i]) widest[i] = "the samples selected under the symmetric model";
+            spread[i] = std::max(spread[i].value_or(0.0), deviation);
+        }
+    }
+}
+
 void assess_systematic(const Trace& trace, const IdentifyOptions& options, std::optional<Preprocessed>& nominal,
                        IdentifyResult& result) {
     const bool from_velocity = result.preprocessing->velocity_source == "velocity";
     const double interval = native_interval_of(trace, from_velocity ? Role::velocity : Role::position);
+    // every member fits the nominal run's model: the family measures the preprocessing, not the model choice
     IdentifyOptions variant_options = options;
     variant_options.systematic = false;
+    variant_options.model = result.model;
+    variant_options.offset = result.offset;
+    variant_options.model_selection.automatic = false;
+    variant_options.model_selection.delay = ModelSelectionOptions::Delay::none;
+    variant_options.model_selection.test_forced = false;
+    // members with their own preprocessing read the drive force as late as the nominal run did; the split variants
+    // share the nominal run's samples, already aligned
+    IdentifyOptions shared_options = variant_options;
+    shared_options.model_selection.known_delay_s.reset();
+    if (result.model_choice && result.model_choice->delay_applied)
+        variant_options.model_selection.known_delay_s = result.model_choice->delay_s;
     SystematicReport report;
     std::vector<std::optional<double>> spread(result.parameters.size());
     std::vector<std::string> widest(result.parameters.size());
@@ -591,9 +812,12 @@ void assess_systematic(const Trace& trace, const IdentifyOptions& options, std::
     std::vector<std::optional<IdentifyResult>> shared(family.size());
     for (std::size_t v = 0; v < family.size(); ++v) {
         if (!family[v].split_velocity || !nominal) continue;
-        IdentifyResult start = start_result(trace, variant_options);
+        IdentifyResult start = start_result(trace, shared_options);
         start.diagnostics = nominal->derivatives.notes;  // as the stages would have noted them again
-        shared[v] = run_stages_on(std::move(start), *nominal, member_options(variant_options, family[v]));
+        shared[v] = run_stages_on(std::move(start), *nominal, member_options(shared_options, family[v]),
+                                  DriveSignalFacts{drive_tared(trace), result.model_choice
+                                                                           ? result.model_choice->rest
+                                                                           : std::nullopt});
     }
     nominal.reset();
     auto runs = run_family(trace, variant_options, family);
@@ -618,6 +842,7 @@ void assess_systematic(const Trace& trace, const IdentifyOptions& options, std::
         }
         report.variants.push_back(std::move(record));
     }
+    add_selection_sensitivity(result, spread, widest);
     for (std::size_t i = 0; i < result.parameters.size(); ++i) {
         Parameter& p = result.parameters[i];
         if (!spread[i]) continue;

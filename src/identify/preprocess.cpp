@@ -434,8 +434,8 @@ std::vector<char> clipped_samples(std::span<const double> force, Derivatives& d)
     if (force.size() < 10) return {};
     const auto [low, high] = std::minmax_element(force.begin(), force.end());
     // a clipped signal repeats its extreme exactly; most signals reach it once (cheap test before the quantum's sort)
-    const auto at_extremes =
-        std::count_if(force.begin(), force.end(), [&](double f) { return f == *low || f == *high; });
+    const auto at_extremes = std::count_if(force.begin(), force.end(),
+                                           [low = *low, high = *high](double f) { return f == low || f == high; });
     if (at_extremes < 5) return {};
     const double quantum = std::max(position_quantum(force), 1e-12);
     std::vector<char> clipped(force.size(), 0);

@@ -8,6 +8,7 @@
 #include <fmt/core.h>
 
 #include "feedid/core/error.hpp"
+#include "feedid/core/json_adapters.hpp"
 #include "feedid/io/json_input.hpp"
 
 namespace feedid {
@@ -148,6 +149,75 @@ Json friction_curve_json(const FrictionCurveReport& c, const ParameterNaming& na
     return out;
 }
 
+/// The name of a chosen model: "symmetric", "symmetric with offset", "per direction".
+std::string model_selected(const ModelChoice& choice) {
+    if (choice.model == FrictionModelKind::asymmetric) return "per direction";
+    return choice.offset ? "symmetric with offset" : "symmetric";
+}
+
+/// The unit of a candidate's tested term.
+std::string candidate_unit(const ModelCandidate& candidate, const ParameterNaming& naming) {
+    if (candidate.tested == "tau") return "s";
+    if (candidate.tested == "F_0") return naming.unit(Term::offset);
+    if (candidate.tested == "B+ - B-") return naming.unit(Term::viscous);
+    if (candidate.tested == "Stribeck friction forward - reverse") return naming.force_unit();
+    return "";
+}
+
+/// The lack-of-fit checks: per grouping, the chi-square deviate of the residual's group means and the largest
+/// significant structure (in the force unit and as a fraction of the typical drive force).
+Json fit_checks_json(const std::vector<FitCheck>& checks, const ParameterNaming& naming) {
+    Json out = Json::array();
+    for (const auto& c : checks) {
+        out.push_back({{"grouping", c.name},
+                       {"groups", c.groups},
+                       {"statistic", c.statistic},
+                       {"threshold", c.threshold},
+                       {"largest_" + naming.curve_force_key(), c.largest},
+                       {"stderr_" + naming.curve_force_key(), c.largest_standard_error},
+                       {"where", c.where},
+                       {"fraction", c.relative},
+                       {"material_fraction", c.material_fraction},
+                       {"passed", c.passed}});
+    }
+    return out;
+}
+
+Json model_selection_json(const ModelChoice& choice, const ParameterNaming& naming) {
+    Json candidates = Json::array();
+    for (const auto& c : choice.candidates) {
+        candidates.push_back({{"name", c.name},
+                              {"tested", c.tested},
+                              {"unit", candidate_unit(c, naming)},
+                              {"estimate", c.estimate},
+                              {"stderr", c.standard_error},
+                              {"statistic", c.statistic},
+                              {"threshold", c.threshold},
+                              {"taken", c.taken},
+                              {"verdict", c.verdict}});
+    }
+    Json out{{"automatic", choice.automatic},
+             {"selected", model_selected(choice)},
+             {"one_way", choice.one_way},
+             {"candidates", candidates}};
+    if (!choice.aliased_friction.empty()) out["aliased"] = choice.aliased_friction;
+    out["residual_autocorrelation_samples"] = choice.residual_autocorrelation_samples;
+    if (choice.correlation_block_samples > 0) out["correlation_block_samples"] = choice.correlation_block_samples;
+    if (!choice.fit_checks.empty()) out["fit_checks"] = fit_checks_json(choice.fit_checks, naming);
+    if (choice.rest) {
+        out["rest_level"] = {{"samples", choice.rest->samples},
+                             {"mean_" + naming.curve_force_key(), choice.rest->mean},
+                             {"stderr_" + naming.curve_force_key(), choice.rest->standard_error}};
+    }
+    return out;
+}
+
+Json timing_json(const ModelChoice& choice) {
+    return Json{{"delay_s", Estimate{choice.delay_s, choice.delay_standard_error}},
+                {"applied", choice.delay_applied},
+                {"source", choice.delay_source.empty() ? Json(nullptr) : Json(choice.delay_source)}};
+}
+
 }  // namespace
 
 void to_json(Json& document, const IdentifyResult& result) {
@@ -176,6 +246,10 @@ void to_json(Json& document, const IdentifyResult& result) {
     if (result.stribeck) document["stribeck"] = stribeck_json(*result.stribeck);
     if (result.friction_curve) document["friction_curve"] = friction_curve_json(*result.friction_curve, naming);
     if (result.systematic) document["systematic"] = systematic_json(*result.systematic);
+    if (result.model_choice) {
+        document["model_selection"] = model_selection_json(*result.model_choice, naming);
+        document["timing"] = timing_json(*result.model_choice);
+    }
     if (result.friction_only) {
         document["friction_only"] = {{"reason", result.friction_only->reason},
                                      {"samples_used", result.friction_only->samples_used},
@@ -301,8 +375,8 @@ void read_parameters(const JsonField& j, IdentifyResult& r) {
     r.offset = offset;
     r.parameters = model_parameters(r.model, r.offset, r.rotary);
     for (const auto& [key, entry] : parameters.members()) {
-        auto it =
-            std::find_if(r.parameters.begin(), r.parameters.end(), [&](const Parameter& p) { return p.key == key; });
+        auto it = std::find_if(r.parameters.begin(), r.parameters.end(),
+                               [&name = key](const Parameter& p) { return p.key == name; });
         if (it == r.parameters.end()) {
             throw InputError(fmt::format("parameter \"{}\" does not belong to a {} {} model", key, r.model_name(),
                                          r.rotary ? "rotary" : "linear"));
@@ -401,6 +475,70 @@ FrictionCurveReport read_friction_curve(const JsonField& j, const ParameterNamin
     return c;
 }
 
+ModelCandidate read_candidate(const JsonField& j) {
+    j.object();
+    ModelCandidate c;
+    c.name = j.at("name").text();
+    c.tested = j.at("tested").text();
+    c.estimate = j.at("estimate").optional_number();
+    c.standard_error = j.at("stderr").optional_number();
+    c.statistic = j.at("statistic").optional_number();
+    c.threshold = number_or_nan(j, "threshold");
+    c.taken = j.at("taken").boolean();
+    c.verdict = j.at("verdict").text();
+    return c;
+}
+
+/// model_selection and timing (documents before the model-adequacy stage hold neither).
+std::optional<ModelChoice> read_model_choice(const JsonField& j, const IdentifyResult& r) {
+    const auto selection = j.find("model_selection");
+    if (!selection) return std::nullopt;
+    selection->object();
+    const ParameterNaming naming{r.rotary};
+    ModelChoice choice;
+    choice.model = r.model;
+    choice.offset = r.offset;
+    choice.automatic = selection->at("automatic").boolean();
+    choice.one_way = selection->at("one_way").boolean();
+    for (const auto& c : selection->at("candidates").elements()) choice.candidates.push_back(read_candidate(c));
+    if (const auto aliased = selection->find("aliased")) choice.aliased_friction = aliased->text();
+    if (selection->has("residual_autocorrelation_samples"))
+        choice.residual_autocorrelation_samples = number_or_nan(*selection, "residual_autocorrelation_samples");
+    if (const auto block = selection->find("correlation_block_samples")) choice.correlation_block_samples = block->count();
+    if (const auto checks = selection->find("fit_checks")) {
+        for (const auto& c : checks->elements()) {
+            FitCheck check;
+            check.name = c.at("grouping").text();
+            check.groups = c.at("groups").count();
+            if (!c.at("statistic").json().is_null()) check.statistic = number_or_nan(c, "statistic");
+            check.threshold = number_or_nan(c, "threshold");
+            check.largest = number_or_nan(c, ("largest_" + naming.curve_force_key()).c_str());
+            check.largest_standard_error = number_or_nan(c, ("stderr_" + naming.curve_force_key()).c_str());
+            check.where = c.at("where").text();
+            check.relative = number_or_nan(c, "fraction");
+            check.material_fraction = number_or_nan(c, "material_fraction");
+            check.passed = c.at("passed").boolean();
+            choice.fit_checks.push_back(std::move(check));
+        }
+    }
+    if (const auto rest = selection->find("rest_level")) {
+        rest->object();
+        choice.rest = RestLevel{rest->at("samples").count(),
+                                number_or_nan(*rest, ("mean_" + naming.curve_force_key()).c_str()),
+                                number_or_nan(*rest, ("stderr_" + naming.curve_force_key()).c_str())};
+    }
+    if (const auto timing = j.find("timing")) {
+        timing->object();
+        const Estimate delay = read_estimate(timing->at("delay_s"));
+        choice.delay_s = delay.value;
+        choice.delay_standard_error = delay.standard_error;
+        choice.delay_applied = timing->at("applied").boolean();
+        const JsonField source = timing->at("source");
+        choice.delay_source = source.json().is_null() ? std::string() : source.text();
+    }
+    return choice;
+}
+
 void read_records(const JsonField& j, IdentifyResult& r) {
     if (const auto v = j.find("preprocessing")) r.preprocessing = read_preprocess(v->object());
     if (const auto v = j.find("selection")) r.selection = read_selection(v->object());
@@ -415,6 +553,7 @@ void read_records(const JsonField& j, IdentifyResult& r) {
     }
     if (const auto v = j.find("friction_curve")) r.friction_curve = read_friction_curve(*v, ParameterNaming{r.rotary});
     if (const auto v = j.find("systematic")) r.systematic = read_systematic(*v);
+    r.model_choice = read_model_choice(j, r);
 }
 
 }  // namespace
@@ -446,8 +585,14 @@ nlohmann::json identify_options_document(const IdentifyOptions& o, const nlohman
     const char* differentiation = p.differentiation == Differentiation::central          ? "central"
                                   : p.differentiation == Differentiation::savitzky_golay ? "savitzky-golay"
                                                                                          : "butterworth";
+    const auto& m = o.model_selection;
     Json document{{"model", o.model == FrictionModelKind::asymmetric ? "asymmetric" : "symmetric"},
                   {"offset", o.offset},
+                  {"model_selection", m.automatic ? "automatic" : "forced"},
+                  {"delay", m.known_delay_s                                           ? Json(*m.known_delay_s)
+                            : m.delay == ModelSelectionOptions::Delay::none     ? Json("none")
+                            : m.delay == ModelSelectionOptions::Delay::estimate ? Json("estimate")
+                                                                                : Json("auto")},
                   {"stribeck", o.stribeck},
                   {"differentiation", differentiation},
                   {"velocity_source", p.velocity_source == VelocitySource::position ? "position"

@@ -65,55 +65,23 @@ bool sticks_against_reference(const Derivatives& d, const MotionPass& pass, cons
     return swings >= options.swings;
 }
 
-/// Runs of motion in one direction, with the stops inside them: [first, last) from the first to the last moving
-/// sample before the motion reverses.
-std::vector<MotionPass> motion_passes(const std::vector<double>& v, double threshold) {
+/// The passes without a reference, and which of them stick-slip (StickSlipTracker); each pass's speed the median of
+/// its moving samples' |v|, as with a reference.
+std::vector<MotionPass> tracked_passes(const Derivatives& d, double threshold, const StickSlipOptions& options) {
     std::vector<MotionPass> passes;
-    std::size_t k = 0;
-    while (k < v.size()) {
-        const int direction = direction_of(v[k], threshold);
-        if (direction == 0) {
-            ++k;
-            continue;
-        }
-        MotionPass pass{k, k + 1, direction, 0.0, false};
-        for (; k < v.size(); ++k) {
-            const int here = direction_of(v[k], threshold);
-            if (here == -direction) break;
-            if (here == direction) pass.last = k + 1;
-        }
-        k = pass.last;
+    StickSlipTracker tracker(threshold, options);
+    for (std::size_t k = 0; k < d.size(); ++k) {
+        if (auto ended = tracker.add(d.time[k], d.velocity[k])) passes.push_back(*ended);
+    }
+    if (auto ended = tracker.finish()) passes.push_back(*ended);
+    for (MotionPass& pass : passes) {
         std::vector<double> speeds;
         for (std::size_t j = pass.first; j < pass.last; ++j) {
-            if (direction_of(v[j], threshold) == direction) speeds.push_back(std::abs(v[j]));
+            if (direction_of(d.velocity[j], threshold) == pass.direction) speeds.push_back(std::abs(d.velocity[j]));
         }
         pass.speed = percentile(std::move(speeds), 0.5);
-        passes.push_back(pass);
     }
     return passes;
-}
-
-/// Whether the axis stopped and restarted in the same direction, briefly and repeatedly, within the pass.
-bool sticks_without_reference(const Derivatives& d, const MotionPass& pass, double threshold,
-                              const StickSlipOptions& options) {
-    const double stop_level = std::max(threshold, options.stop_fraction * pass.speed);
-    int brief_stops = 0;
-    std::size_t k = pass.first;
-    double burst_start = d.time[pass.first];
-    double longest_burst = 0.0;
-    while (k < pass.last) {
-        if (std::abs(d.velocity[k]) > stop_level) {
-            ++k;
-            continue;
-        }
-        const std::size_t stop_start = k;
-        while (k < pass.last && std::abs(d.velocity[k]) <= stop_level) ++k;
-        if (k == pass.last) break;  // the pass ends in this stop
-        longest_burst = std::max(longest_burst, d.time[stop_start] - burst_start);
-        burst_start = d.time[k];
-        if (d.time[k] - d.time[stop_start] < options.max_stick_s) ++brief_stops;
-    }
-    return brief_stops >= options.stops_without_reference && longest_burst < options.max_stick_s;
 }
 
 }  // namespace
@@ -138,9 +106,8 @@ StickSlip detect_stick_slip(const Derivatives& d, double moving_threshold, const
                       out.flags.begin() + static_cast<std::ptrdiff_t>(end), 1);
         }
     } else {
-        out.passes = motion_passes(d.velocity, moving_threshold);
-        for (MotionPass& pass : out.passes) {
-            pass.stick_slip = sticks_without_reference(d, pass, moving_threshold, options);
+        out.passes = tracked_passes(d, moving_threshold, options);
+        for (const MotionPass& pass : out.passes) {
             if (!pass.stick_slip) continue;
             std::fill(out.flags.begin() + static_cast<std::ptrdiff_t>(pass.first),
                       out.flags.begin() + static_cast<std::ptrdiff_t>(pass.last), 1);
@@ -149,6 +116,73 @@ StickSlip detect_stick_slip(const Derivatives& d, double moving_threshold, const
     for (const MotionPass& pass : out.passes) out.stick_slip_passes += pass.stick_slip ? 1 : 0;
     out.samples = static_cast<std::size_t>(std::count(out.flags.begin(), out.flags.end(), 1));
     return out;
+}
+
+StickSlipTracker::StickSlipTracker(double moving_threshold, const StickSlipOptions& options)
+    : moving_threshold_(moving_threshold), options_(options) {}
+
+std::optional<MotionPass> StickSlipTracker::add(double time, double velocity) {
+    const std::size_t k = samples_++;
+    const int direction = direction_of(velocity, moving_threshold_);
+    std::optional<MotionPass> ended;
+    if (pass_.direction != 0 && direction == -pass_.direction) {
+        ended = closed();
+        pass_.direction = 0;
+    }
+    const double speed = std::abs(velocity);
+    if (pass_.direction == 0) {
+        if (direction == 0) return ended;
+        pass_ = MotionPass{k, k + 1, direction, 0.0, false};
+        stopped_ = false;
+        burst_start_s_ = time;
+        burst_peak_ = pass_peak_ = speed;
+        longest_burst_s_ = 0.0;
+        brief_stops_ = 0;
+        return ended;
+    }
+    if (direction == pass_.direction) pass_.last = k + 1;
+    pass_peak_ = std::max(pass_peak_, speed);
+    if (!stopped_) {
+        const double level = std::max(moving_threshold_, options_.stop_fraction * burst_peak_);
+        if (speed > level) {
+            burst_peak_ = std::max(burst_peak_, speed);
+        } else {
+            stopped_ = true;
+            stop_start_s_ = time;
+            stop_level_ = level;
+        }
+    } else if (speed > stop_level_) {  // moving on in the same direction: a reversal ended the pass above
+        longest_burst_s_ = std::max(longest_burst_s_, stop_start_s_ - burst_start_s_);
+        if (time - stop_start_s_ < options_.max_stick_s) ++brief_stops_;
+        stopped_ = false;
+        burst_start_s_ = time;
+        burst_peak_ = speed;
+    }
+    return ended;
+}
+
+std::optional<MotionPass> StickSlipTracker::finish() {
+    if (pass_.direction == 0) return std::nullopt;
+    const MotionPass ended = closed();
+    pass_.direction = 0;
+    return ended;
+}
+
+bool StickSlipTracker::stick_slipping() const {
+    return pass_.direction != 0 && brief_stops_ >= options_.stops_without_reference &&
+           longest_burst_s_ < options_.max_stick_s;
+}
+
+std::optional<MotionPass> StickSlipTracker::current() const {
+    if (pass_.direction == 0) return std::nullopt;
+    return closed();
+}
+
+MotionPass StickSlipTracker::closed() const {
+    MotionPass pass = pass_;
+    pass.speed = pass_peak_;
+    pass.stick_slip = stick_slipping();
+    return pass;
 }
 
 }  // namespace feedid

@@ -13,7 +13,8 @@
 #include <fmt/core.h>
 
 #include "feedid/core/error.hpp"
-#include "feedid/report/report.hpp"
+#include "feedid/report/history_report.hpp"
+#include "feedid/report/result_report.hpp"
 
 #include "feedid/model/friction.hpp"
 #include "feedid/core/parameters.hpp"

@@ -11,7 +11,7 @@
 
 #include <fmt/core.h>
 
-#include "feedid/report/report.hpp"
+#include "feedid/report/svg_plot.hpp"
 
 namespace feedid::report {
 namespace {

@@ -8,6 +8,7 @@
 #include <fmt/core.h>
 
 #include "feedid/core/error.hpp"
+#include "feedid/core/json_adapters.hpp"
 #include "feedid/numeric/native_interval.hpp"
 #include "feedid/core/null_reasons.hpp"
 #include "feedid/identify/result_document.hpp"
@@ -17,6 +18,8 @@ namespace feedid {
 
 std::string SimulationOptions::validate() const {
     if (substeps < 1 || substeps > 1000) return "the integration substeps per sample must be between 1 and 1000";
+    if (drive_signal_delay_steps < 0 || drive_signal_delay_steps > max_drive_signal_delay_steps)
+        return fmt::format("the drive signal's delay must be 0 to {} integration steps", max_drive_signal_delay_steps);
     if (position_resolution_m && !(*position_resolution_m > 0.0 && std::isfinite(*position_resolution_m))) {
         return "the position resolution must be a positive length";
     }
@@ -267,9 +270,27 @@ private:
     double drive_force_{0.0};
 };
 
-// The signals at a sample instant, `at_sample` the motion there.
+// The drive force of the last integration steps, so that the one `delay` steps back can be recorded (a drive signal
+// logged late); fixed size, no allocation in the time loop.
+class ForceHistory {
+public:
+    explicit ForceHistory(double initial) { values_.fill(initial); }
+    void push(double force) noexcept {
+        head_ = (head_ + 1) % values_.size();
+        values_[head_] = force;
+    }
+    [[nodiscard]] double back(int delay) const noexcept {
+        return values_[(head_ + values_.size() - static_cast<std::size_t>(delay)) % values_.size()];
+    }
+
+private:
+    std::array<double, SimulationOptions::max_drive_signal_delay_steps + 1> values_{};
+    std::size_t head_{0};
+};
+
+// The signals at a sample instant, `at_sample` the motion there; `force` the drive force as logged.
 void record_sample(SimulationOutput& out, double time, double reference, const Motion& at_sample, double measured,
-                   double acceleration, const DriveLoops& drive) {
+                   double acceleration, const DriveLoops& drive, double force) {
     out.time.push_back(time);
     out.reference.push_back(reference);
     out.position.push_back(at_sample.position);
@@ -278,7 +299,7 @@ void record_sample(SimulationOutput& out, double time, double reference, const M
     out.acceleration.push_back(acceleration);
     out.velocity_command.push_back(drive.velocity_command());
     out.force_command.push_back(drive.force_command());
-    out.force.push_back(drive.drive_force());
+    out.force.push_back(force);
     out.tracking_error.push_back(reference - at_sample.position);
 }
 
@@ -308,6 +329,7 @@ void simulate(const AxisModel& axis, const ControllerModel& model, const Simulat
 
     const double inverse_substeps = 1.0 / substeps;
     std::size_t stick_transitions = 0;
+    ForceHistory history(drive.drive_force());
     for (std::size_t k = 0; k < n; ++k) {
         const double reference_now = input.reference[k];
         const double reference_next = k + 1 < n ? input.reference[k + 1] : reference_now;
@@ -316,12 +338,13 @@ void simulate(const AxisModel& axis, const ControllerModel& model, const Simulat
         for (int sub = 0; sub < substeps; ++sub) {
             const double measured = sensor.measure(motion.position);
             drive.step(reference_now, reference_next, static_cast<double>(sub) * inverse_substeps, measured, injection);
+            history.push(drive.drive_force());
             const Motion at_sample = motion;
             const double applied = drive.drive_force() + external - plant.offset;
             const double acceleration = step_plant(plant, applied, h, motion, stick_transitions);
             if (sub == 0) {
                 record_sample(out, static_cast<double>(k) * dt, reference_now, at_sample, measured, acceleration,
-                              drive);
+                              drive, history.back(options.drive_signal_delay_steps));
             }
         }
     }

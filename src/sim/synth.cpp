@@ -79,6 +79,8 @@ std::string RecordingModel::validate(bool rotary, double sample_time_s) const {
             return e.what();
         }
     }
+    if (!(drive_delay_s >= 0.0 && drive_delay_s < 1.0))
+        return "recording.drive_delay_ms must be a time from 0 to 1000 ms";
     return {};
 }
 
@@ -117,6 +119,17 @@ std::string SensorModel::validate() const {
     return {};
 }
 
+std::string ProcessForceBursts::validate() const {
+    if (!(rate_per_s > 0.0 && rate_per_s <= 100.0)) return "process_force.rate_per_s must lie in (0, 100]";
+    if (!(min_duration_s > 0.0 && max_duration_s >= min_duration_s && max_duration_s <= 3600.0))
+        return "process_force.duration_s must be [low, high] with 0 < low <= high <= 3600 s";
+    if (!(min_fraction >= 0.0 && max_fraction >= min_fraction && max_fraction <= 100.0))
+        return "process_force.amplitude_fraction must be [low, high] with 0 <= low <= high <= 100";
+    if (!(ripple_hz >= 0.0 && ripple_hz <= 1e5) || !(ripple_fraction >= 0.0 && ripple_fraction <= 1.0))
+        return "process_force.ripple_hz must lie in [0, 1e5] and ripple_fraction in [0, 1]";
+    return {};
+}
+
 double SquareWaveInjection::at(double time_s) const {
     const double phase = time_s * frequency_Hz;
     return phase - std::floor(phase) < 0.5 ? amplitude_N : 0.0;
@@ -152,6 +165,16 @@ std::string SynthSpec::validate() const {
     if (auto problem = test.validate(); !problem.empty()) return problem;
     if (injection) {
         if (auto problem = injection->validate(sensors.sample_time_s); !problem.empty()) return problem;
+    }
+    if (process_force) {
+        if (auto problem = process_force->validate(); !problem.empty()) return problem;
+    }
+    if (servo_rate_hz != 0.0) {
+        const double per_sample = servo_rate_hz * sensors.sample_time_s;
+        if (!(servo_rate_hz > 0.0 && std::isfinite(servo_rate_hz)) || per_sample < 1.0 - 1e-9 ||
+            std::abs(per_sample - std::round(per_sample)) > 1e-6 * per_sample || per_sample > max_substeps)
+            return fmt::format("controller.servo_rate_hz {:g} must be a whole multiple (1 to {}) of the sample rate {:g} Hz",
+                               servo_rate_hz, max_substeps, 1.0 / sensors.sample_time_s);
     }
     SimulationOptions zones;
     zones.friction_zones = friction_zones;
@@ -207,9 +230,11 @@ void read_axis(ConfigSection& top, SynthSpec& spec) {
 
 // controller: gains in SI or NC units (K_v in (m/min)/mm, T_n in ms), cycles and lags in ms; saturation_N null
 // removes the limit.
-void read_controller(ConfigSection& top, ControllerModel& model) {
+void read_controller(ConfigSection& top, SynthSpec& spec) {
     auto c = top.section("controller");
     if (!c) return;
+    ControllerModel& model = spec.controller;
+    c->read("servo_rate_hz", spec.servo_rate_hz);
     c->read("position_gain_per_s", model.position_gain_per_s);
     if (const auto v = c->number("kv_m_per_min_per_mm")) model.position_gain_per_s = position_gain_from_kv(*v);
     c->read("velocity_gain_N_s_per_m", model.velocity_gain_N_s_per_m);
@@ -263,6 +288,7 @@ void read_recording(ConfigSection& top, RecordingModel& recording) {
     if (const auto v = r->boolean("log_torque")) recording.log_torque = *v;
     if (auto v = r->text("position_unit")) recording.position_unit = std::move(*v);
     if (auto v = r->text("velocity_unit")) recording.velocity_unit = std::move(*v);
+    r->read("drive_delay_ms", recording.drive_delay_s, 1e-3);
     r->reject_unknown();
 }
 
@@ -279,7 +305,35 @@ void read_test(ConfigSection& top, TestReference& test) {
     t->read("acceleration_m_per_s2", test.acceleration_m_per_s2);
     t->read("dwell_s", test.dwell_s);
     t->read("start_mm", test.start_m, 1e-3);
+    if (const auto v = t->boolean("one_way")) test.one_way = *v;
     t->reject_unknown();
+}
+
+// process_force: bursts of a process force on the moves (rate_per_s, duration_s and amplitude_fraction as [low, high],
+// ripple_hz, ripple_fraction); null or absent: none.
+void read_process_force(ConfigSection& top, std::optional<ProcessForceBursts>& bursts) {
+    if (top.is_null("process_force")) {
+        bursts.reset();
+        top.accept("process_force");
+        return;
+    }
+    auto p = top.section("process_force");
+    if (!p) return;
+    ProcessForceBursts b = bursts.value_or(ProcessForceBursts{});
+    p->read("rate_per_s", b.rate_per_s);
+    const auto pair = [&](const char* key, double& low, double& high) {
+        if (auto v = p->numbers(key)) {
+            if (v->size() != 2) p->refuse(key, "must be [low, high]");
+            low = (*v)[0];
+            high = (*v)[1];
+        }
+    };
+    pair("duration_s", b.min_duration_s, b.max_duration_s);
+    pair("amplitude_fraction", b.min_fraction, b.max_fraction);
+    p->read("ripple_hz", b.ripple_hz);
+    p->read("ripple_fraction", b.ripple_fraction);
+    p->reject_unknown();
+    bursts = b;
 }
 
 // friction_zones: a list of {from_mm, to_mm, coulomb_factor}, each key required; replaces the demo's zones.
@@ -313,7 +367,8 @@ SynthSpec spec_from_json(const nlohmann::json& document, const std::string& sour
 SynthSpec spec_from_config(ConfigSection& top, const SynthSpec& base) {
     SynthSpec spec = base;
     read_axis(top, spec);
-    read_controller(top, spec.controller);
+    read_controller(top, spec);
+    read_process_force(top, spec.process_force);
     read_drive(top, spec);
     read_sensors(top, spec.sensors);
     read_recording(top, spec.recording);
@@ -376,10 +431,19 @@ nlohmann::json spec_to_json(const SynthSpec& spec) {
                               {"current_lag_ms", c.current_lag_s * 1e3},
                               {"position_cycle_ms", c.position_cycle_s * 1e3},
                               {"velocity_cycle_ms", c.velocity_cycle_s * 1e3},
-                              {"velocity_difference_samples", c.velocity_difference_samples}};
+                              {"velocity_difference_samples", c.velocity_difference_samples},
+                              {"servo_rate_hz", spec.servo_rate_hz}};
     const auto& s = spec.sensors;
     const auto& t = spec.test;
     const auto& r = spec.recording;
+    nlohmann::json process_force = nullptr;
+    if (const auto& b = spec.process_force) {
+        process_force = {{"rate_per_s", b->rate_per_s},
+                         {"duration_s", {b->min_duration_s, b->max_duration_s}},
+                         {"amplitude_fraction", {b->min_fraction, b->max_fraction}},
+                         {"ripple_hz", b->ripple_hz},
+                         {"ripple_fraction", b->ripple_fraction}};
+    }
     nlohmann::json zones = nlohmann::json::array();
     for (const auto& zone : spec.friction_zones) {
         zones.push_back(
@@ -406,7 +470,8 @@ nlohmann::json spec_to_json(const SynthSpec& spec) {
           {"slow_stroke_min_mm", t.slow_stroke_min_m * 1e3},
           {"acceleration_m_per_s2", t.acceleration_m_per_s2},
           {"dwell_s", t.dwell_s},
-          {"start_mm", t.start_m * 1e3}}},
+          {"start_mm", t.start_m * 1e3},
+          {"one_way", t.one_way}}},
         {"recording",
          {{"position_interval_ms", r.position_interval_s * 1e3},
           {"velocity_interval_ms", r.velocity_interval_s * 1e3},
@@ -414,8 +479,10 @@ nlohmann::json spec_to_json(const SynthSpec& spec) {
           {"log_velocity", r.log_velocity},
           {"log_torque", r.log_torque},
           {"position_unit", r.position_unit},
-          {"velocity_unit", r.velocity_unit}}},
+          {"velocity_unit", r.velocity_unit},
+          {"drive_delay_ms", r.drive_delay_s * 1e3}}},
         {"friction_zones", zones},
+        {"process_force", process_force},
         {"seed", spec.seed}};
 }
 
@@ -430,9 +497,16 @@ std::vector<double> test_reference(const TestReference& test, double sample_time
     std::vector<Move> moves;
     const double start = test.start_m;
     moves.push_back({start, 0.0});
+    double end = start;  // a one-way test's strokes follow one another
     const auto stroke = [&](double feedrate_mm_per_min, double length) {
         const double speed = feedrate_mm_per_min / 60000.0;
         for (int c = 0; c < test.cycles; ++c) {
+            if (test.one_way) {
+                end += length;
+                moves.push_back({end, speed});
+                moves.push_back({end, 0.0});
+                continue;
+            }
             moves.push_back({start + length, speed});
             moves.push_back({start + length, 0.0});
             moves.push_back({start, speed});
@@ -579,6 +653,65 @@ void true_values(const SynthSpec& spec, const ControllerModel& controller, std::
     constants["true_" + naming.velocity_gain_key()] = controller.velocity_gain_N_s_per_m;
     constants["true_" + naming.velocity_integral_gain_key()] = controller.velocity_integral_gain_N_per_m;
     constants["true_current_lag_s"] = controller.current_lag_s;
+    if (spec.servo_rate_hz > 0.0) constants["true_servo_rate_hz"] = spec.servo_rate_hz;
+    if (spec.recording.drive_delay_s > 0.0) constants["true_drive_delay_s"] = spec.recording.drive_delay_s;
+}
+
+/// The integration steps per sample: the sensors', raised to a whole multiple of the servo's cycles per sample.
+int integration_substeps(const SynthSpec& spec) {
+    if (spec.servo_rate_hz <= 0.0) return spec.sensors.substeps;
+    const auto per_sample = static_cast<int>(std::lround(spec.servo_rate_hz * spec.sensors.sample_time_s));
+    return std::max(1, (spec.sensors.substeps + per_sample - 1) / per_sample) * per_sample;
+}
+
+/// The drive signal's delay in integration steps; InputError when it is not a whole number of them.
+int delay_steps(const SynthSpec& spec, int substeps) {
+    const double step = spec.sensors.sample_time_s / substeps;
+    const double steps = spec.recording.drive_delay_s / step;
+    if (std::abs(steps - std::round(steps)) > 1e-6 || steps > SimulationOptions::max_drive_signal_delay_steps) {
+        throw InputError(fmt::format(
+            "synth: recording.drive_delay_ms {:g} must be a whole number (at most {}) of integration steps of {:g} ms "
+            "(the sample time over the substeps)",
+            spec.recording.drive_delay_s * 1e3, SimulationOptions::max_drive_signal_delay_steps, step * 1e3));
+    }
+    return static_cast<int>(std::lround(steps));
+}
+
+/// Bursts of process force along the reference (ProcessForceBursts), as an external force in +x [N]; `count` the
+/// bursts made. A generator of its own, so that the sensors' noise is the same with and without them.
+std::vector<double> process_force_bursts(const SynthSpec& spec, const std::vector<double>& reference,
+                                         std::size_t& count) {
+    std::vector<double> force(reference.size(), 0.0);
+    count = 0;
+    if (!spec.process_force) return force;
+    const ProcessForceBursts& b = *spec.process_force;
+    std::mt19937_64 generator(spec.seed ^ 0x9e3779b97f4a7c15ULL);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    const double dt = spec.sensors.sample_time_s;
+    const double coulomb = 0.5 * (spec.axis.friction.forward.coulomb + spec.axis.friction.reverse.coulomb);
+    std::size_t remaining = 0;
+    double amplitude = 0.0, started = 0.0;
+    for (std::size_t k = 1; k < reference.size(); ++k) {
+        const double commanded = (reference[k] - reference[k - 1]) / dt;
+        const bool moving = std::abs(commanded) > 1e-9;
+        if (!moving) {
+            remaining = 0;  // a cut ends where the move does
+            continue;
+        }
+        if (remaining == 0 && unit(generator) < b.rate_per_s * dt) {
+            remaining = static_cast<std::size_t>(
+                std::lround((b.min_duration_s + unit(generator) * (b.max_duration_s - b.min_duration_s)) / dt));
+            amplitude = (b.min_fraction + unit(generator) * (b.max_fraction - b.min_fraction)) * coulomb;
+            started = static_cast<double>(k) * dt;
+            ++count;
+        }
+        if (remaining == 0) continue;
+        --remaining;
+        const double t = static_cast<double>(k) * dt - started;
+        const double ripple = 1.0 + b.ripple_fraction * std::sin(2.0 * std::numbers::pi * b.ripple_hz * t);
+        force[k] = -(commanded > 0.0 ? 1.0 : -1.0) * amplitude * ripple;  // opposes the motion
+    }
+    return force;
 }
 
 // The closed loop simulated on the reference: lengths of a rotary axis' test, encoder and friction zones in radians.
@@ -592,7 +725,8 @@ SimulationOutput simulate_spec(const SynthSpec& spec, const ControllerModel& con
     input.injection = injection;
     input.external_force = external_force;
     SimulationOptions options;
-    options.substeps = spec.sensors.substeps;
+    options.substeps = integration_substeps(spec);
+    options.drive_signal_delay_steps = delay_steps(spec, options.substeps);
     if (spec.sensors.position_resolution_m > 0.0)
         options.position_resolution_m = spec.sensors.position_resolution_m * scale;
     options.friction_zones = spec.friction_zones;
@@ -647,10 +781,22 @@ Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>
     }
 
     ControllerModel controller = spec.controller;
-    if (controller.position_cycle_s == 0.0) controller.position_cycle_s = dt;
-    if (controller.velocity_cycle_s == 0.0) controller.velocity_cycle_s = controller.position_cycle_s;
+    const double servo_cycle = spec.servo_rate_hz > 0.0 ? 1.0 / spec.servo_rate_hz : dt;
+    if (controller.position_cycle_s == 0.0) controller.position_cycle_s = servo_cycle;
+    if (controller.velocity_cycle_s == 0.0) {
+        // the speed controller runs at the servo rate, never slower than the position loop
+        controller.velocity_cycle_s =
+            spec.servo_rate_hz > 0.0 ? std::min(servo_cycle, controller.position_cycle_s) : controller.position_cycle_s;
+    }
     const std::vector<double> injection = injected_signal(spec, reference.size());
-    SimulationOutput simulated = simulate_spec(spec, controller, reference, injection, external_force);
+    std::size_t bursts = 0;
+    std::vector<double> process = process_force_bursts(spec, reference, bursts);
+    if (!external_force.empty()) {
+        for (std::size_t k = 0; k < process.size(); ++k) process[k] += external_force[k];
+    }
+    const bool pushed = spec.process_force.has_value() || !external_force.empty();
+    SimulationOutput simulated =
+        simulate_spec(spec, controller, reference, injection, pushed ? std::span<const double>(process) : external_force);
 
     SensorReadings sensors = read_sensors(spec, simulated.force);
 
@@ -672,6 +818,7 @@ Trace synthesize(const SynthSpec& spec, const std::optional<std::vector<double>>
     else
         record(trace, "i", Role::current, "A", std::move(sensors.drive), r.drive_interval_s, dt);
     true_values(spec, controller, trace.constants);
+    if (spec.process_force) trace.constants["true_process_force_bursts"] = static_cast<double>(bursts);
     log_injection(spec, injection, trace);
     return trace;
 }

@@ -9,8 +9,9 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
-#include "feedid/io/unit_checks.hpp"
+#include "feedid/core/terminal_text.hpp"
 #include "feedid/core/units.hpp"
+#include "feedid/io/unit_checks.hpp"
 
 namespace feedid::watch {
 namespace {
@@ -24,7 +25,8 @@ enum ChannelRole : std::uint8_t { role_position = 1, role_current = 2, role_forc
 std::string unit_scale(const std::string& unit, Quantity expected, std::string_view what, double& scale) {
     const auto conversion = parse_unit(unit);
     if (!conversion || conversion->quantity != expected || conversion->offset != 0.0)
-        return fmt::format("units.{}: '{}' is not a {} unit", what, unit.substr(0, 32), si_symbol(expected));
+        return fmt::format("units.{}: '{}' is not a {} unit", what, terminal_text(unit.substr(0, 32)),
+                           si_symbol(expected));
     scale = conversion->scale;
     return "";
 }
@@ -45,10 +47,10 @@ std::string read_column(const nlohmann::json& array, std::string_view name, doub
     return "";
 }
 
-std::string check_times(const Batch& batch) {
+std::string check_times(const Batch& batch, const PayloadLimits& limits) {
     if (!std::isfinite(batch.t0)) return "t0 is not a finite number";
-    if (!std::isfinite(batch.dt) || batch.dt <= 0.0 || batch.dt > 10.0)
-        return fmt::format("dt = {} s is not a sample time (0 < dt <= 10 s)", batch.dt);
+    if (!std::isfinite(batch.dt) || batch.dt < limits.min_dt_s || batch.dt > 10.0)
+        return fmt::format("dt = {} s is not a sample time ({:g} s <= dt <= 10 s)", batch.dt, limits.min_dt_s);
     if (batch.force_constant && (!std::isfinite(*batch.force_constant) || *batch.force_constant == 0.0))
         return "force_constant is not a finite, non-zero number";
     if (batch.position.empty()) return "no samples";
@@ -58,14 +60,23 @@ std::string check_times(const Batch& batch) {
     return "";
 }
 
+/// "" when `name` is one a topic level can carry and a history stores, else what is wrong.
+std::string check_name(std::string_view name, const char* key, std::size_t max_bytes) {
+    if (auto problem = name_problem(name, max_bytes); !problem.empty())
+        return fmt::format("'{}' is not a name of 1 to {} bytes of UTF-8 without control characters ({})", key,
+                           max_bytes, problem);
+    if (name.find_first_of("/+#") != std::string_view::npos)
+        return fmt::format("'{}' is not a name of 1 to {} bytes without '/', '+', '#'", key, max_bytes);
+    return "";
+}
+
 std::string read_name(const nlohmann::json& document, const char* key, std::size_t max_bytes, std::string& out) {
     out.clear();
     const auto it = document.find(key);
     if (it == document.end()) return "";
     if (!it->is_string()) return fmt::format("'{}' is not a string", key);
     const auto& text = it->get_ref<const std::string&>();
-    if (text.empty() || text.size() > max_bytes || text.find_first_of("/+#") != std::string::npos)
-        return fmt::format("'{}' is not a name of 1 to {} bytes without '/', '+', '#'", key, max_bytes);
+    if (auto e = check_name(text, key, max_bytes); !e.empty()) return e;
     out = text;
     return "";
 }
@@ -80,7 +91,7 @@ std::string decode_json(std::span<const std::byte> payload, Batch& batch, const 
     for (const auto& [key, value] : document.items()) {
         bool found = false;
         for (const char* k : known) found = found || key == k;
-        if (!found) return fmt::format("unknown key '{}'", key.substr(0, 32));
+        if (!found) return fmt::format("unknown key '{}'", terminal_text(key.substr(0, 32)));
     }
     for (const char* key : {"t0", "dt", "position", "units"})
         if (!document.contains(key)) return fmt::format("missing key '{}'", key);
@@ -91,7 +102,7 @@ std::string decode_json(std::span<const std::byte> payload, Batch& batch, const 
     if (!units.is_object()) return "'units' is not an object";
     for (const auto& [key, value] : units.items()) {
         if (key != "position" && key != "time" && key != (has_current ? "current" : "force"))
-            return fmt::format("units: unknown or unused key '{}'", key.substr(0, 32));
+            return fmt::format("units: unknown or unused key '{}'", terminal_text(key.substr(0, 32)));
         if (!value.is_string()) return fmt::format("units.{} is not a string", key);
     }
     const char* drive_name = has_current ? "current" : "force";
@@ -124,7 +135,7 @@ std::string decode_json(std::span<const std::byte> payload, Batch& batch, const 
     if (auto e = read_column(document[drive_name], drive_name, drive_scale, limits.max_samples, batch.drive);
         !e.empty())
         return e;
-    return check_times(batch);
+    return check_times(batch, limits);
 }
 
 template <typename T>
@@ -150,7 +161,8 @@ std::string decode_binary(std::span<const std::byte> payload, Batch& batch, cons
     if (samples > limits.max_samples)
         return fmt::format("binary batch of {} samples, more than the limit of {}", samples, limits.max_samples);
     if (machine_bytes > limits.max_name_bytes || axis_bytes > limits.max_name_bytes)
-        return "binary batch: name too long";
+        return fmt::format("binary batch: '{}' is not a name of 1 to {} bytes",
+                           machine_bytes > limits.max_name_bytes ? "machine" : "axis", limits.max_name_bytes);
     const std::size_t names_at = header_bytes + 2u * channels;
     const std::size_t columns_at = names_at + machine_bytes + axis_bytes;
     const std::size_t expected = columns_at + std::size_t{channels} * samples * sizeof(double);
@@ -162,8 +174,9 @@ std::string decode_binary(std::span<const std::byte> payload, Batch& batch, cons
     if (flags & 1u) batch.force_constant = load<double>(p + 32);
     batch.machine.assign(reinterpret_cast<const char*>(p + names_at), machine_bytes);
     batch.axis.assign(reinterpret_cast<const char*>(p + names_at + machine_bytes), axis_bytes);
-    for (const auto* name : {&batch.machine, &batch.axis})
-        if (name->find_first_of("/+#") != std::string::npos) return "binary batch: a name holds '/', '+' or '#'";
+    for (const auto& [name, key] : {std::pair{&batch.machine, "machine"}, std::pair{&batch.axis, "axis"}})
+        if (!name->empty())
+            if (auto e = check_name(*name, key, limits.max_name_bytes); !e.empty()) return "binary batch: " + e;
     bool have_position = false, have_drive = false;
     for (std::size_t c = 0; c < channels; ++c) {
         const auto role = load<std::uint8_t>(p + header_bytes + 2 * c);
@@ -195,7 +208,7 @@ std::string decode_binary(std::span<const std::byte> payload, Batch& batch, cons
         }
     }
     if (!have_position || !have_drive) return "binary batch: needs a position and a current or force channel";
-    return check_times(batch);
+    return check_times(batch, limits);
 }
 
 template <typename T>

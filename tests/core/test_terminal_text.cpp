@@ -35,4 +35,23 @@ TEST(TerminalText, MessagesKeepTheirLines) {
     EXPECT_EQ(terminal_message("line one\nline \x1b[31mtwo\n"), "line one\nline \\x1b[31mtwo\n");
 }
 
+// Names from outside (MQTT topics and payloads, the command line): what both history backends store and a terminal
+// shows unharmed, or a reason.
+TEST(TerminalText, NamesAreUtf8WithoutControlsWithinALength) {
+    using feedid::name_problem;
+    EXPECT_EQ(name_problem("M1", 64), "");
+    EXPECT_EQ(name_problem("Fräse Nr. 3 日本", 64), "");
+    EXPECT_EQ(name_problem("", 64), "empty");
+    EXPECT_EQ(name_problem(std::string(65, 'x'), 64), "longer than 64 bytes");
+    EXPECT_EQ(name_problem("M\xff", 64), "not UTF-8");
+    EXPECT_EQ(name_problem("\xed\xa0\x80", 64), "not UTF-8");
+    EXPECT_EQ(name_problem(std::string("M\0X", 3), 64), "a control character");
+    EXPECT_EQ(name_problem("M\nX", 64), "a control character");
+    EXPECT_EQ(name_problem("x\xc2\x9b", 64), "a control character");
+    EXPECT_EQ(name_problem("evil\xe2\x80\xaeX", 64), "a bidirectional override");
+    EXPECT_TRUE(feedid::is_storable_text("M\ttab, 日本"));
+    EXPECT_FALSE(feedid::is_storable_text(std::string("M\0X", 3)));
+    EXPECT_FALSE(feedid::is_storable_text("M\xc3"));
+}
+
 }  // namespace

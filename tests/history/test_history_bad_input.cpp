@@ -159,6 +159,10 @@ TEST_F(HistoryBadInput, ResultOfTheWrongKindIsRejectedAndTheDatabaseUntouched) {
     expect_rejected(
         fmt::format("history {} --record {} --machine M1 --axis X --recorded-at yesterday", db, quoted(results_[3])),
         good_, "yesterday", "not an ISO 8601");
+    // A name PostgreSQL would refuse is refused on SQLite too (both backends hold the same runs)
+    expect_rejected(
+        fmt::format("history {} --record {} --machine \"$(printf 'M\\377')\" --axis X", db, quoted(results_[3])), good_,
+        "--machine", "not valid UTF-8");
 }
 
 TEST_F(HistoryBadInput, AGoodDatabaseStillWorksAfterwards) {

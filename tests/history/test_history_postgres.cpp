@@ -6,8 +6,12 @@
 
 #include <gtest/gtest.h>
 
+#include <sqlite3.h>
+
 #include <cctype>
+#include <chrono>
 #include <csignal>
+#include <filesystem>
 #include <set>
 #include <sstream>
 #include <thread>
@@ -247,9 +251,9 @@ TEST_F(HistoryPostgres, ConnectionFailuresAreOneLineNamingHostAndDatabaseNeverTh
         return r.err;
     };
     const std::string host = fmt::format("127.0.0.1:{}", server().port());
-    // a wrong password, in the URI and in the environment
+    // a password in the URI is refused before any connection (it would show in ps); a wrong one in the environment
     expect_refused("", fmt::format("postgresql://feedid_password:Wrong-Guess-7@{}/{}", host, owned),
-                   {"127.0.0.1", owned, "authentication failed"});
+                   {"127.0.0.1", owned, "a password in the location is refused", "PGPASSFILE"});
     expect_refused("PGPASSWORD=Wrong-Guess-7", fmt::format("postgresql://feedid_password@{}/{}", host, owned),
                    {"127.0.0.1", owned, "authentication failed"});
     // no password at all
@@ -278,6 +282,64 @@ TEST_F(HistoryPostgres, ConnectionFailuresAreOneLineNamingHostAndDatabaseNeverTh
                    {"no-such-host.invalid", owned, "unreachable"});
     // a database that does not exist
     expect_refused("", server().location("no_such_database"), {"127.0.0.1", "no_such_database", "does not exist"});
+}
+
+// The password comes from a file (PGPASSFILE, ~/.pgpass) or a service file, never from the command line: it is not
+// in `ps`, and no message shows it.
+TEST_F(HistoryPostgres, ThePasswordComesFromAPasswordFileNeverFromTheLocation) {
+    const auto results = write_small_results(folder_, "run", 1);
+    const auto owned = fmt::format("pgpass_{}", ::getpid());
+    ASSERT_EQ(server().execute(fmt::format("CREATE DATABASE {} OWNER feedid_password", owned)), "");
+    write_text(folder_ / "pgpass",
+               fmt::format("127.0.0.1:{}:{}:feedid_password:{}\n", server().port(), owned, test_password));
+    std::filesystem::permissions(folder_ / "pgpass",
+                                 std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+    const auto location = fmt::format("postgresql://feedid_password@127.0.0.1:{}/{}", server().port(), owned);
+    const auto r = run_shell(fmt::format("PGPASSFILE={} {} history '{}' --record {} --machine M --axis X",
+                                         quoted(folder_ / "pgpass"), cli(), location, quoted(results[0])),
+                             folder_);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ((r.out + r.err).find(test_password), std::string::npos);
+    EXPECT_EQ(value(location, "SELECT count(*) FROM runs"), "1");
+    for (const std::string& given :
+         {fmt::format("postgresql://feedid_password:{}@127.0.0.1:{}/{}", test_password, server().port(), owned),
+          fmt::format("postgresql://feedid_password@127.0.0.1:{}/{}?password={}", server().port(), owned,
+                      test_password)}) {
+        const auto refused = run_shell(fmt::format("{} history '{}'", cli(), given), folder_);
+        EXPECT_EQ(refused.exit_code, 2) << refused.err;
+        EXPECT_EQ(count_lines(refused.err), 1) << refused.err;
+        EXPECT_NE(refused.err.find("a password in the location is refused"), std::string::npos) << refused.err;
+        EXPECT_EQ((refused.out + refused.err).find(test_password), std::string::npos) << refused.err;
+    }
+}
+
+// A SQLite history written before names were checked may hold one that PostgreSQL refuses (a NUL, bytes that are not
+// UTF-8): --copy says which run and stops, exit 2, at once (it once waited forever).
+TEST_F(HistoryPostgres, CopyStopsAtARunPostgresqlCannotHoldNamingIt) {
+    const auto source = (folder_ / "old.db").string();
+    const auto results = write_small_results(folder_, "run", 2);
+    for (const auto& result : results) {
+        const auto r = run_shell(
+            fmt::format("{} history {} --record {} --machine M --axis X", cli(), quoted(source), quoted(result)),
+            folder_);
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+    }
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(source.c_str(), &db), SQLITE_OK);
+    ASSERT_EQ(
+        sqlite3_exec(db, "UPDATE runs SET machine = CAST(X'4DFF' AS TEXT) WHERE id = 2", nullptr, nullptr, nullptr),
+        SQLITE_OK);
+    sqlite3_close(db);
+    const auto plant = server().create_database();
+    const auto started = std::chrono::steady_clock::now();
+    const auto r =
+        run_shell(fmt::format("timeout 60 {} history --copy {} '{}'", cli(), quoted(source), plant), folder_);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_LT(seconds, 30.0);
+    EXPECT_NE(r.err.find("machine"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("not valid UTF-8 without NUL"), std::string::npos) << r.err;
+    EXPECT_EQ(value(plant, "SELECT count(*) FROM runs"), "1");  // the run before it
 }
 
 // What the URI leaves out comes from libpq's environment variables and service files, as for psql.

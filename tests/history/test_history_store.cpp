@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <csignal>
+#include <functional>
 #include <map>
 #include <set>
 
@@ -277,6 +278,32 @@ history::RunRecord rotary_run(const std::string& sha) {
     run.parameters["coulomb_Nm"] = {2.36, 0.001};
     run.axis_kind = "rotary";
     return run;
+}
+
+// What one backend refuses, none takes: a name or text that is not valid UTF-8, or holds a NUL (PostgreSQL refuses
+// both), is refused on SQLite too, naming the field, and nothing is written; so both backends hold the same runs and
+// `history --copy` never meets a run it cannot copy.
+TEST_P(HistoryStoreOn, TextThatNotEveryBackendStoresIsRefusedOnBoth) {
+    auto store = open(new_location());
+    const auto refused = [&](const std::function<void(history::RunRecord&)>& change, const std::string& field) {
+        auto run = sample_run("aa", 742.0);
+        change(run);
+        try {
+            (void)store->add_run(run);
+            ADD_FAILURE() << field << " was stored";
+        } catch (const feedid::InputError& e) {
+            EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+        }
+    };
+    refused([](auto& run) { run.machine = std::string("DMU\0 50", 7); }, "machine");
+    refused([](auto& run) { run.machine = "DMU \xff"; }, "machine");
+    refused([](auto& run) { run.axis = "X\xc3"; }, "axis");
+    refused([](auto& run) { run.location = std::string("Aa\0chen", 7); }, "location");
+    refused([](auto& run) { run.trace_path = "x\xed\xa0\x80.csv"; }, "trace path");
+    refused([](auto& run) { run.diagnostics = {"bad \xff"}; }, "diagnostics");
+    refused([](auto& run) { run.parameters["coulomb\xff"] = {1.0, 0.1}; }, "parameter key");
+    EXPECT_TRUE(store->runs().empty());
+    EXPECT_TRUE(store->add_run(sample_run("aa", 742.0)).inserted);  // and the store goes on
 }
 
 TEST_P(HistoryStoreOn, AnAxisHoldsRunsOfOneAxisKind) {

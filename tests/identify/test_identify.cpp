@@ -212,6 +212,7 @@ feedid::IdentifyOptions options_for(feedid::FrictionModelKind model, bool offset
     feedid::IdentifyOptions options;
     options.model = model;
     options.offset = offset;
+    options.model_selection.automatic = false;  // the model named, as --model forces it
     options.drive.force_constant_name = "force_constant";
     return options;
 }

@@ -87,6 +87,25 @@ def test_the_results_records_hold_the_documents_numbers(emps):
     assert json.loads(result.to_json()) == document
 
 
+def test_the_results_repr_is_the_brief_report_feedid_identify_prints(emps):
+    result = feedid.identify(emps, channels=EMPS_CHANNELS, force_constant="gtau", offset=True, systematic=False)
+    printed = run_cli("identify", emps, "--channel", "position=qm", "--channel", "current=vir", "--force-constant",
+                      "gtau", "--offset", "--no-systematic").stdout
+    brief = repr(result)
+    assert printed.startswith(brief + "\n")
+    lines = brief.splitlines()
+    assert lines[0] == f"{emps} (24841 samples, 24.84 s)"
+    assert lines[1] == "model: symmetric with offset, status: partial"
+    for key, estimate in result.parameters.items():
+        row = next(line for line in lines[3:] if line.split()[0] == result.symbols[key])
+        if estimate.value is None:
+            assert row.split() == [result.symbols[key], "—", result.units[key]]
+        else:
+            assert row.split()[:4] == [result.symbols[key], f"{estimate.value:.6g}", "±",
+                                       f"{estimate.standard_error:.3g}"]
+    assert repr(feedid.Result.from_dict(result.to_dict())) == brief
+
+
 def test_without_the_systematic_family_and_with_an_inverted_channel(emps):
     expected = cli_json("identify", emps, "--channel", "position=qm", "--channel", "current=vir", "--force-constant",
                         "-35.15", "--invert", "current", "--no-systematic")

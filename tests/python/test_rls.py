@@ -113,6 +113,48 @@ def test_state_and_reset():
     assert rls.estimate[0] == 0.0
 
 
+@pytest.mark.parametrize("bad", [[np.inf, 0.0], [0.0, np.nan], [0.0, -np.inf]])
+def test_reset_refuses_values_that_are_not_finite(bad):
+    rls = feedid.Rls(2)
+    rls.update([1.0, 0.0], 5.0)
+    with pytest.raises(feedid.InputError, match="initial_estimate holds a value that is not finite"):
+        rls.reset(bad)
+    assert rls.updates == 1  # refused before anything changed
+    with pytest.raises(feedid.InputError):
+        feedid.Rls(2, initial_estimate=bad)
+
+
+def test_two_threads_on_one_rls_give_one_order_or_the_other():
+    """update_many runs without the GIL: two threads on one Rls must not interleave their samples. The result is
+    that of one order or the other, to the last bit (each call holds the estimator's lock)."""
+    first, second = [regression(400_000, np.array([2.0, -1.0, 0.5]), seed=s) for s in (11, 12)]
+    orders = []
+    for order in ((first, second), (second, first)):
+        serial = feedid.Rls(3, forgetting_factor=0.9999)
+        for phi, y in order:
+            serial.update_many(phi, y)
+        orders.append((serial.estimate, serial.covariance))
+    for attempt in range(5):
+        rls = feedid.Rls(3, forgetting_factor=0.9999)
+        barrier = threading.Barrier(3)
+        read = []
+
+        def run(data):
+            barrier.wait()
+            rls.update_many(*data)
+            read.append(rls.estimate)  # while the other thread may update: a whole state, never half of one
+
+        threads = [threading.Thread(target=run, args=(data,)) for data in (first, second)]
+        for thread in threads:
+            thread.start()
+        barrier.wait()
+        for thread in threads:
+            thread.join()
+        assert rls.updates == 800_000 and len(read) == 2 and all(np.all(np.isfinite(e)) for e in read)
+        assert any(np.array_equal(rls.estimate, e) and np.array_equal(rls.covariance, p) for e, p in orders), \
+            (attempt, rls.estimate, [e for e, _ in orders])
+
+
 def test_update_many_releases_the_gil():
     rng = np.random.default_rng(3)
     samples = 4_000_000

@@ -15,7 +15,7 @@
 
 #include "feedid/core/error.hpp"
 #include "feedid/history/store.hpp"
-#include "feedid/report/report.hpp"
+#include "feedid/report/result_report.hpp"
 #include "history_testing.hpp"
 #include "testing.hpp"
 

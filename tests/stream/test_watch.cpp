@@ -14,7 +14,10 @@
 #include <fmt/core.h>
 #include <gtest/gtest.h>
 
+#include "feedid/core/error.hpp"
+#include "feedid/core/terminal_text.hpp"
 #include "feedid/stream/payload.hpp"
+#include "feedid/stream/run_spool.hpp"
 #include "feedid/stream/watcher.hpp"
 #include "production_traces.hpp"
 #include "testing.hpp"
@@ -35,6 +38,14 @@ Batch small_batch() {
     b.position = {-0.1, -0.0999875, -0.0999749, -0.0999623};
     b.drive = {1.5, -2.25, 3.125, 1e-7};
     b.force_constant = 52.5;
+    return b;
+}
+
+/// small_batch() without names: the topic names machine and axis.
+Batch anonymous_batch() {
+    Batch b = small_batch();
+    b.machine.clear();
+    b.axis.clear();
     return b;
 }
 
@@ -147,7 +158,7 @@ TEST(WatchPayload, EachMalformedMessageIsRefusedWithItsReasonAndTheOthersGoOn) {
     anonymous.machine.clear();
     EXPECT_NE(watcher.ingest("plant", bytes(encode_json(anonymous))).find("names no machine"), std::string::npos);
     anonymous.force_constant.reset();
-    EXPECT_NE(watcher.ingest("plant/M2/Y/axis", bytes(encode_json(anonymous))).find("force constant"),
+    EXPECT_NE(watcher.ingest("plant/M2/X/axis", bytes(encode_json(anonymous))).find("force constant"),
               std::string::npos);
     EXPECT_EQ(watcher.malformed(), refused + 2);
 }
@@ -385,6 +396,212 @@ TEST(WatchRouting, APauseLongerThanTheGapCompletesARun) {
         EXPECT_NEAR(*run.estimate.coulomb.value, *expected.coulomb.value, 1e-9 * *expected.coulomb.value);
     }
     EXPECT_EQ(runs[1].sequence, 2u);
+}
+
+// A message that names an axis with bytes a topic level, a terminal or a history cannot take is refused with its
+// reason, before anything is made of it; the service goes on (once, one such binary batch stopped it).
+TEST(WatchHostile, NamesThatAreNotUtf8OrHoldControlsAreRefusedAndTheWatcherGoesOn) {
+    WatchOptions options;
+    options.trust_payload_names = true;
+    Watcher watcher(options);
+    const std::string good = encode_binary(small_batch());
+    for (const std::string& name : {std::string("M\xff"), std::string("M\0X", 3), std::string("M\x1b[2J"),
+                                    std::string("evil\xe2\x80\xae"), std::string(65, 'M')}) {
+        Batch b = small_batch();
+        b.machine = name;
+        std::vector<std::string> payloads = {encode_binary(b)};
+        if (is_storable_text(name)) payloads.push_back(encode_json(b));  // JSON cannot carry bytes that are not UTF-8
+        for (const std::string& payload : payloads) {
+            const std::string error = watcher.ingest("plant/M1/X/axis", bytes(payload));
+            EXPECT_NE(error.find("'machine' is not a name"), std::string::npos) << error;
+            EXPECT_TRUE(is_storable_text(error)) << error;
+        }
+        // from the topic
+        const std::string error = watcher.ingest("plant/" + name + "/X/axis", bytes(encode_binary(anonymous_batch())));
+        EXPECT_NE(error.find("refused"), std::string::npos) << error;
+        EXPECT_TRUE(is_storable_text(error)) << error;
+        EXPECT_EQ(watcher.ingest("plant/M1/X/axis", bytes(good)), "");
+    }
+    EXPECT_EQ(watcher.axes(), 1u);
+    const auto document = watcher.estimate_document("M1", "X");
+    EXPECT_NO_THROW((void)document.dump());
+}
+
+// Machine and axis come from the topic, which the broker's ACL guards: a payload that names another is refused and
+// counted; with trust_payload_names the payload's names win, as before.
+TEST(WatchHostile, APayloadNamingAnotherMachineIsRefusedUnlessTrusted) {
+    Batch other = small_batch();
+    other.machine = "M2";
+    Watcher strict({});
+    EXPECT_EQ(strict.ingest("plant/M1/X/axis", bytes(encode_binary(small_batch()))), "");
+    const std::string error = strict.ingest("plant/M1/X/axis", bytes(encode_binary(other)));
+    EXPECT_NE(error.find("names machine 'M2' axis 'X', its topic machine 'M1' axis 'X': refused"), std::string::npos)
+        << error;
+    EXPECT_EQ(strict.foreign_names(), 1u);
+    EXPECT_EQ(strict.malformed(), 1u);
+    EXPECT_EQ(strict.axes(), 1u);
+    EXPECT_NE(strict.ingest("plant", bytes(encode_binary(other))).find("the topic names no machine"),
+              std::string::npos);
+    WatchOptions options;
+    options.trust_payload_names = true;
+    Watcher trusting(options);
+    EXPECT_EQ(trusting.ingest("plant/M1/X/axis", bytes(encode_binary(other))), "");
+    EXPECT_EQ(trusting.ingest("plant", bytes(encode_binary(other))), "");
+    trusting.flush();
+    EXPECT_TRUE(trusting.estimate("M2", "X"));
+    EXPECT_FALSE(trusting.estimate("M1", "X"));
+}
+
+/// A batch of `n` samples of a slow sine at `dt`, for the memory tests.
+Batch sine_batch(double t0, double dt, std::size_t n) {
+    Batch b;
+    b.t0 = t0;
+    b.dt = dt;
+    b.force_constant = 50.0;
+    for (std::size_t k = 0; k < n; ++k) {
+        b.position.push_back(0.01 * std::sin(t0 + static_cast<double>(k) * dt));
+        b.drive.push_back(std::cos(t0 + static_cast<double>(k) * dt));
+    }
+    return b;
+}
+
+// Memory bounded whatever is sent: a sample time of 1e-7 s is refused at decode; one that would make a window
+// longer than max_window_samples is refused when the axis comes; axes are admitted while their identifiers fit
+// axes_bytes (and max_axes); each refusal counted.
+TEST(WatchHostile, SampleTimesWindowsAndAxesAreBounded) {
+    Watcher watcher({});
+    EXPECT_NE(watcher.ingest("plant/M1/X/axis", bytes(encode_binary(sine_batch(0.0, 1e-7, 2000)))).find("dt = "),
+              std::string::npos);
+    WatchOptions fine;
+    fine.limits.min_dt_s = 1e-7;
+    Watcher window(fine);
+    const std::string error = window.ingest("plant/M1/X/axis", bytes(encode_binary(sine_batch(0.0, 1e-7, 2000))));
+    EXPECT_NE(error.find("more than max_window_samples"), std::string::npos) << error;
+    EXPECT_EQ(window.axes(), 0u);
+    EXPECT_EQ(window.refused_axes(), 1u);
+    // 2,000 axes at 1 kHz: the identifiers' memory stays within axes_bytes, the rest refused and counted
+    WatchOptions options;
+    options.max_axes = 100'000;
+    options.axes_bytes = 64u << 20;
+    Watcher many(options);
+    const std::string payload = encode_binary(sine_batch(0.0, 1e-3, 200));
+    std::size_t refused = 0;
+    for (int m = 0; m < 2000; ++m) refused += !many.ingest(fmt::format("plant/F{}/X/axis", m), bytes(payload)).empty();
+    const std::size_t per_axis = OnlineIdentifier::memory_bytes({}, 1e-3);
+    std::cout << fmt::format("{} axes admitted ({:.2f} MB each), {} refused; {:.1f} MB budgeted\n", many.axes(),
+                             static_cast<double>(per_axis) / (1 << 20), refused,
+                             static_cast<double>(many.axes_bytes()) / (1 << 20));
+    EXPECT_LE(many.axes_bytes(), options.axes_bytes);
+    EXPECT_GT(many.axes(), 100u);
+    EXPECT_EQ(many.axes() + refused, 2000u);
+    EXPECT_EQ(many.refused_axes(), refused);
+    options.max_axes = 10;
+    Watcher counted(options);
+    for (int m = 0; m < 12; ++m) (void)counted.ingest(fmt::format("plant/F{}/X/axis", m), bytes(payload));
+    EXPECT_EQ(counted.axes(), 10u);
+    EXPECT_EQ(counted.refused_axes(), 2u);
+}
+
+// Held batches take at most held_bytes: 1,200 batches of 2,000 samples (32 kB each, 38 MB in all) on 80 axes,
+// every one of them held (each axis's first 30 s of stream, and after a hole), stay within a budget of 4 MB; the axes
+// that held longest give up their holds (counted) and every sample is still accounted for.
+TEST(WatchHostile, HeldBatchesStayWithinTheirBudget) {
+    WatchOptions options;
+    options.held_bytes = 4u << 20;
+    Watcher watcher(options);
+    std::size_t most = 0;
+    const std::size_t per_batch = 2'000;
+    const double dt = 1e-3;
+    for (int k = 0; k < 1200; ++k) {
+        const int axis = k % 80, index = k / 80;
+        // each axis: batch 0 at t = 0, then batches 2, 3, ... 15 (batch 1 never comes: a hole)
+        const double t0 = (index == 0 ? 0.0 : static_cast<double>(index + 1)) * static_cast<double>(per_batch) * dt;
+        ASSERT_EQ(
+            watcher.ingest(fmt::format("plant/H{}/X/axis", axis), bytes(encode_binary(sine_batch(t0, dt, per_batch)))),
+            "");
+        most = std::max(most, watcher.held_bytes());
+    }
+    std::cout << fmt::format("held at most {:.2f} MB; {} holds given up early\n", static_cast<double>(most) / (1 << 20),
+                             watcher.evicted_holds());
+    EXPECT_LE(most, options.held_bytes);
+    EXPECT_GT(watcher.evicted_holds(), 0u);
+    watcher.flush();
+    EXPECT_EQ(watcher.held_bytes(), 0u);
+    for (int axis = 0; axis < 80; ++axis) {
+        const auto stream = watcher.estimate_document(fmt::format("H{}", axis), "X")["stream"];
+        EXPECT_EQ(stream["samples"].get<std::size_t>(), 15 * per_batch) << stream.dump();
+        EXPECT_EQ(stream["missing_samples"].get<std::size_t>(), per_batch) << stream.dump();  // batch 1
+        EXPECT_EQ(stream["repeated_samples"].get<std::size_t>(), 0u) << stream.dump();
+    }
+}
+
+// The first batch of an axis to arrive need not be its oldest (a QoS 1 redelivery, a publisher's replay after a
+// reconnect): it is held like any batch after a hole, and the earlier ones put before it; the identifier sees the
+// uninterrupted stream. A batch from before the start that comes too late is a loss, counted missing, never repeated.
+TEST(WatchRouting, ALateFirstBatchIsHeldAndPutInItsPlace) {
+    const AxisColumns c = axis_columns(5);
+    const std::size_t per_message = 250, batches = (c.t.size() + per_message - 1) / per_message;
+    std::vector<std::size_t> order = {2, 3, 0, 1};
+    for (std::size_t k = 4; k < batches; ++k) order.push_back(k);
+    Watcher watcher({});
+    send_in_order(watcher, c, per_message, order);
+    watcher.flush();
+    const OnlineEstimate expected = direct(c, per_message);
+    const auto got = watcher.estimate("M1", "X");
+    ASSERT_TRUE(got && expected.coulomb.value);
+    EXPECT_EQ(got->samples, c.t.size());
+    EXPECT_EQ(got->mass.value, expected.mass.value);
+    EXPECT_EQ(got->coulomb.value, expected.coulomb.value);
+    const auto stream = watcher.estimate_document("M1", "X")["stream"];
+    EXPECT_EQ(stream["missing_samples"].get<std::size_t>(), 0u) << stream.dump();
+    EXPECT_EQ(stream["repeated_samples"].get<std::size_t>(), 0u) << stream.dump();
+    EXPECT_EQ(stream["reordered_batches"].get<std::size_t>(), 2u) << stream.dump();  // 2 and 3, after 0 and 1
+    // batch 0 only after reorder_s of stream (30 s = 120 batches): too late, a loss
+    std::vector<std::size_t> late;
+    for (std::size_t k = 1; k < batches; ++k) late.push_back(k);
+    late.insert(late.begin() + 150, 0);
+    Watcher too_late({});
+    send_in_order(too_late, c, per_message, late);
+    too_late.flush();
+    const auto lost = too_late.estimate_document("M1", "X")["stream"];
+    EXPECT_EQ(lost["samples"].get<std::size_t>(), c.t.size() - per_message) << lost.dump();
+    EXPECT_EQ(lost["missing_samples"].get<std::size_t>(), per_message) << lost.dump();
+    EXPECT_EQ(lost["repeated_samples"].get<std::size_t>(), 0u) << lost.dump();
+    EXPECT_EQ(lost["late_batches"].get<std::size_t>(), 1u) << lost.dump();
+}
+
+// The spool of completed runs: on disk before put returns, in order, bounded, kept across a reopen, one process at
+// a time; an entry refused for good is set aside with its reason.
+TEST(WatchSpool, RunsWaitOnDiskInOrderBoundedAndLocked) {
+    const auto folder = testing::temp_dir() / "spool";
+    {
+        RunSpool spool(folder, 10'000);
+        for (int k = 1; k <= 3; ++k) EXPECT_TRUE(spool.put({{"run", k}, {"text", std::string(1000, 'x')}}));
+        EXPECT_EQ(spool.size(), 3u);
+        EXPECT_THROW(RunSpool(folder, 10'000), InputError);  // locked
+        for (int k = 4; k <= 9; ++k) EXPECT_TRUE(spool.put({{"run", k}, {"text", std::string(1000, 'x')}}));
+        EXPECT_FALSE(spool.put({{"run", 10}, {"text", std::string(1000, 'x')}}));  // beyond 10,000 bytes
+        EXPECT_EQ(spool.size(), 9u);
+        const auto first = spool.front();
+        ASSERT_TRUE(first);
+        EXPECT_EQ(first->entry["run"], 1);
+        spool.remove(first->number);
+        spool.reject(spool.front()->number, "refused for good");
+        EXPECT_EQ(spool.front()->entry["run"], 3);
+    }
+    RunSpool again(folder, 10'000);  // the lock went with the first; what waited is still there, in order
+    EXPECT_EQ(again.size(), 7u);
+    EXPECT_EQ(again.front()->entry["run"], 3);
+    EXPECT_TRUE(again.put({{"run", 10}}));
+    std::vector<int> order;
+    while (auto entry = again.front()) {
+        order.push_back(entry->entry["run"].get<int>());
+        again.remove(entry->number);
+    }
+    EXPECT_EQ(order, (std::vector<int>{3, 4, 5, 6, 7, 8, 9, 10}));
+    EXPECT_TRUE(std::filesystem::exists(folder / "rejected"));
+    EXPECT_NE(testing::read_text(folder / "rejected" / "run-000000000002.reason.txt").find("refused for good"),
+              std::string::npos);
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 #pragma once
 // Real components for the MQTT tests: a mosquitto broker of the test's own (a config in the test's folder, 127.0.0.1
-// and a free port, no persistence) started with posix_spawn and stopped by its PID; processes of the feedid binary;
-// and a subscriber (libmosquitto) that keeps what feedid watch publishes.
+// and a free port, no persistence unless asked; or a configuration of the test's, e.g. TLS and logins) started with
+// posix_spawn and stopped by its PID; processes of the feedid binary; a subscriber (libmosquitto) that keeps what
+// feedid watch publishes; the resident memory of a process.
 
 #include <fcntl.h>
 #include <netinet/in.h>
@@ -13,6 +14,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -37,8 +39,13 @@ inline const char* mosquitto_path = "/usr/sbin/mosquitto";
 class Process {
 public:
     Process() = default;
+    /// `environment`: NAME=VALUE entries added to the test's own environment.
     Process(const std::vector<std::string>& arguments, const std::filesystem::path& out,
-            const std::filesystem::path& err) {
+            const std::filesystem::path& err, const std::vector<std::string>& environment = {}) {
+        std::vector<char*> env;
+        for (char** e = environ; *e != nullptr; ++e) env.push_back(*e);
+        for (const auto& e : environment) env.push_back(const_cast<char*>(e.c_str()));
+        env.push_back(nullptr);
         std::vector<char*> argv;
         for (const auto& a : arguments) argv.push_back(const_cast<char*>(a.c_str()));
         argv.push_back(nullptr);
@@ -47,7 +54,7 @@ public:
         posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
         posix_spawn_file_actions_addopen(&actions, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
         posix_spawn_file_actions_addopen(&actions, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        if (posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), environ) != 0) pid_ = -1;
+        if (posix_spawn(&pid_, argv[0], &actions, nullptr, argv.data(), env.data()) != 0) pid_ = -1;
         posix_spawn_file_actions_destroy(&actions);
     }
     Process(const Process&) = delete;
@@ -79,13 +86,45 @@ public:
         if (pid_ > 0) ::kill(pid_, SIGTERM);
         return wait();
     }
+    /// Sends a signal to the process (nothing once it has been waited for).
+    void signal(int number) const {
+        if (pid_ > 0) ::kill(pid_, number);
+    }
+    /// True while the process runs (or is stopped); false once it has exited (it is then reaped).
+    bool running() {
+        if (pid_ <= 0) return false;
+        int status = 0;
+        const pid_t done = ::waitpid(pid_, &status, WNOHANG);
+        if (done == 0) return true;
+        exit_code_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+        pid_ = -1;
+        return false;
+    }
+    /// The exit code once running() found the process gone (-1 before).
+    [[nodiscard]] int exit_code() const { return exit_code_; }
 
 private:
     pid_t pid_{-1};
+    int exit_code_{-1};
 };
 
-inline bool broker_answers(int port) {
+/// A field of /proc/PID/status in kB ("VmRSS": resident now, "VmHWM": the most it was resident); 0 when unknown.
+inline std::size_t proc_status_kb(pid_t pid, const std::string& field) {
+    const std::string text = read_text("/proc/" + std::to_string(pid) + "/status");
+    const auto at = text.find(field + ":");
+    if (at == std::string::npos) return 0;
+    return std::strtoull(text.c_str() + at + field.size() + 1, nullptr, 10);
+}
+
+/// A broker's login for the test's own clients ("" = anonymous).
+struct Login {
+    std::string username;
+    std::string password;
+};
+
+inline bool broker_answers(int port, const Login& login = {}) {
     mosquitto* client = mosquitto_new(nullptr, true, nullptr);
+    if (!login.username.empty()) mosquitto_username_pw_set(client, login.username.c_str(), login.password.c_str());
     const bool ok = mosquitto_connect(client, "127.0.0.1", port, 5) == MOSQ_ERR_SUCCESS;
     if (ok) mosquitto_disconnect(client);
     mosquitto_destroy(client);
@@ -97,6 +136,13 @@ inline bool broker_answers(int port) {
 /// does; killed, it loses what changed since its last save), else it forgets them.
 class Broker {
 public:
+    /// A broker with the test's own configuration (listeners, TLS, logins); `port` is the one it answers on, `login`
+    /// a user that may connect there.
+    Broker(const std::filesystem::path& dir, int port, const std::string& configuration, Login login)
+        : dir_(dir), port_(port), login_(std::move(login)) {
+        write_text(dir / "mosquitto.conf", configuration);
+        start();
+    }
     Broker(const std::filesystem::path& dir, int port, bool persistent = false) : dir_(dir), port_(port) {
         const std::string persistence =
             persistent ? "persistence true\npersistence_location " + dir.string() + "/\nautosave_interval 1\n"
@@ -111,13 +157,13 @@ public:
         process_ = Process({mosquitto_path, "-c", (dir_ / "mosquitto.conf").string()},
                            dir_ / ("mosquitto.out." + std::to_string(starts_)),
                            dir_ / ("mosquitto.err." + std::to_string(starts_)));
-        for (int attempt = 0; attempt < 100 && !broker_answers(port_); ++attempt)
+        for (int attempt = 0; attempt < 100 && !broker_answers(port_, login_); ++attempt)
             std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
     int stop() { return process_.terminate(); }
     /// SIGKILL: no shutdown, no last save (a crash, the OOM killer, a power cut of its host).
     int kill() {
-        ::kill(process_.pid(), SIGKILL);
+        process_.signal(SIGKILL);
         return process_.wait();
     }
     [[nodiscard]] std::string url() const { return "mqtt://127.0.0.1:" + std::to_string(port_); }
@@ -126,6 +172,7 @@ public:
 private:
     std::filesystem::path dir_;
     int port_;
+    Login login_;
     int starts_{0};
     Process process_;
 };
@@ -133,8 +180,9 @@ private:
 /// Keeps what feedid watch publishes: the last estimate per machine/axis, every error and alarm, the status.
 class Listener {
 public:
-    explicit Listener(int port) {
+    explicit Listener(int port, const Login& login = {}) {
         client_ = mosquitto_new(nullptr, true, this);
+        if (!login.username.empty()) mosquitto_username_pw_set(client_, login.username.c_str(), login.password.c_str());
         mosquitto_connect_callback_set(client_, [](mosquitto* c, void* self, int code) {
             if (code == 0) mosquitto_subscribe(c, nullptr, "plant/#", 1);
             if (code == 0) ++static_cast<Listener*>(self)->connections_;
@@ -207,8 +255,11 @@ private:
 /// Publishes raw payloads (the malformed ones) from the test.
 class Sender {
 public:
-    explicit Sender(int port) {
-        client_ = mosquitto_new(nullptr, true, nullptr);
+    explicit Sender(int port, const Login& login = {}) {
+        client_ = mosquitto_new(nullptr, true, this);
+        if (!login.username.empty()) mosquitto_username_pw_set(client_, login.username.c_str(), login.password.c_str());
+        mosquitto_publish_callback_set(
+            client_, [](mosquitto*, void* self, int) { ++static_cast<Sender*>(self)->acknowledged_; });
         mosquitto_reconnect_delay_set(client_, 1, 2, false);
         mosquitto_connect(client_, "127.0.0.1", port, 30);
         mosquitto_loop_start(client_);
@@ -221,12 +272,17 @@ public:
     Sender(const Sender&) = delete;
     Sender& operator=(const Sender&) = delete;
     bool send(const std::string& topic, const std::string& payload) {
-        return mosquitto_publish(client_, nullptr, topic.c_str(), static_cast<int>(payload.size()), payload.data(), 1,
-                                 false) == MOSQ_ERR_SUCCESS;
+        const bool sent = mosquitto_publish(client_, nullptr, topic.c_str(), static_cast<int>(payload.size()),
+                                            payload.data(), 1, false) == MOSQ_ERR_SUCCESS;
+        sent_ += sent;
+        return sent;
     }
+    /// Messages handed to the library and not yet acknowledged by the broker.
+    [[nodiscard]] std::size_t in_flight() const { return sent_ - acknowledged_; }
 
 private:
     mosquitto* client_{nullptr};
+    std::atomic<std::size_t> sent_{0}, acknowledged_{0};
 };
 
 }  // namespace feedid::testing

@@ -150,6 +150,20 @@ public:
 #endif
     }
 
+    /// Stops the server (as a restart or a crash of the database host would take it away) and keeps its data; true
+    /// when it stopped. resume() starts it again on the same port.
+    bool pause() {
+        if (!started_) return false;
+        return as_server_user(
+                   fmt::format("{} -D {} -m fast -w stop", quoted(bin_ / "pg_ctl"), quoted(data_ / "cluster"))) == 0;
+    }
+    /// Starts the server paused by pause() again, on the same port; true when it is up.
+    bool resume() {
+        if (!started_) return false;
+        return as_server_user(fmt::format("{} -D {} -l {} -w -t 60 -o '-p {}' start", quoted(bin_ / "pg_ctl"),
+                                          quoted(data_ / "cluster"), quoted(data_ / "server.log"), port_)) == 0;
+    }
+
     void stop() {
         if (!started_) return;
         started_ = false;

@@ -107,7 +107,9 @@ TEST(Defaults, OtherSubcommandsHelpStatesTheLibrarysDefaults) {
     const feedid::IdentifyOptions identify;
     expect_help_defaults(
         "identify",
-        {{"--model", feedid::name_of(feedid::friction_model_names, identify.model)},
+        {{"--model", identify.model_selection.automatic
+                         ? std::string(feedid::automatic_model_name)
+                         : feedid::name_of(feedid::friction_model_names, identify.model)},
          {"--differentiation", feedid::name_of(feedid::differentiation_names, identify.preprocess.differentiation)},
          {"--velocity-source", feedid::name_of(feedid::velocity_source_names, identify.preprocess.velocity_source)},
          {"--rls", feedid::name_of(feedid::rls_variant_names, identify.step1.rls.variant)},

@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "feedid/core/error.hpp"
+#include "feedid/core/json_adapters.hpp"
 #include "feedid/identify/result_document.hpp"
 #include "testing.hpp"
 

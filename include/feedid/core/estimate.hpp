@@ -1,31 +1,9 @@
 #pragma once
-// A value with its standard error, and how it travels as JSON: {"value": v, "stderr": s}, null where the data cannot
-// tell. The one place where an optional number is read from or written to a document.
+// A value with its standard error, null where the data cannot tell. How it travels as JSON ({"value": v, "stderr": s})
+// is json_adapters.hpp's.
 
 #include <cmath>
 #include <optional>
-
-#include <nlohmann/json.hpp>
-
-// std::optional<T> <-> JSON null or T, the serializer nlohmann's documentation prescribes for third-party types
-// (its own support arrived after the 3.11 that Debian 12 ships).
-namespace nlohmann {
-template <class T>
-struct adl_serializer<std::optional<T>> {
-    static void to_json(json& j, const std::optional<T>& value) {
-        if (value)
-            j = *value;
-        else
-            j = nullptr;
-    }
-    static void from_json(const json& j, std::optional<T>& value) {
-        if (j.is_null())
-            value.reset();
-        else
-            value = j.get<T>();
-    }
-};
-}  // namespace nlohmann
 
 namespace feedid {
 
@@ -57,24 +35,5 @@ struct Estimate {
         uncertainty = std::hypot(statistical, spread);
     }
 };
-
-/// {"value": v, "stderr": s} and, where assessed, "systematic" and "uncertainty".
-inline void to_json(nlohmann::json& j, const Estimate& estimate) {
-    j = nlohmann::json{{"value", estimate.value}, {"stderr", estimate.standard_error}};
-    if (estimate.systematic) j["systematic"] = *estimate.systematic;
-    if (estimate.uncertainty) j["uncertainty"] = *estimate.uncertainty;
-}
-
-/// Reads {"value": v|null, "stderr": s|null, "systematic": .., "uncertainty": ..}; a missing key is null. Throws
-/// nlohmann::json::exception on a value that is neither a number nor null.
-inline void from_json(const nlohmann::json& j, Estimate& estimate) {
-    const auto optional = [&](const char* key) {
-        return j.contains(key) ? j.at(key).get<std::optional<double>>() : std::optional<double>{};
-    };
-    estimate.value = j.at("value").get<std::optional<double>>();
-    estimate.standard_error = optional("stderr");
-    estimate.systematic = optional("systematic");
-    estimate.uncertainty = optional("uncertainty");
-}
 
 }  // namespace feedid

@@ -1,7 +1,5 @@
 #pragma once
-// How an analysis ended. Written to documents as "ok", "partial", "failed".
-
-#include <nlohmann/json.hpp>
+// How an analysis ended. Written to documents as "ok", "partial", "failed" (json_adapters.hpp).
 
 namespace feedid {
 
@@ -10,9 +8,6 @@ enum class Status {
     partial,  ///< some parameters null, each with a diagnostic saying why
     failed,   ///< nothing usable; the diagnostics say why and what data would help
 };
-
-// An unknown string reads as the first entry: failed, never a silent "ok".
-NLOHMANN_JSON_SERIALIZE_ENUM(Status, {{Status::failed, "failed"}, {Status::ok, "ok"}, {Status::partial, "partial"}})
 
 /// "ok", "partial" or "failed".
 [[nodiscard]] inline const char* to_string(Status status) {

@@ -51,6 +51,8 @@ struct Channel {
     /// resolves it (resolve_native_intervals()); the time base's sample time when nothing else is known.
     std::optional<double> native_interval_s{};
     IntervalSource interval_source{IntervalSource::time_base};
+    /// The zero removed from `values` at import (--tare), in the SI unit; none when the channel was not tared.
+    std::optional<double> tare_removed{};
 };
 
 /// Statistics of the time base: the sample time and how regular it is.

@@ -21,9 +21,10 @@ struct RecordContext {
     std::string recorded_at;                            ///< ISO 8601 UTC; default: the trace file's modification time
     nlohmann::json options = nlohmann::json::object();  ///< the identification options used
 
-    /// What is wrong with the names and the time stamp ("" when nothing): the machine and the axis are required, and
-    /// recorded_at, when given, is ISO 8601 UTC. `requester` opens the messages about a missing name ("--record"
-    /// for identify's option). Does not look at the trace (prepare_run does).
+    /// What is wrong with the names and the time stamp ("" when nothing): the machine and the axis are required, the
+    /// names valid UTF-8 (what every history backend stores), and recorded_at, when given, is ISO 8601 UTC. `requester`
+    /// opens the messages about a missing name ("--record" for identify's option). Does not look at the trace
+    /// (prepare_run does).
     [[nodiscard]] std::string validate(std::string_view requester = "recording a run") const;
 };
 

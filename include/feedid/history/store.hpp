@@ -19,6 +19,7 @@
 //     error and uncertainty, the fit's figures); the stored JSON documents are parsed only for the run they are
 //     needed for (history --json, the report's friction curve).
 
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -30,6 +31,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "feedid/core/error.hpp"
 #include "feedid/core/estimate.hpp"
 
 namespace feedid::history {
@@ -132,7 +134,9 @@ class HistoryStore {
 public:
     virtual ~HistoryStore() = default;
     /// Adds a run in one transaction. Duplicate (same trace hash and options): returns the existing id, adds nothing.
-    /// InputError naming machine, axis and both kinds when the axis holds runs of the other axis kind.
+    /// InputError naming machine, axis and both kinds when the axis holds runs of the other axis kind, and naming the
+    /// field when a text of the run is not one every backend stores (is_storable_text: valid UTF-8 without NUL), so
+    /// that a SQLite file and a PostgreSQL database accept the same runs.
     virtual AddOutcome add_run(const RunRecord& run) = 0;
     /// Runs matching the filter, ordered by recording time, then id.
     [[nodiscard]] virtual std::vector<RunRecord> runs(const RunFilter& filter = {},
@@ -194,6 +198,18 @@ std::unique_ptr<HistoryStore> open_sqlite_store(const std::filesystem::path& pat
 struct OpenOptions {
     bool read_only{false};  ///< open for reading only; nothing is ever written
     bool create{true};      ///< a SQLite file: create it when missing (ignored when read_only)
+    /// A database server: a connection lost after the history was opened (a restart, a network cut) is tried again
+    /// with backoff (0.1 s doubling to 5 s) for this long [s] before the call gives up with Unavailable.
+    double retry_s{300.0};
+    /// When set (to true, by another thread), the retries stop at once with Unavailable (a service shutting down).
+    const std::atomic<bool>* cancel{nullptr};
+};
+
+/// The history's server went away and did not come back within OpenOptions::retry_s (or the retry was cancelled):
+/// nothing was written by the call that throws it; the same call may be made again later.
+class Unavailable : public InputError {
+public:
+    using InputError::InputError;
 };
 
 /// The newest schema of the PostgreSQL backend (the highest version in its feedid_schema table).
@@ -210,11 +226,16 @@ bool postgresql_supported();
 /// parameter); a path as it is.
 std::string shown_location(const std::string& location);
 
+/// True when a PostgreSQL URI holds a password (user:password@ or a password= parameter). open_store refuses such a
+/// location: a password on the command line shows in `ps` and in logs; libpq reads it from ~/.pgpass, PGPASSFILE, a
+/// service file (PGSERVICEFILE) or PGPASSWORD instead.
+bool location_has_password(const std::string& location);
+
 /// Opens the history at `location`: a PostgreSQL URI (is_postgresql_location; libpq's environment variables PGHOST,
 /// PGUSER, PGPASSWORD, ... and service files fill in what the URI leaves out, e.g. postgresql:///?service=plant)
 /// opens the PostgreSQL backend, anything else is a SQLite file (open_sqlite_store). InputError naming the location
-/// (never a password) when it cannot be opened as asked, and when a PostgreSQL location is given to a build without
-/// the PostgreSQL backend.
+/// (never a password) when it cannot be opened as asked, when it holds a password (location_has_password), and when
+/// a PostgreSQL location is given to a build without the PostgreSQL backend.
 std::unique_ptr<HistoryStore> open_store(const std::string& location, const OpenOptions& options = {});
 
 /// Opens the history held in a PostgreSQL database (postgresql://user@host:port/db). A writer creates the schema, or
@@ -224,8 +245,9 @@ std::unique_ptr<HistoryStore> open_store(const std::string& location, const Open
 /// of the same names, or a newer feedid schema.
 ///
 /// A run is written in one transaction; a run already stored (same trace hash, same options) is found inside it and,
-/// should two writers race, the unique index keeps one (INSERT ... ON CONFLICT DO NOTHING). A write whose connection
-/// is lost is retried on a new connection, a bounded number of times, without duplicates.
+/// should two writers race, the unique index keeps one (INSERT ... ON CONFLICT DO NOTHING). A call whose connection
+/// is lost is retried on a new connection, with backoff, for OpenOptions::retry_s, without duplicates; then
+/// Unavailable.
 ///
 /// Test hooks (never set them outside tests): FEEDID_TEST_ABORT_AFTER_STATEMENT=N as for SQLite (BEGIN, the run,
 /// its documents, its parameters and COMMIT are the write statements); FEEDID_TEST_DROP_CONNECTION_AT_STATEMENT=N

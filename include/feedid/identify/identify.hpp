@@ -18,6 +18,7 @@
 #include "feedid/core/estimate.hpp"
 #include "feedid/model/friction.hpp"
 #include "feedid/identify/friction_only.hpp"
+#include "feedid/identify/model_adequacy.hpp"
 #include "feedid/core/parameters.hpp"
 #include "feedid/identify/preprocess.hpp"
 #include "feedid/numeric/rls.hpp"
@@ -31,8 +32,12 @@
 namespace feedid {
 
 struct IdentifyOptions {
+    /// The friction model and offset when the model is forced (model_selection.automatic false); in automatic mode
+    /// the data choose (model_adequacy.hpp).
     FrictionModelKind model{FrictionModelKind::symmetric};
     bool offset{false};  ///< also estimate a constant force offset F_0 (gravity, sensor offset)
+    /// Which model the data support: chosen from them (default), or forced; the drive signal's delay.
+    ModelSelectionOptions model_selection;
     DriveConstants drive;
     bool stribeck{true};  ///< run step 2 (identify() sets selection.stribeck from it)
 
@@ -158,6 +163,8 @@ struct IdentifyResult {
     std::optional<FrictionCurveReport> friction_curve;
     std::optional<FrictionOnlyReport> friction_only;
     std::optional<SystematicReport> systematic;  ///< the preprocessing family's estimates
+    /// The model-adequacy stage: the model chosen (or forced), the candidates tested, the drive signal's delay.
+    std::optional<ModelChoice> model_choice;
     std::vector<std::string> diagnostics;
     /// The options that shape the result, recorded with it (identify_options_document); null when not set.
     nlohmann::json options;

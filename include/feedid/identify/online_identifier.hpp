@@ -21,16 +21,16 @@
 
 #include <array>
 #include <cstddef>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
-#include <vector>
 
 #include <Eigen/Core>
 
 #include "feedid/core/estimate.hpp"
 #include "feedid/core/parameters.hpp"
-#include "feedid/numeric/signal.hpp"
+#include "feedid/identify/stick_slip.hpp"
 
 namespace feedid {
 
@@ -76,9 +76,8 @@ struct OnlineOptions {
     /// ... and this many such windows in a row that disagree with the pooled estimate are a change of the axis.
     std::size_t change_windows{8};      ///< the IRLS scale is at most this multiple of the clean windows' scale
     std::optional<double> force_limit;  ///< saturation: |F_d| at or above 0.99 of it in a window [N]
-    double stick_stop_fraction{0.2};    ///< stick-slip: |x'| falls below this fraction of the pass's speed ...
-    int stick_slip_stops{2};            ///< ... and restarts in the same direction this often in a window
-    double max_stick_s{0.15};           ///< ... each stop and each burst between them shorter than this [s]
+    /// Stick-slip: identify's rule without a reference (stick_slip.hpp), on each window, with its options.
+    StickSlipOptions stick_slip;
     // Stribeck bins: log-spaced speed bins from stribeck_lowest_speed to split_velocity, per direction.
     double stribeck_lowest_speed{1e-4};  ///< [m/s]
     std::size_t minimum_bin_samples{20};
@@ -155,9 +154,25 @@ struct OnlineEstimate {
     std::size_t stribeck_bins_used{0};
 };
 
+/// One window as it was judged: its core's first and last time stamps [s] and its verdict.
+struct WindowRecord {
+    double first_s{0.0};
+    double last_s{0.0};
+    WindowVerdict verdict{WindowVerdict::pending};  ///< pending: held until the clean windows' scale is known
+    bool stick_slip{false};  ///< the stick-slip rule found it in the window (whatever decided the verdict first)
+};
+
+/// The online identifier: push samples, read estimates. Its state (buffers, pool, bins) lives behind a pointer,
+/// allocated once at construction and start-up; an identifier moves (the pointer) but is not copied (a copy of a
+/// stream's state is no use). A moved-from identifier may only be destroyed or assigned to.
 class OnlineIdentifier {
 public:
     explicit OnlineIdentifier(OnlineOptions options);
+    ~OnlineIdentifier();
+    OnlineIdentifier(OnlineIdentifier&&) noexcept;
+    OnlineIdentifier& operator=(OnlineIdentifier&&) noexcept;
+    OnlineIdentifier(const OnlineIdentifier&) = delete;
+    OnlineIdentifier& operator=(const OnlineIdentifier&) = delete;
 
     /// One sample: time [s], position [m], drive force [N]; `use` false keeps the sample out of every fit (it is
     /// still filtered as the neighbour of others): the --only-when gate. Never throws, never allocates.
@@ -170,103 +185,22 @@ public:
     void flush();
     /// The current estimates (cheap: fixed-size algebra).
     [[nodiscard]] OnlineEstimate estimate() const;
-    [[nodiscard]] const OnlineOptions& options() const { return options_; }
+    /// The window processed last (none before the first).
+    [[nodiscard]] std::optional<WindowRecord> last_window() const;
+    [[nodiscard]] const OnlineOptions& options() const;
     /// Columns of the step-1 model: 3, or 4 with the offset.
-    [[nodiscard]] std::size_t parameters() const { return p_; }
+    [[nodiscard]] std::size_t parameters() const;
+
+    /// Samples in the buffers (a window and its filter margins) of an identifier with these options on a stream
+    /// sampled every sample_time_s [s].
+    [[nodiscard]] static std::size_t buffer_samples(const OnlineOptions& options, double sample_time_s);
+    /// The memory such an identifier takes: its buffers and its fixed state [bytes]. For a service that holds many.
+    [[nodiscard]] static std::size_t memory_bytes(const OnlineOptions& options, double sample_time_s);
+
+    struct State;  ///< opaque: defined in the library's sources only
 
 private:
-    static constexpr int max_p = 4;
-    using Vec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, max_p, 1>;
-    using Mat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, max_p, max_p>;
-    struct StribeckBin {
-        double n{0}, speed{0}, force{0}, force_sq{0}, acceleration{0};
-        std::size_t windows{0}, last_window{0};  ///< windows that put samples in it, the last of them (1-based)
-    };
-    /// A one-speed window's least-squares sufficient statistics: enough to judge it against any pooled estimate.
-    struct OneSpeedWindow {
-        Mat h;  ///< Phi^T Phi
-        Vec c;  ///< Phi^T y
-        double yy{0.0};
-        std::size_t rows{0};
-        WindowVerdict own{WindowVerdict::low_excitation};  ///< its verdict on its own
-    };
-
-    void setup(double sample_time_s);
-    void process_window(std::size_t count);
-    /// Why the pool gives no value ("" when it does): no window, one window, or windows that disagree.
-    [[nodiscard]] std::string no_value_reason() const;
-    WindowVerdict judge_window(std::size_t first, std::size_t last);
-    WindowVerdict fit_window(std::size_t rows);
-    [[nodiscard]] Vec solve_weighted(std::size_t rows) const;
-    void residuals(const Vec& theta, std::size_t rows);
-    Vec tukey_fit(const Vec& start, std::size_t rows, double& scale);
-    struct WindowInformation {
-        Mat h;  ///< Phi^T W Phi
-        Vec c;  ///< Phi^T W y
-        double scale{0.0};
-        std::size_t rows{0};
-    };
-    WindowVerdict admit(std::size_t rows, double scale);
-    void pool(const WindowInformation& window);
-    void update_reference_scale();
-    Vec independent_fit(std::size_t rows, const Vec& least_squares, double fast, double& best_scale);
-    bool settle_weights(std::size_t rows, const Vec& theta, double scale);
-    WindowVerdict judge_change(std::size_t rows, const Vec& least_squares, double fast);
-    [[nodiscard]] WindowInformation information(std::size_t rows, double scale) const;
-    void reset_pool();
-    void settle_pending();
-    [[nodiscard]] bool consistent(const WindowInformation& window, const Vec& reference) const;
-    WindowVerdict one_speed(std::size_t rows, WindowVerdict own);
-    WindowVerdict judge_rows(std::size_t rows);
-    WindowVerdict judge_one_speed(const OneSpeedWindow& window);
-    [[nodiscard]] bool fits_pool(const Mat& h, const Vec& c) const;
-    void settle_deferred();
-    void bin_slow_samples(std::size_t first, std::size_t last);
-    void filter(std::span<const double> in, std::span<double> out, std::size_t count);
-    [[nodiscard]] bool stick_slips(std::size_t first, std::size_t last) const;
-    std::size_t build_rows(std::size_t first, std::size_t last);
-    [[nodiscard]] Vec pooled_theta() const;
-    void estimate_stribeck(const Vec& theta, const Vec& standard_error, OnlineEstimate& e) const;
-
-    OnlineOptions options_;
-    std::size_t p_{3};
-    bool ready_{false};
-    double dt_{0.0};
-    double cutoff_hz_{0.0};
-    SecondOrderSections filter_;
-    std::size_t window_{0};  ///< core samples per window
-    std::size_t margin_{0};  ///< filter margin on each side
-    std::size_t filled_{0};  ///< samples in the buffers
-    std::size_t pushed_{0};
-    // buffers (margin + window + margin), allocated once
-    std::vector<double> t_, x_, f_, xf_, ff_, v_, a_, s_, sf_, workspace_;
-    std::vector<char> use_;
-    // the window's rows (step-1 samples), allocated once
-    /// [x'', x', filtered sgn x' (, 1)], y after them; row-major, so that a row is contiguous
-    Eigen::Matrix<double, Eigen::Dynamic, max_p + 1, Eigen::RowMajor> rows_;
-    std::vector<double> weights_, residual_, scratch_;
-    // pooled square-root information: R (p x p upper), z (p), and the cluster moments
-    Eigen::Matrix<double, max_p, max_p + 1> r_z_;
-    Mat sum_cc_;
-    std::array<Mat, max_p> sum_cH_;                     ///< sum_w c_w[i] * H_w
-    std::array<std::array<Mat, max_p>, max_p> sum_HH_;  ///< sum_w H_w[i][j] * H_w
-    double forgotten_windows_{0.0};                     ///< effective qualified windows (with forgetting)
-    double sum_scale_sq_{0.0};
-    std::size_t rows_used_{0};
-    Vec column_scale_;
-    bool have_pooled_{false};
-    std::array<double, 32> recent_scales_{};
-    std::size_t recent_count_{0};
-    double reference_scale_{0.0};  ///< 0 until the first windows are settled
-    std::array<WindowInformation, 8> pending_;
-    std::vector<OneSpeedWindow> deferred_;  ///< allocated once (deferred_windows)
-    std::size_t deferred_count_{0};
-    std::size_t pending_count_{0};
-    std::size_t inconsistent_run_{0};
-    std::size_t changes_{0};
-    double last_outlier_fraction_{0.0};
-    WindowCounts counts_;
-    std::array<std::vector<StribeckBin>, 2> bins_;  ///< forward, reverse
+    std::unique_ptr<State> state_;
 };
 
 }  // namespace feedid

@@ -22,6 +22,8 @@ struct NamedChoice {
     Enum value;
 };
 
+/// The model left to the data (ModelSelectionOptions::automatic) rather than forced.
+inline constexpr const char* automatic_model_name = "auto";
 inline constexpr std::array<NamedChoice<FrictionModelKind>, 2> friction_model_names{
     {{"symmetric", FrictionModelKind::symmetric}, {"asymmetric", FrictionModelKind::asymmetric}}};
 inline constexpr std::array<NamedChoice<Differentiation>, 3> differentiation_names{

@@ -28,6 +28,10 @@ struct TareReport {
     double rest_end_s{0.0};  ///< time of the last averaged sample [s]
 };
 
+/// The leading samples at rest that a tare averages (the run at rest before the move less its last part); 0 without
+/// a velocity or position channel.
+std::size_t leading_rest_samples(const Trace& trace, const TareOptions& options = {});
+
 /// Subtracts from the channel of `role` its mean over the leading rest samples and adds a finding with the value.
 /// Throws InputError naming the channel when the trace has no such channel, no speed signal, or too few rest
 /// samples.

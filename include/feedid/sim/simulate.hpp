@@ -41,6 +41,10 @@ struct SimulationOptions {
     bool hold_offset{true};
     /// Friction along the axis (synthetic wear); the first zone that holds the position applies. Empty = uniform.
     std::vector<FrictionZone> friction_zones;
+    /// The recorded drive force is the one this many integration steps before the usual instant (one step after the
+    /// sample): a drive signal logged late. 0 to max_drive_signal_delay_steps.
+    int drive_signal_delay_steps{0};
+    static constexpr int max_drive_signal_delay_steps = 256;
 
     [[nodiscard]] std::string validate() const;
 };

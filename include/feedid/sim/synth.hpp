@@ -37,6 +37,9 @@ struct TestReference {
     double acceleration_m_per_s2{2.0};  ///< the NC's acceleration limit [m/s^2]
     double dwell_s{0.2};                ///< pause at each reversal and at the start and end [s]
     double start_m{0.0};                ///< where the strokes start [m]
+    /// Every stroke forward, one after the other (the axis never reverses): a move in one direction, as a rack
+    /// rig or a vertical axis that only lifts records it.
+    bool one_way{false};
 
     [[nodiscard]] std::string validate() const;
 };
@@ -65,6 +68,10 @@ struct RecordingModel {
     bool log_torque{false};           ///< log the drive torque (force) `tau` [N*m or N] instead of the current `i` [A]
     std::string position_unit;        ///< the unit `feedid synth` writes positions in ("deg", "mm"); "" = SI
     std::string velocity_unit;        ///< ... velocities ("rpm", "deg/min", "mm/min"); "" = SI
+    /// The drive signal is logged this much late: sample k holds the drive force of t_k - drive_delay_s (another
+    /// instant of the servo cycle, a current-loop filter, two clocks) [s]; a whole number of integration steps
+    /// (sample time / substeps), at most 256 of them.
+    double drive_delay_s{0.0};
 
     /// What is wrong, given the axis kind and the trace's sample time ("" when nothing).
     [[nodiscard]] std::string validate(bool rotary, double sample_time_s) const;
@@ -81,6 +88,23 @@ struct SquareWaveInjection {
     [[nodiscard]] double at(double time_s) const;
     /// What is wrong with it for a trace sampled every `sample_time_s` ("" when nothing).
     [[nodiscard]] std::string validate(double sample_time_s) const;
+};
+
+/// Bursts of a process force (cutting, a load the drive's model has no term for) on the moves of the test: each
+/// starts with probability rate_per_s per second of commanded motion, lasts a time uniform in [min_duration_s,
+/// max_duration_s], opposes the commanded motion with an amplitude uniform in [min_fraction, max_fraction] of the
+/// axis's Coulomb friction, and carries a tooth-passing ripple of ripple_fraction of it at ripple_hz.
+struct ProcessForceBursts {
+    double rate_per_s{0.3};
+    double min_duration_s{0.2};
+    double max_duration_s{1.5};
+    double min_fraction{0.1};
+    double max_fraction{0.5};
+    double ripple_hz{80.0};
+    double ripple_fraction{0.3};
+
+    /// What is wrong ("" when nothing).
+    [[nodiscard]] std::string validate() const;
 };
 
 /// Everything `feedid synth` needs: the drive, its controller, the sensors, the test, the seed.
@@ -100,6 +124,12 @@ struct SynthSpec {
     std::vector<FrictionZone> friction_zones;
     /// A test signal injected at the controller's output, logged as its own channel; none = no injection.
     std::optional<SquareWaveInjection> injection;
+    /// The servo (position and velocity loops) runs at this rate while the recorder logs at the sample rate, as
+    /// NCs do (an 8 kHz speed controller logged at 1 kHz) [Hz]; 0 = the loops' own cycles (default: the sample
+    /// time). A whole multiple of the sample rate; the integration steps follow it.
+    double servo_rate_hz{0.0};
+    /// Process forces on the moves (a test trace with cutting in it); none = no process force.
+    std::optional<ProcessForceBursts> process_force;
     std::uint64_t seed{1};
 
     /// Force per ampere [N/A] = K_t * g * 2*pi / lead (eq. 2); on a rotary axis torque per ampere [N*m/A] = K_t * g.

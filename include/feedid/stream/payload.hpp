@@ -7,7 +7,8 @@
 //   {"machine": "M1", "axis": "X", "t0": 12.5, "dt": 0.001, "position": [...], "current": [...],
 //    "units": {"position": "mm", "current": "A", "time": "s"}, "force_constant": 52.0}
 // machine, axis, force_constant and units.time ("s" when absent) are optional; exactly one of current / force;
-// every other key is an error.
+// every other key is an error. Names are 1 to max_name_bytes of UTF-8 without control characters, '/', '+' or '#';
+// dt lies in [min_dt_s, 10 s].
 //
 // Binary (all little-endian; offsets in bytes):
 //   0 magic "FDIB" | 4 u16 version (1) | 6 u8 channels (2) | 7 u8 flags (bit 0: force constant given)
@@ -44,6 +45,8 @@ struct Batch {
 struct PayloadLimits {
     std::size_t max_samples{1'000'000};  ///< per message and channel
     std::size_t max_name_bytes{64};      ///< machine and axis names
+    /// [s] the shortest sample time taken (100 kHz: beyond a feed drive's current loop); a shorter one is refused
+    double min_dt_s{1e-5};
 };
 
 /// The unit codes of the binary format and the unit each stands for.
@@ -57,8 +60,8 @@ inline constexpr std::uint16_t binary_version = 1;
 inline constexpr char binary_magic[4] = {'F', 'D', 'I', 'B'};
 
 /// Decodes a payload (binary when it starts with the magic, JSON otherwise) into `batch`, reusing its storage.
-/// Returns "" on success, else what is wrong in one line ("position[17] is not a finite number", "unknown key
-/// 'curent'", "units.position: 'furlong' is not a length unit"); never throws.
+/// Returns "" on success, else what is wrong in one line of valid UTF-8 ("position[17] is not a finite number",
+/// "unknown key 'curent'", "units.position: 'furlong' is not a length unit"); never throws.
 std::string decode_batch(std::span<const std::byte> payload, Batch& batch, const PayloadLimits& limits = {});
 
 /// JSON payload of a batch in SI units (position in m, current in A or force in N).

@@ -1,14 +1,7 @@
 #pragma once
-// The report people look at: SVG plots written by feedid itself and one self-contained HTML file (no script, no font,
-// no stylesheet from the network) that holds them.
-//
-// From an identify result document: the RLS estimates over time with the detected transient (the paper's Fig. 3 and
-// 4) and the measured friction against speed with the fitted curve per direction (Fig. 5). From a history: per axis
-// and parameter, the values of every run with their uncertainty band (value +- 2 standard errors), the baseline
-// mean, the one-run alarm limits and the runs in alarm, and the CUSUM with its decision interval; plus the latest
-// run's friction curve when the stored result holds one. With a simulate document (feedid simulate --json): the
-// tracking error of machine and model and the modelling error over time (the paper's Fig. 6) and the validation
-// figures.
+// The report's plots: SVG written by feedid itself, one self-contained element per plot (no script, no font, no
+// stylesheet from the network). The result report (result_report.hpp) and the history report (history_report.hpp)
+// lay their figures out as these plots.
 //
 // Every plot has a title and both axes labelled with their unit; each SVG is well-formed XML on its own. Nothing is
 // clipped: the image grows to hold wrapped titles and labels, tick labels and the legend (text widths estimated at
@@ -22,11 +15,6 @@
 #include <string_view>
 #include <utility>
 #include <vector>
-
-#include <nlohmann/json.hpp>
-
-#include "feedid/history/store.hpp"
-#include "feedid/history/trend.hpp"
 
 namespace feedid::report {
 
@@ -102,43 +90,5 @@ double estimated_text_width(std::string_view text, double font_size, bool bold =
 
 /// Escapes &, <, >, " and ' for XML text and attribute values.
 std::string escape_xml(std::string_view text);
-
-/// Human name and unit of a result-document parameter key: "coulomb_forward_N" -> {"Coulomb friction F_C+", "N"}.
-struct ParameterLabel {
-    std::string name;
-    std::string unit;
-};
-ParameterLabel parameter_label(const std::string& key);
-
-/// Plots of an identify result document: RLS histories (one per parameter, with the transient end and the batch
-/// value) and the friction curve. InputError naming `source` when the document is not an identify result.
-std::vector<Plot> result_plots(const nlohmann::json& result, const std::string& source);
-
-/// A simulate document (feedid simulate --json) and the file it came from.
-struct SimulationDocument {
-    nlohmann::json document;
-    std::string source;
-};
-
-/// Plots of a simulate document, the paper's Fig. 6: the tracking errors of machine and model over time, and the
-/// modelling error over time. InputError naming `source` (and the key) when it is not a simulate document with a
-/// well-formed "series".
-std::vector<Plot> simulation_plots(const nlohmann::json& simulation, const std::string& source);
-
-/// Plots of a history: for each axis and parameter with a trend, the values with their band, baseline, one-run alarm
-/// limits and alarms, and the CUSUM; the latest run's friction curve of each axis when stored.
-std::vector<Plot> history_plots(const std::vector<history::RunRecord>& runs,
-                                const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options);
-
-/// The whole HTML page of an identify result document (parameter table, diagnostics, plots), with the validation by
-/// simulation (figures and Fig. 6) when a simulate document is given. InputError when either document is of the
-/// wrong kind.
-std::string result_report_html(const nlohmann::json& result, const std::string& source,
-                               const std::optional<SimulationDocument>& simulation = std::nullopt);
-
-/// The whole HTML page of a history (per axis: runs, alarms, trend and CUSUM plots, latest friction curve).
-std::string history_report_html(const std::vector<history::RunRecord>& runs,
-                                const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options,
-                                const std::string& source);
 
 }  // namespace feedid::report

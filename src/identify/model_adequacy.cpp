@@ -1,0 +1,1044 @@
+#include "feedid/identify/model_adequacy.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <cmath>
+#include <iterator>
+#include <limits>
+#include <span>
+
+#include <Eigen/Cholesky>
+
+#include <fmt/core.h>
+
+#include "feedid/core/parameters.hpp"
+#include "feedid/numeric/least_squares.hpp"
+#include "feedid/numeric/signal.hpp"
+
+namespace feedid {
+
+std::string ModelSelectionOptions::validate() const {
+    if (!(test_level > 0.0 && test_level < 0.5)) return "the model test level must lie in (0, 0.5)";
+    if (!(max_delay_s > 0.0 && std::isfinite(max_delay_s))) return "the largest delay must be a positive time [s]";
+    if (known_delay_s && !(std::isfinite(*known_delay_s) && std::abs(*known_delay_s) <= 1.0))
+        return "--delay must be a time within +-1 s";
+    if (!(one_way_fraction >= 0.0 && one_way_fraction < 0.5)) return "the one-way fraction must lie in [0, 0.5)";
+    if (!(collinearity_limit > 0.0 && collinearity_limit < 1.0)) return "the collinearity limit must lie in (0, 1)";
+    if (!(lack_of_fit_fraction >= 0.0 && std::isfinite(lack_of_fit_fraction)))
+        return "the lack-of-fit fraction must be a finite fraction >= 0";
+    return {};
+}
+
+namespace {
+
+/// The two-sided standard normal quantile at `level` (z such that P(|Z| > z) = level), by bisection on erfc.
+double normal_quantile(double level) {
+    double low = 0.0, high = 40.0;
+    for (int i = 0; i < 200; ++i) {
+        const double middle = 0.5 * (low + high);
+        (std::erfc(middle / std::sqrt(2.0)) > level ? low : high) = middle;
+    }
+    return 0.5 * (low + high);
+}
+
+/// Least squares of `output` on `columns` over `rows`, with standard errors that allow for residuals correlated over
+/// `block` samples.
+LeastSquaresResult fit_columns(const std::vector<std::span<const double>>& columns, std::span<const double> output,
+                               const std::vector<std::size_t>& rows, std::size_t block) {
+    const auto p = static_cast<Eigen::Index>(columns.size());
+    const auto row = [&](std::size_t i, double* phi) {
+        const std::size_t k = rows[i];
+        for (std::size_t c = 0; c < columns.size(); ++c) phi[c] = columns[c][k];
+        return output[k];
+    };
+    return solve_least_squares_rows(rows.size(), p, row, [&](std::size_t i) { return rows[i]; }, block);
+}
+
+/// The regressor's columns, plus `extra` when given.
+std::vector<std::span<const double>> columns_of(const Regressors& regressors, std::span<const double> extra = {}) {
+    std::vector<std::span<const double>> columns(regressors.values.begin(), regressors.values.end());
+    if (!extra.empty()) columns.push_back(extra);
+    return columns;
+}
+
+/// Index of the column (term, direction) in a regressor; -1 when absent.
+Eigen::Index column_index(const Regressors& regressors, Term term, Direction direction) {
+    for (std::size_t c = 0; c < regressors.columns.size(); ++c) {
+        if (regressors.columns[c].term == term && regressors.columns[c].direction == direction)
+            return static_cast<Eigen::Index>(c);
+    }
+    return -1;
+}
+
+/// A candidate from a linear combination c^T theta of a fit (its Wald statistic against the threshold).
+ModelCandidate test_combination(std::string name, std::string tested, const LeastSquaresResult& fit,
+                                const Eigen::VectorXd& combination, double threshold) {
+    ModelCandidate candidate;
+    candidate.name = std::move(name);
+    candidate.tested = std::move(tested);
+    candidate.threshold = threshold;
+    if (fit.rank_deficient || fit.estimate.size() != combination.size() || fit.covariance.rows() != combination.size())
+        return candidate;
+    const double value = combination.dot(fit.estimate);
+    const double variance = combination.dot(fit.covariance * combination);
+    if (!std::isfinite(value) || !(variance > 0.0) || !std::isfinite(variance)) return candidate;
+    candidate.estimate = value;
+    candidate.standard_error = std::sqrt(variance);
+    candidate.statistic = std::abs(value) / *candidate.standard_error;
+    candidate.taken = *candidate.statistic > threshold;
+    return candidate;
+}
+
+/// Step 1's samples per direction.
+std::pair<std::size_t, std::size_t> direction_counts(const Derivatives& d, const std::vector<std::size_t>& rows) {
+    std::size_t forward = 0;
+    for (const auto k : rows) forward += d.velocity[k] > 0.0 ? 1 : 0;
+    return {forward, rows.size() - forward};
+}
+
+/// The typical magnitude of the drive force on step 1's samples (its median |F|) [N].
+double typical_force(const Derivatives& d, const std::vector<std::size_t>& rows) {
+    std::vector<double> magnitudes;
+    const std::size_t stride = std::max<std::size_t>(1, rows.size() / 20000);
+    for (std::size_t i = 0; i < rows.size(); i += stride) magnitudes.push_back(std::abs(d.force[rows[i]]));
+    return magnitudes.empty() ? 0.0 : percentile_in_place(magnitudes, 0.5);
+}
+
+}  // namespace
+
+std::optional<RestLevel> rest_level(std::span<const double> force, std::size_t samples) {
+    samples = std::min(samples, force.size());
+    if (samples < 10) return std::nullopt;
+    double sum = 0.0;
+    for (std::size_t k = 0; k < samples; ++k) sum += force[k];
+    const double mean = sum / static_cast<double>(samples);
+    double squares = 0.0, lagged = 0.0;
+    for (std::size_t k = 0; k < samples; ++k) {
+        squares += (force[k] - mean) * (force[k] - mean);
+        if (k > 0) lagged += (force[k] - mean) * (force[k - 1] - mean);
+    }
+    // neighbours that move together count as fewer independent samples: n (1 - rho) / (1 + rho)
+    const double rho = squares > 0.0 ? std::clamp(lagged / squares, 0.0, 0.95) : 0.0;
+    const double independent = std::max(1.0, static_cast<double>(samples) * (1.0 - rho) / (1.0 + rho));
+    RestLevel rest;
+    rest.samples = samples;
+    rest.mean = mean;
+    rest.standard_error = std::sqrt(squares / static_cast<double>(samples - 1) / independent);
+    return rest;
+}
+
+std::vector<double> delay_column(const Derivatives& d) {
+    const std::size_t n = d.size();
+    std::vector<double> column(n, 0.0);
+    for (std::size_t s = 0; s < d.segment_starts.size(); ++s) {
+        const std::size_t begin = d.segment_starts[s];
+        const std::size_t end = s + 1 < d.segment_starts.size() ? d.segment_starts[s + 1] : n;
+        if (end - begin < 3) continue;
+        for (std::size_t k = begin; k < end; ++k) {
+            const std::size_t before = k > begin ? k - 1 : k, after = k + 1 < end ? k + 1 : k;
+            const double dt = d.time[after] - d.time[before];
+            column[k] = dt > 0.0 ? -(d.force[after] - d.force[before]) / dt : 0.0;
+        }
+    }
+    return column;
+}
+
+void shift_drive_force(Derivatives& d, double delay_s) {
+    const std::size_t n = d.size();
+    std::vector<double> shifted(n);
+    for (std::size_t s = 0; s < d.segment_starts.size(); ++s) {
+        const std::size_t begin = d.segment_starts[s];
+        const std::size_t end = s + 1 < d.segment_starts.size() ? d.segment_starts[s + 1] : n;
+        if (end - begin < 4) {
+            std::copy(d.force.begin() + static_cast<std::ptrdiff_t>(begin),
+                      d.force.begin() + static_cast<std::ptrdiff_t>(end),
+                      shifted.begin() + static_cast<std::ptrdiff_t>(begin));
+            continue;
+        }
+        const double step = (d.time[end - 1] - d.time[begin]) / static_cast<double>(end - begin - 1);
+        const double offset = delay_s / step;  // in samples
+        const auto at = [&](std::ptrdiff_t i) {
+            const auto clamped =
+                std::clamp<std::ptrdiff_t>(i, static_cast<std::ptrdiff_t>(begin), static_cast<std::ptrdiff_t>(end) - 1);
+            return d.force[static_cast<std::size_t>(clamped)];
+        };
+        for (std::size_t k = begin; k < end; ++k) {
+            // Catmull-Rom between the samples around k + offset (the filtered force is smooth on the sample grid)
+            const double position = static_cast<double>(k) + offset;
+            const double floor = std::floor(position);
+            const double f = position - floor;
+            const auto i = static_cast<std::ptrdiff_t>(floor);
+            const double p0 = at(i - 1), p1 = at(i), p2 = at(i + 1), p3 = at(i + 2);
+            shifted[k] = p1 + 0.5 * f *
+                                  (p2 - p0 + f * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3 + f * (3.0 * (p1 - p2) + p3 - p0)));
+        }
+    }
+    // into the same buffer: regressors view it (Regressors::output)
+    std::copy(shifted.begin(), shifted.end(), d.force.begin());
+}
+
+namespace {
+
+/// The regressors of the three nested candidates on the (aligned) force.
+struct Candidates {
+    Regressors symmetric;
+    Regressors offset;
+    Regressors per_direction;
+};
+
+struct DelayFit {
+    double delay{0.0};
+    double standard_error{0.0};
+    double largest_correlation{0.0};  // of the delay with a parameter of the model
+    bool valid{false};
+};
+
+/// Where each step-1 row's stretch begins and ends, and the stretch's sample step [s].
+struct RowStretches {
+    std::vector<std::size_t> begin, end;
+    std::vector<double> step;
+};
+
+RowStretches row_stretches(const Derivatives& d, const std::vector<std::size_t>& rows) {
+    RowStretches out;
+    out.begin.reserve(rows.size());
+    out.end.reserve(rows.size());
+    out.step.reserve(rows.size());
+    std::size_t s = 0;
+    const std::size_t n = d.size();
+    for (const auto k : rows) {
+        while (s + 1 < d.segment_starts.size() && d.segment_starts[s + 1] <= k) ++s;
+        const std::size_t begin = d.segment_starts[s];
+        const std::size_t end = s + 1 < d.segment_starts.size() ? d.segment_starts[s + 1] : n;
+        out.begin.push_back(begin);
+        out.end.push_back(end);
+        out.step.push_back(end - begin > 1 ? (d.time[end - 1] - d.time[begin]) / static_cast<double>(end - begin - 1)
+                                           : d.sample_time_s);
+    }
+    return out;
+}
+
+/// The filtered force at `position` (in samples, fractional) within [begin, end), Catmull-Rom, held at the ends.
+double force_at(const std::vector<double>& force, double position, std::size_t begin, std::size_t end) {
+    const double floor = std::floor(position);
+    const double f = position - floor;
+    const auto i = static_cast<std::ptrdiff_t>(floor);
+    const auto at = [&](std::ptrdiff_t j) {
+        return force[static_cast<std::size_t>(
+            std::clamp<std::ptrdiff_t>(j, static_cast<std::ptrdiff_t>(begin), static_cast<std::ptrdiff_t>(end) - 1))];
+    };
+    const double p0 = at(i - 1), p1 = at(i), p2 = at(i + 1), p3 = at(i + 2);
+    return p1 + 0.5 * f * (p2 - p0 + f * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3 + f * (3.0 * (p1 - p2) + p3 - p0)));
+}
+
+/// The profile of the residual over the delay: min over theta of ||F_log(t + tau) - Phi theta||^2 on step 1's rows,
+/// from the normal equations of Phi (fixed) and one pass over the rows per tau.
+class DelayProfile {
+public:
+    DelayProfile(const Derivatives& d, const Regressors& regressors, const std::vector<std::size_t>& rows)
+        : d_(d), regressors_(regressors), rows_(rows), stretches_(row_stretches(d, rows)) {
+        const auto p = static_cast<Eigen::Index>(regressors.parameters());
+        Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(p, p);
+        Eigen::VectorXd phi(p);
+        for (const auto k : rows) {
+            regressors.row(k, phi.data());
+            gram.selfadjointView<Eigen::Lower>().rankUpdate(phi);
+        }
+        gram = gram.selfadjointView<Eigen::Lower>();
+        solver_.compute(gram);
+        valid_ = solver_.info() == Eigen::Success;
+    }
+    [[nodiscard]] bool valid() const { return valid_; }
+
+    double residual(double delay) const {
+        const auto p = static_cast<Eigen::Index>(regressors_.parameters());
+        Eigen::VectorXd cross = Eigen::VectorXd::Zero(p), phi(p);
+        double squares = 0.0;
+        for (std::size_t i = 0; i < rows_.size(); ++i) {
+            const std::size_t k = rows_[i];
+            const double y = force_at(d_.force, static_cast<double>(k) + delay / stretches_.step[i],
+                                      stretches_.begin[i], stretches_.end[i]);
+            regressors_.row(k, phi.data());
+            cross += phi * y;
+            squares += y * y;
+        }
+        return squares - cross.dot(solver_.solve(cross));
+    }
+
+private:
+    const Derivatives& d_;
+    const Regressors& regressors_;
+    const std::vector<std::size_t>& rows_;
+    RowStretches stretches_;
+    Eigen::LDLT<Eigen::MatrixXd> solver_;
+    bool valid_{false};
+};
+
+/// The delay minimising the profile within +-limit: a grid, then a golden-section search around its best point.
+double minimise_profile(const DelayProfile& profile, double limit, double sample_time) {
+    const double step = std::max(sample_time / 4.0, limit / 20.0);
+    double best = 0.0, best_value = profile.residual(0.0);
+    for (double tau = -limit; tau <= limit + 1e-12; tau += step) {
+        const double value = profile.residual(tau);
+        if (value < best_value) {
+            best_value = value;
+            best = tau;
+        }
+    }
+    const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
+    double a = best - step, b = best + step;
+    double c = b - ratio * (b - a), e = a + ratio * (b - a);
+    double fc = profile.residual(c), fe = profile.residual(e);
+    for (int i = 0; i < 30 && (b - a) > 1e-4 * sample_time; ++i) {
+        if (fc < fe) {
+            b = e;
+            e = c;
+            fe = fc;
+            c = b - ratio * (b - a);
+            fc = profile.residual(c);
+        } else {
+            a = c;
+            c = e;
+            fc = fe;
+            e = a + ratio * (b - a);
+            fe = profile.residual(e);
+        }
+    }
+    return 0.5 * (a + b);
+}
+
+/// The time derivative of a column within each stretch (central differences).
+std::vector<double> column_derivative(const Derivatives& d, std::span<const double> column) {
+    const std::size_t n = d.size();
+    std::vector<double> out(n, 0.0);
+    for (std::size_t s = 0; s < d.segment_starts.size(); ++s) {
+        const std::size_t begin = d.segment_starts[s];
+        const std::size_t end = s + 1 < d.segment_starts.size() ? d.segment_starts[s + 1] : n;
+        if (end - begin < 3) continue;
+        for (std::size_t k = begin; k < end; ++k) {
+            const std::size_t before = k > begin ? k - 1 : k, after = k + 1 < end ? k + 1 : k;
+            const double dt = d.time[after] - d.time[before];
+            out[k] = dt > 0.0 ? (column[after] - column[before]) / dt : 0.0;
+        }
+    }
+    return out;
+}
+
+/// The delay's standard error at the (aligned) force: the Gauss-Newton linearisation F_log = Phi theta - tau
+/// d(Phi theta)/dt, with the model's own derivative (from the position, not the noisy force: no attenuation), and
+/// standard errors that allow for correlated residuals. Its estimate is the residual delay (about 0 at the optimum).
+DelayFit linearised_delay(const Derivatives& d, const Regressors& regressors, const std::vector<std::size_t>& rows,
+                          std::size_t block) {
+    DelayFit out;
+    const LeastSquaresResult base = fit_columns(columns_of(regressors), regressors.output, rows, block);
+    if (base.rank_deficient) return out;
+    std::vector<double> column(d.size(), 0.0);
+    for (std::size_t c = 0; c < regressors.values.size(); ++c) {
+        const std::vector<double> derivative = column_derivative(d, regressors.values[c]);
+        const double theta = base.estimate(static_cast<Eigen::Index>(c));
+        for (std::size_t k = 0; k < column.size(); ++k) column[k] -= theta * derivative[k];
+    }
+    const LeastSquaresResult fit = fit_columns(columns_of(regressors, column), regressors.output, rows, block);
+    if (fit.rank_deficient) return out;
+    const auto last = fit.estimate.size() - 1;
+    out.delay = fit.estimate(last);
+    out.standard_error = fit.standard_error(last);
+    for (Eigen::Index j = 0; j < last; ++j) {
+        const double scale = std::sqrt(fit.covariance(last, last) * fit.covariance(j, j));
+        if (scale > 0.0) out.largest_correlation = std::max(out.largest_correlation, std::abs(fit.covariance(last, j)) / scale);
+    }
+    out.valid = std::isfinite(out.delay) && std::isfinite(out.standard_error) && out.standard_error > 0.0;
+    return out;
+}
+
+/// The delay: the profile's minimum in the largest model the data can take, tested against its standard error,
+/// applied where significant; or the known one applied.
+void choose_delay(Derivatives& d, const std::vector<std::size_t>& rows, bool one_way,
+                  const ModelSelectionOptions& options, double threshold, std::size_t block, ModelChoice& choice) {
+    if (options.known_delay_s) {
+        shift_drive_force(d, *options.known_delay_s);
+        choice.delay_s = *options.known_delay_s;
+        choice.delay_applied = true;
+        choice.delay_source = "given";
+        return;
+    }
+    if (options.delay == ModelSelectionOptions::Delay::none) return;
+    const bool apply = options.automatic || options.delay == ModelSelectionOptions::Delay::estimate;
+    const Regressors largest =
+        build_regressors(d, one_way ? FrictionModelKind::symmetric : FrictionModelKind::asymmetric, false);
+    ModelCandidate candidate;
+    candidate.name = "delay";
+    candidate.tested = "tau";
+    candidate.threshold = threshold;
+    const DelayProfile profile(d, largest, rows);
+    // the search reaches a little beyond the plausible range, so that a clock offset shows as one
+    const double delay = profile.valid() ? minimise_profile(profile, 2.0 * options.max_delay_s, d.sample_time_s) : 0.0;
+    DelayFit fit;
+    if (profile.valid()) {
+        const std::vector<double> logged = d.force;
+        shift_drive_force(d, delay);
+        fit = linearised_delay(d, largest, rows, block);
+        std::copy(logged.begin(), logged.end(), d.force.begin());
+    }
+    if (!fit.valid) {
+        candidate.verdict = "not estimable from these samples";
+        choice.candidates.push_back(candidate);
+        return;
+    }
+    candidate.estimate = delay;
+    candidate.standard_error = fit.standard_error;
+    candidate.statistic = std::abs(delay) / fit.standard_error;
+    const bool significant = *candidate.statistic > threshold;
+    const bool plausible = std::abs(delay) <= options.max_delay_s;
+    choice.delay_s = delay;
+    choice.delay_standard_error = fit.standard_error;
+    if (significant && fit.largest_correlation > options.collinearity_limit) {
+        // on a motion whose jerk is a combination of its speed and a constant (one smooth stroke), a shift of the
+        // force in time is a change of B and F_C: the data cannot say which
+        candidate.verdict = fmt::format(
+            "not separable from the model's parameters on these samples (correlated {:.4f} with one of them)",
+            fit.largest_correlation);
+        choice.findings.push_back(fmt::format(
+            "the drive signal's timing cannot be told from the friction on these samples (a shift of {:.3g} ms would "
+            "fit as well as the model's parameters, correlated {:.4f}): no delay applied; a test with constant-speed "
+            "passes at several feedrates separates them (--delay TIME applies a known one)",
+            delay * 1e3, fit.largest_correlation));
+    } else if (significant && plausible && apply) {
+        shift_drive_force(d, delay);
+        choice.delay_applied = true;
+        choice.delay_source = "estimated";
+        candidate.taken = true;
+        candidate.verdict = "taken: the drive signal is read this much later";
+    } else if (significant && !plausible) {
+        candidate.verdict = fmt::format("{:.3g} ms is beyond +-{:g} ms: not a timing offset within the servo cycle",
+                                        delay * 1e3, options.max_delay_s * 1e3);
+        choice.findings.push_back(fmt::format(
+            "the drive signal and the position look {:.3g} ms apart (+/- {:.2g} ms), more than a servo cycle: two "
+            "recorders' clocks? (--join FILE@SHIFT)",
+            delay * 1e3, fit.standard_error * 1e3));
+    } else if (significant) {
+        candidate.verdict = "the forced model leaves it out";
+        choice.findings.push_back(fmt::format(
+            "the data show the drive signal {:.3g} ms {} the position (+/- {:.2g} ms, {:.1f} standard errors), which "
+            "the forced model leaves out (--delay auto estimates it, --delay {:.3g}ms applies it)",
+            std::abs(delay) * 1e3, delay > 0.0 ? "behind" : "ahead of", fit.standard_error * 1e3,
+            *candidate.statistic, delay * 1e3));
+    } else {
+        candidate.verdict = "not significant";
+    }
+    choice.candidates.push_back(candidate);
+}
+
+/// Tukey's biweight of a residual scaled by its limit.
+double biweight(double residual, double limit) {
+    const double u = residual / limit;
+    return std::abs(u) >= 1.0 ? 0.0 : (1.0 - u * u) * (1.0 - u * u);
+}
+
+/// The median of |x| times 1.4826: a robust standard deviation.
+double robust_deviation(std::vector<double> values) {
+    for (double& v : values) v = std::abs(v);
+    return values.empty() ? 0.0 : 1.4826 * percentile_in_place(values, 0.5);
+}
+
+/// Step 1's model fitted robustly (iteratively reweighted least squares with Tukey's biweight, from the least-squares
+/// fit, in the residuals' robust scale): what the samples that follow the model say, whatever a minority of them
+/// carries besides.
+Eigen::VectorXd robust_fit(const Regressors& regressors, const std::vector<std::size_t>& rows, double tukey_constant) {
+    const auto p = static_cast<Eigen::Index>(regressors.parameters());
+    Eigen::VectorXd theta = Eigen::VectorXd::Zero(p), phi(p);
+    std::vector<double> weights(rows.size(), 1.0), residuals(rows.size());
+    for (int iteration = 0; iteration < 12; ++iteration) {
+        Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(p, p);
+        Eigen::VectorXd cross = Eigen::VectorXd::Zero(p);
+        for (std::size_t i = 0; i < rows.size(); ++i) {
+            if (weights[i] == 0.0) continue;
+            const double y = regressors.row(rows[i], phi.data());
+            gram.selfadjointView<Eigen::Lower>().rankUpdate(phi, weights[i]);
+            cross += weights[i] * y * phi;
+        }
+        gram = gram.selfadjointView<Eigen::Lower>();
+        const Eigen::LDLT<Eigen::MatrixXd> solver(gram);
+        if (solver.info() != Eigen::Success) break;
+        const Eigen::VectorXd next = solver.solve(cross);
+        const bool settled = iteration > 0 && (next - theta).cwiseAbs().maxCoeff() <=
+                                                  1e-6 * std::max(1.0, next.cwiseAbs().maxCoeff());
+        theta = next;
+        if (settled) break;
+        for (std::size_t i = 0; i < rows.size(); ++i) {
+            const double y = regressors.row(rows[i], phi.data());
+            residuals[i] = y - phi.dot(theta);
+        }
+        const double scale = robust_deviation(residuals);
+        if (!(scale > 0.0)) break;
+        for (std::size_t i = 0; i < rows.size(); ++i) weights[i] = biweight(residuals[i], tukey_constant * scale);
+    }
+    return theta;
+}
+
+/// A stretch of samples whose residual stays far on one side.
+struct Burst {
+    double start_s{0.0}, end_s{0.0};
+    double peak{0.0};  ///< the largest residual in it [N]
+};
+
+/// Runs of consecutive samples (indices `index`, ascending; a gap of more than `gap` samples ends a run) whose
+/// residual lies beyond `limit` on one side, at least `minimum` samples long.
+void find_bursts(const Derivatives& d, const std::vector<std::size_t>& index, const std::vector<double>& residual,
+                 double limit, std::size_t minimum, std::size_t gap, std::vector<Burst>& out) {
+    std::size_t run = 0;
+    int side = 0;
+    Burst current;
+    std::size_t last = 0;
+    const auto close = [&] {
+        if (run >= minimum) out.push_back(current);
+        run = 0;
+        side = 0;
+    };
+    for (std::size_t i = 0; i < index.size(); ++i) {
+        const std::size_t k = index[i];
+        const int s = residual[i] > limit ? 1 : residual[i] < -limit ? -1 : 0;
+        if (run > 0 && (s != side || k > last + gap)) close();
+        if (s == 0) continue;
+        if (run == 0) {
+            current = Burst{d.time[k], d.time[k], residual[i]};
+            side = s;
+        }
+        ++run;
+        last = k;
+        current.end_s = d.time[k];
+        if (std::abs(residual[i]) > std::abs(current.peak)) current.peak = residual[i];
+    }
+    close();
+}
+
+/// Bursts of force the model does not explain: on step 1's samples against a robust fit of the largest model; on
+/// the quasi-static samples of every steady pass (whose friction is one level) against the pass's median force less
+/// M x''. Said in `choice.process_forces` when there is one.
+void detect_process_forces(const Derivatives& d, const Selection& selection, bool one_way,
+                           const ModelSelectionOptions& options, ModelChoice& choice) {
+    const auto& rows = selection.step1;
+    Regressors largest =
+        build_regressors(d, one_way ? FrictionModelKind::symmetric : FrictionModelKind::asymmetric, false);
+    // with the timing term: a drive signal out of step with the position leaves one-sided stretches wherever the
+    // force changes, which are not a process force (the column is not a friction term: Term::offset marks it)
+    largest.owned.push_back(delay_column(d));
+    largest.values.emplace_back(largest.owned.back());
+    largest.columns.push_back(RegressorColumn{Term::offset, Direction::both});
+    const Eigen::VectorXd theta = robust_fit(largest, rows, options.tukey_constant);
+    const double mass = theta(0);
+    Eigen::VectorXd phi(static_cast<Eigen::Index>(largest.parameters()));
+    std::vector<double> fast(rows.size());
+    for (std::size_t i = 0; i < rows.size(); ++i) fast[i] = largest.row(rows[i], phi.data()) - phi.dot(theta);
+    // the steady passes: each one's friction is one level, so a burst shows against the pass's median
+    std::vector<std::size_t> slow_index;
+    std::vector<double> slow;
+    for (const auto& pass : selection.stick_slip.passes) {
+        if (pass.stick_slip) continue;
+        std::vector<double> level;
+        std::vector<std::size_t> members;
+        for (std::size_t k = pass.first; k < pass.last && k < d.size(); ++k) {
+            if (!selection.steady(k) || selection.near_rest(k)) continue;
+            members.push_back(k);
+            level.push_back(d.force[k] - mass * d.acceleration[k]);
+        }
+        if (members.size() < 20) continue;
+        std::vector<double> copy = level;
+        const double median = percentile_in_place(copy, 0.5);
+        for (std::size_t m = 0; m < members.size(); ++m) {
+            slow_index.push_back(members[m]);
+            slow.push_back(level[m] - median);
+        }
+    }
+    const std::size_t correlation = std::max<std::size_t>(1, d.correlation_samples);
+    const auto minimum = static_cast<std::size_t>(std::max(
+        options.burst_correlation_lengths * static_cast<double>(correlation), options.burst_min_s / d.sample_time_s));
+    // a process force is a material fraction of the friction it adds to: on a trace with almost no noise, the
+    // model's own small misfit in the transients (a current loop's lag) stands far out of the scatter
+    double coulomb = 0.0;
+    int sign_columns = 0;
+    for (std::size_t c = 0; c < largest.columns.size(); ++c) {
+        if (largest.columns[c].term != Term::coulomb) continue;
+        coulomb += std::abs(theta(static_cast<Eigen::Index>(c)));
+        ++sign_columns;
+    }
+    const double floor = sign_columns > 0 ? options.burst_friction_fraction * coulomb / sign_columns : 0.0;
+    std::vector<Burst> bursts;
+    const double fast_scale = robust_deviation(fast);
+    if (fast_scale > 0.0)
+        find_bursts(d, rows, fast, std::max(options.burst_deviations * fast_scale, floor), minimum, correlation,
+                    bursts);
+    const double slow_scale = robust_deviation(slow);
+    if (slow_scale > 0.0)
+        find_bursts(d, slow_index, slow, std::max(options.burst_deviations * slow_scale, floor), minimum, correlation,
+                    bursts);
+    if (bursts.empty()) return;
+    double duration = 0.0, peak = 0.0;
+    for (const auto& b : bursts) {
+        duration += b.end_s - b.start_s;
+        if (std::abs(b.peak) > std::abs(peak)) peak = b.peak;
+    }
+    const ParameterNaming naming{d.rotary};
+    choice.process_forces = fmt::format(
+        "{}: process forces: {} burst{} ({:.3g} s in all, the first at {:.4g} s) in which the drive force departs from "
+        "the axis's model by up to {:.4g} {} ({:.1f} times the fit's robust scatter) for {:.3g} s and more at a time: "
+        "cutting, or a load the model has no term for. identify needs a test run without them; for production traces "
+        "use feedid scan, which identifies window by window with robust weights",
+        d.source, bursts.size(), bursts.size() == 1 ? "" : "s", duration, bursts.front().start_s, peak,
+        naming.force_unit(), std::abs(peak) / std::max(fast_scale, 1e-300),
+        static_cast<double>(minimum) * d.sample_time_s);
+}
+
+/// On a move in one direction: a constant force is Coulomb friction as far as the data go. Said, and F_C, F_B and F_0
+/// null unless nothing constant remains (tared, or zero force at rest).
+void judge_one_way(const Derivatives& d, const Selection& selection, bool offset, bool drive_tared,
+                   const std::optional<RestLevel>& rest_level, const ModelSelectionOptions& options,
+                   ModelChoice& choice) {
+    const ParameterNaming naming{d.rotary};
+    choice.rest = rest_level;
+    const auto [forward, reverse] = direction_counts(d, selection.step1);
+    choice.findings.push_back(fmt::format(
+        "the axis moved {} only: the friction reported is that direction's; the symmetric model takes the other "
+        "direction's to be the same, which these data cannot check",
+        forward >= reverse ? "forward" : "in reverse"));
+    const std::string why = fmt::format(
+        "the axis moves in one direction only (step 1's samples: {} forward, {} reverse): sgn(x') is constant, so a "
+        "constant force (a weight, a sensor's zero) and Coulomb friction are one and the same in the data",
+        direction_counts(d, selection.step1).first, direction_counts(d, selection.step1).second);
+    if (offset) {
+        choice.aliased_friction = why + "; F_C, F_B and F_0 left null (a move in both directions separates them)";
+        return;
+    }
+    if (drive_tared) {
+        choice.findings.push_back(why + "; F_C and F_B take the drive signal's tared zero as the only constant");
+        return;
+    }
+    const double scale = typical_force(d, selection.step1);
+    if (choice.rest) {
+        const RestLevel& rest = *choice.rest;
+        const bool zero = std::abs(rest.mean) <= options.rest_zero_standard_errors * rest.standard_error ||
+                          std::abs(rest.mean) <= options.zero_force_fraction * scale;
+        if (zero) {
+            choice.findings.push_back(fmt::format(
+                "{}; at rest before the move the drive force is {:.3g} +/- {:.2g} {}, so no constant force is taken",
+                why, rest.mean, rest.standard_error, naming.force_unit()));
+            return;
+        }
+        choice.aliased_friction = fmt::format(
+            "{}; at rest before the move the drive force reads {:.4g} {} (a weight, or a sensor's zero: --tare "
+            "current removes a zero): F_C, F_B and F_0 left null",
+            why, rest.mean, naming.force_unit());
+        return;
+    }
+    choice.aliased_friction =
+        why + "; no samples at rest before the move show whether one is present: F_C, F_B and F_0 left null (--tare "
+              "removes a sensor's zero; a move in both directions separates a weight)";
+}
+
+/// The integrated autocorrelation time [samples] of values at ascending sample indices `rows`, by blocking: with
+/// blocks of b consecutive samples, the sum over blocks of (block sum)^2 / the sum of squares rises from 1 to 2 tau_int
+/// once b is well beyond tau_int; the largest value over b (at least 50 blocks) is taken, erring long. 1 for
+/// uncorrelated values (or too few).
+double integrated_autocorrelation(const std::vector<std::size_t>& rows, const std::vector<double>& values) {
+    double squares = 0.0;
+    for (const double v : values) squares += v * v;
+    if (rows.size() < 100 || !(squares > 0.0)) return 1.0;
+    const std::size_t span = rows.back() - rows.front() + 1;
+    double largest = 1.0;
+    for (std::size_t b = 2; span / b >= 50; b *= 2) {
+        double sum_of_squares = 0.0, block_sum = 0.0;
+        std::size_t current = rows.front() / b;
+        for (std::size_t i = 0; i < rows.size(); ++i) {
+            if (rows[i] / b != current) {
+                sum_of_squares += block_sum * block_sum;
+                block_sum = 0.0;
+                current = rows[i] / b;
+            }
+            block_sum += values[i];
+        }
+        sum_of_squares += block_sum * block_sum;
+        largest = std::max(largest, sum_of_squares / squares);
+    }
+    return 0.5 * largest;
+}
+
+/// A standard normal deviate for a chi-square statistic with `dof` degrees of freedom (Wilson-Hilferty).
+double chi_square_deviate(double chi_square, double dof) {
+    if (!(dof > 0.0)) return 0.0;
+    const double k = 2.0 / (9.0 * dof);
+    return (std::cbrt(chi_square / dof) - (1.0 - k)) / std::sqrt(k);
+}
+
+/// The mean of a group of residuals and its variance.
+struct GroupMean {
+    std::size_t count{0};
+    double mean{0.0};
+    double variance_of_mean{0.0};
+};
+
+/// Means of `residual` over groups (group[i] that of rows[i]; groups or more: in none), with variances that count
+/// correlated neighbours once: each group's variance over its effective number of samples, its count over twice the
+/// integrated autocorrelation time of the residual's deviations from the group means (on a slow pass the residual
+/// wanders together for seconds), at least one.
+std::vector<GroupMean> group_means(const std::vector<std::size_t>& rows, const std::vector<double>& residual,
+                                   const std::vector<std::size_t>& group, std::size_t groups) {
+    std::vector<GroupMean> means(groups);
+    std::vector<double> sums(groups, 0.0), squares(groups, 0.0);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        if (group[i] >= groups) continue;
+        ++means[group[i]].count;
+        sums[group[i]] += residual[i];
+    }
+    for (std::size_t g = 0; g < groups; ++g)
+        if (means[g].count > 0) means[g].mean = sums[g] / static_cast<double>(means[g].count);
+    std::vector<double> deviation(rows.size(), 0.0);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        if (group[i] >= groups) continue;
+        deviation[i] = residual[i] - means[group[i]].mean;
+        squares[group[i]] += deviation[i] * deviation[i];
+    }
+    const double inflation = std::max(1.0, 2.0 * integrated_autocorrelation(rows, deviation));
+    for (std::size_t g = 0; g < groups; ++g) {
+        const double n = static_cast<double>(means[g].count);
+        if (n > 0.0) means[g].variance_of_mean = squares[g] / n / std::max(1.0, n / inflation);
+    }
+    return means;
+}
+
+/// One grouping of the residual: its group means and their labels.
+struct Groups {
+    std::vector<GroupMean> means;
+    std::vector<std::string> labels;
+};
+
+
+FitCheck judge_groups(std::string name, Groups& groups, double typical, const ModelSelectionOptions& options,
+                      double threshold) {
+    FitCheck check;
+    check.name = std::move(name);
+    check.threshold = threshold;
+    check.material_fraction = options.lack_of_fit_fraction;
+    double chi_square = 0.0;
+    for (std::size_t g = 0; g < groups.means.size(); ++g) {
+        const GroupMean& m = groups.means[g];
+        if (m.count < 20) continue;
+        const double variance = m.variance_of_mean;
+        if (!(variance > 0.0)) continue;
+        chi_square += m.mean * m.mean / variance;
+        ++check.groups;
+        // the largest structure among the groups that show one
+        if (std::abs(m.mean) > threshold * std::sqrt(variance) && std::abs(m.mean) > std::abs(check.largest)) {
+            check.largest = m.mean;
+            check.largest_standard_error = std::sqrt(variance);
+            check.where = groups.labels[g];
+        }
+    }
+    if (check.groups < 2) return check;
+    check.chi_square = chi_square;
+    check.statistic = std::max(0.0, chi_square_deviate(chi_square, static_cast<double>(check.groups)));
+    check.relative = typical > 0.0 ? std::abs(check.largest) / typical : 0.0;
+    check.passed = !(*check.statistic > threshold && check.relative > options.lack_of_fit_fraction);
+    return check;
+}
+
+/// The friction at low speed by direction, beyond what a constant force explains: on the quasi-static slow samples,
+/// the residual of the symmetric model with an offset, r = F - M x'' - B x' - F_C s - F_0, is the Stribeck rise,
+/// +rise(|v|) forward and -rise(|v|) reverse when the rise is the same both ways. Per speed bin (log-spaced), the sum
+/// of the two directions' mean residuals is tested against zero (chi-square over the bins, each mean's variance from
+/// sums over blocks of correlated neighbours).
+ModelCandidate low_speed_asymmetry(const Derivatives& d, const Selection& selection, const Regressors& regressors,
+                                   const LeastSquaresResult& fit, double threshold) {
+    ModelCandidate candidate;
+    candidate.name = "per direction at low speed";
+    candidate.tested = "Stribeck friction forward - reverse";
+    candidate.threshold = threshold;
+    const auto& rows = selection.step2;
+    if (fit.rank_deficient || rows.size() < 40) {
+        candidate.verdict = "too few slow samples to compare the directions";
+        return candidate;
+    }
+    constexpr int bins = 8;
+    double low = INFINITY, high = 0.0;
+    for (const auto k : rows) {
+        low = std::min(low, std::abs(d.velocity[k]));
+        high = std::max(high, std::abs(d.velocity[k]));
+    }
+    low = std::max(low, 1e-12);
+    const double span = std::log(std::max(high / low, 1.0 + 1e-9));
+    std::vector<double> residual(rows.size());
+    std::vector<std::size_t> group(rows.size());
+    Eigen::VectorXd phi(static_cast<Eigen::Index>(regressors.parameters()));
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        const std::size_t k = rows[i];
+        residual[i] = regressors.row(k, phi.data()) - phi.dot(fit.estimate);
+        const int b = std::clamp(static_cast<int>(bins * std::log(std::abs(d.velocity[k]) / low) / span), 0, bins - 1);
+        group[i] = 2 * static_cast<std::size_t>(b) + (d.velocity[k] > 0.0 ? 0 : 1);
+    }
+    const std::vector<GroupMean> cells = group_means(rows, residual, group, 2 * bins);
+    double chi_square = 0.0;
+    int compared = 0;
+    double largest = 0.0, largest_se = 0.0;
+    for (std::size_t b = 0; b < bins; ++b) {
+        const GroupMean& forward = cells[2 * b];
+        const GroupMean& reverse = cells[2 * b + 1];
+        if (forward.count < 10 || reverse.count < 10) continue;
+        const double difference = forward.mean + reverse.mean;
+        const double v = forward.variance_of_mean + reverse.variance_of_mean;
+        if (!(v > 0.0)) continue;
+        chi_square += difference * difference / v;
+        ++compared;
+        if (std::abs(difference) > std::abs(largest)) {
+            largest = difference;
+            largest_se = std::sqrt(v);
+        }
+    }
+    if (compared == 0) {
+        candidate.verdict = "no speed at which both directions have slow samples";
+        return candidate;
+    }
+    candidate.estimate = largest;
+    candidate.standard_error = largest_se;
+    candidate.statistic = std::max(0.0, chi_square_deviate(chi_square, compared));
+    candidate.taken = *candidate.statistic > threshold;
+    return candidate;
+}
+
+/// A fit's estimates as a vector; empty when the fit could not separate them.
+std::vector<double> estimates_of(const LeastSquaresResult& fit) {
+    if (fit.rank_deficient) return {};
+    return {fit.estimate.data(), fit.estimate.data() + fit.estimate.size()};
+}
+
+/// Symmetric within symmetric with an offset within per direction, tested on the (aligned) force.
+void choose_friction_model(const Derivatives& d, const Selection& selection, FrictionModelKind forced_model,
+                           bool forced_offset, const ModelSelectionOptions& options, double threshold,
+                           std::size_t block, ModelChoice& choice) {
+    const ParameterNaming naming{d.rotary};
+    const auto& rows = selection.step1;
+    const Regressors with_offset = build_regressors(d, FrictionModelKind::symmetric, true);
+    const LeastSquaresResult offset_fit = fit_columns(columns_of(with_offset), with_offset.output, rows, block);
+    Eigen::VectorXd c_offset = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(with_offset.parameters()));
+    c_offset(column_index(with_offset, Term::offset, Direction::both)) = 1.0;
+    ModelCandidate offset = test_combination("offset", "F_0", offset_fit, c_offset, threshold);
+
+    const Regressors per_direction = build_regressors(d, FrictionModelKind::asymmetric, false);
+    const LeastSquaresResult direction_fit = fit_columns(columns_of(per_direction), per_direction.output, rows, block);
+    Eigen::VectorXd c_viscous = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(per_direction.parameters()));
+    c_viscous(column_index(per_direction, Term::viscous, Direction::forward)) = 1.0;
+    c_viscous(column_index(per_direction, Term::viscous, Direction::reverse)) = -1.0;
+    ModelCandidate asymmetric = test_combination("per direction", "B+ - B-", direction_fit, c_viscous, threshold);
+    ModelCandidate slow = low_speed_asymmetry(d, selection, with_offset, offset_fit, threshold);
+
+    const auto unit = [&](Term term) { return std::string(naming.unit(term)); };
+    const auto describe = [&](const ModelCandidate& c, Term term) {
+        return c.estimate ? fmt::format("{} = {:.4g} +/- {:.2g} {} ({:.1f} standard errors)", c.tested, *c.estimate,
+                                        *c.standard_error, unit(term), *c.statistic)
+                          : c.tested + " not estimable";
+    };
+    if (options.automatic) {
+        const bool per_direction = asymmetric.taken || slow.taken;
+        choice.model = per_direction ? FrictionModelKind::asymmetric : FrictionModelKind::symmetric;
+        choice.offset = !per_direction && offset.taken;
+        // the chosen model's estimates on these samples, which a selection under the chosen model may change
+        if (per_direction || choice.offset)
+            choice.first_selection_estimate = estimates_of(per_direction ? direction_fit : offset_fit);
+        asymmetric.verdict = asymmetric.taken ? "taken: the viscous friction differs by direction"
+                                              : "not needed: the viscous friction is the same both ways";
+        slow.verdict = slow.taken ? "taken: the friction at low speed differs by direction beyond a constant force"
+                       : slow.statistic ? "not needed: the friction at low speed is the same both ways"
+                                        : slow.verdict;
+        offset.verdict = per_direction ? "carried by the per-direction Coulomb friction"
+                         : offset.taken ? "taken: a constant force (a weight, a sensor's zero) is present"
+                                        : "not needed";
+        if (choice.offset) {
+            choice.findings.push_back(fmt::format(
+                "model: an offset was added ({}): a weight or a sensor's zero; F_0 also holds half of any difference "
+                "of Coulomb friction between the directions, which a constant force cannot be told from",
+                describe(offset, Term::offset)));
+        }
+        if (per_direction && offset.taken) {
+            choice.findings.push_back(fmt::format(
+                "model: friction per direction; the data also show a constant force ({}), which the per-direction "
+                "Coulomb and breakaway friction carry: F_C+ holds +F_0, F_C- holds -F_0",
+                describe(offset, Term::offset)));
+        }
+    } else {
+        choice.model = forced_model;
+        choice.offset = forced_offset;
+        offset.verdict = asymmetric.verdict = slow.verdict = "forced";
+        if (!forced_offset && forced_model == FrictionModelKind::symmetric && offset.taken) {
+            choice.findings.push_back(fmt::format(
+                "the data reject the forced model: they show a constant force ({}); --offset, or leave the model to "
+                "identify",
+                describe(offset, Term::offset)));
+        }
+        if (forced_model == FrictionModelKind::symmetric && slow.taken && !asymmetric.taken) {
+            choice.findings.push_back(fmt::format(
+                "the data reject the forced model: the friction at low speed differs by direction beyond a constant "
+                "force ({:.1f} standard deviates); --model asymmetric, or leave the model to identify",
+                *slow.statistic));
+        }
+        if (forced_model == FrictionModelKind::symmetric && asymmetric.taken) {
+            choice.findings.push_back(fmt::format(
+                "the data reject the forced model: the viscous friction differs by direction ({}); --model "
+                "asymmetric, or leave the model to identify",
+                describe(asymmetric, Term::viscous)));
+        }
+    }
+    choice.candidates.push_back(offset);
+    choice.candidates.push_back(asymmetric);
+    choice.candidates.push_back(slow);
+}
+
+/// d theta / d tau of the chosen model's step-1 parameters: the regression of the delay column on its regressors.
+std::vector<double> delay_sensitivity(const Derivatives& d, const std::vector<std::size_t>& rows,
+                                      const ModelChoice& choice, std::size_t block) {
+    const Regressors chosen = build_regressors(d, choice.model, choice.offset);
+    const std::vector<double> column = delay_column(d);
+    const LeastSquaresResult fit = fit_columns(columns_of(chosen), column, rows, block);
+    if (fit.rank_deficient) return {};
+    return {fit.estimate.data(), fit.estimate.data() + fit.estimate.size()};
+}
+
+}  // namespace
+
+double residual_autocorrelation_time(const Derivatives& d, const Regressors& regressors,
+                                     const std::vector<std::size_t>& rows) {
+    (void)d;
+    if (rows.size() < 100) return 1.0;
+    const LeastSquaresResult fit = fit_columns(columns_of(regressors), regressors.output, rows, 1);
+    if (fit.rank_deficient) return 1.0;
+    std::vector<double> residual(rows.size());
+    Eigen::VectorXd phi(static_cast<Eigen::Index>(regressors.parameters()));
+    for (std::size_t i = 0; i < rows.size(); ++i)
+        residual[i] = regressors.row(rows[i], phi.data()) - phi.dot(fit.estimate);
+    return integrated_autocorrelation(rows, residual);
+}
+
+namespace {
+
+/// The samples the checked model describes: step 1's, and step 2's where the friction has its Stribeck term.
+std::vector<std::size_t> checked_rows(const Selection& selection, const AxisModel& axis) {
+    if (!axis.friction.forward.has_stribeck() && !axis.friction.reverse.has_stribeck()) return selection.step1;
+    std::vector<std::size_t> rows;
+    rows.reserve(selection.step1.size() + selection.step2.size());
+    std::set_union(selection.step1.begin(), selection.step1.end(), selection.step2.begin(), selection.step2.end(),
+                   std::back_inserter(rows));
+    return rows;
+}
+
+/// Group edges of a column over rows: `bins` quantiles of a sample of it.
+std::vector<double> quantile_edges(std::span<const double> column, const std::vector<std::size_t>& rows, int bins) {
+    std::vector<double> values;
+    const std::size_t stride = std::max<std::size_t>(1, rows.size() / 20000);
+    for (std::size_t i = 0; i < rows.size(); i += stride) values.push_back(column[rows[i]]);
+    std::vector<double> edges;
+    for (int b = 1; b < bins; ++b) edges.push_back(percentile_in_place(values, static_cast<double>(b) / bins));
+    return edges;
+}
+
+std::size_t group_of(double value, const std::vector<double>& edges) {
+    return static_cast<std::size_t>(std::upper_bound(edges.begin(), edges.end(), value) - edges.begin());
+}
+
+}  // namespace
+
+std::vector<FitCheck> check_fit(const Derivatives& d, const Selection& selection, const AxisModel& axis,
+                                const ModelSelectionOptions& options) {
+    const std::vector<std::size_t> rows = checked_rows(selection, axis);
+    if (rows.size() < 200) return {};
+    constexpr int speed_bins = 8, acceleration_bins = 4, time_bins = 8;
+    double low = INFINITY, high = 0.0;
+    for (const auto k : rows) {
+        low = std::min(low, std::abs(d.velocity[k]));
+        high = std::max(high, std::abs(d.velocity[k]));
+    }
+    low = std::max(low, 1e-12);
+    const double span = std::log(std::max(high / low, 1.0 + 1e-9));
+    const std::vector<double> accelerations = quantile_edges(d.acceleration, rows, acceleration_bins);
+    std::vector<double> residual(rows.size());
+    std::vector<std::size_t> by_speed(rows.size()), by_acceleration(rows.size()), by_time(rows.size());
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        const std::size_t k = rows[i];
+        const double v = d.velocity[k];
+        residual[i] = d.force[k] - axis.mass * d.acceleration[k] - axis.friction.force(v) - axis.offset;
+        const std::size_t direction = v > 0.0 ? 0 : 1;
+        const auto s = static_cast<std::size_t>(
+            std::clamp(static_cast<int>(speed_bins * std::log(std::abs(v) / low) / span), 0, speed_bins - 1));
+        by_speed[i] = direction * speed_bins + s;
+        by_acceleration[i] = direction * acceleration_bins + group_of(d.acceleration[k], accelerations);
+        by_time[i] = i * time_bins / rows.size();
+    }
+    Groups speed{group_means(rows, residual, by_speed, 2 * speed_bins), {}};
+    Groups acceleration{group_means(rows, residual, by_acceleration, 2 * acceleration_bins), {}};
+    Groups time{group_means(rows, residual, by_time, time_bins), {}};
+    const std::string speed_unit = d.rotary ? "rad/s" : "m/s", acceleration_unit = d.rotary ? "rad/s^2" : "m/s^2";
+    for (std::size_t direction = 0; direction < 2; ++direction) {
+        const char* name = direction == 0 ? "forward" : "reverse";
+        for (int b = 0; b < speed_bins; ++b) {
+            speed.labels.push_back(fmt::format("{} at {:.3g} to {:.3g} {}", name, low * std::exp(span * b / speed_bins),
+                                               low * std::exp(span * (b + 1) / speed_bins), speed_unit));
+        }
+        for (int b = 0; b < acceleration_bins; ++b) {
+            const auto at = [&](int e) { return fmt::format("{:.3g}", accelerations[static_cast<std::size_t>(e)]); };
+            acceleration.labels.push_back(fmt::format("{} with the acceleration {} {}", name,
+                                                      b == 0 ? "below " + at(0)
+                                                      : b == acceleration_bins - 1
+                                                          ? "above " + at(b - 1)
+                                                          : "from " + at(b - 1) + " to " + at(b),
+                                                      acceleration_unit));
+        }
+    }
+    for (int b = 0; b < time_bins; ++b) {
+        const std::size_t first = rows[static_cast<std::size_t>(b) * rows.size() / time_bins];
+        const std::size_t last = rows[(static_cast<std::size_t>(b) + 1) * rows.size() / time_bins - 1];
+        time.labels.push_back(fmt::format("from {:.4g} s to {:.4g} s", d.time[first], d.time[last]));
+    }
+    const double typical = typical_force(d, selection.step1);
+    const double threshold = normal_quantile(options.test_level);
+    return {judge_groups("speed", speed, typical, options, threshold),
+            judge_groups("acceleration", acceleration, typical, options, threshold),
+            judge_groups("time", time, typical, options, threshold)};
+}
+
+ModelChoice choose_model(Derivatives& d, const Selection& selection, FrictionModelKind forced_model,
+                         bool forced_offset, bool drive_tared, const std::optional<RestLevel>& rest,
+                         const ModelSelectionOptions& options, double correlation_blocks) {
+    ModelChoice choice;
+    choice.automatic = options.automatic;
+    choice.model = forced_model;
+    choice.offset = forced_offset;
+    const std::vector<std::size_t>& rows = selection.step1;
+    const auto [forward, reverse] = direction_counts(d, rows);
+    const double least = std::max(10.0, options.one_way_fraction * static_cast<double>(rows.size()));
+    choice.one_way = static_cast<double>(std::min(forward, reverse)) < least;
+    if (rows.size() < 50) return choice;  // step 1 will say why it cannot fit
+    const std::size_t block = correlation_block(d, correlation_blocks);
+    const double threshold = normal_quantile(options.test_level);
+    if (options.automatic || options.test_forced) {
+        detect_process_forces(d, selection, choice.one_way, options, choice);
+        if (!choice.process_forces.empty()) return choice;
+    }
+
+    choose_delay(d, rows, choice.one_way, options, threshold, block, choice);
+    if (choice.one_way) {
+        if (options.automatic) {
+            choice.model = FrictionModelKind::symmetric;
+            choice.offset = false;
+        }
+        ModelCandidate offset;
+        offset.name = "offset";
+        offset.tested = "F_0";
+        offset.threshold = threshold;
+        offset.verdict = "not separable from Coulomb friction on a move in one direction";
+        choice.candidates.push_back(offset);
+        judge_one_way(d, selection, choice.offset, drive_tared, rest, options, choice);
+    } else if (options.automatic || options.test_forced) {
+        choose_friction_model(d, selection, forced_model, forced_offset, options, threshold, block, choice);
+    }
+    if (choice.delay_applied) choice.delay_sensitivity = delay_sensitivity(d, rows, choice, block);
+    return choice;
+}
+
+}  // namespace feedid

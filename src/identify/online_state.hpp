@@ -1,0 +1,144 @@
+#pragma once
+// The online identifier's state (online_identifier.hpp): the window buffers and rows, allocated once; the pooled
+// square-root information and cluster moment sums; the first and the one-speed windows held for judgement; the
+// Stribeck bins; the counts. Private to src/identify: the steps that work on it are each in a file of their own
+// (online_identifier.cpp the stream into windows, online_window.cpp a window's preprocessing and tests, online_fit.cpp
+// its own fit, online_robust.cpp the robust weighting, online_one_speed.cpp windows judged against the pool,
+// online_pool.cpp the pooling, online_estimate.cpp the estimate and why a value is null, online_stribeck.cpp F_B and
+// v_s).
+
+#include <array>
+#include <cstddef>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "feedid/identify/online_identifier.hpp"
+#include "feedid/identify/stick_slip.hpp"
+#include "feedid/numeric/signal.hpp"
+
+namespace feedid {
+
+struct OnlineIdentifier::State {
+    static constexpr int max_p = 4;
+    static constexpr std::size_t bins_per_direction = 24;
+    using Vec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, max_p, 1>;
+    using Mat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, max_p, max_p>;
+    struct StribeckBin {
+        double n{0}, speed{0}, force{0}, force_sq{0}, acceleration{0};
+        std::size_t windows{0}, last_window{0};  ///< windows that put samples in it, the last of them (1-based)
+    };
+    /// A one-speed window's least-squares sufficient statistics: enough to judge it against any pooled estimate.
+    struct OneSpeedWindow {
+        Mat h;  ///< Phi^T Phi
+        Vec c;  ///< Phi^T y
+        double yy{0.0};
+        std::size_t rows{0};
+        WindowVerdict own{WindowVerdict::low_excitation};  ///< its verdict on its own
+    };
+    struct WindowInformation {
+        Mat h;  ///< Phi^T W Phi
+        Vec c;  ///< Phi^T W y
+        double scale{0.0};
+        std::size_t rows{0};
+    };
+
+    /// The low-pass cut-off [Hz], the window's core samples and its filter margin at a sample time.
+    struct Layout {
+        double cutoff_hz{0.0};
+        std::size_t window{0}, margin{0};
+    };
+
+    explicit State(OnlineOptions options);
+
+    // the stream into windows (online_identifier.cpp)
+    static Layout layout(const OnlineOptions& options, double sample_time_s);
+    void setup(double sample_time_s);
+    void push(double t, double x, double force, bool use);
+    void flush();
+    // a window's preprocessing and tests (online_window.cpp)
+    void process_window(std::size_t count);
+    void filter(std::span<const double> in, std::span<double> out, std::size_t count);
+    WindowVerdict judge_window(std::size_t first, std::size_t last);
+    [[nodiscard]] bool stick_slips(std::size_t first, std::size_t last);
+    std::size_t build_rows(std::size_t first, std::size_t last);
+    // the window's own fit (online_fit.cpp)
+    WindowVerdict fit_window(std::size_t rows);
+    [[nodiscard]] Vec solve_weighted(std::size_t rows) const;
+    void residuals(const Vec& theta, std::size_t rows);
+    // robust weighting (online_robust.cpp)
+    /// Median of |values| by selection in `scratch` (no allocation: scratch holds at least values.size()).
+    static double median_absolute(std::span<const double> values, std::vector<double>& scratch);
+    Vec tukey_fit(const Vec& start, std::size_t rows, double& scale);
+    Vec independent_fit(std::size_t rows, const Vec& least_squares, double fast, double& best_scale);
+    bool settle_weights(std::size_t rows, const Vec& theta, double scale);
+    WindowVerdict judge_change(std::size_t rows, const Vec& least_squares, double fast);
+    // windows judged against the pool (online_one_speed.cpp)
+    WindowVerdict one_speed(std::size_t rows, WindowVerdict own);
+    WindowVerdict judge_one_speed(const OneSpeedWindow& window);
+    WindowVerdict judge_rows(std::size_t rows);
+    [[nodiscard]] bool fits_pool(const Mat& h, const Vec& c) const;
+    void settle_deferred();
+    // pooling (online_pool.cpp)
+    [[nodiscard]] WindowInformation information(std::size_t rows, double scale) const;
+    void reset_pool();
+    WindowVerdict admit(std::size_t rows, double scale);
+    void update_reference_scale();
+    void settle_pending();
+    [[nodiscard]] bool consistent(const WindowInformation& window, const Vec& reference) const;
+    void pool(const WindowInformation& window);
+    [[nodiscard]] Vec pooled_theta() const;
+    // the estimate (online_estimate.cpp)
+    /// Why the pool gives no value ("" when it does): no window, one window, or windows that disagree.
+    [[nodiscard]] std::string no_value_reason() const;
+    [[nodiscard]] OnlineEstimate estimate() const;
+    // F_B and v_s (online_stribeck.cpp)
+    void bin_slow_samples(std::size_t first, std::size_t last);
+    void estimate_stribeck(const Vec& theta, const Vec& standard_error, OnlineEstimate& e) const;
+
+    OnlineOptions options_;
+    std::size_t p_{3};
+    bool ready_{false};
+    double dt_{0.0};
+    double cutoff_hz_{0.0};
+    SecondOrderSections filter_;
+    std::size_t window_{0};  ///< core samples per window
+    std::size_t margin_{0};  ///< filter margin on each side
+    std::size_t filled_{0};  ///< samples in the buffers
+    std::size_t pushed_{0};
+    // buffers (margin + window + margin), allocated once
+    std::vector<double> t_, x_, f_, xf_, ff_, v_, a_, s_, sf_, workspace_;
+    std::vector<char> use_;
+    // the window's rows (step-1 samples), allocated once
+    /// [x'', x', filtered sgn x' (, 1)], y after them; row-major, so that a row is contiguous
+    Eigen::Matrix<double, Eigen::Dynamic, max_p + 1, Eigen::RowMajor> rows_;
+    std::vector<double> weights_, residual_, scratch_;
+    // pooled square-root information: R (p x p upper), z (p), and the cluster moments
+    Eigen::Matrix<double, max_p, max_p + 1> r_z_;
+    Mat sum_cc_;
+    std::array<Mat, max_p> sum_cH_;                     ///< sum_w c_w[i] * H_w
+    std::array<std::array<Mat, max_p>, max_p> sum_HH_;  ///< sum_w H_w[i][j] * H_w
+    double forgotten_windows_{0.0};                     ///< effective qualified windows (with forgetting)
+    double sum_scale_sq_{0.0};
+    std::size_t rows_used_{0};
+    Vec column_scale_;
+    bool have_pooled_{false};
+    std::array<double, 32> recent_scales_{};
+    std::size_t recent_count_{0};
+    double reference_scale_{0.0};  ///< 0 until the first windows are settled
+    std::array<WindowInformation, 8> pending_;
+    std::vector<OneSpeedWindow> deferred_;  ///< allocated once (deferred_windows)
+    std::size_t deferred_count_{0};
+    std::size_t pending_count_{0};
+    std::size_t inconsistent_run_{0};
+    std::size_t changes_{0};
+    double last_outlier_fraction_{0.0};
+    WindowCounts counts_;
+    WindowRecord last_window_;
+    StickSlipTracker stick_slip_;
+    std::array<std::vector<StribeckBin>, 2> bins_;  ///< forward, reverse
+};
+
+}  // namespace feedid
