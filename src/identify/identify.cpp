@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cmath>
 #include <exception>
+#include <memory>
 #include <thread>
 
 #include <fmt/core.h>
@@ -647,8 +648,13 @@ IdentifyResult run_stages_on(IdentifyResult result, Preprocessed& p, const Ident
     }
     if (const Resolution resolution = assess_resolution(derivatives, options.friction_only); resolution.coarse())
         return friction_only_result(std::move(result), derivatives, selection, resolution, {}, options);
+    // the models the stage fits share their low-passed columns with the regressor built and the one chosen; the
+    // others are released before the fit
+    auto columns = std::make_unique<RegressorColumnCache>();
+    columns->remember(p.regressors);
     const ModelChoice choice = choose_model(derivatives, selection, options.model, options.offset, drive.tared,
-                                            drive.rest, options.model_selection, options.step1.correlation_blocks);
+                                            drive.rest, options.model_selection, options.step1.correlation_blocks,
+                                            columns.get());
     if (!choice.process_forces.empty()) {
         result.model_choice = choice;
         return failed(std::move(result), choice.process_forces);
@@ -663,7 +669,8 @@ IdentifyResult run_stages_on(IdentifyResult result, Preprocessed& p, const Ident
                                          });
     if (!same_columns) {
         // the Stribeck checks of the selection fit the step-1 model: the chosen one
-        p.regressors = build_regressors(derivatives, choice.model, choice.offset);
+        p.regressors = build_regressors(derivatives, choice.model, choice.offset, columns.get());
+        columns.reset();
         selection = select_samples(derivatives, p.regressors, selection_options);
         result.selection = selection.report;
     }
@@ -672,6 +679,7 @@ IdentifyResult run_stages_on(IdentifyResult result, Preprocessed& p, const Ident
         result.offset = choice.offset;
         result.parameters = model_parameters(choice.model, choice.offset, result.rotary);
     }
+    columns.reset();
     result.diagnostics.insert(result.diagnostics.end(), choice.findings.begin(), choice.findings.end());
     result.model_choice = choice;
     widen_correlation_block(derivatives, p.regressors, selection, chosen, result.model_choice);

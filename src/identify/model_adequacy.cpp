@@ -355,7 +355,8 @@ DelayFit linearised_delay(const Derivatives& d, const Regressors& regressors, co
 /// The delay: the profile's minimum in the largest model the data can take, tested against its standard error,
 /// applied where significant; or the known one applied.
 void choose_delay(Derivatives& d, const std::vector<std::size_t>& rows, bool one_way,
-                  const ModelSelectionOptions& options, double threshold, std::size_t block, ModelChoice& choice) {
+                  const ModelSelectionOptions& options, double threshold, std::size_t block,
+                  RegressorColumnCache& columns, ModelChoice& choice) {
     if (options.known_delay_s) {
         shift_drive_force(d, *options.known_delay_s);
         choice.delay_s = *options.known_delay_s;
@@ -366,7 +367,7 @@ void choose_delay(Derivatives& d, const std::vector<std::size_t>& rows, bool one
     if (options.delay == ModelSelectionOptions::Delay::none) return;
     const bool apply = options.automatic || options.delay == ModelSelectionOptions::Delay::estimate;
     const Regressors largest =
-        build_regressors(d, one_way ? FrictionModelKind::symmetric : FrictionModelKind::asymmetric, false);
+        build_regressors(d, one_way ? FrictionModelKind::symmetric : FrictionModelKind::asymmetric, false, &columns);
     ModelCandidate candidate;
     candidate.name = "delay";
     candidate.tested = "tau";
@@ -517,14 +518,14 @@ void find_bursts(const Derivatives& d, const std::vector<std::size_t>& index, co
 /// the quasi-static samples of every steady pass (whose friction is one level) against the pass's median force less
 /// M x''. Said in `choice.process_forces` when there is one.
 void detect_process_forces(const Derivatives& d, const Selection& selection, bool one_way,
-                           const ModelSelectionOptions& options, ModelChoice& choice) {
+                           const ModelSelectionOptions& options, RegressorColumnCache& columns, ModelChoice& choice) {
     const auto& rows = selection.step1;
     Regressors largest =
-        build_regressors(d, one_way ? FrictionModelKind::symmetric : FrictionModelKind::asymmetric, false);
+        build_regressors(d, one_way ? FrictionModelKind::symmetric : FrictionModelKind::asymmetric, false, &columns);
     // with the timing term: a drive signal out of step with the position leaves one-sided stretches wherever the
     // force changes, which are not a process force (the column is not a friction term: Term::offset marks it)
-    largest.owned.push_back(delay_column(d));
-    largest.values.emplace_back(largest.owned.back());
+    largest.owned.push_back(std::make_shared<const std::vector<double>>(delay_column(d)));
+    largest.values.emplace_back(*largest.owned.back());
     largest.columns.push_back(RegressorColumn{Term::offset, Direction::both});
     const Eigen::VectorXd theta = robust_fit(largest, rows, options.tukey_constant);
     const double mass = theta(0);
@@ -646,14 +647,15 @@ double integrated_autocorrelation(const std::vector<std::size_t>& rows, const st
     if (rows.size() < 100 || !(squares > 0.0)) return 1.0;
     const std::size_t span = rows.back() - rows.front() + 1;
     double largest = 1.0;
-    for (std::size_t b = 2; span / b >= 50; b *= 2) {
+    // blocks of b = 2^shift samples: the block of a row by a shift, not a division
+    for (unsigned shift = 1; span >> shift >= 50; ++shift) {
         double sum_of_squares = 0.0, block_sum = 0.0;
-        std::size_t current = rows.front() / b;
+        std::size_t current = rows.front() >> shift;
         for (std::size_t i = 0; i < rows.size(); ++i) {
-            if (rows[i] / b != current) {
+            if (rows[i] >> shift != current) {
                 sum_of_squares += block_sum * block_sum;
                 block_sum = 0.0;
-                current = rows[i] / b;
+                current = rows[i] >> shift;
             }
             block_sum += values[i];
         }
@@ -813,16 +815,16 @@ std::vector<double> estimates_of(const LeastSquaresResult& fit) {
 /// Symmetric within symmetric with an offset within per direction, tested on the (aligned) force.
 void choose_friction_model(const Derivatives& d, const Selection& selection, FrictionModelKind forced_model,
                            bool forced_offset, const ModelSelectionOptions& options, double threshold,
-                           std::size_t block, ModelChoice& choice) {
+                           std::size_t block, RegressorColumnCache& columns, ModelChoice& choice) {
     const ParameterNaming naming{d.rotary};
     const auto& rows = selection.step1;
-    const Regressors with_offset = build_regressors(d, FrictionModelKind::symmetric, true);
+    const Regressors with_offset = build_regressors(d, FrictionModelKind::symmetric, true, &columns);
     const LeastSquaresResult offset_fit = fit_columns(columns_of(with_offset), with_offset.output, rows, block);
     Eigen::VectorXd c_offset = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(with_offset.parameters()));
     c_offset(column_index(with_offset, Term::offset, Direction::both)) = 1.0;
     ModelCandidate offset = test_combination("offset", "F_0", offset_fit, c_offset, threshold);
 
-    const Regressors per_direction = build_regressors(d, FrictionModelKind::asymmetric, false);
+    const Regressors per_direction = build_regressors(d, FrictionModelKind::asymmetric, false, &columns);
     const LeastSquaresResult direction_fit = fit_columns(columns_of(per_direction), per_direction.output, rows, block);
     Eigen::VectorXd c_viscous = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(per_direction.parameters()));
     c_viscous(column_index(per_direction, Term::viscous, Direction::forward)) = 1.0;
@@ -893,8 +895,8 @@ void choose_friction_model(const Derivatives& d, const Selection& selection, Fri
 
 /// d theta / d tau of the chosen model's step-1 parameters: the regression of the delay column on its regressors.
 std::vector<double> delay_sensitivity(const Derivatives& d, const std::vector<std::size_t>& rows,
-                                      const ModelChoice& choice, std::size_t block) {
-    const Regressors chosen = build_regressors(d, choice.model, choice.offset);
+                                      const ModelChoice& choice, std::size_t block, RegressorColumnCache& columns) {
+    const Regressors chosen = build_regressors(d, choice.model, choice.offset, &columns);
     const std::vector<double> column = delay_column(d);
     const LeastSquaresResult fit = fit_columns(columns_of(chosen), column, rows, block);
     if (fit.rank_deficient) return {};
@@ -1004,7 +1006,10 @@ std::vector<FitCheck> check_fit(const Derivatives& d, const Selection& selection
 
 ModelChoice choose_model(Derivatives& d, const Selection& selection, FrictionModelKind forced_model,
                          bool forced_offset, bool drive_tared, const std::optional<RestLevel>& rest,
-                         const ModelSelectionOptions& options, double correlation_blocks) {
+                         const ModelSelectionOptions& options, double correlation_blocks,
+                         RegressorColumnCache* cache) {
+    RegressorColumnCache local;
+    RegressorColumnCache& columns = cache != nullptr ? *cache : local;
     ModelChoice choice;
     choice.automatic = options.automatic;
     choice.model = forced_model;
@@ -1017,11 +1022,11 @@ ModelChoice choose_model(Derivatives& d, const Selection& selection, FrictionMod
     const std::size_t block = correlation_block(d, correlation_blocks);
     const double threshold = normal_quantile(options.test_level);
     if (options.automatic || options.test_forced) {
-        detect_process_forces(d, selection, choice.one_way, options, choice);
+        detect_process_forces(d, selection, choice.one_way, options, columns, choice);
         if (!choice.process_forces.empty()) return choice;
     }
 
-    choose_delay(d, rows, choice.one_way, options, threshold, block, choice);
+    choose_delay(d, rows, choice.one_way, options, threshold, block, columns, choice);
     if (choice.one_way) {
         if (options.automatic) {
             choice.model = FrictionModelKind::symmetric;
@@ -1035,9 +1040,9 @@ ModelChoice choose_model(Derivatives& d, const Selection& selection, FrictionMod
         choice.candidates.push_back(offset);
         judge_one_way(d, selection, choice.offset, drive_tared, rest, options, choice);
     } else if (options.automatic || options.test_forced) {
-        choose_friction_model(d, selection, forced_model, forced_offset, options, threshold, block, choice);
+        choose_friction_model(d, selection, forced_model, forced_offset, options, threshold, block, columns, choice);
     }
-    if (choice.delay_applied) choice.delay_sensitivity = delay_sensitivity(d, rows, choice, block);
+    if (choice.delay_applied) choice.delay_sensitivity = delay_sensitivity(d, rows, choice, block, columns);
     return choice;
 }
 

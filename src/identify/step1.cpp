@@ -132,7 +132,27 @@ RlsRun run_rls(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, const std::
         tolerance, history_points);
 }
 
-Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind model, bool offset) {
+std::shared_ptr<const std::vector<double>> RegressorColumnCache::find(const RegressorColumn& column) const {
+    for (const auto& [key, values] : columns_) {
+        if (key.term == column.term && key.direction == column.direction) return values;
+    }
+    return nullptr;
+}
+
+void RegressorColumnCache::store(const RegressorColumn& column, std::shared_ptr<const std::vector<double>> values) {
+    if (!find(column)) columns_.emplace_back(column, std::move(values));
+}
+
+void RegressorColumnCache::remember(const Regressors& regressors) {
+    std::size_t owned = 0;
+    for (const auto& column : regressors.columns) {
+        const bool viewed = column.term == Term::mass || (column.term == Term::viscous && column.direction == Direction::both);
+        if (!viewed && owned < regressors.owned.size()) store(column, regressors.owned[owned++]);
+    }
+}
+
+Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind model, bool offset,
+                            RegressorColumnCache* cache) {
     Regressors r;
     r.columns = linear_columns(model, offset);
     r.output = derivatives.force;
@@ -140,7 +160,6 @@ Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind mo
     const bool decimated = factor > 1;
     const auto& a = decimated ? derivatives.full_rate_acceleration : derivatives.acceleration;
     const auto& v = decimated ? derivatives.full_rate_velocity : derivatives.velocity;
-    r.owned.reserve(r.columns.size());  // no reallocation: the views below point into these vectors' buffers
     for (const auto& column : r.columns) {
         // x'' and x' are the Derivatives' columns: decimated (when decimating) by the same decimate_segments over the
         // same stretches, so the same values; viewed, not copied
@@ -152,19 +171,24 @@ Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind mo
             r.values.emplace_back(derivatives.velocity);
             continue;
         }
-        std::vector<double> values = regressor_column(column, a, v);
-        if (nonlinear(column)) {
-            // sgn(x') (and x' per direction) of the filtered x' is not the filtered sgn(x'): through the force's
-            // low-pass, then decimated like every column
-            values = filter_like_force(values, derivatives);
-        } else if (decimated) {
-            // every column through the same anti-alias filter, the constant one too: the filter passes a constant
-            // scaled by its DC gain squared (-0.1 dB for the order-8 Chebyshev, forwards and backwards), as it scales
-            // the force
-            values = decimate_segments(values, derivatives.full_rate_segment_starts, factor);
+        std::shared_ptr<const std::vector<double>> kept = cache != nullptr ? cache->find(column) : nullptr;
+        if (!kept) {
+            std::vector<double> values = regressor_column(column, a, v);
+            if (nonlinear(column)) {
+                // sgn(x') (and x' per direction) of the filtered x' is not the filtered sgn(x'): through the force's
+                // low-pass, then decimated like every column
+                values = filter_like_force(values, derivatives);
+            } else if (decimated) {
+                // every column through the same anti-alias filter, the constant one too: the filter passes a
+                // constant scaled by its DC gain squared (-0.1 dB for the order-8 Chebyshev, forwards and backwards),
+                // as it scales the force
+                values = decimate_segments(values, derivatives.full_rate_segment_starts, factor);
+            }
+            kept = std::make_shared<const std::vector<double>>(std::move(values));
+            if (cache != nullptr) cache->store(column, kept);
         }
-        r.owned.push_back(std::move(values));
-        r.values.emplace_back(r.owned.back());
+        r.values.emplace_back(*kept);
+        r.owned.push_back(std::move(kept));
     }
     return r;
 }

@@ -169,24 +169,26 @@ std::vector<double> delay_column(const Derivatives& derivatives);
 /// each stretch (held at the stretch's ends).
 void shift_drive_force(Derivatives& derivatives, double delay_s);
 
-/// The integrated autocorrelation time of step 1's residual under `regressors` [analysed samples]: 1 + 2 sum of the
-/// residual's autocorrelation over lags (between neighbouring rows only), summed up to Sokal's window (the first lag
-/// beyond 5 times the running estimate).
+/// The integrated autocorrelation time of step 1's residual under `regressors` [analysed samples], by blocking:
+/// half the largest ratio, over blocks of 2, 4, 8 ... samples (at least 50 of them), of the sum of squared block sums
+/// to the sum of squares; 1 for an uncorrelated residual.
 double residual_autocorrelation_time(const Derivatives& derivatives, const Regressors& regressors,
                                      const std::vector<std::size_t>& rows);
 
-/// The stage: chooses the model on step 1's samples (`selection.step1`), estimates and applies the delay (the force
-/// in `derivatives` is shifted in place), and says what the data cannot separate. `forced_model` and `forced_offset`
-/// are the options' model (taken as it is when !options.automatic). `drive_tared`: the drive signal's zero was
-/// removed at import (--tare), so on a one-way move no constant force remains; `rest` the drive force at rest before
-/// the move.
 /// The lack-of-fit checks of `axis` (the identified model) on the samples it was identified from: step 1's, and step
 /// 2's where the friction has a Stribeck term.
 std::vector<FitCheck> check_fit(const Derivatives& derivatives, const Selection& selection, const AxisModel& axis,
                                 const ModelSelectionOptions& options);
 
+/// The stage: chooses the model on step 1's samples (`selection.step1`), estimates and applies the delay (the force
+/// in `derivatives` is shifted in place), and says what the data cannot separate. `forced_model` and `forced_offset`
+/// are the options' model (taken as it is when !options.automatic). `drive_tared`: the drive signal's zero was
+/// removed at import (--tare), so on a one-way move no constant force remains; `rest` the drive force at rest before
+/// the move. The regressor columns of the models it fits come from and stay in `columns` when given (the caller's
+/// regressor and the chosen model's then cost no second low-pass).
 ModelChoice choose_model(Derivatives& derivatives, const Selection& selection, FrictionModelKind forced_model,
                          bool forced_offset, bool drive_tared, const std::optional<RestLevel>& rest,
-                         const ModelSelectionOptions& options, double correlation_blocks);
+                         const ModelSelectionOptions& options, double correlation_blocks,
+                         RegressorColumnCache* columns = nullptr);
 
 }  // namespace feedid

@@ -8,6 +8,7 @@
 // eq. 7-9, or directional forgetting) with the transient detected from the data.
 
 #include <cstddef>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -36,12 +37,14 @@ std::vector<RegressorColumn> linear_columns(FrictionModelKind model, bool offset
 /// The regressor of eq. (11) on every analysed sample: one column per parameter, formed at the full rate and
 /// decimated like the force (Derivatives), and the output y = F_d. The columns that are the Derivatives' own (x'' for
 /// M, x' for B, F_d for y: the same values, decimated alike) are views of them, not copies: the Derivatives must
-/// outlive the Regressors. The others (the filtered sgn(x'), x' per direction, the constant) are held in `owned`.
+/// outlive the Regressors. The others (the filtered sgn(x'), x' per direction, the constant) are held in `owned`,
+/// shared with the other Regressors built from the same cache.
 struct Regressors {
     std::vector<RegressorColumn> columns;
     std::vector<std::span<const double>> values;  ///< values[c][k]: column c at sample k
     std::span<const double> output;               ///< y[k] = F_d
-    std::vector<std::vector<double>> owned;       ///< the storage of the columns that are not the Derivatives'
+    /// the storage of the columns that are not the Derivatives'
+    std::vector<std::shared_ptr<const std::vector<double>>> owned;
 
     Regressors() = default;
     Regressors(Regressors&&) = default;
@@ -63,7 +66,24 @@ struct Regressors {
     [[nodiscard]] std::size_t parameters() const { return columns.size(); }
 };
 
-Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind model, bool offset);
+/// The columns build_regressors forms (each a low-pass of the whole trace) by term and direction, kept for the
+/// Regressors of other models on the same Derivatives: the model-adequacy stage fits four models to one trace. Valid
+/// while the Derivatives' x'' and x' stay as they were (the force may change: it is not cached).
+class RegressorColumnCache {
+public:
+    [[nodiscard]] std::shared_ptr<const std::vector<double>> find(const RegressorColumn& column) const;
+    void store(const RegressorColumn& column, std::shared_ptr<const std::vector<double>> values);
+    /// The columns `regressors` holds, kept for the next models.
+    void remember(const Regressors& regressors);
+
+private:
+    std::vector<std::pair<RegressorColumn, std::shared_ptr<const std::vector<double>>>> columns_;
+};
+
+/// The regressor of `model` (with an offset column when `offset`) on `derivatives`; the columns it has to form are
+/// taken from and left in `cache` when one is given.
+Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind model, bool offset,
+                            RegressorColumnCache* cache = nullptr);
 
 struct Step1Options {
     RlsOptions rls;
