@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <cmath>
 #include <iterator>
 #include <limits>
 #include <span>
+#include <thread>
 
 #include <Eigen/Cholesky>
 
@@ -278,12 +280,23 @@ private:
 /// The delay minimising the profile within +-limit: a grid, then a golden-section search around its best point.
 double minimise_profile(const DelayProfile& profile, double limit, double sample_time) {
     const double step = std::max(sample_time / 4.0, limit / 20.0);
-    double best = 0.0, best_value = profile.residual(0.0);
-    for (double tau = -limit; tau <= limit + 1e-12; tau += step) {
-        const double value = profile.residual(tau);
-        if (value < best_value) {
-            best_value = value;
-            best = tau;
+    std::vector<double> grid{0.0};
+    for (double tau = -limit; tau <= limit + 1e-12; tau += step) grid.push_back(tau);
+    // the grid's points are independent passes over the rows: shared among the cores
+    std::vector<double> values(grid.size());
+    std::atomic<std::size_t> next{0};
+    const auto work = [&] {
+        for (std::size_t i = next++; i < grid.size(); i = next++) values[i] = profile.residual(grid[i]);
+    };
+    std::vector<std::thread> helpers(std::min<std::size_t>(std::max(1u, std::thread::hardware_concurrency()), 4) - 1);
+    for (auto& helper : helpers) helper = std::thread(work);
+    work();
+    for (auto& helper : helpers) helper.join();
+    double best = grid[0], best_value = values[0];
+    for (std::size_t i = 1; i < grid.size(); ++i) {
+        if (values[i] < best_value) {
+            best_value = values[i];
+            best = grid[i];
         }
     }
     const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);

@@ -1,6 +1,7 @@
 #include "feedid/numeric/signal.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <complex>
 #include <deque>
@@ -89,12 +90,62 @@ void section_backward(const std::array<double, 6>& s, double level, std::span<do
     }
 }
 
+// A cascade of S sections run sample by sample (each section's state in registers): the same arithmetic, in the same
+// order, as one pass per section, with the sections of neighbouring samples overlapping in the pipeline instead of
+// each waiting on its own recursion, and one pass over memory instead of S.
+template <std::size_t S>
+struct Cascade {
+    std::array<std::array<double, 5>, S> c{};  // b0, b1, b2, a1, a2
+    std::array<double, S> s1{}, s2{};
+
+    // from steady state for `level` at the input; the level at each later section is the one before times the
+    // section's DC gain
+    Cascade(const SecondOrderSections& filter, double level) {
+        for (std::size_t i = 0; i < S; ++i) {
+            const auto& s = filter.sections[i];
+            c[i] = {s[0], s[1], s[2], s[4], s[5]};
+            const double g = (s[0] + s[1] + s[2]) / (1.0 + s[4] + s[5]);
+            s2[i] = (s[2] - s[5] * g) * level;
+            s1[i] = (s[1] - s[4] * g) * level + s2[i];
+            level *= (s[0] + s[1] + s[2]) / (1.0 + s[4] + s[5]);
+        }
+    }
+    double operator()(double in) {
+        for (std::size_t i = 0; i < S; ++i) {
+            const double out = c[i][0] * in + s1[i];
+            s1[i] = c[i][1] * in - c[i][3] * out + s2[i];
+            s2[i] = c[i][2] * in - c[i][4] * out;
+            in = out;
+        }
+        return in;
+    }
+};
+
+template <std::size_t S>
+void cascade_passes(const SecondOrderSections& filter, std::span<double> y, std::size_t pad) {
+    Cascade<S> forward(filter, y.front());
+    for (std::size_t k = 0; k < y.size(); ++k) {
+        const double out = forward(y[k]);
+        if (k >= pad) y[k - pad] = out;
+    }
+    const auto kept = y.first(y.size() - pad);
+    Cascade<S> backward(filter, kept.back());
+    for (std::size_t k = kept.size(); k-- > 0;) kept[k] = backward(kept[k]);
+}
+
 // filtfilt's two passes over the padded signal y (pad samples before and after the n of the signal), without
 // reversing it twice and without moving it: the forward pass writes its last section's output `pad` samples earlier,
 // dropping the front padding's outputs, which the backward pass would only have carried into outputs that are cut
 // off anyway; the backward pass then runs over y[0, n + pad), and the signal is in y[0, n). The same arithmetic, in
 // the same order, as filtering y, reversing, filtering and reversing.
 void filtfilt_passes(const SecondOrderSections& filter, std::span<double> y, std::size_t pad) {
+    switch (filter.sections.size()) {
+        case 1: return cascade_passes<1>(filter, y, pad);
+        case 2: return cascade_passes<2>(filter, y, pad);
+        case 3: return cascade_passes<3>(filter, y, pad);
+        case 4: return cascade_passes<4>(filter, y, pad);
+        default: break;
+    }
     double level = y.front();
     for (std::size_t i = 0; i < filter.sections.size(); ++i) {
         const auto& s = filter.sections[i];
