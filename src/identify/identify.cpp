@@ -248,6 +248,7 @@ void apply_step1(const Step1Fit& fit, IdentifyResult& result) {
         parameter(result, fit.columns[c].term, fit.columns[c].direction).estimate =
             Estimate::of(fit.batch.estimate(i), fit.batch.standard_error(i));
     }
+    if (!fit.rls) return;
     result.rls = rls_report(fit, result.step1->keys);
     if (!fit.rls->settled) {
         result.diagnostics.push_back(
@@ -560,7 +561,9 @@ bool check_model_fit(IdentifyResult& result, const Derivatives& derivatives, con
 /// Steps 1 and 2 on the selected samples, and the result's final touches.
 IdentifyResult fit_steps(IdentifyResult result, const Derivatives& derivatives, const Regressors& regressors,
                          const Selection& selection, const IdentifyOptions& options, const ModelChoice& choice) {
-    const Step1Fit step1 = fit_step1(regressors, derivatives, selection.step1, options.step1);
+    Step1Options step1_options = options.step1;
+    step1_options.run_rls = step1_options.run_rls && !options.estimates_only;
+    const Step1Fit step1 = fit_step1(regressors, derivatives, selection.step1, step1_options);
     if (step1.batch.samples > 0) result.step1 = step1_report(step1, ParameterNaming{derivatives.rotary});
     if (step1.failed()) {
         if (!step1.mass_unidentifiable) return failed(std::move(result), step1.failure);
@@ -584,8 +587,10 @@ IdentifyResult fit_steps(IdentifyResult result, const Derivatives& derivatives, 
     null_collinear(result, step1.columns, options.model_selection.collinearity_limit);
     flag_undetermined(result);
     result.axis = axis_from_parameters(result.parameters, result.model, result.rotary);
-    result.friction_curve = FrictionCurveReport{bin_friction_curve(derivatives, selection, result.axis, true),
-                                                bin_friction_curve(derivatives, selection, result.axis, false)};
+    if (!options.estimates_only) {
+        result.friction_curve = FrictionCurveReport{bin_friction_curve(derivatives, selection, result.axis, true),
+                                                    bin_friction_curve(derivatives, selection, result.axis, false)};
+    }
     const bool any_null = std::any_of(result.parameters.begin(), result.parameters.end(),
                                       [](const Parameter& p) { return !p.estimate.value; });
     const bool fits = check_model_fit(result, derivatives, selection, options);
@@ -795,6 +800,7 @@ void assess_systematic(const Trace& trace, const IdentifyOptions& options, std::
     // every member fits the nominal run's model: the family measures the preprocessing, not the model choice
     IdentifyOptions variant_options = options;
     variant_options.systematic = false;
+    variant_options.estimates_only = true;
     variant_options.model = result.model;
     variant_options.offset = result.offset;
     variant_options.model_selection.automatic = false;

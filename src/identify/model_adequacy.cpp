@@ -183,12 +183,6 @@ void shift_drive_force(Derivatives& d, double delay_s) {
 namespace {
 
 /// The regressors of the three nested candidates on the (aligned) force.
-struct Candidates {
-    Regressors symmetric;
-    Regressors offset;
-    Regressors per_direction;
-};
-
 struct DelayFit {
     double delay{0.0};
     double standard_error{0.0};
@@ -196,29 +190,31 @@ struct DelayFit {
     bool valid{false};
 };
 
-/// Where each step-1 row's stretch begins and ends, and the stretch's sample step [s].
-struct RowStretches {
-    std::vector<std::size_t> begin, end;
-    std::vector<double> step;
+/// A run of consecutive step-1 rows (rows [first, last) of the row list) within one stretch of the Derivatives:
+/// the stretch's samples [begin, end) and its sample step [s].
+struct RowRun {
+    std::size_t first, last, begin, end;
+    double step;
 };
 
-RowStretches row_stretches(const Derivatives& d, const std::vector<std::size_t>& rows) {
-    RowStretches out;
-    out.begin.reserve(rows.size());
-    out.end.reserve(rows.size());
-    out.step.reserve(rows.size());
+std::vector<RowRun> row_runs(const Derivatives& d, const std::vector<std::size_t>& rows) {
+    std::vector<RowRun> runs;
     std::size_t s = 0;
     const std::size_t n = d.size();
-    for (const auto k : rows) {
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        const std::size_t k = rows[i];
         while (s + 1 < d.segment_starts.size() && d.segment_starts[s + 1] <= k) ++s;
         const std::size_t begin = d.segment_starts[s];
+        if (!runs.empty() && runs.back().begin == begin) {
+            runs.back().last = i + 1;
+            continue;
+        }
         const std::size_t end = s + 1 < d.segment_starts.size() ? d.segment_starts[s + 1] : n;
-        out.begin.push_back(begin);
-        out.end.push_back(end);
-        out.step.push_back(end - begin > 1 ? (d.time[end - 1] - d.time[begin]) / static_cast<double>(end - begin - 1)
-                                           : d.sample_time_s);
+        const double step = end - begin > 1 ? (d.time[end - 1] - d.time[begin]) / static_cast<double>(end - begin - 1)
+                                            : d.sample_time_s;
+        runs.push_back(RowRun{i, i + 1, begin, end, step});
     }
-    return out;
+    return runs;
 }
 
 /// The filtered force at `position` (in samples, fractional) within [begin, end), Catmull-Rom, held at the ends.
@@ -238,9 +234,13 @@ double force_at(const std::vector<double>& force, double position, std::size_t b
 /// from the normal equations of Phi (fixed) and one pass over the rows per tau.
 class DelayProfile {
 public:
+    static constexpr Eigen::Index max_parameters = 8;
+    using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, max_parameters, 1>;
+
     DelayProfile(const Derivatives& d, const Regressors& regressors, const std::vector<std::size_t>& rows)
-        : d_(d), regressors_(regressors), rows_(rows), stretches_(row_stretches(d, rows)) {
+        : d_(d), regressors_(regressors), rows_(rows), runs_(row_runs(d, rows)) {
         const auto p = static_cast<Eigen::Index>(regressors.parameters());
+        if (p > max_parameters) return;
         Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(p, p);
         Eigen::VectorXd phi(p);
         for (const auto k : rows) {
@@ -255,24 +255,26 @@ public:
 
     double residual(double delay) const {
         const auto p = static_cast<Eigen::Index>(regressors_.parameters());
-        Eigen::VectorXd cross = Eigen::VectorXd::Zero(p), phi(p);
+        Vector cross = Vector::Zero(p), phi(p);
         double squares = 0.0;
-        for (std::size_t i = 0; i < rows_.size(); ++i) {
-            const std::size_t k = rows_[i];
-            const double y = force_at(d_.force, static_cast<double>(k) + delay / stretches_.step[i],
-                                      stretches_.begin[i], stretches_.end[i]);
-            regressors_.row(k, phi.data());
-            cross += phi * y;
-            squares += y * y;
+        for (const RowRun& run : runs_) {
+            const double offset = delay / run.step;  // in samples, for every row of the stretch
+            for (std::size_t i = run.first; i < run.last; ++i) {
+                const std::size_t k = rows_[i];
+                const double y = force_at(d_.force, static_cast<double>(k) + offset, run.begin, run.end);
+                regressors_.row(k, phi.data());
+                cross += phi * y;
+                squares += y * y;
+            }
         }
-        return squares - cross.dot(solver_.solve(cross));
+        return squares - cross.dot(solver_.solve(Eigen::VectorXd(cross)));
     }
 
 private:
     const Derivatives& d_;
     const Regressors& regressors_;
     const std::vector<std::size_t>& rows_;
-    RowStretches stretches_;
+    std::vector<RowRun> runs_;
     Eigen::LDLT<Eigen::MatrixXd> solver_;
     bool valid_{false};
 };

@@ -398,6 +398,7 @@ Step1Fit fit_step1(const Regressors& regressors, const Derivatives& derivatives,
     if (fit.batch.relative_error_pct > options.investigate_relative_error_pct) {
         fit.residual_finding = investigate_residual(fit, regressors, derivatives, rows, options);
     }
+    if (!options.run_rls) return fit;
     // RLS on the same samples, in time order.
     const Eigen::VectorXd tolerance = (fit.batch.estimate.cwiseAbs() * options.rls_settle_fraction)
                                           .cwiseMax(options.rls_settle_standard_errors * fit.batch.standard_error);

@@ -116,6 +116,8 @@ struct Step1Options {
     double residual_concentration{2.0};
     /// The RLS trajectory is kept at about this many points (history for plots and the transient).
     std::size_t rls_history_points{2000};
+    /// Run RLS beside the batch estimate (false where only the estimates are wanted).
+    bool run_rls{true};
 };
 
 /// The RLS run over the step-1 samples in time order.
