@@ -41,7 +41,7 @@ void reuse_freed_columns() {
 // less CPU time (docs/performance.md). A tunable the user set stands; FEEDID_HEAP_TUNED marks the second start (and
 // set to anything beforehand keeps the first); where /proc is missing, the command simply runs on.
 void restart_with_huge_pages(int argc, char** argv) {
-    static constexpr std::array<std::string_view, 5> batch{"identify", "gains", "simulate", "scan", "synth"};
+    static constexpr std::array<std::string_view, 6> batch{"info", "identify", "gains", "simulate", "scan", "synth"};
     if (argc < 2 || std::find(batch.begin(), batch.end(), std::string_view(argv[1])) == batch.end()) return;
     if (std::getenv("FEEDID_HEAP_TUNED") != nullptr) return;
     const char* tunables = std::getenv("GLIBC_TUNABLES");
