@@ -323,10 +323,9 @@ double minimise_profile(const DelayProfile& profile, double limit, double sample
     return 0.5 * (a + b);
 }
 
-/// The time derivative of a column within each stretch (central differences).
-std::vector<double> column_derivative(const Derivatives& d, std::span<const double> column) {
+/// out -= theta * (the time derivative of `column` within each stretch, central differences), sample by sample.
+void subtract_derivative(const Derivatives& d, std::span<const double> column, double theta, std::vector<double>& out) {
     const std::size_t n = d.size();
-    std::vector<double> out(n, 0.0);
     for (std::size_t s = 0; s < d.segment_starts.size(); ++s) {
         const std::size_t begin = d.segment_starts[s];
         const std::size_t end = s + 1 < d.segment_starts.size() ? d.segment_starts[s + 1] : n;
@@ -334,10 +333,10 @@ std::vector<double> column_derivative(const Derivatives& d, std::span<const doub
         for (std::size_t k = begin; k < end; ++k) {
             const std::size_t before = k > begin ? k - 1 : k, after = k + 1 < end ? k + 1 : k;
             const double dt = d.time[after] - d.time[before];
-            out[k] = dt > 0.0 ? (column[after] - column[before]) / dt : 0.0;
+            const double derivative = dt > 0.0 ? (column[after] - column[before]) / dt : 0.0;
+            out[k] -= theta * derivative;
         }
     }
-    return out;
 }
 
 /// The delay's standard error at the (aligned) force: the Gauss-Newton linearisation F_log = Phi theta - tau
@@ -349,11 +348,8 @@ DelayFit linearised_delay(const Derivatives& d, const Regressors& regressors, co
     const LeastSquaresResult base = fit_columns(columns_of(regressors), regressors.output, rows, block);
     if (base.rank_deficient) return out;
     std::vector<double> column(d.size(), 0.0);
-    for (std::size_t c = 0; c < regressors.values.size(); ++c) {
-        const std::vector<double> derivative = column_derivative(d, regressors.values[c]);
-        const double theta = base.estimate(static_cast<Eigen::Index>(c));
-        for (std::size_t k = 0; k < column.size(); ++k) column[k] -= theta * derivative[k];
-    }
+    for (std::size_t c = 0; c < regressors.values.size(); ++c)
+        subtract_derivative(d, regressors.values[c], base.estimate(static_cast<Eigen::Index>(c)), column);
     const LeastSquaresResult fit = fit_columns(columns_of(regressors, column), regressors.output, rows, block);
     if (fit.rank_deficient) return out;
     const auto last = fit.estimate.size() - 1;
@@ -548,14 +544,24 @@ void detect_process_forces(const Derivatives& d, const Selection& selection, boo
     std::vector<double> fast(rows.size());
     for (std::size_t i = 0; i < rows.size(); ++i) fast[i] = largest.row(rows[i], phi.data()) - phi.dot(theta);
     // the steady passes: each one's friction is one level, so a burst shows against the pass's median
+    const auto slow_member = [&](std::size_t k) { return selection.steady(k) && !selection.near_rest(k); };
+    std::size_t slow_count = 0;  // counted first: the columns below are allocated once, at their size
+    for (const auto& pass : selection.stick_slip.passes) {
+        if (pass.stick_slip) continue;
+        std::size_t members = 0;
+        for (std::size_t k = pass.first; k < pass.last && k < d.size(); ++k) members += slow_member(k) ? 1 : 0;
+        if (members >= 20) slow_count += members;
+    }
     std::vector<std::size_t> slow_index;
     std::vector<double> slow;
+    slow_index.reserve(slow_count);
+    slow.reserve(slow_count);
     for (const auto& pass : selection.stick_slip.passes) {
         if (pass.stick_slip) continue;
         std::vector<double> level;
         std::vector<std::size_t> members;
         for (std::size_t k = pass.first; k < pass.last && k < d.size(); ++k) {
-            if (!selection.steady(k) || selection.near_rest(k)) continue;
+            if (!slow_member(k)) continue;
             members.push_back(k);
             level.push_back(d.force[k] - mass * d.acceleration[k]);
         }
