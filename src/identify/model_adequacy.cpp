@@ -525,25 +525,10 @@ void find_bursts(const Derivatives& d, const std::vector<std::size_t>& index, co
     close();
 }
 
-/// Bursts of force the model does not explain: on step 1's samples against a robust fit of the largest model; on
-/// the quasi-static samples of every steady pass (whose friction is one level) against the pass's median force less
-/// M x''. Said in `choice.process_forces` when there is one.
-void detect_process_forces(const Derivatives& d, const Selection& selection, bool one_way,
-                           const ModelSelectionOptions& options, RegressorColumnCache& columns, ModelChoice& choice) {
-    const auto& rows = selection.step1;
-    Regressors largest =
-        build_regressors(d, one_way ? FrictionModelKind::symmetric : FrictionModelKind::asymmetric, false, &columns);
-    // with the timing term: a drive signal out of step with the position leaves one-sided stretches wherever the
-    // force changes, which are not a process force (the column is not a friction term: Term::offset marks it)
-    largest.owned.push_back(std::make_shared<const std::vector<double>>(delay_column(d)));
-    largest.values.emplace_back(*largest.owned.back());
-    largest.columns.push_back(RegressorColumn{Term::offset, Direction::both});
-    const Eigen::VectorXd theta = robust_fit(largest, rows, options.tukey_constant);
-    const double mass = theta(0);
-    Eigen::VectorXd phi(static_cast<Eigen::Index>(largest.parameters()));
-    std::vector<double> fast(rows.size());
-    for (std::size_t i = 0; i < rows.size(); ++i) fast[i] = largest.row(rows[i], phi.data()) - phi.dot(theta);
-    // the steady passes: each one's friction is one level, so a burst shows against the pass's median
+/// The quasi-static samples of every steady pass (at least 20 of them) and their force less M x'' against the pass's
+/// median: each pass's friction is one level, so a burst shows against it.
+void steady_pass_levels(const Derivatives& d, const Selection& selection, double mass,
+                        std::vector<std::size_t>& slow_index, std::vector<double>& slow) {
     const auto slow_member = [&](std::size_t k) { return selection.steady(k) && !selection.near_rest(k); };
     std::size_t slow_count = 0;  // counted first: the columns below are allocated once, at their size
     for (const auto& pass : selection.stick_slip.passes) {
@@ -552,8 +537,6 @@ void detect_process_forces(const Derivatives& d, const Selection& selection, boo
         for (std::size_t k = pass.first; k < pass.last && k < d.size(); ++k) members += slow_member(k) ? 1 : 0;
         if (members >= 20) slow_count += members;
     }
-    std::vector<std::size_t> slow_index;
-    std::vector<double> slow;
     slow_index.reserve(slow_count);
     slow.reserve(slow_count);
     for (const auto& pass : selection.stick_slip.passes) {
@@ -573,6 +556,29 @@ void detect_process_forces(const Derivatives& d, const Selection& selection, boo
             slow.push_back(level[m] - median);
         }
     }
+}
+
+/// Bursts of force the model does not explain: on step 1's samples against a robust fit of the largest model; on
+/// the quasi-static samples of every steady pass (whose friction is one level) against the pass's median force less
+/// M x''. Said in `choice.process_forces` when there is one.
+void detect_process_forces(const Derivatives& d, const Selection& selection, bool one_way,
+                           const ModelSelectionOptions& options, RegressorColumnCache& columns, ModelChoice& choice) {
+    const auto& rows = selection.step1;
+    Regressors largest =
+        build_regressors(d, one_way ? FrictionModelKind::symmetric : FrictionModelKind::asymmetric, false, &columns);
+    // with the timing term: a drive signal out of step with the position leaves one-sided stretches wherever the
+    // force changes, which are not a process force (the column is not a friction term: Term::offset marks it)
+    largest.owned.push_back(std::make_shared<const std::vector<double>>(delay_column(d)));
+    largest.values.emplace_back(*largest.owned.back());
+    largest.columns.push_back(RegressorColumn{Term::offset, Direction::both});
+    const Eigen::VectorXd theta = robust_fit(largest, rows, options.tukey_constant);
+    const double mass = theta(0);
+    Eigen::VectorXd phi(static_cast<Eigen::Index>(largest.parameters()));
+    std::vector<double> fast(rows.size());
+    for (std::size_t i = 0; i < rows.size(); ++i) fast[i] = largest.row(rows[i], phi.data()) - phi.dot(theta);
+    std::vector<std::size_t> slow_index;
+    std::vector<double> slow;
+    steady_pass_levels(d, selection, mass, slow_index, slow);
     const std::size_t correlation = std::max<std::size_t>(1, d.correlation_samples);
     const auto minimum = static_cast<std::size_t>(std::max(
         options.burst_correlation_lengths * static_cast<double>(correlation), options.burst_min_s / d.sample_time_s));
