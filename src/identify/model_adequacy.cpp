@@ -187,6 +187,7 @@ struct DelayFit {
     double delay{0.0};
     double standard_error{0.0};
     double largest_correlation{0.0};  // of the delay with a parameter of the model
+    double plain_standard_error{0.0};  // as if the residuals were uncorrelated
     bool valid{false};
 };
 
@@ -355,12 +356,45 @@ DelayFit linearised_delay(const Derivatives& d, const Regressors& regressors, co
     const auto last = fit.estimate.size() - 1;
     out.delay = fit.estimate(last);
     out.standard_error = fit.standard_error(last);
+    const LeastSquaresResult plain = fit_columns(columns_of(regressors, column), regressors.output, rows, 1);
+    out.plain_standard_error = plain.rank_deficient ? 0.0 : plain.standard_error(last);
     for (Eigen::Index j = 0; j < last; ++j) {
         const double scale = std::sqrt(fit.covariance(last, last) * fit.covariance(j, j));
         if (scale > 0.0) out.largest_correlation = std::max(out.largest_correlation, std::abs(fit.covariance(last, j)) / scale);
     }
+    // and with all of them at once (the multiple correlation, 1 - 1/(C_tt (C^-1)_tt)): on a sinusoidal motion a shift
+    // is a change of M and B together, M x''(t + tau) + B x'(t + tau) = (M + B tau) x'' + (B - M w^2 tau) x', while
+    // its correlation with each alone stays moderate
+    const Eigen::LDLT<Eigen::MatrixXd> covariance(fit.covariance);
+    if (covariance.info() == Eigen::Success) {
+        const Eigen::VectorXd unit = Eigen::VectorXd::Unit(fit.covariance.rows(), last);
+        const double information = unit.dot(covariance.solve(unit));
+        const double shared = 1.0 - 1.0 / (fit.covariance(last, last) * information);
+        if (std::isfinite(shared)) out.largest_correlation = std::max(out.largest_correlation, std::sqrt(std::max(0.0, shared)));
+    }
     out.valid = std::isfinite(out.delay) && std::isfinite(out.standard_error) && out.standard_error > 0.0;
     return out;
+}
+
+/// The delay's standard error from the profile's own curvature at its minimum where that is the wider: the
+/// linearisation's column is the model's time derivative, which on a quantised position carries noise of its own (a
+/// third derivative of the position) that looks like information; on a motion where a shift is a change of the
+/// parameters (one sinusoid: M x''(t + tau) + B x'(t + tau) is (M + B tau) x'' + (B - M w^2 tau) x') the profile is
+/// flat however sharp the column makes it look. Correlated residuals widen both alike. A profile that does not curve
+/// up at all leaves the delay as wide as the search.
+void widen_to_profile(const DelayProfile& profile, double delay, double sample_time, double search, std::size_t rows,
+                      std::size_t parameters, DelayFit& fit) {
+    if (!fit.valid || rows <= parameters) return;
+    // a whole sample either side: the interpolated force's smoothing changes with the shift's fraction of a sample
+    // (a ripple of one sample's period on the profile), which points a whole sample apart share
+    const double h = sample_time;
+    const double at = profile.residual(delay);
+    const double curvature = (profile.residual(delay + h) - 2.0 * at + profile.residual(delay - h)) / (h * h);
+    const double variance = at / static_cast<double>(rows - parameters);
+    const double inflation =
+        fit.plain_standard_error > 0.0 ? std::max(1.0, fit.standard_error / fit.plain_standard_error) : 1.0;
+    const double from_profile = curvature > 0.0 ? std::sqrt(2.0 * variance / curvature) * inflation : search;
+    if (std::isfinite(from_profile)) fit.standard_error = std::max(fit.standard_error, from_profile);
 }
 
 /// The delay: the profile's minimum in the largest model the data can take, tested against its standard error,
@@ -392,6 +426,8 @@ void choose_delay(Derivatives& d, const std::vector<std::size_t>& rows, bool one
         shift_drive_force(d, delay);
         fit = linearised_delay(d, largest, rows, block);
         std::copy(logged.begin(), logged.end(), d.force.begin());
+        widen_to_profile(profile, delay, d.sample_time_s, 2.0 * options.max_delay_s, rows.size(),
+                         largest.parameters(), fit);
     }
     if (!fit.valid) {
         candidate.verdict = "not estimable from these samples";
@@ -409,7 +445,7 @@ void choose_delay(Derivatives& d, const std::vector<std::size_t>& rows, bool one
         // on a motion whose jerk is a combination of its speed and a constant (one smooth stroke), a shift of the
         // force in time is a change of B and F_C: the data cannot say which
         candidate.verdict = fmt::format(
-            "not separable from the model's parameters on these samples (correlated {:.4f} with one of them)",
+            "not separable from the model's parameters on these samples (correlated {:.4f} with them)",
             fit.largest_correlation);
         choice.findings.push_back(fmt::format(
             "the drive signal's timing cannot be told from the friction on these samples (a shift of {:.3g} ms would "
