@@ -280,48 +280,48 @@ private:
     bool valid_{false};
 };
 
-/// The delay minimising the profile within +-limit: a grid, then a golden-section search around its best point.
-double minimise_profile(const DelayProfile& profile, double limit, double sample_time) {
-    const double step = std::max(sample_time / 4.0, limit / 20.0);
-    std::vector<double> grid{0.0};
-    for (double tau = -limit; tau <= limit + 1e-12; tau += step) grid.push_back(tau);
-    // the grid's points are independent passes over the rows: shared among the cores
-    std::vector<double> values(grid.size());
+/// The profile at whole-sample shifts m * sample_time, evaluated on every core (independent passes over the rows).
+std::vector<double> profile_at(const DelayProfile& profile, const std::vector<long>& shifts, double sample_time) {
+    std::vector<double> values(shifts.size());
     std::atomic<std::size_t> next{0};
     const auto work = [&] {
-        for (std::size_t i = next++; i < grid.size(); i = next++) values[i] = profile.residual(grid[i]);
+        for (std::size_t i = next++; i < shifts.size(); i = next++)
+            values[i] = profile.residual(static_cast<double>(shifts[i]) * sample_time);
     };
     std::vector<std::thread> helpers(std::min<std::size_t>(std::max(1u, std::thread::hardware_concurrency()), 4) - 1);
     for (auto& helper : helpers) helper = std::thread(work);
     work();
     for (auto& helper : helpers) helper.join();
-    double best = grid[0], best_value = values[0];
-    for (std::size_t i = 1; i < grid.size(); ++i) {
-        if (values[i] < best_value) {
-            best_value = values[i];
-            best = grid[i];
-        }
+    return values;
+}
+
+/// The shift of `shifts` with the smallest profile (the first of equals).
+long best_shift(const DelayProfile& profile, const std::vector<long>& shifts, double sample_time) {
+    const std::vector<double> values = profile_at(profile, shifts, sample_time);
+    return shifts[static_cast<std::size_t>(std::min_element(values.begin(), values.end()) - values.begin())];
+}
+
+/// The delay minimising the profile within +-limit. Searched on whole samples only: a shift by a fraction of a sample
+/// interpolates the force, which smooths it, and the smoothing alone lowers the residual (by 0.06 % at half a sample on
+/// the benchmark trace); on a profile the data leave nearly flat a search over fractional shifts finds that ripple's
+/// minimum, not the delay (4.5 ms on a trace built with 0.5). The best whole sample (on a grid of at most about 40
+/// points, then its neighbours) is refined by the parabola through it and its two neighbours, whose fractions are
+/// equal.
+double minimise_profile(const DelayProfile& profile, double limit, double sample_time) {
+    const auto reach = static_cast<long>(std::floor(limit / sample_time + 1e-9));
+    const long stride = std::max(1L, reach / 20);
+    std::vector<long> shifts;
+    for (long m = -(reach / stride) * stride; m <= reach; m += stride) shifts.push_back(m);
+    long best = best_shift(profile, shifts, sample_time);
+    if (stride > 1) {
+        shifts.clear();
+        for (long m = best - stride + 1; m < best + stride; ++m) shifts.push_back(m);
+        best = best_shift(profile, shifts, sample_time);
     }
-    const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
-    double a = best - step, b = best + step;
-    double c = b - ratio * (b - a), e = a + ratio * (b - a);
-    double fc = profile.residual(c), fe = profile.residual(e);
-    for (int i = 0; i < 30 && (b - a) > 1e-4 * sample_time; ++i) {
-        if (fc < fe) {
-            b = e;
-            e = c;
-            fe = fc;
-            c = b - ratio * (b - a);
-            fc = profile.residual(c);
-        } else {
-            a = c;
-            c = e;
-            fc = fe;
-            e = a + ratio * (b - a);
-            fe = profile.residual(e);
-        }
-    }
-    return 0.5 * (a + b);
+    const std::vector<double> around = profile_at(profile, {best - 1, best, best + 1}, sample_time);
+    const double curvature = around[0] - 2.0 * around[1] + around[2];
+    const double vertex = curvature > 0.0 ? std::clamp(0.5 * (around[0] - around[2]) / curvature, -1.0, 1.0) : 0.0;
+    return (static_cast<double>(best) + vertex) * sample_time;
 }
 
 /// out -= theta * (the time derivative of `column` within each stretch, central differences), sample by sample.
