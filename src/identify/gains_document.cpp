@@ -85,6 +85,9 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
         {"drive_delay_samples", result.drive_delay_samples},
         {naming.saturation_key(), result.controller.saturation_N},
         {"sample_time_s", result.controller.velocity_cycle_s},
+        {"servo_rate_hz", result.servo_rate_hz},
+        {"fit", result.fit_kind},
+        {"servo_rate_from", result.servo_rate_from},
     };
     // a position loop slower than the velocity loop (a position held over several samples): its own cycle
     if (result.controller.position_cycle_s > result.controller.velocity_cycle_s)
