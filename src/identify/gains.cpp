@@ -87,6 +87,7 @@ struct Structure {
 struct Problem {
     std::vector<Column> columns;  // regressors, filtered
     Column y;                     // what the regressors explain
+    std::size_t row_step{1};      // the samples between rows that follow each other (a held position's factor)
     const std::vector<char>* use{nullptr};
 };
 
@@ -143,13 +144,14 @@ struct Fit {
 // white; what the model lacks (an injected signal, a missing term) varies slowly from sample to sample. For white
 // noise of variance s^2, E[(r_k - r_{k-1})^2] = 2*s^2 (von Neumann), while a slowly varying part barely changes the
 // differences; so ||r_s||^2 = ||r||^2 - N*s^2 with s^2 from the differences of rows that follow each other.
-double systematic_error_pct(const Eigen::VectorXd& residual, const std::vector<std::size_t>& rows, double target_norm) {
+double systematic_error_pct(const Eigen::VectorXd& residual, const std::vector<std::size_t>& rows, double target_norm,
+                            std::size_t row_step) {
     double squares = 0.0;
     double differences = 0.0;
     std::size_t pairs = 0;
     for (Eigen::Index k = 0; k < residual.size(); ++k) {
         squares += residual(k) * residual(k);
-        if (k > 0 && rows[static_cast<std::size_t>(k)] == rows[static_cast<std::size_t>(k - 1)] + 1) {
+        if (k > 0 && rows[static_cast<std::size_t>(k)] == rows[static_cast<std::size_t>(k - 1)] + row_step) {
             differences += (residual(k) - residual(k - 1)) * (residual(k) - residual(k - 1));
             ++pairs;
         }
@@ -202,7 +204,7 @@ Fit fit(const Problem& problem, const RlsOptions& options) {
     result.relative_error_pct = batch.relative_error_pct;
     if (!batch.rank_deficient) {
         const Eigen::VectorXd residual = target / y_scale - phi * batch.estimate;
-        result.systematic_error_pct = systematic_error_pct(residual, sample_of_row, target.norm() / y_scale);
+        result.systematic_error_pct = systematic_error_pct(residual, sample_of_row, target.norm() / y_scale, problem.row_step);
     }
     Eigen::VectorXd rls;
     const Eigen::VectorXd scaled_target = target / y_scale;
@@ -557,10 +559,12 @@ struct ServoGrid {
     Column last_loop_row;  // the logged row of the position loop's last run, per servo instant
 };
 
-// The cubic through the logged samples k-1, k, k+1, k+2 at k + f (0 <= f < 1); the ends repeat their samples.
-double cubic_at(std::span<const double> x, std::size_t k, double f) {
-    const std::size_t last = x.size() - 1;
-    const double p0 = x[k == 0 ? 0 : k - 1], p1 = x[k], p2 = x[std::min(k + 1, last)], p3 = x[std::min(k + 2, last)];
+// The cubic through the samples k-1, k, k+1, k+2 of x (every `step`-th value from `first`: a held signal's fresh
+// ones) at k + f (0 <= f < 1); the ends repeat their samples.
+double cubic_at(std::span<const double> x, std::size_t first, std::size_t step, std::size_t k, double f) {
+    const std::size_t last = (x.size() - 1 - first) / step;
+    const auto at = [&](std::size_t q) { return x[first + std::min(q, last) * step]; };
+    const double p0 = at(k == 0 ? 0 : k - 1), p1 = at(k), p2 = at(k + 1), p3 = at(k + 2);
     // Lagrange on the nodes -1, 0, 1, 2
     return p0 * (-f * (f - 1.0) * (f - 2.0) / 6.0) + p1 * ((f + 1.0) * (f - 1.0) * (f - 2.0) / 2.0) +
            p2 * (-(f + 1.0) * f * (f - 2.0) / 2.0) + p3 * ((f + 1.0) * f * (f - 1.0) / 6.0);
@@ -583,7 +587,11 @@ ServoGrid servo_grid(const GainSignals& signals, int factor) {
         const std::size_t loop_row = hold < 2 || k < phase ? k : k - (k - phase) % hold;
         for (std::size_t i = 0; i < m; ++i) {
             const double f = static_cast<double>(i) / static_cast<double>(m);
-            grid.position[k * m + i] = cubic_at(signals.position, k, f);
+            // a held position: the cubic through its fresh samples, at the time since the last one
+            const double since = k < phase ? 0.0 : (static_cast<double>(k - loop_row) + f) / static_cast<double>(hold);
+            grid.position[k * m + i] =
+                hold < 2 ? cubic_at(signals.position, 0, 1, k, f)
+                         : cubic_at(signals.position, phase, hold, k < phase ? 0 : (loop_row - phase) / hold, since);
             grid.reference[k * m + i] =
                 hold < 2 ? signals.reference[k] + f * (signals.reference[next] - signals.reference[k])
                          : signals.reference[k];
@@ -666,6 +674,7 @@ struct VelocityLoopRegression {
             for (std::size_t k = 0; k < problem.y.size(); ++k) problem.y[k] -= injected[k];
         }
         problem.use = &use;
+        problem.row_step = static_cast<std::size_t>(signals.hold_factor);
         return problem;
     }
 
@@ -678,6 +687,7 @@ struct VelocityLoopRegression {
         problem.y = signals.force;
         for (std::size_t k = 0; k < problem.y.size(); ++k) problem.y[k] -= bank.injection[k];
         problem.use = &use;
+        problem.row_step = static_cast<std::size_t>(signals.hold_factor);
         return problem;
     }
 
@@ -1153,14 +1163,16 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
         result.controller = identified_controller(result, options, signals.dt, signals.hold_factor);
         return result;
     }
-    if (signals.hold_factor > 1) {
-        result.diagnostics.push_back(fmt::format(
-            "the position holds each value over {} samples: fitted on the samples where it is new, the position "
-            "loop taken to run every {:.6g} ms and the velocity loop every {:.6g} ms (the drive signal's interval)",
-            signals.hold_factor, signals.dt * signals.hold_factor * 1e3, signals.dt * 1e3));
-    }
     if (signals.logged_command) identify_position_loop(signals, options, result);
     const VelocityLoopFit velocity_loop = fit_velocity_loop_at_its_rate(trace, signals, use, options, result);
+    if (signals.hold_factor > 1) {
+        result.diagnostics.insert(
+            result.diagnostics.end() - (result.fit_kind == "output_error" ? 1 : 0),
+            fmt::format("the position holds each value over {} samples: fitted on the samples where it is new, the "
+                        "position loop taken to run every {:.6g} ms and the velocity loop every {:.6g} ms{}",
+                        signals.hold_factor, signals.dt * signals.hold_factor * 1e3, 1e3 / result.servo_rate_hz,
+                        result.fit_kind == "output_error" ? "" : " (the drive signal's interval)"));
+    }
     set_velocity_loop_gains(velocity_loop, signals.logged_command, result);
     set_structure_and_fit(velocity_loop, signals.dt, result);
     result.injection_subtracted = !signals.injection.empty();

@@ -38,6 +38,7 @@ constexpr double rotary_rad_per_length_unit = 1000.0 * std::numbers::pi / 180.0;
 // SINUMERIK servo trace: 2 ms time base, position-loop signals every 4 ms.
 constexpr double sinumerik_sample_time_s = 0.002;
 constexpr double sinumerik_position_interval_s = 0.004;
+constexpr double sinumerik_speed_controller_rate_hz = 8000.0;
 
 // SI per unit of a recorded position or velocity ("deg" -> pi/180 rad); InputError for a unit that is not one of the
 // role's quantity on this axis kind.
@@ -200,9 +201,11 @@ SynthSpec rotary_demo_spec() {
 void apply_sinumerik_recording(SynthSpec& spec) {
     spec.sensors.sample_time_s = sinumerik_sample_time_s;
     spec.controller.position_cycle_s = sinumerik_position_interval_s;
-    spec.controller.velocity_cycle_s = sinumerik_sample_time_s;
-    spec.controller.velocity_difference_samples =
-        static_cast<int>(std::lround(sinumerik_position_interval_s / sinumerik_sample_time_s));
+    // the speed controller at its own 8 kHz (125 us, SINUMERIK's usual speed-controller cycle), measuring the
+    // velocity from the encoder every cycle, faster than any trace records
+    spec.servo_rate_hz = sinumerik_speed_controller_rate_hz;
+    spec.controller.velocity_cycle_s = 1.0 / sinumerik_speed_controller_rate_hz;
+    spec.controller.velocity_difference_samples = 1;
     auto& r = spec.recording;
     r.position_interval_s = sinumerik_position_interval_s;
     r.velocity_interval_s = sinumerik_position_interval_s;
