@@ -213,7 +213,8 @@ Fit fit(const Problem& problem, const RlsOptions& options) {
         case 2: rls = run_rls<2>(phi, scaled_target, options); break;
         case 3: rls = run_rls<3>(phi, scaled_target, options); break;
         case 4: rls = run_rls<4>(phi, scaled_target, options); break;
-        default: rls = run_rls<5>(phi, scaled_target, options); break;
+        case 5: rls = run_rls<5>(phi, scaled_target, options); break;
+        default: rls = run_rls<6>(phi, scaled_target, options); break;  // PI structure and an injection's gain
     }
     const Eigen::VectorXd unscale = scale.cwiseInverse() * y_scale;
     result.estimate = rls.cwiseProduct(unscale);
@@ -658,6 +659,7 @@ struct VelocityLoopRegression {
     const std::vector<char>& use;
     const ServoGrid* grid{nullptr};  // the servo grid, when the velocity loop runs faster than the log
     Column servo_command{};          // v_cmd on it (logged command only)
+    bool injection_gain_known{false};  // the injection enters with gain 1 (else its gain is fitted)
 
     [[nodiscard]] Problem problem(const Structure& s, bool integral) const {
         if (grid != nullptr) return servo_rate_problem(s, integral);
@@ -671,7 +673,7 @@ struct VelocityLoopRegression {
         if (!signals.injection.empty()) {
             Column injected = signals.injection;
             apply_drive_filter(injected, a, s.mu);
-            for (std::size_t k = 0; k < problem.y.size(); ++k) problem.y[k] -= injected[k];
+            add_injection(problem, std::move(injected));
         }
         problem.use = &use;
         problem.row_step = static_cast<std::size_t>(signals.hold_factor);
@@ -685,7 +687,7 @@ struct VelocityLoopRegression {
         Problem problem;
         problem.columns = bank.columns;
         problem.y = signals.force;
-        for (std::size_t k = 0; k < problem.y.size(); ++k) problem.y[k] -= bank.injection[k];
+        if (!signals.injection.empty()) add_injection(problem, bank.injection);
         problem.use = &use;
         problem.row_step = static_cast<std::size_t>(signals.hold_factor);
         return problem;
@@ -697,6 +699,17 @@ struct VelocityLoopRegression {
     };
 
     [[nodiscard]] ServoFilterBank servo_columns(const Structure& s, bool integral) const;
+
+    // The injection through the drive filter, L[u_inj], enters the drive signal with the gain g of whatever lies
+    // between the logged test signal and the drive (a DAC, an amplifier): a column of its own, g fitted with the
+    // gains, the last in theta; with injection_gain_known, g = 1 and L[u_inj] is taken out of the drive signal.
+    void add_injection(Problem& problem, Column injected) const {
+        if (!injection_gain_known) {
+            problem.columns.push_back(std::move(injected));
+            return;
+        }
+        for (std::size_t k = 0; k < problem.y.size(); ++k) problem.y[k] -= injected[k];
+    }
 };
 
 ServoRow servo_row(const VelocityLoopRegression& r, const Column& logged_error, std::size_t j, int difference,
@@ -831,6 +844,7 @@ struct VelocityLoopFit {
     Structure structure;
     Fit fit;
     bool integral{false};
+    bool injection_gain{false};  // theta ends in the injection's gain
 };
 
 // Why the PI fit shows no integral action ("" when it does): K_i not significant (not above three standard errors),
@@ -942,6 +956,7 @@ ControllerModel identified_controller(const GainResult& result, const GainOption
     controller.position_cycle_s = hold_factor > 1 ? dt * hold_factor : servo_cycle;
     controller.velocity_cycle_s = servo_cycle;
     controller.velocity_difference_samples = result.velocity_difference_samples;
+    controller.injection_gain = result.injection_gain.value.value_or(1.0);
     return controller;
 }
 
@@ -1009,6 +1024,7 @@ void gate_finite(const GainSignals& signals, const std::vector<char>& use, GainR
     check(result.velocity_integral_gain_N_per_m, "K_i");
     check(result.velocity_feedforward, "k_ff");
     check(result.reset_time_s, "T_n");
+    check(result.injection_gain, "the injection's gain");
     for (const auto& [value, name] :
          {std::pair{result.relative_error_pct, "the relative error"},
           std::pair{result.systematic_error_pct, "the systematic error"},
@@ -1056,24 +1072,44 @@ void gate_signs(const GainOptions& options, bool rotary, GainResult& result) {
 
 }  // namespace
 
+// An injection's gain is taken from the data when its standard error is below this fraction of it: it is there to
+// catch a DAC's or an amplifier's scale, a few per cent (a recording whose 5 V pulses act as 5.07 V).
+constexpr double injection_gain_resolution = 0.02;
+
 // The velocity loop fitted at `factor` servo cycles per logged sample (1: the equation-error fit on the logged
-// samples).
+// samples), with the gain of an injection (varying) fitted, or 1 where the data cannot tell it (said).
 VelocityLoopFit fit_at_servo_factor(const GainSignals& signals, const std::vector<char>& use, int factor,
                                     const GainOptions& options, const GainResult& position_loop,
                                     std::vector<std::string>& diagnostics) {
     SearchSpace space = search_space(signals, options);
-    if (factor == 1) return fit_velocity_loop(VelocityLoopRegression{signals, use}, space, options, diagnostics);
-    std::erase(space.differences, 0);  // a logged velocity is no measurement between the samples
-    if (space.differences.empty()) space.differences = {1, 2, 3, 4};
-    const ServoGrid grid = servo_grid(signals, factor);
-    VelocityLoopRegression regression{signals, use, &grid};
-    if (signals.logged_command) {
+    std::optional<ServoGrid> grid;
+    if (factor > 1) {
+        std::erase(space.differences, 0);  // a logged velocity is no measurement between the samples
+        if (space.differences.empty()) space.differences = {1, 2, 3, 4};
+        grid = servo_grid(signals, factor);
+    }
+    VelocityLoopRegression regression{signals, use, grid ? &*grid : nullptr};
+    if (grid && signals.logged_command) {
         const PositionLoop loop{position_loop.position_gain_per_s.value.value_or(0.0),
                                 position_loop.velocity_feedforward.value.value_or(0.0),
                                 position_loop.reference_delay_samples};
-        regression.servo_command = servo_velocity_command(signals, grid, loop);
+        regression.servo_command = servo_velocity_command(signals, *grid, loop);
     }
-    return fit_velocity_loop(regression, space, options, diagnostics);
+    const auto [low, high] = std::minmax_element(signals.injection.begin(), signals.injection.end());
+    regression.injection_gain_known = signals.injection.empty() || !(*high > *low);  // a constant is an offset
+    VelocityLoopFit loop = fit_velocity_loop(regression, space, options, diagnostics);
+    loop.injection_gain = !regression.injection_gain_known;
+    if (!loop.injection_gain) return loop;
+    const Eigen::Index g = loop.fit.estimate.size() - 1;
+    const double gain = loop.fit.estimate(g), se = std::sqrt(std::max(0.0, loop.fit.covariance(g, g)));
+    if (std::isfinite(gain) && std::isfinite(se) && se < injection_gain_resolution * std::abs(gain)) return loop;
+    diagnostics.push_back(fmt::format(
+        "the data cannot tell the gain with which the injection enters the drive signal (g = {:.4g} +- {:.2g}, "
+        "not within {:g} %): taken as 1",
+        gain, se, 100.0 * injection_gain_resolution));
+    regression.injection_gain_known = true;
+    loop = fit_velocity_loop(regression, space, options, diagnostics);
+    return loop;
 }
 
 // Servo cycles per logged sample of a rate [Hz]; InputError unless a whole multiple (1 to 64) of the sample rate.
@@ -1176,6 +1212,13 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
     set_velocity_loop_gains(velocity_loop, signals.logged_command, result);
     set_structure_and_fit(velocity_loop, signals.dt, result);
     result.injection_subtracted = !signals.injection.empty();
+    if (velocity_loop.injection_gain) {
+        const Eigen::Index g = velocity_loop.fit.estimate.size() - 1;
+        result.injection_gain =
+            estimate_from_variance(velocity_loop.fit.estimate(g), velocity_loop.fit.covariance(g, g));
+    } else if (result.injection_subtracted) {
+        result.injection_gain.value = 1.0;
+    }
     gate_finite(signals, use, result);
     if (result.status != Status::failed) gate_fit_quality(result.injection_subtracted, result);
     gate_signs(options, signals.rotary, result);

@@ -100,6 +100,11 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
                         result.method == "velocity_command" ? nlohmann::json(result.position_loop_relative_error_pct)
                                                             : nlohmann::json()},
                        {"samples_used", result.samples_used}};
+    if (result.injection_subtracted) {
+        // g: the drive signal holds the controller's output plus g times the injection as logged
+        document["injection"] = {{"gain", result.injection_gain},
+                                 {"gain_from", result.injection_gain.standard_error ? "fit" : "assumed"}};
+    }
     document["diagnostics"] = result.diagnostics;
     document["trace"] = {{"path", trace.source_path}, {"samples", trace.samples()}};
     explain_nulls(document, [&](std::string_view path) { return gains_null_reason(path, result, options, naming); });
@@ -151,6 +156,7 @@ ControllerModel controller_from_document(const nlohmann::json& document, const s
         model.velocity_cycle_s = value_of(structure, "sample_time_s").value_or(0.0);
         model.position_cycle_s = value_of(structure, "position_cycle_s").value_or(model.velocity_cycle_s);
     }
+    if (document.contains("injection")) model.injection_gain = value_of(document["injection"], "gain").value_or(1.0);
     if (const auto problem = model.validate(); !problem.empty()) {
         throw InputError(fmt::format("{}: {}", source, problem));
     }

@@ -209,6 +209,7 @@ public:
           reference_step_(static_cast<double>(position_every_) * h),
           lag_(model.current_lag_s > 0.0 ? std::exp(-h / model.current_lag_s) : 0.0),
           saturation_(model.saturation_N.value_or(std::numeric_limits<double>::infinity())),
+          injection_gain_(model.injection_gain),
           controller_(model, reference_step_, static_cast<double>(velocity_every_) * h) {}
 
     // At rest at the measured position, on the first reference sample, the integrator holding `held_force` [N] (and
@@ -239,7 +240,7 @@ public:
             force_command_ = controller_.velocity_step(velocity_command_, measured);
         }
         --velocity_countdown_;
-        const double command = std::clamp(force_command_ + injection, -saturation_, saturation_);
+        const double command = std::clamp(force_command_ + injection_gain_ * injection, -saturation_, saturation_);
         drive_force_ = lag_ * drive_force_ + (1.0 - lag_) * command;
     }
 
@@ -260,6 +261,7 @@ private:
     double reference_step_;  // the position loop's period [s], for the reference velocity
     double lag_;             // exp(-h/tau)
     double saturation_;      // |F_cmd + u_inj| limit [N] (infinite = none)
+    double injection_gain_;  // g of F_cmd + g*u_inj
     Controller controller_;
     long position_countdown_{0};  // steps until the position loop runs again
     long velocity_countdown_{0};

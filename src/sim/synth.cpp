@@ -252,6 +252,7 @@ void read_controller(ConfigSection& top, SynthSpec& spec) {
         model.saturation_N = *v;
     c->accept("saturation_N");
     c->read("current_lag_ms", model.current_lag_s, 1e-3);
+    c->read("injection_gain", model.injection_gain);
     c->read("position_cycle_ms", model.position_cycle_s, 1e-3);
     c->read("velocity_cycle_ms", model.velocity_cycle_s, 1e-3);
     if (const auto v = c->number("velocity_difference_samples"))
@@ -432,6 +433,7 @@ nlohmann::json spec_to_json(const SynthSpec& spec) {
                               {"velocity_feedforward", c.velocity_feedforward},
                               {"saturation_N", c.saturation_N ? nlohmann::json(*c.saturation_N) : nlohmann::json()},
                               {"current_lag_ms", c.current_lag_s * 1e3},
+                              {"injection_gain", c.injection_gain},
                               {"position_cycle_ms", c.position_cycle_s * 1e3},
                               {"velocity_cycle_ms", c.velocity_cycle_s * 1e3},
                               {"velocity_difference_samples", c.velocity_difference_samples},
@@ -766,6 +768,7 @@ void log_injection(const SynthSpec& spec, std::span<const double> injection, Tra
     channel.interval_source = IntervalSource::time_base;
     trace.constants["true_injection_amplitude_N"] = spec.injection->amplitude_N;
     trace.constants["true_injection_frequency_Hz"] = spec.injection->frequency_Hz;
+    trace.constants["true_injection_gain"] = spec.controller.injection_gain;
 }
 
 }  // namespace

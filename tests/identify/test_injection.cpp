@@ -365,4 +365,50 @@ TEST(Injection, CommandLineBadInjectionUnitIsExitTwoInOneLine) {
     EXPECT_NE(result.err.find("injection channel 'u'"), std::string::npos) << result.err;
 }
 
+// The gains of an injection recording whose injection enters the drive with gain g, from the library.
+feedid::GainResult gains_with_injection(const feedid::Trace& trace) {
+    feedid::DriveConstants drive;
+    drive.force_constant_name = "force_constant_N_per_A";
+    feedid::GainOptions options;
+    feedid::set_drive_signal(options, trace, drive, std::nullopt);
+    return feedid::identify_gains(trace, feedid::drive_force(trace, drive), options,
+                                  feedid::injection_force(trace, drive));
+}
+
+TEST(Injection, TheInjectionsOwnGainIsEstimated) {
+    // The figures: an injection entering with gain 0.9 to 1.1, K_p within 0.2 % and the gain within 0.5 %.
+    for (const double gain : {0.9, 0.95, 1.0, 1.05, 1.1}) {
+        auto spec = injected_spec(300.0, 1.0);
+        spec.controller.injection_gain = gain;
+        const auto trace = feedid::synthesize(spec);
+        EXPECT_DOUBLE_EQ(trace.constants.at("true_injection_gain"), gain);
+        const auto result = gains_with_injection(trace);
+        EXPECT_EQ(result.status, feedid::Status::ok) << gain;
+        ASSERT_TRUE(result.injection_gain.value && result.injection_gain.standard_error) << gain;
+        EXPECT_NEAR(*result.injection_gain.value, gain, 0.005 * gain);
+        const double kp = spec.controller.velocity_gain_N_s_per_m;
+        EXPECT_NEAR(*result.velocity_gain_N_s_per_m.value, kp, 0.002 * kp) << gain;
+        EXPECT_DOUBLE_EQ(result.controller.injection_gain, *result.injection_gain.value);
+        const auto document = feedid::gains_document(result, feedid::GainOptions{}, trace);
+        EXPECT_EQ(document["injection"]["gain_from"], "fit");
+        EXPECT_DOUBLE_EQ(document["injection"]["gain"]["value"].get<double>(), *result.injection_gain.value);
+        EXPECT_DOUBLE_EQ(feedid::controller_from_document(document, "gains.json").injection_gain,
+                         *result.injection_gain.value);
+    }
+}
+
+TEST(Injection, AGainTheDataCannotTellIsTakenAsOneAndSaidSo) {
+    // A wave of 0.01 N beside a current noise of 0.02 A (9 N): its gain is lost in the noise.
+    auto spec = injected_spec(0.01, 1.0);
+    spec.controller.injection_gain = 1.05;
+    const auto result = gains_with_injection(feedid::synthesize(spec));
+    ASSERT_TRUE(result.injection_gain.value);
+    EXPECT_EQ(*result.injection_gain.value, 1.0);
+    EXPECT_FALSE(result.injection_gain.standard_error);
+    const auto said = std::find_if(result.diagnostics.begin(), result.diagnostics.end(), [](const std::string& d) {
+        return d.find("cannot tell the gain with which the injection enters") != std::string::npos;
+    });
+    EXPECT_NE(said, result.diagnostics.end());
+}
+
 }  // namespace

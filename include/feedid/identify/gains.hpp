@@ -90,6 +90,10 @@ struct GainResult {
     double position_loop_relative_error_pct{0.0};  ///< of the position loop's fit (velocity_command method)
     std::size_t samples_used{0};
     bool injection_subtracted{false};  ///< an injected signal was taken out of the drive force before the fit
+    /// The gain [-] with which the injection enters the drive signal (drive force = controller output + g * the
+    /// injection as logged), fitted with the controller; 1 without a standard error where the data cannot tell it
+    /// (a diagnostic says so). Null without an injection.
+    Estimate injection_gain;
     std::vector<std::string> diagnostics;
 };
 
