@@ -14,6 +14,7 @@
 // least-squares residuals.
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -1181,6 +1182,75 @@ VelocityLoopFit fit_velocity_loop_at_its_rate(const Trace& trace, const GainSign
     return best;
 }
 
+namespace {
+
+bool named_like_injection(std::string name) {
+    std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return std::tolower(c); });
+    for (const char* word : {"pulse", "inject", "excitation", "dither", "prbs"}) {
+        if (name.find(word) != std::string::npos) return true;
+    }
+    return false;
+}
+
+// Pearson's correlation of a and b; 0 when either is constant.
+double correlation(std::span<const double> a, std::span<const double> b) {
+    const auto n = static_cast<double>(a.size());
+    const double mean_a = std::accumulate(a.begin(), a.end(), 0.0) / n;
+    const double mean_b = std::accumulate(b.begin(), b.end(), 0.0) / n;
+    double ab = 0.0, aa = 0.0, bb = 0.0;
+    for (std::size_t k = 0; k < a.size(); ++k) {
+        ab += (a[k] - mean_a) * (b[k] - mean_b);
+        aa += (a[k] - mean_a) * (a[k] - mean_a);
+        bb += (b[k] - mean_b) * (b[k] - mean_b);
+    }
+    return aa > 0.0 && bb > 0.0 ? ab / std::sqrt(aa * bb) : 0.0;
+}
+
+// A square wave: nine in ten samples at its lowest or highest level (within 1 % of the range), switching between
+// them at least four times.
+bool square_wave(std::span<const double> values) {
+    const auto [low, high] = std::minmax_element(values.begin(), values.end());
+    const double range = *high - *low;
+    if (!(range > 0.0) || !std::isfinite(range)) return false;
+    std::size_t at_levels = 0, switches = 0;
+    int last = 0;
+    for (const double value : values) {
+        const int level = value <= *low + 0.01 * range ? -1 : value >= *high - 0.01 * range ? 1 : 0;
+        if (level == 0) continue;
+        ++at_levels;
+        if (last != 0 && level != last) ++switches;
+        last = level;
+    }
+    return at_levels >= values.size() * 9 / 10 && switches >= 4;
+}
+
+}  // namespace
+
+std::optional<InjectionLike> unmapped_injection(const Trace& trace) {
+    if (trace.has(Role::injection) || trace.samples() < 50) return std::nullopt;
+    const auto* reference = trace.find(Role::reference_position);
+    const auto* position = trace.find(Role::position);
+    Column error;
+    if (reference != nullptr && position != nullptr) {
+        error.resize(trace.samples());
+        for (std::size_t k = 0; k < error.size(); ++k) error[k] = reference->values[k] - position->values[k];
+    }
+    for (const auto& channel : trace.channels) {
+        if (channel.role != Role::other || channel.values.size() != trace.samples()) continue;
+        if (named_like_injection(channel.name)) return InjectionLike{channel.name, "named like one"};
+        if (square_wave(channel.values) && (error.empty() || std::abs(correlation(channel.values, error)) < 0.3))
+            return InjectionLike{channel.name, "a square wave that the loop's following error does not follow"};
+    }
+    return std::nullopt;
+}
+
+std::string unmapped_injection_message(const InjectionLike& found) {
+    return fmt::format(
+        "channel '{}' looks like a test signal injected at the controller's output ({}) but has no role, so it is "
+        "not taken out of the drive signal; if it is one, map it with --channel injection={}",
+        found.channel, found.why, found.channel);
+}
+
 GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options,
                           std::span<const double> injection) {
     if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
@@ -1222,6 +1292,10 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
     gate_finite(signals, use, result);
     if (result.status != Status::failed) gate_fit_quality(result.injection_subtracted, result);
     gate_signs(options, signals.rotary, result);
+    if (signals.injection.empty()) {
+        if (const auto found = unmapped_injection(trace))
+            result.diagnostics.push_back(unmapped_injection_message(*found));
+    }
     result.controller = identified_controller(result, options, signals.dt, signals.hold_factor);
     return result;
 }

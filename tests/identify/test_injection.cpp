@@ -235,12 +235,15 @@ TEST(Injection, SimulateAddsTheInjectionAndReproducesTheValidationRun) {
     EXPECT_EQ(twin.document["status"], "ok");
     EXPECT_EQ(twin.document["injection"], true);
 
-    // Without the injection in the twin, the simulated force lacks the wave the measured force holds.
+    // Without the injection in the twin, the simulated force lacks the wave the measured force holds: the channel
+    // that looks like one is named, with the option, and the simulation is no validation (exit 1).
     const auto blind = simulate_validation_run(dir, "--gains " + quoted(dir / "gains.json"));
-    ASSERT_EQ(blind.exit_code, 0);
+    ASSERT_EQ(blind.exit_code, 1);
     EXPECT_GT(blind.document["relative_error_pct"]["force"].get<double>(), force_tolerance_pct)
         << blind.document["relative_error_pct"].dump();
     EXPECT_EQ(blind.document["injection"], false);
+    EXPECT_NE(blind.document["diagnostics"].dump().find("--channel injection=injection"), std::string::npos)
+        << blind.document["diagnostics"].dump();
 }
 
 TEST(Injection, SimulateIdentifiesTheGainsWithTheInjectionOrRefusesUntrustedOnes) {
@@ -409,6 +412,51 @@ TEST(Injection, AGainTheDataCannotTellIsTakenAsOneAndSaidSo) {
         return d.find("cannot tell the gain with which the injection enters") != std::string::npos;
     });
     EXPECT_NE(said, result.diagnostics.end());
+}
+
+// A validation run whose injection channel is renamed (and so has no role).
+std::filesystem::path renamed_injection(const std::filesystem::path& dir, const std::string& name) {
+    const auto validation = validation_run(dir);
+    std::string text = read_text(validation);
+    const auto header = text.find("injection [A]");
+    EXPECT_NE(header, std::string::npos);
+    text.replace(header, std::string("injection").size(), name);
+    const auto renamed = dir / ("validation_" + name + ".csv");
+    write_text(renamed, text);
+    return renamed;
+}
+
+TEST(Injection, SimulateOfAnInjectionRecordingWithoutTheRoleNamesTheChannelAndTheOption) {
+    const auto dir = feedid::testing::temp_dir();
+    const auto estimation = dir / "estimation.csv";
+    ASSERT_EQ(run_cli("synth --seed 1 --out " + quoted(estimation)).exit_code, 0);
+    ASSERT_EQ(
+        run_cli("identify " + quoted(estimation) + drive_options + " --json " + quoted(dir / "result.json")).exit_code,
+        0);
+    // by its name (EMPS's validation run calls it pulses_N), and by its shape under a name that says nothing
+    for (const std::string name : {"pulses_N", "u7"}) {
+        const auto trace = renamed_injection(dir, name);
+        const auto simulated = run_cli("simulate " + quoted(trace) + drive_options + synth_channels + " --result " +
+                                       quoted(dir / "result.json"));
+        EXPECT_EQ(simulated.exit_code, 1) << name << ": " << simulated.out << simulated.err;
+        EXPECT_EQ(feedid::testing::count_lines(simulated.err), 1) << simulated.err;
+        EXPECT_NE(simulated.err.find("channel '" + name + "'"), std::string::npos) << simulated.err;
+        EXPECT_NE(simulated.err.find("--channel injection=" + name), std::string::npos) << simulated.err;
+        const auto gains = run_cli("gains " + quoted(trace) + drive_options + synth_channels + " --json -");
+        EXPECT_EQ(gains.exit_code, 1) << gains.err;
+        const auto document = nlohmann::json::parse(gains.out);
+        EXPECT_NE(document["diagnostics"].dump().find("--channel injection=" + name), std::string::npos)
+            << document["diagnostics"].dump();
+    }
+}
+
+TEST(Injection, ARecordingWithoutAnInjectionHasNoInjectionLikeChannel) {
+    auto spec = feedid::demo_spec();
+    spec.test.feedrates_mm_per_min = {2000, 4000};
+    spec.test.slow_passes = false;
+    EXPECT_FALSE(feedid::unmapped_injection(feedid::synthesize(spec)));
+    FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
+    EXPECT_FALSE(feedid::unmapped_injection(feedid::read_trace(shared_data() / "emps/DATA_EMPS.mat")));
 }
 
 }  // namespace

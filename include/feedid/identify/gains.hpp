@@ -108,6 +108,19 @@ struct GainResult {
 GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options = {},
                           std::span<const double> injection = {});
 
+/// A channel without a role that looks like a test signal injected at the controller's output: named like one
+/// ("pulses_N", "injection", "excitation", "dither", "prbs") or a square wave (two levels, switching at least four
+/// times) that the following error does not follow (|correlation| < 0.3). Its name, and why it looks like one
+/// ("named like one" or "a square wave ..."); none when there is no such channel.
+struct InjectionLike {
+    std::string channel;
+    std::string why;
+};
+std::optional<InjectionLike> unmapped_injection(const Trace& trace);
+
+/// The finding on such a channel: what it looks like, and `--channel injection=NAME` to map it.
+std::string unmapped_injection_message(const InjectionLike& found);
+
 /// The gains document (`feedid gains --json`, docs/documents.md) of the gains identified from `trace` (its path and
 /// length are in the document).
 nlohmann::json gains_document(const GainResult& result, const GainOptions& options, const Trace& trace);
