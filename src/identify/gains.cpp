@@ -456,37 +456,73 @@ SearchSpace search_space(const GainSignals& signals, const GainOptions& options)
     return space;
 }
 
-// Position loop (only with a logged velocity command): v_cmd = K_v*e(k-d) [+ k_ff*x_ref'(k-d)], the delay d by the
-// smallest residual. Sets K_v (and k_ff), d and the position loop's relative error.
-void identify_position_loop(const GainSignals& signals, const GainOptions& options, GainResult& result) {
+// The position loop's fit v_cmd = K_v*e(k-d) [+ k_ff*x_ref'(k-d)], the delay d by the smallest residual.
+struct PositionLoopFit {
+    Fit fit;
+    int delay{0};
+};
+
+PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, const RlsOptions& rls) {
     // the reference changes once per position-loop cycle: its velocity over that cycle
     const Column reference_velocity = difference_velocity(signals.reference, signals.hold_factor, signals.dt);
     std::vector<char> use = rows_past_start_up(signals.samples);
     keep_fresh_rows(signals, use);
     double best_rss = std::numeric_limits<double>::infinity();
     Problem best;
+    PositionLoopFit result;
     for (int d : {0, 1, 2}) {
         Problem problem;
         problem.columns.push_back(following_error(signals.reference, signals.position, d));
-        if (options.feedforward) problem.columns.push_back(delayed(reference_velocity, d));
+        if (feedforward) problem.columns.push_back(delayed(reference_velocity, d));
         problem.y = signals.velocity_command;
         problem.use = &use;
         const double rss = residual_sum_of_squares(problem);
         if (rss < best_rss) {
             best_rss = rss;
             best = std::move(problem);
-            result.reference_delay_samples = d;
+            result.delay = d;
         }
     }
-    const Fit position_fit = fit(best, options.rls);
-    if (position_fit.rank_deficient) {
+    result.fit = fit(best, rls);
+    return result;
+}
+
+// A feed-forward shows when fitting it halves the position loop's relative error and k_ff lies beyond three standard
+// errors from 0: the P-only fit of such a loop gives an effective K_v, not the loop's gain.
+bool feedforward_shows(const PositionLoopFit& with, const PositionLoopFit& without) {
+    if (with.fit.rank_deficient) return false;
+    const double kff = with.fit.estimate(1);
+    const double se = std::sqrt(std::max(0.0, with.fit.covariance(1, 1)));
+    return std::isfinite(kff) && std::abs(kff) > 3.0 * se &&
+           with.fit.relative_error_pct < 0.5 * without.fit.relative_error_pct;
+}
+
+// Position loop (only with a logged velocity command): v_cmd = K_v*e(k-d) [+ k_ff*x_ref'(k-d)], the feed-forward as
+// asked (--feedforward) or where it shows. Sets K_v (and k_ff), d and the position loop's relative error.
+void identify_position_loop(const GainSignals& signals, const GainOptions& options, GainResult& result) {
+    PositionLoopFit loop = fit_position_loop(signals, options.feedforward, options.rls);
+    bool feedforward = options.feedforward;
+    if (!feedforward && !loop.fit.rank_deficient) {
+        PositionLoopFit with = fit_position_loop(signals, true, options.rls);
+        if (feedforward_shows(with, loop)) {
+            result.diagnostics.push_back(fmt::format(
+                "a velocity feed-forward shows in the position loop (k_ff = {:.4g}; the position loop's relative "
+                "error falls from {:.3g} % to {:.3g} % with it): fitted with it, as --feedforward would; K_v fitted "
+                "without it would be {:.4g} 1/s, an effective gain of the loop with its feed-forward",
+                with.fit.estimate(1), loop.fit.relative_error_pct, with.fit.relative_error_pct, loop.fit.estimate(0)));
+            loop = std::move(with);
+            feedforward = true;
+        }
+    }
+    if (loop.fit.rank_deficient) {
         throw AnalysisError(
             fmt::format("{}: the following error does not determine the position gain", signals.source));
     }
-    result.position_gain_per_s = estimate_from_variance(position_fit.estimate(0), position_fit.covariance(0, 0));
-    result.position_loop_relative_error_pct = position_fit.relative_error_pct;
-    if (options.feedforward) {
-        result.velocity_feedforward = estimate_from_variance(position_fit.estimate(1), position_fit.covariance(1, 1));
+    result.reference_delay_samples = loop.delay;
+    result.position_gain_per_s = estimate_from_variance(loop.fit.estimate(0), loop.fit.covariance(0, 0));
+    result.position_loop_relative_error_pct = loop.fit.relative_error_pct;
+    if (feedforward) {
+        result.velocity_feedforward = estimate_from_variance(loop.fit.estimate(1), loop.fit.covariance(1, 1));
     }
 }
 

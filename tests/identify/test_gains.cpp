@@ -1,4 +1,5 @@
 // Gain identification: EMPS (published gains) and synthetic closed-loop traces with known gains.
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -183,6 +184,26 @@ TEST(Gains, AServoRateThatIsNoMultipleOfTheLogRateIsBadInput) {
     feedid::GainOptions options;
     options.servo_rate_hz = 2500.0;
     EXPECT_THROW(gains_of(feedid::synthesize(spec), options), feedid::InputError);
+}
+
+TEST(Gains, AFeedForwardThatShowsIsFittedAndNamed) {
+    // A position loop with a velocity feed-forward of 0.8, at 8 kHz, without --feedforward: found and fitted; the
+    // P-only K_v is named as the effective gain it is.
+    auto spec = feedid::demo_spec();
+    spec.servo_rate_hz = 8000.0;
+    spec.controller.velocity_feedforward = 0.8;
+    const auto result = gains_of(feedid::synthesize(spec));
+    expect_true_gains(result, spec, "feed-forward found");
+    ASSERT_TRUE(result.velocity_feedforward.value);
+    EXPECT_NEAR(*result.velocity_feedforward.value, 0.8, 0.01 * 0.8);
+    const auto named = std::find_if(result.diagnostics.begin(), result.diagnostics.end(), [](const std::string& d) {
+        return d.find("a velocity feed-forward shows in the position loop") != std::string::npos &&
+               d.find("an effective gain") != std::string::npos;
+    });
+    EXPECT_NE(named, result.diagnostics.end());
+    // without one, none is found
+    const auto plain = gains_of(feedid::synthesize(feedid::demo_spec()));
+    EXPECT_FALSE(plain.velocity_feedforward.value);
 }
 
 }  // namespace
