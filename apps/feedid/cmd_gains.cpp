@@ -90,10 +90,19 @@ struct GainsCommand {
             fmt::print("                 K_i   — (P-only velocity loop)\n");
         }
         if (result.samples_used == 0) return print_notes(result);  // nothing was fitted
+        const std::string cycle = result.fit_kind == "output_error"
+                                      ? fmt::format("T_s, the velocity loop at {:.6g} Hz", result.servo_rate_hz)
+                                      : std::string("T");
         fmt::print(
-            "  structure      velocity measured as (x_k - x_k-{0})/({0}*T); reference delay {1} samples; "
+            "  structure      velocity measured as (x_k - x_k-{0})/({0}*{3}); reference delay {1} samples; "
             "current-loop lag {2:.3g} ms\n",
-            result.velocity_difference_samples, result.reference_delay_samples, result.current_lag_s * 1e3);
+            result.velocity_difference_samples, result.reference_delay_samples, result.current_lag_s * 1e3, cycle);
+        if (result.injection_gain.value) {
+            std::string gain = format_estimate(result.injection_gain, "");
+            while (!gain.empty() && gain.back() == ' ') gain.pop_back();  // a gain has no unit
+            fmt::print("  injection      enters the drive with gain {} ({})\n", gain,
+                       result.injection_gain.standard_error ? "fitted" : "taken as 1: the data cannot tell it");
+        }
         fmt::print("  fit            relative error {} (velocity loop; {} not noise)",
                    percent(result.relative_error_pct), percent(result.systematic_error_pct));
         if (result.method == "velocity_command") {

@@ -17,6 +17,7 @@ struct GainArguments {
     bool feedforward{GainOptions{}.feedforward};
     std::optional<int> velocity_difference;
     std::optional<double> current_lag_ms;
+    std::optional<double> servo_rate_hz;
     std::optional<double> saturation;
     double forgetting{GainOptions{}.rls.forgetting_factor};
 
@@ -31,6 +32,11 @@ struct GainArguments {
         app.add_option("--current-lag-ms", current_lag_ms,
                        "Current-loop time constant [ms]; default: estimated from the data")
             ->check(allowed_range(0.0, 1000.0, "ms"));
+        app.add_option("--servo-rate", servo_rate_hz,
+                       "The rate the velocity loop runs at [Hz], a whole multiple of the trace's sample rate (e.g. "
+                       "8000 for a speed controller at 8 kHz logged at 1 kHz); default: the trace's servo cycle, else "
+                       "detected from the data")
+            ->check(allowed_range(1.0, 1e6, "Hz"));
         app.add_option("--saturation", saturation,
                        "Limit of the drive signal, in its own units (e.g. 10 for 10 V); samples at the limit are left "
                        "out and the simulation saturates there")
@@ -47,6 +53,7 @@ struct GainArguments {
         options.feedforward = feedforward;
         options.velocity_difference_samples = velocity_difference;
         if (current_lag_ms) options.current_lag_s = *current_lag_ms * 1e-3;
+        options.servo_rate_hz = servo_rate_hz;
         options.rls.forgetting_factor = forgetting;
         return options;
     }

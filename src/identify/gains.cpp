@@ -14,6 +14,7 @@
 // least-squares residuals.
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -37,6 +38,8 @@ std::string GainOptions::validate() const {
         return "--current-lag must be a time >= 0";
     }
     if (saturation_N && !(*saturation_N > 0.0 && std::isfinite(*saturation_N))) return "--saturation must be positive";
+    if (servo_rate_hz && !(*servo_rate_hz > 0.0 && std::isfinite(*servo_rate_hz)))
+        return "--servo-rate must be positive";
     if (!(rls.forgetting_factor > 0.0 && rls.forgetting_factor <= 1.0))
         return "the forgetting factor must be in (0, 1]";
     return {};
@@ -85,6 +88,7 @@ struct Structure {
 struct Problem {
     std::vector<Column> columns;  // regressors, filtered
     Column y;                     // what the regressors explain
+    std::size_t row_step{1};      // the samples between rows that follow each other (a held position's factor)
     const std::vector<char>* use{nullptr};
 };
 
@@ -141,13 +145,14 @@ struct Fit {
 // white; what the model lacks (an injected signal, a missing term) varies slowly from sample to sample. For white
 // noise of variance s^2, E[(r_k - r_{k-1})^2] = 2*s^2 (von Neumann), while a slowly varying part barely changes the
 // differences; so ||r_s||^2 = ||r||^2 - N*s^2 with s^2 from the differences of rows that follow each other.
-double systematic_error_pct(const Eigen::VectorXd& residual, const std::vector<std::size_t>& rows, double target_norm) {
+double systematic_error_pct(const Eigen::VectorXd& residual, const std::vector<std::size_t>& rows, double target_norm,
+                            std::size_t row_step) {
     double squares = 0.0;
     double differences = 0.0;
     std::size_t pairs = 0;
     for (Eigen::Index k = 0; k < residual.size(); ++k) {
         squares += residual(k) * residual(k);
-        if (k > 0 && rows[static_cast<std::size_t>(k)] == rows[static_cast<std::size_t>(k - 1)] + 1) {
+        if (k > 0 && rows[static_cast<std::size_t>(k)] == rows[static_cast<std::size_t>(k - 1)] + row_step) {
             differences += (residual(k) - residual(k - 1)) * (residual(k) - residual(k - 1));
             ++pairs;
         }
@@ -200,7 +205,7 @@ Fit fit(const Problem& problem, const RlsOptions& options) {
     result.relative_error_pct = batch.relative_error_pct;
     if (!batch.rank_deficient) {
         const Eigen::VectorXd residual = target / y_scale - phi * batch.estimate;
-        result.systematic_error_pct = systematic_error_pct(residual, sample_of_row, target.norm() / y_scale);
+        result.systematic_error_pct = systematic_error_pct(residual, sample_of_row, target.norm() / y_scale, problem.row_step);
     }
     Eigen::VectorXd rls;
     const Eigen::VectorXd scaled_target = target / y_scale;
@@ -209,7 +214,8 @@ Fit fit(const Problem& problem, const RlsOptions& options) {
         case 2: rls = run_rls<2>(phi, scaled_target, options); break;
         case 3: rls = run_rls<3>(phi, scaled_target, options); break;
         case 4: rls = run_rls<4>(phi, scaled_target, options); break;
-        default: rls = run_rls<5>(phi, scaled_target, options); break;
+        case 5: rls = run_rls<5>(phi, scaled_target, options); break;
+        default: rls = run_rls<6>(phi, scaled_target, options); break;  // PI structure and an injection's gain
     }
     const Eigen::VectorXd unscale = scale.cwiseInverse() * y_scale;
     result.estimate = rls.cwiseProduct(unscale);
@@ -218,13 +224,23 @@ Fit fit(const Problem& problem, const RlsOptions& options) {
     return result;
 }
 
-// A gain and its standard error from the fit's variance: sqrt(variance) where that is a finite number >= 0, none
-// otherwise (Estimate's rule). Unlike Estimate::of, a value that is not finite is kept as computed: the document
-// writes it as null, and the controller and the printed report see what the fit gave.
+// The relative resolution of a gain: a deterministic loop (a position loop logged with its command) fits to the last
+// digits, and its residual then gives standard errors of 1e-15 of the gain, while the rounding of the logged numbers
+// and of the controller's and the fit's arithmetic moves the gain by 1e-11 to 1e-9 of it (synthetic traces; a
+// single-precision controller resolves 6e-8). No gain is known better than this.
+constexpr double gain_resolution = 1e-8;
+
+// A gain and its standard error from the fit's variance: sqrt(variance), at least gain_resolution of the gain, where
+// that is a finite number >= 0, none otherwise (Estimate's rule). Unlike Estimate::of, a value that is not finite is
+// kept as computed: the document writes it as null, and the controller and the printed report see what the fit gave.
 Estimate estimate_from_variance(double value, double variance) {
     Estimate estimate;
     estimate.value = value;
-    if (variance >= 0.0 && std::isfinite(variance)) estimate.standard_error = std::sqrt(variance);
+    if (variance >= 0.0 && std::isfinite(variance)) {
+        estimate.standard_error = std::sqrt(variance);
+        if (std::isfinite(value))
+            estimate.standard_error = std::max(*estimate.standard_error, gain_resolution * std::abs(value));
+    }
     return estimate;
 }
 
@@ -440,37 +456,73 @@ SearchSpace search_space(const GainSignals& signals, const GainOptions& options)
     return space;
 }
 
-// Position loop (only with a logged velocity command): v_cmd = K_v*e(k-d) [+ k_ff*x_ref'(k-d)], the delay d by the
-// smallest residual. Sets K_v (and k_ff), d and the position loop's relative error.
-void identify_position_loop(const GainSignals& signals, const GainOptions& options, GainResult& result) {
+// The position loop's fit v_cmd = K_v*e(k-d) [+ k_ff*x_ref'(k-d)], the delay d by the smallest residual.
+struct PositionLoopFit {
+    Fit fit;
+    int delay{0};
+};
+
+PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, const RlsOptions& rls) {
     // the reference changes once per position-loop cycle: its velocity over that cycle
     const Column reference_velocity = difference_velocity(signals.reference, signals.hold_factor, signals.dt);
     std::vector<char> use = rows_past_start_up(signals.samples);
     keep_fresh_rows(signals, use);
     double best_rss = std::numeric_limits<double>::infinity();
     Problem best;
+    PositionLoopFit result;
     for (int d : {0, 1, 2}) {
         Problem problem;
         problem.columns.push_back(following_error(signals.reference, signals.position, d));
-        if (options.feedforward) problem.columns.push_back(delayed(reference_velocity, d));
+        if (feedforward) problem.columns.push_back(delayed(reference_velocity, d));
         problem.y = signals.velocity_command;
         problem.use = &use;
         const double rss = residual_sum_of_squares(problem);
         if (rss < best_rss) {
             best_rss = rss;
             best = std::move(problem);
-            result.reference_delay_samples = d;
+            result.delay = d;
         }
     }
-    const Fit position_fit = fit(best, options.rls);
-    if (position_fit.rank_deficient) {
+    result.fit = fit(best, rls);
+    return result;
+}
+
+// A feed-forward shows when fitting it halves the position loop's relative error and k_ff lies beyond three standard
+// errors from 0: the P-only fit of such a loop gives an effective K_v, not the loop's gain.
+bool feedforward_shows(const PositionLoopFit& with, const PositionLoopFit& without) {
+    if (with.fit.rank_deficient) return false;
+    const double kff = with.fit.estimate(1);
+    const double se = std::sqrt(std::max(0.0, with.fit.covariance(1, 1)));
+    return std::isfinite(kff) && std::abs(kff) > 3.0 * se &&
+           with.fit.relative_error_pct < 0.5 * without.fit.relative_error_pct;
+}
+
+// Position loop (only with a logged velocity command): v_cmd = K_v*e(k-d) [+ k_ff*x_ref'(k-d)], the feed-forward as
+// asked (--feedforward) or where it shows. Sets K_v (and k_ff), d and the position loop's relative error.
+void identify_position_loop(const GainSignals& signals, const GainOptions& options, GainResult& result) {
+    PositionLoopFit loop = fit_position_loop(signals, options.feedforward, options.rls);
+    bool feedforward = options.feedforward;
+    if (!feedforward && !loop.fit.rank_deficient) {
+        PositionLoopFit with = fit_position_loop(signals, true, options.rls);
+        if (feedforward_shows(with, loop)) {
+            result.diagnostics.push_back(fmt::format(
+                "a velocity feed-forward shows in the position loop (k_ff = {:.4g}; the position loop's relative "
+                "error falls from {:.3g} % to {:.3g} % with it): fitted with it, as --feedforward would; K_v fitted "
+                "without it would be {:.4g} 1/s, an effective gain of the loop with its feed-forward",
+                with.fit.estimate(1), loop.fit.relative_error_pct, with.fit.relative_error_pct, loop.fit.estimate(0)));
+            loop = std::move(with);
+            feedforward = true;
+        }
+    }
+    if (loop.fit.rank_deficient) {
         throw AnalysisError(
             fmt::format("{}: the following error does not determine the position gain", signals.source));
     }
-    result.position_gain_per_s = estimate_from_variance(position_fit.estimate(0), position_fit.covariance(0, 0));
-    result.position_loop_relative_error_pct = position_fit.relative_error_pct;
-    if (options.feedforward) {
-        result.velocity_feedforward = estimate_from_variance(position_fit.estimate(1), position_fit.covariance(1, 1));
+    result.reference_delay_samples = loop.delay;
+    result.position_gain_per_s = estimate_from_variance(loop.fit.estimate(0), loop.fit.covariance(0, 0));
+    result.position_loop_relative_error_pct = loop.fit.relative_error_pct;
+    if (feedforward) {
+        result.velocity_feedforward = estimate_from_variance(loop.fit.estimate(1), loop.fit.covariance(1, 1));
     }
 }
 
@@ -480,42 +532,161 @@ Column measured_velocity(const GainSignals& signals, int difference) {
     return difference_velocity(signals.position, difference, signals.dt);
 }
 
-// With the velocity command: F = K_p*e_v [+ K_i*E_v + c],  e_v = v_cmd - v,  E_v = sum(e_v*T).
-std::vector<Column> command_columns(const GainSignals& signals, const Column& v, bool integral) {
-    Column error(signals.samples);
-    for (std::size_t k = 0; k < signals.samples; ++k) error[k] = signals.velocity_command[k] - v[k];
+// The PI columns of an error e sampled every dt: (e, sum(e*dt), 1), or (e) for a P loop.
+std::vector<Column> pi_columns(Column error, double dt, bool integral) {
     std::vector<Column> columns;
     if (integral) {
-        Column error_sum = running_sum(error, signals.dt);
+        Column error_sum = running_sum(error, dt);
+        const std::size_t n = error.size();
         columns.push_back(std::move(error));
         columns.push_back(std::move(error_sum));
-        columns.push_back(Column(signals.samples, 1.0));
+        columns.push_back(Column(n, 1.0));
     } else {
         columns.push_back(std::move(error));
     }
     return columns;
 }
 
-// From the structure alone: F = th1*e + th2*(-v) [+ th3*sum(T*e) + th4*(-sum(T*v)) + c],  e = x_ref(k - d) - x.
-std::vector<Column> structure_columns(const GainSignals& signals, const Column& v, int reference_delay, bool integral) {
-    Column error = following_error(signals.reference, signals.position, reference_delay);
-    Column minus_v(signals.samples);
-    for (std::size_t k = 0; k < signals.samples; ++k) minus_v[k] = -v[k];
+// With the velocity command: F = K_p*e_v [+ K_i*E_v + c],  e_v = v_cmd - v,  E_v = sum(e_v*T).
+std::vector<Column> command_columns(const GainSignals& signals, const Column& v, bool integral) {
+    Column error(signals.samples);
+    for (std::size_t k = 0; k < signals.samples; ++k) error[k] = signals.velocity_command[k] - v[k];
+    return pi_columns(std::move(error), signals.dt, integral);
+}
+
+// The structure's columns from the following error e and the measured velocity v sampled every dt:
+// (e, -v [, sum(dt*e), -sum(dt*v), 1]).
+std::vector<Column> structure_columns_of(Column error, const Column& v, double dt, bool integral) {
+    Column minus_v(v.size());
+    for (std::size_t k = 0; k < v.size(); ++k) minus_v[k] = -v[k];
     std::vector<Column> columns;
     if (integral) {
-        Column error_sum = running_sum(error, signals.dt);
-        Column minus_v_sum = running_sum(minus_v, signals.dt);
+        Column error_sum = running_sum(error, dt);
+        Column minus_v_sum = running_sum(minus_v, dt);
         columns.push_back(std::move(error));
         columns.push_back(std::move(minus_v));
         columns.push_back(std::move(error_sum));
         columns.push_back(std::move(minus_v_sum));
-        columns.push_back(Column(signals.samples, 1.0));
+        columns.push_back(Column(v.size(), 1.0));
     } else {
         columns.push_back(std::move(error));
         columns.push_back(std::move(minus_v));
     }
     return columns;
 }
+
+// From the structure alone: F = th1*e + th2*(-v) [+ th3*sum(T*e) + th4*(-sum(T*v)) + c],  e = x_ref(k - d) - x.
+std::vector<Column> structure_columns(const GainSignals& signals, const Column& v, int reference_delay, bool integral) {
+    return structure_columns_of(following_error(signals.reference, signals.position, reference_delay), v, signals.dt,
+                                integral);
+}
+
+// The velocity loop between the logged samples: an NC runs its speed controller m times per logged sample (8 kHz
+// logged at 1 kHz), so each logged force is the current loop's answer to m force commands, each from a velocity
+// measured over servo cycles T_s = T/m that the trace never shows. The fit simulates the controller on that grid,
+// driven by the logged signals: the reference interpolated linearly between its samples (the NC's fine
+// interpolation), the position by a cubic through four logged samples (the motion is smooth at the servo rate), a
+// held position (its own cycle) and velocity command as they are held. The controller's output, through the
+// current loop at T_s, is then compared with the logged force at the logged instants: an output-error fit of the
+// controller. Linear in the gains, it stays a least-squares fit of the simulated columns.
+struct ServoGrid {
+    int factor{1};         // m
+    double cycle_s{0.0};   // T_s
+    Column position;       // x at the servo instants
+    Column reference;      // x_ref at the servo instants
+    Column last_loop_row;  // the logged row of the position loop's last run, per servo instant
+};
+
+// The cubic through the samples k-1, k, k+1, k+2 of x (every `step`-th value from `first`: a held signal's fresh
+// ones) at k + f (0 <= f < 1); the ends repeat their samples.
+double cubic_at(std::span<const double> x, std::size_t first, std::size_t step, std::size_t k, double f) {
+    const std::size_t last = (x.size() - 1 - first) / step;
+    const auto at = [&](std::size_t q) { return x[first + std::min(q, last) * step]; };
+    const double p0 = at(k == 0 ? 0 : k - 1), p1 = at(k), p2 = at(k + 1), p3 = at(k + 2);
+    // Lagrange on the nodes -1, 0, 1, 2
+    return p0 * (-f * (f - 1.0) * (f - 2.0) / 6.0) + p1 * ((f + 1.0) * (f - 1.0) * (f - 2.0) / 2.0) +
+           p2 * (-(f + 1.0) * f * (f - 2.0) / 2.0) + p3 * ((f + 1.0) * f * (f - 1.0) / 6.0);
+}
+
+ServoGrid servo_grid(const GainSignals& signals, int factor) {
+    ServoGrid grid;
+    const auto m = static_cast<std::size_t>(factor);
+    grid.factor = factor;
+    grid.cycle_s = signals.dt / static_cast<double>(m);
+    const std::size_t n = signals.samples;
+    grid.position.resize(n * m);
+    grid.reference.resize(n * m);
+    grid.last_loop_row.resize(n * m);
+    const auto hold = static_cast<std::size_t>(signals.hold_factor);
+    const auto phase = static_cast<std::size_t>(signals.hold_phase);
+    for (std::size_t k = 0; k < n; ++k) {
+        const std::size_t next = std::min(k + 1, n - 1);
+        // the position loop's last run: this row when it runs every servo cycle, else the last fresh row
+        const std::size_t loop_row = hold < 2 || k < phase ? k : k - (k - phase) % hold;
+        for (std::size_t i = 0; i < m; ++i) {
+            const double f = static_cast<double>(i) / static_cast<double>(m);
+            // a held position: the cubic through its fresh samples, at the time since the last one
+            const double since = k < phase ? 0.0 : (static_cast<double>(k - loop_row) + f) / static_cast<double>(hold);
+            grid.position[k * m + i] =
+                hold < 2 ? cubic_at(signals.position, 0, 1, k, f)
+                         : cubic_at(signals.position, phase, hold, k < phase ? 0 : (loop_row - phase) / hold, since);
+            grid.reference[k * m + i] =
+                hold < 2 ? signals.reference[k] + f * (signals.reference[next] - signals.reference[k])
+                         : signals.reference[k];
+            grid.last_loop_row[k * m + i] = static_cast<double>(loop_row);
+        }
+    }
+    return grid;
+}
+
+// The position loop as identified from a logged velocity command (K_v, k_ff, reference delay d), to run it between
+// the logged samples.
+struct PositionLoop {
+    double gain_per_s{0.0};
+    double feedforward{0.0};
+    int delay{0};
+};
+
+// e = x_ref(t - d*T) - x(t) at the servo instants; a position loop on its own (slower) cycle holds the error of its
+// last run.
+Column servo_following_error(const GainSignals& signals, const ServoGrid& grid, int delay) {
+    Column error(grid.position.size());
+    if (signals.hold_factor > 1) {
+        const Column logged = following_error(signals.reference, signals.position, delay);
+        for (std::size_t j = 0; j < error.size(); ++j)
+            error[j] = logged[static_cast<std::size_t>(grid.last_loop_row[j])];
+        return error;
+    }
+    const auto shift = static_cast<std::size_t>(delay * grid.factor);
+    for (std::size_t j = 0; j < error.size(); ++j)
+        error[j] = grid.reference[j >= shift ? j - shift : 0] - grid.position[j];
+    return error;
+}
+
+// v_cmd at the servo instants: held from the logged command when the position loop runs on its own cycle, else the
+// identified position loop run at the servo rate (it reproduces the logged command at the logged instants).
+Column servo_velocity_command(const GainSignals& signals, const ServoGrid& grid, const PositionLoop& loop) {
+    Column command(grid.position.size());
+    if (signals.hold_factor > 1) {
+        for (std::size_t j = 0; j < command.size(); ++j)
+            command[j] = signals.velocity_command[static_cast<std::size_t>(grid.last_loop_row[j])];
+        return command;
+    }
+    const Column error = servo_following_error(signals, grid, loop.delay);
+    const auto shift = static_cast<std::size_t>(loop.delay * grid.factor);
+    for (std::size_t j = 0; j < command.size(); ++j) {
+        const std::size_t at = j >= shift ? j - shift : 0;
+        const double reference_velocity = at == 0 ? 0.0 : (grid.reference[at] - grid.reference[at - 1]) / grid.cycle_s;
+        command[j] = loop.gain_per_s * error[j] + loop.feedforward * reference_velocity;
+    }
+    return command;
+}
+
+// The velocity loop's error and minus the measured velocity at one servo instant.
+struct ServoRow {
+    double error{0.0};  // e_v with a logged command, else e
+    double minus_v{0.0};
+};
 
 // The velocity loop's regression on its rows: one problem per structure, every column through the drive filter L.
 // An injected signal u_inj is added to the controller's output before the drive, so the logged force is
@@ -523,8 +694,12 @@ std::vector<Column> structure_columns(const GainSignals& signals, const Column& 
 struct VelocityLoopRegression {
     const GainSignals& signals;
     const std::vector<char>& use;
+    const ServoGrid* grid{nullptr};  // the servo grid, when the velocity loop runs faster than the log
+    Column servo_command{};          // v_cmd on it (logged command only)
+    bool injection_gain_known{false};  // the injection enters with gain 1 (else its gain is fitted)
 
     [[nodiscard]] Problem problem(const Structure& s, bool integral) const {
+        if (grid != nullptr) return servo_rate_problem(s, integral);
         Problem problem;
         const Column v = measured_velocity(signals, s.difference);
         problem.columns = signals.logged_command ? command_columns(signals, v, integral)
@@ -535,12 +710,102 @@ struct VelocityLoopRegression {
         if (!signals.injection.empty()) {
             Column injected = signals.injection;
             apply_drive_filter(injected, a, s.mu);
-            for (std::size_t k = 0; k < problem.y.size(); ++k) problem.y[k] -= injected[k];
+            add_injection(problem, std::move(injected));
         }
         problem.use = &use;
+        problem.row_step = static_cast<std::size_t>(signals.hold_factor);
         return problem;
     }
+
+    // The same on the servo grid (ServoGrid): the columns and the injection (held over its logged sample) through
+    // the current loop at T_s, taken at the logged instants; in one pass, the servo grid's columns never stored.
+    [[nodiscard]] Problem servo_rate_problem(const Structure& s, bool integral) const {
+        const ServoFilterBank bank = servo_columns(s, integral);
+        Problem problem;
+        problem.columns = bank.columns;
+        problem.y = signals.force;
+        if (!signals.injection.empty()) add_injection(problem, bank.injection);
+        problem.use = &use;
+        problem.row_step = static_cast<std::size_t>(signals.hold_factor);
+        return problem;
+    }
+
+    struct ServoFilterBank {
+        std::vector<Column> columns;  // at the logged instants
+        Column injection;             // L[u_inj] at the logged instants (zeros without one)
+    };
+
+    [[nodiscard]] ServoFilterBank servo_columns(const Structure& s, bool integral) const;
+
+    // The injection through the drive filter, L[u_inj], enters the drive signal with the gain g of whatever lies
+    // between the logged test signal and the drive (a DAC, an amplifier): a column of its own, g fitted with the
+    // gains, the last in theta; with injection_gain_known, g = 1 and L[u_inj] is taken out of the drive signal.
+    void add_injection(Problem& problem, Column injected) const {
+        if (!injection_gain_known) {
+            problem.columns.push_back(std::move(injected));
+            return;
+        }
+        for (std::size_t k = 0; k < problem.y.size(); ++k) problem.y[k] -= injected[k];
+    }
 };
+
+ServoRow servo_row(const VelocityLoopRegression& r, const Column& logged_error, std::size_t j, int difference,
+                   int reference_delay) {
+    const ServoGrid& g = *r.grid;
+    const auto n = static_cast<std::size_t>(difference);
+    const double v = (g.position[j] - g.position[j >= n ? j - n : 0]) / (difference * g.cycle_s);
+    ServoRow row;
+    if (r.signals.logged_command) {
+        row.error = r.servo_command[j] - v;
+    } else if (r.signals.hold_factor > 1) {
+        row.error = logged_error[static_cast<std::size_t>(g.last_loop_row[j])];
+    } else {
+        const auto shift = static_cast<std::size_t>(reference_delay * g.factor);
+        row.error = g.reference[j >= shift ? j - shift : 0] - g.position[j];
+    }
+    row.minus_v = -v;
+    return row;
+}
+
+VelocityLoopRegression::ServoFilterBank VelocityLoopRegression::servo_columns(const Structure& s, bool integral) const {
+    const ServoGrid& g = *grid;
+    const bool structure = !signals.logged_command;
+    const std::size_t p = structure ? (integral ? 5 : 2) : (integral ? 3 : 1);
+    const auto m = static_cast<std::size_t>(g.factor);
+    const std::size_t fine = g.position.size();
+    const Column logged_error = structure && signals.hold_factor > 1
+                                    ? following_error(signals.reference, signals.position, s.reference_delay)
+                                    : Column{};
+    ServoFilterBank bank;
+    bank.columns.assign(p, Column(signals.samples));
+    bank.injection.assign(signals.samples, 0.0);
+    const double a = lag_coefficient(s.lag_s, g.cycle_s);
+    // per column (and the injection last): its running sums, the filter's last input and output
+    std::array<double, 6> in{}, last_in{}, last_out{};
+    double error_sum = 0.0, minus_v_sum = 0.0;
+    for (std::size_t j = 0; j < fine; ++j) {
+        const ServoRow row = servo_row(*this, logged_error, j, std::max(1, s.difference), s.reference_delay);
+        error_sum += row.error * g.cycle_s;
+        minus_v_sum += row.minus_v * g.cycle_s;
+        if (structure) {
+            in = {row.error, row.minus_v, error_sum, minus_v_sum, 1.0, 0.0};
+            if (!integral) in[2] = in[3] = in[4] = 0.0;
+        } else {
+            in = {row.error, error_sum, 1.0, 0.0, 0.0, 0.0};
+        }
+        in[5] = signals.injection.empty() ? 0.0 : signals.injection[j / m];
+        for (std::size_t c = 0; c < in.size(); ++c) {
+            if (j == 0) last_in[c] = last_out[c] = in[c];  // the filter starts in steady state
+            const double out = a * last_out[c] + (1.0 - a) * ((1.0 - s.mu) * in[c] + s.mu * last_in[c]);
+            last_in[c] = in[c];
+            last_out[c] = out;
+        }
+        if (j % m != 0) continue;
+        for (std::size_t c = 0; c < p; ++c) bank.columns[c][j / m] = last_out[c];
+        bank.injection[j / m] = last_out[5];
+    }
+    return bank;
+}
 
 // The structure of the smallest residual so far.
 class StructureSearch {
@@ -616,6 +881,7 @@ struct VelocityLoopFit {
     Structure structure;
     Fit fit;
     bool integral{false};
+    bool injection_gain{false};  // theta ends in the injection's gain
 };
 
 // Why the PI fit shows no integral action ("" when it does): K_i not significant (not above three standard errors),
@@ -723,9 +989,11 @@ ControllerModel identified_controller(const GainResult& result, const GainOption
     controller.velocity_feedforward = result.velocity_feedforward.value.value_or(0.0);
     controller.saturation_N = options.saturation_N;
     controller.current_lag_s = result.current_lag_s;
-    controller.position_cycle_s = dt * hold_factor;
-    controller.velocity_cycle_s = dt;
+    const double servo_cycle = result.servo_rate_hz > 0.0 ? 1.0 / result.servo_rate_hz : dt;
+    controller.position_cycle_s = hold_factor > 1 ? dt * hold_factor : servo_cycle;
+    controller.velocity_cycle_s = servo_cycle;
     controller.velocity_difference_samples = result.velocity_difference_samples;
+    controller.injection_gain = result.injection_gain.value.value_or(1.0);
     return controller;
 }
 
@@ -793,6 +1061,7 @@ void gate_finite(const GainSignals& signals, const std::vector<char>& use, GainR
     check(result.velocity_integral_gain_N_per_m, "K_i");
     check(result.velocity_feedforward, "k_ff");
     check(result.reset_time_s, "T_n");
+    check(result.injection_gain, "the injection's gain");
     for (const auto& [value, name] :
          {std::pair{result.relative_error_pct, "the relative error"},
           std::pair{result.systematic_error_pct, "the systematic error"},
@@ -840,6 +1109,184 @@ void gate_signs(const GainOptions& options, bool rotary, GainResult& result) {
 
 }  // namespace
 
+// An injection's gain is taken from the data when its standard error is below this fraction of it: it is there to
+// catch a DAC's or an amplifier's scale, a few per cent (a recording whose 5 V pulses act as 5.07 V).
+constexpr double injection_gain_resolution = 0.02;
+
+// The velocity loop fitted at `factor` servo cycles per logged sample (1: the equation-error fit on the logged
+// samples), with the gain of an injection (varying) fitted, or 1 where the data cannot tell it (said).
+VelocityLoopFit fit_at_servo_factor(const GainSignals& signals, const std::vector<char>& use, int factor,
+                                    const GainOptions& options, const GainResult& position_loop,
+                                    std::vector<std::string>& diagnostics) {
+    SearchSpace space = search_space(signals, options);
+    std::optional<ServoGrid> grid;
+    if (factor > 1) {
+        std::erase(space.differences, 0);  // a logged velocity is no measurement between the samples
+        if (space.differences.empty()) space.differences = {1, 2, 3, 4};
+        grid = servo_grid(signals, factor);
+    }
+    VelocityLoopRegression regression{signals, use, grid ? &*grid : nullptr};
+    if (grid && signals.logged_command) {
+        const PositionLoop loop{position_loop.position_gain_per_s.value.value_or(0.0),
+                                position_loop.velocity_feedforward.value.value_or(0.0),
+                                position_loop.reference_delay_samples};
+        regression.servo_command = servo_velocity_command(signals, *grid, loop);
+    }
+    const auto [low, high] = std::minmax_element(signals.injection.begin(), signals.injection.end());
+    regression.injection_gain_known = signals.injection.empty() || !(*high > *low);  // a constant is an offset
+    VelocityLoopFit loop = fit_velocity_loop(regression, space, options, diagnostics);
+    loop.injection_gain = !regression.injection_gain_known;
+    if (!loop.injection_gain) return loop;
+    const Eigen::Index g = loop.fit.estimate.size() - 1;
+    const double gain = loop.fit.estimate(g), se = std::sqrt(std::max(0.0, loop.fit.covariance(g, g)));
+    if (std::isfinite(gain) && std::isfinite(se) && se < injection_gain_resolution * std::abs(gain)) return loop;
+    diagnostics.push_back(fmt::format(
+        "the data cannot tell the gain with which the injection enters the drive signal (g = {:.4g} +- {:.2g}, "
+        "not within {:g} %): taken as 1",
+        gain, se, 100.0 * injection_gain_resolution));
+    regression.injection_gain_known = true;
+    loop = fit_velocity_loop(regression, space, options, diagnostics);
+    return loop;
+}
+
+// Servo cycles per logged sample of a rate [Hz]; InputError unless a whole multiple (1 to 64) of the sample rate.
+int servo_factor_of(double rate_hz, double dt, const std::string& what) {
+    const double per_sample = rate_hz * dt;
+    if (!(per_sample > 1.0 - 1e-6 && per_sample < 64.5) || std::abs(per_sample - std::round(per_sample)) > 1e-3) {
+        throw InputError(fmt::format("{} {:g} Hz is not a whole multiple (1 to 64) of the trace's sample rate {:g} Hz",
+                                     what, rate_hz, 1.0 / dt));
+    }
+    return static_cast<int>(std::lround(per_sample));
+}
+
+// Above this part [%] of the drive signal left unexplained beyond its noise by the log-rate fit, a faster velocity
+// loop is looked for (EMPS leaves 0.00 %, a 1 kHz synthetic loop 0.06 %; a loop at 8 kHz fitted at 1 kHz 0.5 to 3 %).
+constexpr double servo_rate_search_above_pct = 0.1;
+
+// The velocity loop at its own rate: --servo-rate, the trace's servo_cycle_s, or the log rate; without either, a loop
+// at 2, 4, 8 or 16 times the log rate when the log-rate fit leaves more than servo_rate_search_above_pct unexplained
+// and a faster one halves that. Sets the rate, the fit's kind and why.
+VelocityLoopFit fit_velocity_loop_at_its_rate(const Trace& trace, const GainSignals& signals,
+                                              const std::vector<char>& use, const GainOptions& options,
+                                              GainResult& result) {
+    int factor = 1;
+    if (options.servo_rate_hz) {
+        factor = servo_factor_of(*options.servo_rate_hz, signals.dt, "--servo-rate");
+        result.servo_rate_from = "--servo-rate";
+    } else if (const auto found = trace.constants.find("servo_cycle_s"); found != trace.constants.end()) {
+        factor = servo_factor_of(1.0 / found->second, signals.dt, "the trace's servo cycle (servo_cycle_s): a rate of");
+        result.servo_rate_from = "trace";
+    }
+    std::vector<std::string> notes;
+    VelocityLoopFit best = fit_at_servo_factor(signals, use, factor, options, result, notes);
+    if (factor == 1 && !options.servo_rate_hz && best.fit.systematic_error_pct > servo_rate_search_above_pct) {
+        // A loop at m times the rate nearly contains one at m/2 (its velocity over two of its cycles): of the rates
+        // that halve the log rate's unexplained part, the slowest within a quarter of the best.
+        std::vector<std::pair<int, VelocityLoopFit>> candidates;
+        std::vector<std::vector<std::string>> candidate_notes(4);
+        double smallest = best.fit.systematic_error_pct;
+        for (const int candidate : {2, 4, 8, 16}) {
+            candidates.emplace_back(candidate, fit_at_servo_factor(signals, use, candidate, options, result,
+                                                                   candidate_notes[candidates.size()]));
+            smallest = std::min(smallest, candidates.back().second.fit.systematic_error_pct);
+        }
+        for (std::size_t c = 0; c < candidates.size(); ++c) {
+            const double error = candidates[c].second.fit.systematic_error_pct;
+            if (error < 0.5 * best.fit.systematic_error_pct && error <= 1.25 * smallest) {
+                factor = candidates[c].first;
+                best = std::move(candidates[c].second);
+                notes = std::move(candidate_notes[c]);
+                result.servo_rate_from = "detected";
+                break;
+            }
+        }
+    }
+    for (auto& note : notes) result.diagnostics.push_back(std::move(note));
+    result.servo_rate_hz = static_cast<double>(factor) / signals.dt;
+    if (factor > 1) {
+        result.fit_kind = "output_error";
+        result.diagnostics.push_back(fmt::format(
+            "the velocity loop runs at {:.6g} Hz ({}), {} times per logged sample: fitted by simulating the "
+            "controller at that rate between the logged samples (output error), its velocity measured over its own "
+            "cycles",
+            result.servo_rate_hz,
+            result.servo_rate_from == "detected" ? "detected: it explains the drive signal better than the log rate"
+            : result.servo_rate_from == "trace"  ? "the trace's servo cycle"
+                                                 : "--servo-rate",
+            factor));
+    }
+    return best;
+}
+
+namespace {
+
+bool named_like_injection(std::string name) {
+    std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return std::tolower(c); });
+    for (const char* word : {"pulse", "inject", "excitation", "dither", "prbs"}) {
+        if (name.find(word) != std::string::npos) return true;
+    }
+    return false;
+}
+
+// Pearson's correlation of a and b; 0 when either is constant.
+double correlation(std::span<const double> a, std::span<const double> b) {
+    const auto n = static_cast<double>(a.size());
+    const double mean_a = std::accumulate(a.begin(), a.end(), 0.0) / n;
+    const double mean_b = std::accumulate(b.begin(), b.end(), 0.0) / n;
+    double ab = 0.0, aa = 0.0, bb = 0.0;
+    for (std::size_t k = 0; k < a.size(); ++k) {
+        ab += (a[k] - mean_a) * (b[k] - mean_b);
+        aa += (a[k] - mean_a) * (a[k] - mean_a);
+        bb += (b[k] - mean_b) * (b[k] - mean_b);
+    }
+    return aa > 0.0 && bb > 0.0 ? ab / std::sqrt(aa * bb) : 0.0;
+}
+
+// A square wave: nine in ten samples at its lowest or highest level (within 1 % of the range), switching between
+// them at least four times.
+bool square_wave(std::span<const double> values) {
+    const auto [low, high] = std::minmax_element(values.begin(), values.end());
+    const double range = *high - *low;
+    if (!(range > 0.0) || !std::isfinite(range)) return false;
+    std::size_t at_levels = 0, switches = 0;
+    int last = 0;
+    for (const double value : values) {
+        const int level = value <= *low + 0.01 * range ? -1 : value >= *high - 0.01 * range ? 1 : 0;
+        if (level == 0) continue;
+        ++at_levels;
+        if (last != 0 && level != last) ++switches;
+        last = level;
+    }
+    return at_levels >= values.size() * 9 / 10 && switches >= 4;
+}
+
+}  // namespace
+
+std::optional<InjectionLike> unmapped_injection(const Trace& trace) {
+    if (trace.has(Role::injection) || trace.samples() < 50) return std::nullopt;
+    const auto* reference = trace.find(Role::reference_position);
+    const auto* position = trace.find(Role::position);
+    Column error;
+    if (reference != nullptr && position != nullptr) {
+        error.resize(trace.samples());
+        for (std::size_t k = 0; k < error.size(); ++k) error[k] = reference->values[k] - position->values[k];
+    }
+    for (const auto& channel : trace.channels) {
+        if (channel.role != Role::other || channel.values.size() != trace.samples()) continue;
+        if (named_like_injection(channel.name)) return InjectionLike{channel.name, "named like one"};
+        if (square_wave(channel.values) && (error.empty() || std::abs(correlation(channel.values, error)) < 0.3))
+            return InjectionLike{channel.name, "a square wave that the loop's following error does not follow"};
+    }
+    return std::nullopt;
+}
+
+std::string unmapped_injection_message(const InjectionLike& found) {
+    return fmt::format(
+        "channel '{}' looks like a test signal injected at the controller's output ({}) but has no role, so it is "
+        "not taken out of the drive signal; if it is one, map it with --channel injection={}",
+        found.channel, found.why, found.channel);
+}
+
 GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options,
                           std::span<const double> injection) {
     if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
@@ -858,22 +1305,33 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
         result.controller = identified_controller(result, options, signals.dt, signals.hold_factor);
         return result;
     }
-    if (signals.hold_factor > 1) {
-        result.diagnostics.push_back(fmt::format(
-            "the position holds each value over {} samples: fitted on the samples where it is new, the position "
-            "loop taken to run every {:.6g} ms and the velocity loop every {:.6g} ms (the drive signal's interval)",
-            signals.hold_factor, signals.dt * signals.hold_factor * 1e3, signals.dt * 1e3));
-    }
     if (signals.logged_command) identify_position_loop(signals, options, result);
-    const VelocityLoopRegression regression{signals, use};
-    const VelocityLoopFit velocity_loop =
-        fit_velocity_loop(regression, search_space(signals, options), options, result.diagnostics);
+    const VelocityLoopFit velocity_loop = fit_velocity_loop_at_its_rate(trace, signals, use, options, result);
+    if (signals.hold_factor > 1) {
+        result.diagnostics.insert(
+            result.diagnostics.end() - (result.fit_kind == "output_error" ? 1 : 0),
+            fmt::format("the position holds each value over {} samples: fitted on the samples where it is new, the "
+                        "position loop taken to run every {:.6g} ms and the velocity loop every {:.6g} ms{}",
+                        signals.hold_factor, signals.dt * signals.hold_factor * 1e3, 1e3 / result.servo_rate_hz,
+                        result.fit_kind == "output_error" ? "" : " (the drive signal's interval)"));
+    }
     set_velocity_loop_gains(velocity_loop, signals.logged_command, result);
     set_structure_and_fit(velocity_loop, signals.dt, result);
     result.injection_subtracted = !signals.injection.empty();
+    if (velocity_loop.injection_gain) {
+        const Eigen::Index g = velocity_loop.fit.estimate.size() - 1;
+        result.injection_gain =
+            estimate_from_variance(velocity_loop.fit.estimate(g), velocity_loop.fit.covariance(g, g));
+    } else if (result.injection_subtracted) {
+        result.injection_gain.value = 1.0;
+    }
     gate_finite(signals, use, result);
     if (result.status != Status::failed) gate_fit_quality(result.injection_subtracted, result);
     gate_signs(options, signals.rotary, result);
+    if (signals.injection.empty()) {
+        if (const auto found = unmapped_injection(trace))
+            result.diagnostics.push_back(unmapped_injection_message(*found));
+    }
     result.controller = identified_controller(result, options, signals.dt, signals.hold_factor);
     return result;
 }

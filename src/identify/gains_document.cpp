@@ -85,6 +85,9 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
         {"drive_delay_samples", result.drive_delay_samples},
         {naming.saturation_key(), result.controller.saturation_N},
         {"sample_time_s", result.controller.velocity_cycle_s},
+        {"servo_rate_hz", result.servo_rate_hz},
+        {"fit", result.fit_kind},
+        {"servo_rate_from", result.servo_rate_from},
     };
     // a position loop slower than the velocity loop (a position held over several samples): its own cycle
     if (result.controller.position_cycle_s > result.controller.velocity_cycle_s)
@@ -97,6 +100,11 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
                         result.method == "velocity_command" ? nlohmann::json(result.position_loop_relative_error_pct)
                                                             : nlohmann::json()},
                        {"samples_used", result.samples_used}};
+    if (result.injection_subtracted) {
+        // g: the drive signal holds the controller's output plus g times the injection as logged
+        document["injection"] = {{"gain", result.injection_gain},
+                                 {"gain_from", result.injection_gain.standard_error ? "fit" : "assumed"}};
+    }
     document["diagnostics"] = result.diagnostics;
     document["trace"] = {{"path", trace.source_path}, {"samples", trace.samples()}};
     explain_nulls(document, [&](std::string_view path) { return gains_null_reason(path, result, options, naming); });
@@ -148,6 +156,7 @@ ControllerModel controller_from_document(const nlohmann::json& document, const s
         model.velocity_cycle_s = value_of(structure, "sample_time_s").value_or(0.0);
         model.position_cycle_s = value_of(structure, "position_cycle_s").value_or(model.velocity_cycle_s);
     }
+    if (document.contains("injection")) model.injection_gain = value_of(document["injection"], "gain").value_or(1.0);
     if (const auto problem = model.validate(); !problem.empty()) {
         throw InputError(fmt::format("{}: {}", source, problem));
     }

@@ -25,6 +25,7 @@ std::string ControllerModel::validate() const {
     if (!finite_non_negative(position_cycle_s) || !finite_non_negative(velocity_cycle_s)) {
         return "the loop sample times must be >= 0";
     }
+    if (!std::isfinite(injection_gain)) return "the injection's gain must be a finite number";
     if (velocity_difference_samples < 1 || velocity_difference_samples > 8) {
         return "the velocity measurement must difference over 1 to 8 samples";
     }

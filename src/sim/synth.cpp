@@ -38,6 +38,7 @@ constexpr double rotary_rad_per_length_unit = 1000.0 * std::numbers::pi / 180.0;
 // SINUMERIK servo trace: 2 ms time base, position-loop signals every 4 ms.
 constexpr double sinumerik_sample_time_s = 0.002;
 constexpr double sinumerik_position_interval_s = 0.004;
+constexpr double sinumerik_speed_controller_rate_hz = 8000.0;
 
 // SI per unit of a recorded position or velocity ("deg" -> pi/180 rad); InputError for a unit that is not one of the
 // role's quantity on this axis kind.
@@ -200,9 +201,11 @@ SynthSpec rotary_demo_spec() {
 void apply_sinumerik_recording(SynthSpec& spec) {
     spec.sensors.sample_time_s = sinumerik_sample_time_s;
     spec.controller.position_cycle_s = sinumerik_position_interval_s;
-    spec.controller.velocity_cycle_s = sinumerik_sample_time_s;
-    spec.controller.velocity_difference_samples =
-        static_cast<int>(std::lround(sinumerik_position_interval_s / sinumerik_sample_time_s));
+    // the speed controller at its own 8 kHz (125 us, SINUMERIK's usual speed-controller cycle), measuring the
+    // velocity from the encoder every cycle, faster than any trace records
+    spec.servo_rate_hz = sinumerik_speed_controller_rate_hz;
+    spec.controller.velocity_cycle_s = 1.0 / sinumerik_speed_controller_rate_hz;
+    spec.controller.velocity_difference_samples = 1;
     auto& r = spec.recording;
     r.position_interval_s = sinumerik_position_interval_s;
     r.velocity_interval_s = sinumerik_position_interval_s;
@@ -249,6 +252,7 @@ void read_controller(ConfigSection& top, SynthSpec& spec) {
         model.saturation_N = *v;
     c->accept("saturation_N");
     c->read("current_lag_ms", model.current_lag_s, 1e-3);
+    c->read("injection_gain", model.injection_gain);
     c->read("position_cycle_ms", model.position_cycle_s, 1e-3);
     c->read("velocity_cycle_ms", model.velocity_cycle_s, 1e-3);
     if (const auto v = c->number("velocity_difference_samples"))
@@ -429,6 +433,7 @@ nlohmann::json spec_to_json(const SynthSpec& spec) {
                               {"velocity_feedforward", c.velocity_feedforward},
                               {"saturation_N", c.saturation_N ? nlohmann::json(*c.saturation_N) : nlohmann::json()},
                               {"current_lag_ms", c.current_lag_s * 1e3},
+                              {"injection_gain", c.injection_gain},
                               {"position_cycle_ms", c.position_cycle_s * 1e3},
                               {"velocity_cycle_ms", c.velocity_cycle_s * 1e3},
                               {"velocity_difference_samples", c.velocity_difference_samples},
@@ -763,6 +768,7 @@ void log_injection(const SynthSpec& spec, std::span<const double> injection, Tra
     channel.interval_source = IntervalSource::time_base;
     trace.constants["true_injection_amplitude_N"] = spec.injection->amplitude_N;
     trace.constants["true_injection_frequency_Hz"] = spec.injection->frequency_Hz;
+    trace.constants["true_injection_gain"] = spec.controller.injection_gain;
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 
 #include "feedid/core/error.hpp"
 #include "feedid/core/parameters.hpp"
+#include "feedid/identify/gains.hpp"
 
 namespace feedid {
 
@@ -61,6 +62,17 @@ Twin run_twin(const Trace& trace, const TwinDocument& result, const std::optiona
     if (twin.controller.status == Status::failed) {
         twin.status = Status::failed;
         if (twin.failure.empty() && !twin.controller.notes.empty()) twin.failure = twin.controller.notes.front();
+    }
+    // A test signal in the drive that the twin does not add leaves a force error that is no model's: the root cause
+    // comes first.
+    if (injection.empty()) {
+        if (const auto found = unmapped_injection(trace)) {
+            twin.status = Status::failed;
+            twin.failure = unmapped_injection_message(*found) +
+                           ": a simulation without it compares the model with a "
+                           "drive it does not see";
+            twin.controller.notes.insert(twin.controller.notes.begin(), twin.failure);
+        }
     }
     return twin;
 }

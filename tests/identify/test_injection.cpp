@@ -235,12 +235,15 @@ TEST(Injection, SimulateAddsTheInjectionAndReproducesTheValidationRun) {
     EXPECT_EQ(twin.document["status"], "ok");
     EXPECT_EQ(twin.document["injection"], true);
 
-    // Without the injection in the twin, the simulated force lacks the wave the measured force holds.
+    // Without the injection in the twin, the simulated force lacks the wave the measured force holds: the channel
+    // that looks like one is named, with the option, and the simulation is no validation (exit 1).
     const auto blind = simulate_validation_run(dir, "--gains " + quoted(dir / "gains.json"));
-    ASSERT_EQ(blind.exit_code, 0);
+    ASSERT_EQ(blind.exit_code, 1);
     EXPECT_GT(blind.document["relative_error_pct"]["force"].get<double>(), force_tolerance_pct)
         << blind.document["relative_error_pct"].dump();
     EXPECT_EQ(blind.document["injection"], false);
+    EXPECT_NE(blind.document["diagnostics"].dump().find("--channel injection=injection"), std::string::npos)
+        << blind.document["diagnostics"].dump();
 }
 
 TEST(Injection, SimulateIdentifiesTheGainsWithTheInjectionOrRefusesUntrustedOnes) {
@@ -363,6 +366,97 @@ TEST(Injection, CommandLineBadInjectionUnitIsExitTwoInOneLine) {
     EXPECT_EQ(result.exit_code, 2) << result.err;
     EXPECT_EQ(feedid::testing::count_lines(result.err.substr(result.err.rfind("feedid:"))), 1) << result.err;
     EXPECT_NE(result.err.find("injection channel 'u'"), std::string::npos) << result.err;
+}
+
+// The gains of an injection recording whose injection enters the drive with gain g, from the library.
+feedid::GainResult gains_with_injection(const feedid::Trace& trace) {
+    feedid::DriveConstants drive;
+    drive.force_constant_name = "force_constant_N_per_A";
+    feedid::GainOptions options;
+    feedid::set_drive_signal(options, trace, drive, std::nullopt);
+    return feedid::identify_gains(trace, feedid::drive_force(trace, drive), options,
+                                  feedid::injection_force(trace, drive));
+}
+
+TEST(Injection, TheInjectionsOwnGainIsEstimated) {
+    // The figures: an injection entering with gain 0.9 to 1.1, K_p within 0.2 % and the gain within 0.5 %.
+    for (const double gain : {0.9, 0.95, 1.0, 1.05, 1.1}) {
+        auto spec = injected_spec(300.0, 1.0);
+        spec.controller.injection_gain = gain;
+        const auto trace = feedid::synthesize(spec);
+        EXPECT_DOUBLE_EQ(trace.constants.at("true_injection_gain"), gain);
+        const auto result = gains_with_injection(trace);
+        EXPECT_EQ(result.status, feedid::Status::ok) << gain;
+        ASSERT_TRUE(result.injection_gain.value && result.injection_gain.standard_error) << gain;
+        EXPECT_NEAR(*result.injection_gain.value, gain, 0.005 * gain);
+        const double kp = spec.controller.velocity_gain_N_s_per_m;
+        EXPECT_NEAR(*result.velocity_gain_N_s_per_m.value, kp, 0.002 * kp) << gain;
+        EXPECT_DOUBLE_EQ(result.controller.injection_gain, *result.injection_gain.value);
+        const auto document = feedid::gains_document(result, feedid::GainOptions{}, trace);
+        EXPECT_EQ(document["injection"]["gain_from"], "fit");
+        EXPECT_DOUBLE_EQ(document["injection"]["gain"]["value"].get<double>(), *result.injection_gain.value);
+        EXPECT_DOUBLE_EQ(feedid::controller_from_document(document, "gains.json").injection_gain,
+                         *result.injection_gain.value);
+    }
+}
+
+TEST(Injection, AGainTheDataCannotTellIsTakenAsOneAndSaidSo) {
+    // A wave of 0.01 N beside a current noise of 0.02 A (9 N): its gain is lost in the noise.
+    auto spec = injected_spec(0.01, 1.0);
+    spec.controller.injection_gain = 1.05;
+    const auto result = gains_with_injection(feedid::synthesize(spec));
+    ASSERT_TRUE(result.injection_gain.value);
+    EXPECT_EQ(*result.injection_gain.value, 1.0);
+    EXPECT_FALSE(result.injection_gain.standard_error);
+    const auto said = std::find_if(result.diagnostics.begin(), result.diagnostics.end(), [](const std::string& d) {
+        return d.find("cannot tell the gain with which the injection enters") != std::string::npos;
+    });
+    EXPECT_NE(said, result.diagnostics.end());
+}
+
+// A validation run whose injection channel is renamed (and so has no role).
+std::filesystem::path renamed_injection(const std::filesystem::path& dir, const std::string& name) {
+    const auto validation = validation_run(dir);
+    std::string text = read_text(validation);
+    const auto header = text.find("injection [A]");
+    EXPECT_NE(header, std::string::npos);
+    text.replace(header, std::string("injection").size(), name);
+    const auto renamed = dir / ("validation_" + name + ".csv");
+    write_text(renamed, text);
+    return renamed;
+}
+
+TEST(Injection, SimulateOfAnInjectionRecordingWithoutTheRoleNamesTheChannelAndTheOption) {
+    const auto dir = feedid::testing::temp_dir();
+    const auto estimation = dir / "estimation.csv";
+    ASSERT_EQ(run_cli("synth --seed 1 --out " + quoted(estimation)).exit_code, 0);
+    ASSERT_EQ(
+        run_cli("identify " + quoted(estimation) + drive_options + " --json " + quoted(dir / "result.json")).exit_code,
+        0);
+    // by its name (EMPS's validation run calls it pulses_N), and by its shape under a name that says nothing
+    for (const std::string name : {"pulses_N", "u7"}) {
+        const auto trace = renamed_injection(dir, name);
+        const auto simulated = run_cli("simulate " + quoted(trace) + drive_options + synth_channels + " --result " +
+                                       quoted(dir / "result.json"));
+        EXPECT_EQ(simulated.exit_code, 1) << name << ": " << simulated.out << simulated.err;
+        EXPECT_EQ(feedid::testing::count_lines(simulated.err), 1) << simulated.err;
+        EXPECT_NE(simulated.err.find("channel '" + name + "'"), std::string::npos) << simulated.err;
+        EXPECT_NE(simulated.err.find("--channel injection=" + name), std::string::npos) << simulated.err;
+        const auto gains = run_cli("gains " + quoted(trace) + drive_options + synth_channels + " --json -");
+        EXPECT_EQ(gains.exit_code, 1) << gains.err;
+        const auto document = nlohmann::json::parse(gains.out);
+        EXPECT_NE(document["diagnostics"].dump().find("--channel injection=" + name), std::string::npos)
+            << document["diagnostics"].dump();
+    }
+}
+
+TEST(Injection, ARecordingWithoutAnInjectionHasNoInjectionLikeChannel) {
+    auto spec = feedid::demo_spec();
+    spec.test.feedrates_mm_per_min = {2000, 4000};
+    spec.test.slow_passes = false;
+    EXPECT_FALSE(feedid::unmapped_injection(feedid::synthesize(spec)));
+    FEEDID_REQUIRE_SHARED("emps/DATA_EMPS.mat");
+    EXPECT_FALSE(feedid::unmapped_injection(feedid::read_trace(shared_data() / "emps/DATA_EMPS.mat")));
 }
 
 }  // namespace

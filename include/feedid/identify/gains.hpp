@@ -28,6 +28,10 @@ struct GainOptions {
     bool feedforward{false};                            ///< also estimate a velocity feed-forward k_ff
     std::optional<int> velocity_difference_samples;     ///< n of the velocity measurement; none = chosen from the data
     std::optional<double> current_lag_s;                ///< tau [s]; none = estimated from the data
+    /// The rate the velocity loop runs at [Hz], a whole multiple of the trace's sample rate; none = the trace's
+    /// `servo_cycle_s` constant when it has one, else detected from the data (the log rate unless a faster loop
+    /// explains the drive signal clearly better).
+    std::optional<double> servo_rate_hz;
     std::optional<double> saturation_N;                 ///< samples at this force command limit are left out [N]
     double force_per_signal{0.0};                       ///< N per unit of the logged drive signal (0 = unknown)
     std::string signal_unit;                            ///< the logged drive signal's unit ("V", "A"), for reporting
@@ -71,6 +75,14 @@ struct GainResult {
     int reference_delay_samples{0};  ///< samples by which the controller's reference lags the logged one
     int drive_delay_samples{0};      ///< samples by which the logged drive signal lags the command
     double current_lag_s{0.0};
+    /// The velocity loop's rate [Hz]: the log rate, or a multiple of it for a loop that runs between the logged
+    /// samples (velocity_difference_samples then counts its cycles).
+    double servo_rate_hz{0.0};
+    /// "equation_error" (the loop equations on the logged samples: the loop runs at the log rate) or "output_error"
+    /// (the controller simulated at servo_rate_hz between the logged samples, its output fitted to the drive signal).
+    std::string fit_kind{"equation_error"};
+    /// Why that fit: "log rate", "--servo-rate", "trace" (its servo_cycle_s), "detected".
+    std::string servo_rate_from{"log rate"};
     double relative_error_pct{0.0};  ///< of the velocity loop's force fit, 100*||F - F_hat||/||F||
     /// 100*||r_s||/||F||, r_s the part of the velocity loop's residual that is not white (sensor) noise: what the
     /// model misses. The fit-quality gate (gain_fit_error_limit_pct) looks at this.
@@ -78,6 +90,10 @@ struct GainResult {
     double position_loop_relative_error_pct{0.0};  ///< of the position loop's fit (velocity_command method)
     std::size_t samples_used{0};
     bool injection_subtracted{false};  ///< an injected signal was taken out of the drive force before the fit
+    /// The gain [-] with which the injection enters the drive signal (drive force = controller output + g * the
+    /// injection as logged), fitted with the controller; 1 without a standard error where the data cannot tell it
+    /// (a diagnostic says so). Null without an injection.
+    Estimate injection_gain;
     std::vector<std::string> diagnostics;
 };
 
@@ -91,6 +107,19 @@ struct GainResult {
 /// the gains (no following error, too few samples). A fit too poor to trust is status failed with a diagnostic.
 GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options = {},
                           std::span<const double> injection = {});
+
+/// A channel without a role that looks like a test signal injected at the controller's output: named like one
+/// ("pulses_N", "injection", "excitation", "dither", "prbs") or a square wave (two levels, switching at least four
+/// times) that the following error does not follow (|correlation| < 0.3). Its name, and why it looks like one
+/// ("named like one" or "a square wave ..."); none when there is no such channel.
+struct InjectionLike {
+    std::string channel;
+    std::string why;
+};
+std::optional<InjectionLike> unmapped_injection(const Trace& trace);
+
+/// The finding on such a channel: what it looks like, and `--channel injection=NAME` to map it.
+std::string unmapped_injection_message(const InjectionLike& found);
 
 /// The gains document (`feedid gains --json`, docs/documents.md) of the gains identified from `trace` (its path and
 /// length are in the document).

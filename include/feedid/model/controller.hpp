@@ -30,6 +30,9 @@ struct ControllerModel {
     double position_cycle_s{0.0};                ///< position loop sample time [s]; 0 = the trace's sample time
     double velocity_cycle_s{0.0};                ///< velocity loop sample time [s]; 0 = the position loop's
     int velocity_difference_samples{1};          ///< n of the velocity measurement above, 1..8
+    /// [-] an injected test signal enters the drive with this gain: the drive gets F_cmd + g*u_inj for the u_inj
+    /// logged (the scale of a DAC or an amplifier between the test signal and the drive)
+    double injection_gain{1.0};
 
     /// K_v in the SINUMERIK unit (m/min)/mm.
     [[nodiscard]] double kv_m_per_min_per_mm() const { return position_gain_per_s * m_per_min_per_mm_per_1_per_s; }

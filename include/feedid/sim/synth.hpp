@@ -145,9 +145,9 @@ SynthSpec demo_spec(bool rotary = false);
 SynthSpec rotary_demo_spec();
 
 /// Records `spec` as a SINUMERIK servo trace does: 2 ms time base, the position loop (and so position, reference and
-/// velocity command, and the actual velocity) every 4 ms, the velocity loop and the torque every 2 ms; the velocity
-/// loop measures its velocity over the last 4 ms; positions written in deg (rotary) or mm, velocities in rpm or
-/// mm/min, the torque in N*m (rotary) or the current in A.
+/// velocity command, and the actual velocity) every 4 ms, the torque every 2 ms, while the speed controller runs at
+/// 8 kHz (servo_rate_hz), faster than the trace, measuring the velocity over each of its 125 us cycles; positions
+/// written in deg (rotary) or mm, velocities in rpm or mm/min, the torque in N*m (rotary) or the current in A.
 void apply_sinumerik_recording(SynthSpec& spec);
 
 /// The trace in the units the recording states (positions, velocities), for writing: values converted from SI and
