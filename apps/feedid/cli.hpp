@@ -86,5 +86,6 @@ Action add_report_command(CLI::App& app);
 Action add_scan_command(CLI::App& app);
 Action add_watch_command(CLI::App& app);
 Action add_publish_command(CLI::App& app);
+Action add_fingerprint_command(CLI::App& app);
 
 }  // namespace feedid::cli
