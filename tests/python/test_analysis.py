@@ -217,7 +217,7 @@ def test_fingerprint_is_the_cli_document(sinumerik, folder):
     """feedid.fingerprint on the SINUMERIK reversal trace: the lost motion of ``feedid fingerprint``, the stiffness
     null with its reason (no force constant); and against the truth of ``feedid synth --backlash --stiffness``."""
     document = feedid.fingerprint(sinumerik)
-    cli = cli_json("fingerprint", sinumerik, "--json", "-")
+    cli = cli_json("fingerprint", sinumerik)
     assert document["fingerprint"] == cli["fingerprint"] and document["reasons"] == cli["reasons"]
     lost = document["fingerprint"]["lost_motion_m"]["value"]
     assert 0.5e-6 <= lost <= 3e-6
