@@ -66,7 +66,7 @@ void TraceArguments::add_to(CLI::App& app) {
         ->required();
     app.add_option("--channel", channel_assignments,
                    "Use a channel for a role: ROLE=NAME (roles: time, position, reference_position, velocity, "
-                   "velocity_command, current, force, external_force, injection); repeatable")
+                   "velocity_command, current, force, external_force, injection, motor_position); repeatable")
         ->take_all()
         ->allow_extra_args(false);
     app.add_option("--unit", unit_assignments, "The unit of a role's channel where the file gives none: ROLE=UNIT")
@@ -102,6 +102,9 @@ void TraceArguments::add_to(CLI::App& app) {
         ->check(allowed_range(1e-9, 3600.0, "s"));
     app.add_option("--skip-rows", skip_rows, "CSV: lines to skip at the top of the file before the header row")
         ->check(allowed_range(0.0, 1e9, "lines"));
+    app.add_flag("--rotary", rotary,
+                 "The axis is rotary: a SINUMERIK trace's posn signals are in deg and its velo signals in rpm; "
+                 "channels without a unit are in rad, rad/s and N*m");
 }
 
 ImportOptions TraceArguments::import_options() const {
@@ -139,6 +142,8 @@ ImportOptions TraceArguments::import_options() const {
     }
     options.sample_time_s = sample_time_s;
     options.skip_rows = skip_rows;
+    options.rotary = rotary;
+    options.describe = describe;
     if (lead_mm) options.unit_context.lead_m = *lead_mm * 1e-3;
     options.unit_context.gear_ratio = gear_ratio;
     if (!rated.empty()) {

@@ -44,6 +44,8 @@ struct TraceArguments {
     std::vector<std::string> invert;  // roles whose sign is flipped (a drive counting the other way)
     std::optional<double> sample_time_s;
     std::size_t skip_rows{0};
+    bool rotary{false};    // --rotary: the axis is rotary (SINUMERIK posn/velo in deg and rpm)
+    bool describe{false};  // feedid info: several axes or no time column are described, not refused
 
     void add_to(CLI::App& app);
     [[nodiscard]] ImportOptions import_options() const;
@@ -84,5 +86,6 @@ Action add_report_command(CLI::App& app);
 Action add_scan_command(CLI::App& app);
 Action add_watch_command(CLI::App& app);
 Action add_publish_command(CLI::App& app);
+Action add_fingerprint_command(CLI::App& app);
 
 }  // namespace feedid::cli

@@ -41,13 +41,17 @@ struct InfoCommand {
     int run() const {
         require_separate_outputs({{"--json", json_path}}, trace_arguments.inputs());
         Trace trace = trace_arguments.read(false);
-        const TimeBase base = trace.time_base();
+        // A file without a time column (and no --sample-time) is described without a time base.
+        const bool timed = trace.has(Role::time);
+        const TimeBase base = timed ? trace.time_base() : TimeBase{};
+        const std::size_t samples = trace.channels.empty() ? 0 : trace.channels.front().values.size();
         nlohmann::json document;
         document["format"] = trace.format;
-        document["samples"] = trace.samples();
-        document["sample_time_s"] = base.sample_time_s;
-        document["duration_s"] = base.duration_s;
+        document["samples"] = samples;
+        document["sample_time_s"] = timed ? nlohmann::json(base.sample_time_s) : nlohmann::json();
+        document["duration_s"] = timed ? nlohmann::json(base.duration_s) : nlohmann::json();
         document["rotary"] = trace.rotary;
+        document["axes"] = trace.axes;
         document["channels"] = nlohmann::json::array();
         for (const auto& channel : trace.channels) {
             nlohmann::json entry{{"name", channel.name},
@@ -70,11 +74,20 @@ struct InfoCommand {
         }
         fmt::print("{}\n", terminal_text(trace.source_path));
         fmt::print("  format       {}\n", trace.format);
-        fmt::print("  samples      {}\n", trace.samples());
-        fmt::print("  sample time  {:.6g} s ({:.6g} Hz){}\n", base.sample_time_s,
-                   base.sample_time_s > 0 ? 1.0 / base.sample_time_s : 0.0, base.jittery ? ", jittery" : "");
-        fmt::print("  duration     {:.6g} s\n", base.duration_s);
+        fmt::print("  samples      {}\n", samples);
+        if (timed) {
+            fmt::print("  sample time  {:.6g} s ({:.6g} Hz){}\n", base.sample_time_s,
+                       base.sample_time_s > 0 ? 1.0 / base.sample_time_s : 0.0, base.jittery ? ", jittery" : "");
+            fmt::print("  duration     {:.6g} s\n", base.duration_s);
+        } else {
+            fmt::print("  sample time  unknown (no time column; give --sample-time SECONDS)\n");
+        }
         fmt::print("  axis         {}\n", trace.rotary ? "rotary" : "linear");
+        if (!trace.axes.empty()) {
+            std::string axes;
+            for (const auto& axis : trace.axes) axes += (axes.empty() ? "" : ", ") + terminal_text(axis);
+            fmt::print("  axes         {} (read one with --axis NAME)\n", axes);
+        }
         fmt::print("  channels\n");
         fmt::print("    {:<28} {:<20} {:<8} {:<10} {:>14} {:>14}  {}\n", "name", "role", "unit", "source", "min", "max",
                    "native interval");
@@ -103,6 +116,7 @@ struct InfoCommand {
 Action add_info_command(CLI::App& app) {
     auto command = std::make_shared<InfoCommand>();
     auto* sub = app.add_subcommand("info", "Show what a trace holds: channels, roles, units, sample time, findings");
+    command->trace_arguments.describe = true;
     command->trace_arguments.add_to(*sub);
     sub->add_option("--json", command->json_path, "Write the info document to PATH ('-' for stdout)");
     sub->add_option("--lead", command->trace_arguments.lead_mm,

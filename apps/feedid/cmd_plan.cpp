@@ -11,6 +11,7 @@
 #include <fmt/core.h>
 
 #include "cli.hpp"
+#include "feedid/plan/reversal_test.hpp"
 #include "feedid/core/error.hpp"
 #include "feedid/plan/gcode_writer.hpp"
 #include "feedid/io/csv.hpp"
@@ -125,6 +126,9 @@ struct PlanArguments {
     std::optional<double> positioning_feed;
     std::optional<double> start;
     std::string dialect{"iso"};
+    std::string test{"friction"};
+    std::optional<double> micro_step_um;
+    std::optional<int> micro_steps;
     std::string output;
     std::string reference;
     std::string json;
@@ -189,6 +193,15 @@ struct PlanArguments {
             ->check(allowed_range(1e-3, 1e6, "mm/min or deg/min"));
         sub.add_option("--start", start, "Where the axis stands at the program start [mm; deg]; default the first pass")
             ->check(allowed_range(-1e6, 1e6, "mm or deg"));
+        sub.add_option("--test", test,
+                       "Which test: friction (the strokes and feedrate ladder for identify) or reversal (micro-steps "
+                       "through reversals and slow strokes for fingerprint)")
+            ->check(CLI::IsMember({"friction", "reversal"}))
+            ->capture_default_str();
+        sub.add_option("--micro-step", micro_step_um, "--test reversal: one micro-step [um; mdeg] (default 1)")
+            ->check(allowed_range(1e-3, 1000.0, "um or mdeg"));
+        sub.add_option("--micro-steps", micro_steps, "--test reversal: micro-steps each way (default 10)")
+            ->check(allowed_range(1, 1000, "steps"));
         sub.add_option("--dialect", dialect, "Part-program dialect")
             ->check(CLI::IsMember({"iso", "sinumerik", "linuxcnc"}))
             ->capture_default_str();
@@ -283,8 +296,52 @@ struct PlanArguments {
         return nominal;
     }
 
+    [[nodiscard]] ReversalTestOptions reversal_options() const {
+        const PlanUnits u = units();
+        ReversalTestOptions options = default_reversal_options(axis);
+        std::tie(options.travel_min, options.travel_max) = parse_travel(travel, u);
+        options.centers = parse_number_list(centers, "--centers", u.length());
+        if (stroke) options.stroke = *stroke * u.length();
+        if (!feeds.empty()) options.feeds = parse_feeds(feeds, u);
+        if (cycles) options.cycles = *cycles;
+        if (acceleration) options.acceleration = *acceleration * u.acceleration();
+        if (dwell_s) options.dwell = *dwell_s;
+        if (sample_time_s) options.sample_time = *sample_time_s;
+        if (positioning_feed) options.positioning_feed = *positioning_feed * u.feed();
+        if (micro_step_um) options.micro_step = *micro_step_um * 1e-3 * u.length();
+        if (micro_steps) options.micro_steps = *micro_steps;
+        return options;
+    }
+
+    // --test reversal: the fingerprint's measurement program; no identifiability prediction.
+    [[nodiscard]] int run_reversal() const {
+        for (const auto& [given, option] :
+             {std::pair{!slow_feeds.empty(), "--slow-feeds"}, std::pair{max_pass_time_s.has_value(), "--max-pass-time"},
+              std::pair{jerk.has_value(), "--jerk"}, std::pair{max_feed.has_value(), "--max-feed"},
+              std::pair{start.has_value(), "--start"}}) {
+            if (given) throw InputError(fmt::format("plan --test reversal: {} does not apply", option));
+        }
+        const TestPlan plan = make_reversal_plan(reversal_options());
+        const auto part_program_dialect = parse_dialect(dialect).value_or(Dialect::iso);
+        if (!output.empty()) write_output(output, emit_part_program(plan, part_program_dialect));
+        if (!reference.empty()) write_output(reference, write_csv(reference_trajectory(plan)));
+        if (!json.empty()) {
+            write_json({{"test", "reversal"}, {"axis", plan.options.axis}, {"duration_s", plan.duration},
+                        {"blocks", plan.moves.size()}, {"description", plan.description}},
+                       json);
+        }
+        const bool stdout_taken = output == "-" || reference == "-" || json == "-";
+        std::FILE* stream = stdout_taken ? stderr : stdout;
+        for (const auto& line : plan.description) fmt::print(stream, "{}\n", line);
+        fmt::print(stream, "duration {:.1f} s, {} blocks\n", plan.duration, plan.moves.size());
+        return 0;
+    }
+
     [[nodiscard]] int run() const {
         require_separate_outputs({{"-o", output}, {"--reference", reference}, {"--json", json}}, {});
+        if (test == "reversal") return run_reversal();
+        if (micro_step_um || micro_steps)
+            throw InputError("plan: --micro-step and --micro-steps go with --test reversal");
         const TestPlan plan = make_test_plan(plan_options());
         const PredictionOptions nominal = prediction_options();
         const auto prediction = predict_identifiability(plan, nominal);
@@ -315,7 +372,12 @@ Action add_plan_command(CLI::App& app) {
         "  feedid plan --travel=-400:400 --centers=-300 --slow-feeds none --dialect sinumerik -o TEST.MPF\n"
         "A rotary table (degrees, deg/min; the rotary demo drive as the nominal):\n"
         "  feedid plan --axis C --travel=-360:360 --centers=0,120,240 --dialect linuxcnc -o c.ngc --reference c.csv\n"
-        "  feedid synth --rotary --reference c.csv --out c-synth.csv && feedid identify c-synth.csv --kt 2");
+        "  feedid synth --rotary --reference c.csv --out c-synth.csv && feedid identify c-synth.csv --kt 2\n"
+        "The reversal test for the mechanical fingerprint (record the scale and the motor encoder):\n"
+        "  feedid plan --test reversal --travel=-400:400 --centers=-300,0,300 --dialect sinumerik -o REV.MPF \\\n"
+        "      --reference rev.csv\n"
+        "  feedid synth --reference rev.csv --backlash 8 --stiffness 150 --out rev-synth.csv\n"
+        "  feedid fingerprint rev-synth.csv --force-constant force_constant_N_per_A");
 
     auto arguments = std::make_shared<PlanArguments>();
     arguments->add_to(*sub);

@@ -12,6 +12,7 @@
 #include "feedid/io/csv.hpp"
 #include "feedid/sim/production_synth.hpp"
 #include "feedid/sim/synth.hpp"
+#include "feedid/sim/transmission_synth.hpp"
 
 namespace feedid::cli {
 
@@ -95,6 +96,35 @@ struct SynthCommand {
     std::string program_path;
     std::string machine_path;
     std::optional<double> cutting_force;
+    // the transmission (a second encoder, backlash, finite stiffness): feedid fingerprint's truth
+    std::optional<double> backlash_um;
+    std::optional<double> stiffness_N_per_um;
+    std::optional<double> scale_noise_nm;
+    bool one_encoder{false};
+
+    [[nodiscard]] bool with_transmission() const {
+        return backlash_um || stiffness_N_per_um || scale_noise_nm || one_encoder;
+    }
+
+    // --backlash/--stiffness: the two-mass axis with both encoders, on the reversal test unless --reference.
+    int run_transmission(const SynthSpec& spec) const {
+        if (!injection.empty() || !preset.empty())
+            throw InputError("synth --backlash/--stiffness: --injection and --preset do not apply");
+        TransmissionModel transmission;
+        const double length = spec.axis.rotary ? 3.14159265358979323846 / 180.0 * 1e-3 : 1e-6;  // um, or mdeg
+        if (backlash_um) transmission.backlash_m = *backlash_um * length;
+        if (stiffness_N_per_um) transmission.stiffness_N_per_m = *stiffness_N_per_um / length;
+        if (scale_noise_nm) transmission.scale_noise_m = *scale_noise_nm * length * 1e-3;
+        transmission.log_motor_position = !one_encoder;
+        std::optional<std::vector<double>> reference;
+        if (!reference_path.empty()) reference = read_reference(reference_path, spec.sensors.sample_time_s);
+        const Trace trace = synthesize_with_transmission(spec, transmission, reference);
+        write_output(out_path, write_csv(trace));
+        const auto base = trace.time_base();
+        fmt::print(stderr, "feedid: wrote {} ({} samples, {:.4g} s at {:.4g} ms; seed {})\n", out_path, trace.samples(),
+                   base.duration_s, base.sample_time_s * 1e3, spec.seed);
+        return 0;
+    }
 
     // --program: the machine runs a part program; one multi-axis trace.
     int run_program() const {
@@ -151,6 +181,7 @@ struct SynthCommand {
             if (out_path.empty()) return 0;
         }
         if (out_path.empty()) throw InputError("synth: --out FILE is required (where to write the trace)");
+        if (with_transmission()) return run_transmission(spec);
         std::optional<std::vector<double>> reference;
         if (!reference_path.empty()) reference = read_reference(reference_path, spec.sensors.sample_time_s);
         Trace trace = synthesize(spec, reference);
@@ -196,6 +227,19 @@ Action add_synth_command(CLI::App& app) {
                                 ProductionOptions{}.cutting_force_fraction));
     sub->add_flag("--no-slow-passes", command->no_slow_passes,
                   "Leave out the slow passes: the paper's feedrate ladder (1250..9350 mm/min) alone");
+    sub->add_option("--backlash", command->backlash_um,
+                    "A transmission with this dead band between motor and load [um; mdeg on a rotary axis], logged "
+                    "with the motor encoder (x_motor) beside the scale (x); without --reference the reversal test of "
+                    "`feedid plan --test reversal` is run")
+        ->check(allowed_range(0.0, 10000.0, "um"));
+    sub->add_option("--stiffness", command->stiffness_N_per_um,
+                    "The transmission's stiffness [N/um; N*m/mdeg on a rotary axis] (default 200)")
+        ->check(allowed_range(1e-3, 1e6, "N/um"));
+    sub->add_option("--scale-noise", command->scale_noise_nm,
+                    "White noise of the scale with --backlash/--stiffness [nm; udeg] (default 5)")
+        ->check(allowed_range(0.0, 1e6, "nm"));
+    sub->add_flag("--one-encoder", command->one_encoder,
+                  "With --backlash/--stiffness: log the scale only (one measuring system)");
     sub->add_flag("--print-drive", command->print_drive, "Print the drive file in use (every key) as JSON");
     sub->add_flag("--rotary", command->rotary,
                   "A rotary axis: the rotary demo drive (a rotary table, SI rad, kg*m^2, N*m), or check that the "

@@ -77,6 +77,7 @@ int main(int argc, char** argv) {
     add(add_identify_command);
     add(add_scan_command);
     add(add_gains_command);
+    add(add_fingerprint_command);
     add(add_simulate_command);
     add(add_synth_command);
     add(add_plan_command);

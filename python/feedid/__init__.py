@@ -72,11 +72,12 @@ del _class
 __all__ = [
     "__version__", "InputError", "IdentificationError", "ROLES", "Trace", "read_trace", "Estimate", "Result",
     "identify", "Gains", "gains", "Simulation", "simulate", "synth", "demo_drive", "Plan", "plan", "Rls", "History",
+    "fingerprint",
 ]
 
 #: The roles a channel can have (``channels={"position": "qm"}``; ``Trace.from_arrays(position=...)``).
 ROLES = ("time", "position", "reference_position", "velocity", "velocity_command", "current", "force",
-         "external_force", "injection")
+         "external_force", "injection", "motor_position")
 
 # The keyword defaults are the library's: each read from a default-constructed Options struct (identify's
 # IdentifyOptions, plan's TestPlanOptions and PredictionOptions, ...) in the unit the keyword's name states.
@@ -356,6 +357,36 @@ def simulate(trace: TraceArgument, result: Union[Result, Mapping[str, Any], Path
     """
     options = _options(locals(), "trace", "result", "gains")
     return _raise_failure(_native.simulate(trace, result, gains, options))
+
+
+def fingerprint(trace: TraceArgument, *, force_constant: Union[float, str, None] = None,
+                kt_Nm_per_A: Optional[float] = None, lead_mm: Optional[float] = None,
+                gear_ratio: float = _GAINS["gear_ratio"], settle_s: Optional[float] = None,
+                channels: Optional[Mapping[str, str]] = None, units: Optional[Mapping[str, str]] = None,
+                axis: Optional[str] = None, format: Optional[str] = None, sample_time_s: Optional[float] = None,
+                skip_rows: Optional[int] = None, rated: Optional[str] = None, join: Optional[str] = None,
+                join_max_shift_s: Optional[float] = None, tare: Optional[Sequence[str]] = None,
+                invert: Optional[Sequence[str]] = None) -> dict:
+    """The axis's mechanical fingerprint: ``feedid fingerprint --json`` as a dict.
+
+    From the scale (role ``position``) and the motor encoder (role ``motor_position``), per direction with standard
+    errors: lost motion at reversal, backlash, stiffness between motor and load, reversal error and breakaway force
+    (keys ``lost_motion_m``, ``backlash_m``, ``stiffness_N_per_m``, ``reversal_error_m``, ``breakaway_N``, each also
+    ``_forward``/``_reverse``; rotary: ``_rad``, ``_Nm_per_rad``, ``_Nm``). A figure the trace cannot tell is
+    ``None`` and ``reasons`` says why.
+
+    Args:
+        trace: a Trace, or the path of a trace file (then the reading options apply, see :func:`read_trace`).
+        force_constant, kt_Nm_per_A, lead_mm, gear_ratio: the drive constants (see :func:`identify`).
+        settle_s: how long the reference must hold its speed before a sample counts [s]; default 0.05.
+
+    Example::
+
+        >>> doc = feedid.fingerprint("rev-synth.csv", force_constant="force_constant_N_per_A")  # doctest: +SKIP
+        >>> doc["fingerprint"]["backlash_m"]["value"]  # doctest: +SKIP
+        8e-06
+    """
+    return _native.fingerprint(trace, _options(locals(), "trace"))
 
 
 def synth(drive: Union[Mapping[str, Any], PathLike, None] = None, *, rotary: bool = False, preset: Optional[str] = None,

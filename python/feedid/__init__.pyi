@@ -309,6 +309,15 @@ def simulate(trace: TraceArgument, result: Union[Result, Mapping[str, Any], Path
              join_max_shift_s: Optional[float] = ..., tare: Optional[Sequence[str]] = ...,
              invert: Optional[Sequence[str]] = ...) -> Simulation: ...
 
+def fingerprint(trace: TraceArgument, *, force_constant: Union[float, str, None] = ...,
+                kt_Nm_per_A: Optional[float] = ..., lead_mm: Optional[float] = ..., gear_ratio: float = ...,
+                settle_s: Optional[float] = ..., channels: Optional[Mapping[str, str]] = ...,
+                units: Optional[Mapping[str, str]] = ..., axis: Optional[str] = ..., format: Optional[str] = ...,
+                sample_time_s: Optional[float] = ..., skip_rows: Optional[int] = ..., rated: Optional[str] = ...,
+                join: Optional[str] = ..., join_max_shift_s: Optional[float] = ...,
+                tare: Optional[Sequence[str]] = ..., invert: Optional[Sequence[str]] = ...) -> dict: ...
+
+
 def synth(drive: Union[Mapping[str, Any], PathLike, None] = ..., *, rotary: bool = ...,
           preset: Optional[Literal["sinumerik"]] = ..., seed: Optional[int] = ...,
           injection: Optional[Tuple[float, float]] = ..., slow_passes: bool = ..., reference: Optional[ArrayLike] = ...,

@@ -5,6 +5,7 @@
 #include "binding.hpp"
 #include "feedid/core/error.hpp"
 #include "feedid/identify/brief_report.hpp"
+#include "feedid/identify/fingerprint.hpp"
 #include "feedid/identify/gains.hpp"
 #include "feedid/identify/identify.hpp"
 #include "feedid/identify/option_names.hpp"
@@ -680,6 +681,23 @@ Example::
     });
 }
 
+// feedid.fingerprint: the document `feedid fingerprint --json` writes, as a dict.
+py::object fingerprint_of(py::handle trace_argument_object, const py::dict& kwargs) {
+    const OptionReader o(kwargs);
+    nlohmann::json drive_record;
+    FingerprintOptions options;
+    options.drive = drive_constants(o, drive_record);
+    if (const auto settle = o.number("settle_s", {0.0, 10.0, "s"})) options.settle_s = *settle;
+    std::optional<PyTrace> storage;
+    const Trace& trace = trace_argument(trace_argument_object, o, storage).trace;
+    FingerprintResult result;
+    {
+        py::gil_scoped_release release;
+        result = fingerprint(trace, options);
+    }
+    return to_python(fingerprint_document(result));
+}
+
 }  // namespace
 
 void bind_analysis(py::module_& m) {
@@ -690,6 +708,7 @@ void bind_analysis(py::module_& m) {
     m.def("identify", &identify, py::arg("trace"), py::arg("options"));
     m.def("gains", &gains, py::arg("trace"), py::arg("options"));
     m.def("simulate", &simulate, py::arg("trace"), py::arg("result"), py::arg("gains"), py::arg("options"));
+    m.def("fingerprint", &fingerprint_of, py::arg("trace"), py::arg("options"));
 }
 
 }  // namespace feedid::python

@@ -190,7 +190,7 @@ Role role_named(const std::string& name) {
     if (!role || *role == Role::other) {
         throw InputError(
             fmt::format("unknown role '{}' (roles: time, position, reference_position, velocity, "
-                        "velocity_command, current, force, external_force, injection)",
+                        "velocity_command, current, force, external_force, injection, motor_position)",
                         name));
     }
     return *role;

@@ -17,7 +17,7 @@
 namespace feedid {
 
 namespace {
-constexpr std::array<std::pair<Role, std::string_view>, 10> role_names{{
+constexpr std::array<std::pair<Role, std::string_view>, 11> role_names{{
     {Role::other, "other"},
     {Role::time, "time"},
     {Role::position, "position"},
@@ -28,6 +28,7 @@ constexpr std::array<std::pair<Role, std::string_view>, 10> role_names{{
     {Role::force, "force"},
     {Role::external_force, "external_force"},
     {Role::injection, "injection"},
+    {Role::motor_position, "motor_position"},
 }};
 
 std::string where(const Trace& trace) {
@@ -244,6 +245,7 @@ Trace Trace::slice(std::size_t first, std::size_t last) const {
     out.constants = constants;
     out.findings = findings;
     out.rotary = rotary;
+    out.axes = axes;
     last = std::min(last, samples());
     first = std::min(first, last);
     for (const auto& channel : channels) {

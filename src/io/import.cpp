@@ -41,7 +41,7 @@ struct RoleNames {
 // Drive and CNC logs add their own: `X1_ActualPosition`, `X1_CommandVelocity`, `X1_CurrentFeedback` (guessed without
 // the axis prefix), MR Configurator2's `Servo motor speed` and `Torque` (the drive signal: the current role takes
 // torque and % units).
-constexpr std::array<RoleNames, 7> common_names{{
+constexpr std::array<RoleNames, 8> common_names{{
     {Role::time, {"t", "time", "times", "zeit", "timestamp", "tsec", "ts"}},
     {Role::position,
      {"x", "pos", "position", "qm", "q", "xact", "posact", "actpos", "actualposition", "xmeas", "measpos", "y", "z",
@@ -59,6 +59,7 @@ constexpr std::array<RoleNames, 7> common_names{{
      {"i", "iq", "current", "cur", "iact", "iqact", "actcurr", "actcurrent", "id", "idrive", "currentfeedback",
       "torque"}},
     {Role::force, {"f", "force", "fd", "fdrive", "driveforce", "tau"}},
+    {Role::motor_position, {"xmotor", "motorposition", "motorpos", "posmotor", "qmotor", "xenc", "encoderposition"}},
 }};
 
 bool is_common_name(std::string_view key) {
@@ -113,6 +114,7 @@ bool compatible(Role role, Quantity quantity) {
     switch (role) {
         case Role::time: return quantity == Quantity::time;
         case Role::position:
+        case Role::motor_position:
         case Role::reference_position: return quantity == Quantity::length || quantity == Quantity::angle;
         case Role::velocity:
         case Role::velocity_command: return quantity == Quantity::velocity || quantity == Quantity::angular_velocity;
@@ -131,6 +133,7 @@ std::string_view default_si_unit(Role role, bool rotary) {
     switch (role) {
         case Role::time: return "s";
         case Role::position:
+        case Role::motor_position:
         case Role::reference_position: return rotary ? "rad" : "m";
         case Role::velocity:
         case Role::velocity_command: return rotary ? "rad/s" : "m/s";
@@ -166,8 +169,15 @@ std::string select_axis(Trace& trace, const ImportOptions& options) {
     if (trace.format == "sinumerik-trace") return {};  // its reader has already read the chosen axis alone
     const auto axes = axes_in_names(trace);
     if (axes.empty()) return {};
+    if (axes.size() > 1) trace.axes = axes;
     if (options.axis.empty()) {
         if (axes.size() == 1) return axes.front();
+        if (options.describe && options.channels.empty()) {
+            trace.findings.push_back(fmt::format("channels of several axes ({}): no role guessed; read one with "
+                                                 "--axis {}",
+                                                 joined(axes), axes.front()));
+            return "-";
+        }
         if (options.channels.empty()) {
             throw InputError(
                 fmt::format("{}: channels of several axes ({}): choose one with --axis NAME, or give the "
@@ -275,8 +285,11 @@ struct AxisDecision {
 // From the position channel's unit; without one, the reference position's; without either (a velocity-only trace or
 // positions without a unit), the velocity channel's: a revolution speed is angular unless a lead makes it a table
 // velocity. With none of these the axis is linear, as feedid always took it.
-AxisDecision decide_axis_kind(const Trace& trace, const UnitContext& context) {
-    for (const Role role : {Role::position, Role::reference_position, Role::velocity, Role::velocity_command}) {
+AxisDecision decide_axis_kind(const Trace& trace, const ImportOptions& options) {
+    const UnitContext& context = options.unit_context;
+    if (options.rotary) return {AxisKind::rotary, "--rotary"};
+    for (const Role role :
+         {Role::position, Role::reference_position, Role::motor_position, Role::velocity, Role::velocity_command}) {
         const auto* channel = trace.find(role);
         if (channel == nullptr) continue;
         const std::string& unit = channel->unit.empty() ? channel->source_unit : channel->unit;
@@ -383,10 +396,32 @@ std::optional<UnitConversion> channel_conversion(Trace& trace, const Channel& ch
     return conversion;
 }
 
+// A SINUMERIK trace states posn and velo signals in the NC's basic length system without saying the axis kind (the
+// reader takes mm and mm/min). One statement that the axis is rotary (--rotary, or an angle for a position role)
+// holds for every such signal: posn in deg and velo in rpm, as the NC writes them for a rotary axis, except where a
+// role's unit was stated on its own.
+void carry_rotary_to_sinumerik_units(Trace& trace, const ImportOptions& options) {
+    if (trace.format != "sinumerik-trace") return;
+    bool rotary = options.rotary;
+    for (const Role role : {Role::position, Role::reference_position, Role::motor_position}) {
+        const auto stated = options.units.find(role);
+        if (stated == options.units.end()) continue;
+        const auto conversion = parse_unit(stated->second, options.unit_context);
+        if (conversion && conversion->quantity == Quantity::angle) rotary = true;
+    }
+    if (!rotary) return;
+    for (auto& channel : trace.channels) {
+        if (channel.role != Role::other && options.units.contains(channel.role)) continue;
+        if (channel.source_unit == "mm") channel.source_unit = "deg";
+        if (channel.source_unit == "mm/min") channel.source_unit = "rpm";
+    }
+}
+
 void convert_units(Trace& trace, const ImportOptions& options) {
     apply_unit_overrides(trace, options);
+    carry_rotary_to_sinumerik_units(trace, options);
     adopt_drive_signal_unit(trace);
-    const AxisDecision axis = decide_axis_kind(trace, options.unit_context);
+    const AxisDecision axis = decide_axis_kind(trace, options);
     trace.rotary = axis.kind == AxisKind::rotary;
     UnitContext context = options.unit_context;
     if (trace.rotary) {
@@ -428,6 +463,11 @@ void convert_units(Trace& trace, const ImportOptions& options) {
 // error that says what to give.
 void add_time_from_sample_time(Trace& trace, const ImportOptions& options) {
     if (trace.has(Role::time) || trace.channels.empty()) return;
+    if (!options.sample_time_s && options.describe) {
+        trace.findings.push_back("no time column (none is named like 't' or 'time'): the sample time is unknown; give "
+                                 "it with --sample-time SECONDS");
+        return;
+    }
     if (!options.sample_time_s) {
         throw InputError(
             fmt::format("{}: no time column (none is named like 't' or 'time'); give the sample time "
@@ -458,7 +498,7 @@ std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::s
     if (!role || *role == Role::other) {
         throw InputError(
             fmt::format("{} {}: unknown role '{}' (roles: time, position, reference_position, velocity, "
-                        "velocity_command, current, force, external_force, injection)",
+                        "velocity_command, current, force, external_force, injection, motor_position)",
                         option, text, text.substr(0, equals)));
     }
     return {*role, std::string(text.substr(equals + 1))};
@@ -470,6 +510,7 @@ void prepare_trace(Trace& trace, const ImportOptions& options) {
     drop_unusable_guesses(trace, options, guessed);
     add_time_from_sample_time(trace, options);
     convert_units(trace, options);
+    if (options.describe && !trace.has(Role::time)) return;  // described without a time base (a finding says so)
     trace.validate();
     resolve_native_intervals(trace);
 }

@@ -495,6 +495,7 @@ std::vector<RoleGuess> guess_roles(const std::vector<Signal>& signals, const std
     const auto motor = find({"ActPos1stEnc", "measPos1"}, "posn");
     const std::string_view encoder = direct ? "2nd" : "1st";
     if (const auto position = direct ? direct : motor) guesses.push_back({*position, Role::position});
+    if (direct && motor) guesses.push_back({*motor, Role::motor_position});  // both systems: the fingerprint's pair
     if (const auto reference = find({"CmdPos", "PosSetpoint", "SetPos"}, "posn", encoder)) {
         guesses.push_back({*reference, Role::reference_position});
     }
@@ -609,8 +610,8 @@ void assign_roles(const std::vector<Signal>& signals, const std::vector<std::siz
     }
     if (!guesses.empty()) {
         findings.push_back(
-            fmt::format("{}: posn in mm, velo in mm/min (state others with --unit ROLE=UNIT, e.g. --unit position=deg "
-                        "--unit velocity=rpm for a rotary axis)",
+            fmt::format("{}: posn in mm, velo in mm/min (a rotary axis: --rotary, or --unit position=deg; every posn "
+                        "signal is then in deg and every velo signal in rpm)",
                         sinumerik_linear_units_finding));
     }
 }
@@ -721,6 +722,7 @@ Trace parse_sinumerik_trace(std::string_view xml, const std::string& source, con
     double budget = cell_budget(session);
     Trace trace = build_axis(session, chosen, source, budget);
     if (axes.size() > 1) {
+        trace.axes = axes;
         trace.findings.insert(trace.findings.begin(), fmt::format("the trace holds axes {}; read axis {} (choose with "
                                                                   "--axis)",
                                                                   list_of(axes), chosen));

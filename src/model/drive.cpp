@@ -145,10 +145,11 @@ std::vector<double> drive_force(const Trace& trace, const DriveConstants& consta
     const auto factor = constants.force_per_signal(trace);
     if (!factor) {
         if (is_force_unit(current->unit)) return as_force(trace, *current, constants);
+        // a rotary axis has no lead: K_t (and the gear ratio) make the torque
         throw InputError(fmt::format(
-            "{}: the drive signal '{}' is in {} and no constant turns it into force: give "
-            "--kt and --lead, or --force-constant",
-            where(trace), current->name, current->unit.empty() ? std::string("unknown units") : current->unit));
+            "{}: the drive signal '{}' is in {} and no constant turns it into {}: give {}, or --force-constant",
+            where(trace), current->name, current->unit.empty() ? std::string("unknown units") : current->unit,
+            trace.rotary ? "torque" : "force", trace.rotary ? "--kt (and --gear-ratio)" : "--kt and --lead"));
     }
     return scaled(current->values, *factor);
 }
@@ -172,9 +173,10 @@ std::vector<double> injection_force(const Trace& trace, const DriveConstants& co
                         where(trace), injection->name, unit, drive->name, drive->unit));
     }
     throw InputError(fmt::format(
-        "{}: the injection channel '{}' is in {} and no constant turns it into force: give --force-constant (or --kt "
-        "and --lead), or --unit injection=N when it is already a force",
-        where(trace), injection->name, unit));
+        "{}: the injection channel '{}' is in {} and no constant turns it into {}: give --force-constant (or {}), or "
+        "--unit injection={} when it is already a {}",
+        where(trace), injection->name, unit, trace.rotary ? "torque" : "force",
+        trace.rotary ? "--kt" : "--kt and --lead", trace.rotary ? "N*m" : "N", trace.rotary ? "torque" : "force"));
 }
 
 }  // namespace feedid

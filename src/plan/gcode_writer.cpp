@@ -72,6 +72,14 @@ std::vector<std::string> header_lines(const TestPlan& plan, Dialect dialect) {
     const auto length = [&](double si) { return number(si / u.length(), 3); };
     const char* l = u.length_unit();
     std::vector<std::string> lines;
+    if (!plan.description.empty()) {
+        lines.push_back(fmt::format("feedid {} {} for {} axis {} ({} dialect)", version, plan.description.front(),
+                                    u.rotary ? "rotary" : "linear", o.axis, dialect_name(dialect)));
+        lines.insert(lines.end(), plan.description.begin() + 1, plan.description.end());
+        lines.push_back(fmt::format("trace sample time {} ms; predicted duration {} s; {} blocks",
+                                    number(o.sample_time * 1e3, 4), number(plan.duration, 1), plan.moves.size()));
+        return lines;
+    }
     lines.push_back(fmt::format("feedid {} axis test for {} axis {} ({} dialect)", version,
                                 u.rotary ? "rotary" : "linear", o.axis, dialect_name(dialect)));
     lines.push_back("constant-velocity back-and-forth strokes at rising feedrates, every move ends at rest");

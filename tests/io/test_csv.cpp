@@ -643,7 +643,11 @@ TEST(CsvCli, NoTimeColumnTakesTheSampleTimeOrAsksForIt) {
     EXPECT_NEAR(document.at("duration_s").get<double>(), 0.2, 1e-15);
     EXPECT_EQ(document.at("channels").at(2).at("role"), "time");
     EXPECT_TRUE(contains(document.at("findings").dump(), "--sample-time 0.1 s")) << document.at("findings").dump();
-    const auto refused = run_cli("info '" + path.string() + "'");
+    // an analysis refuses it and asks for the sample time; info describes it without a time base and asks too
+    const auto described = run_cli("info '" + path.string() + "' --json -");
+    ASSERT_EQ(described.exit_code, 0) << described.err;
+    EXPECT_TRUE(contains(described.out, "--sample-time SECONDS")) << described.out;
+    const auto refused = run_cli("identify '" + path.string() + "'");
     EXPECT_EQ(refused.exit_code, 2);
     EXPECT_EQ(count_lines(refused.err), 1) << refused.err;
     EXPECT_TRUE(contains(refused.err, "no time column")) << refused.err;
@@ -731,7 +735,8 @@ TEST(CsvCli, AxisPrefixChoosesTheMillAxisAndItsRolesAreGuessed) {
 TEST(CsvCli, SeveralAxesWithoutAChoiceAreNamedNotGuessed) {
     FEEDID_REQUIRE_SHARED(mill_log);
     const auto file = feedid::testing::shared_data() / mill_log;
-    const auto refused = run_cli("info '" + file.string() + "' --sample-time 0.1");
+    // an analysis refuses to guess; info describes every channel and lists the axes (test_axis_kind.cpp)
+    const auto refused = run_cli("identify '" + file.string() + "' --sample-time 0.1");
     EXPECT_EQ(refused.exit_code, 2);
     EXPECT_EQ(count_lines(refused.err), 1) << refused.err;
     EXPECT_TRUE(contains(refused.err, "several axes (X1, Y1, Z1, S1)")) << refused.err;

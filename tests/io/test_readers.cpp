@@ -123,7 +123,7 @@ TEST(SinumerikTrace, InfoOnTheReferenceTraceGivesItsPublishedFacts) {
     const std::vector<Expected> expected = {
         {"time", "time", "s", "s"},
         {"nckServoDataCmdPos2ndEnc64", "reference_position", "m", "mm"},
-        {"nckServoDataActPos1stEnc64", "other", "m", "mm"},
+        {"nckServoDataActPos1stEnc64", "motor_position", "m", "mm"},  // the motor encoder beside the scale
         {"nckServoDataActPos2ndEnc64", "position", "m", "mm"},
         {"nckServoDataCmdVelCtrlIn64", "velocity_command", "m/s", "mm/min"},
         {"nckServoDataActVel1stEnc64", "other", "m/s", "mm/min"},

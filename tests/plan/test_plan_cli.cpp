@@ -1,6 +1,7 @@
 // feedid plan on the command line: outputs, refusals with exit code 2, the JSON plan and its prediction.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <map>
 #include <string>
@@ -57,6 +58,37 @@ TEST(PlanCli, WritesProgramReferenceAndJson) {
     EXPECT_EQ(document.at("channels").at(1).at("role"), "reference_position");
     EXPECT_EQ(document.at("channels").at(1).at("unit"), "m");
     EXPECT_NEAR(document.at("sample_time_s").get<double>(), 0.001, 1e-12);
+}
+
+// The reversal test in the three dialects, and plan -> synth -> fingerprint recovering the synthetic axis's truth
+// (backlash 8 um, stiffness 150 N/um: within 10 % and 4 standard errors).
+TEST(PlanCli, ReversalTestPlanSynthFingerprintRecoversTheTruth) {
+    const auto dir = feedid::testing::temp_dir();
+    for (const std::string dialect : {"iso", "sinumerik", "linuxcnc"}) {
+        const auto program = dir / ("reversal." + dialect);
+        const auto result = run_cli("plan --test reversal --axis X --travel=-400:400 --centers=-300,0 --dialect " +
+                                    dialect + " -o " + quoted(program) + " --reference " + quoted(dir / "rev.csv"));
+        ASSERT_EQ(result.exit_code, 0) << result.err;
+        const auto text = feedid::testing::read_text(program);
+        EXPECT_NE(text.find("reversal test"), std::string::npos) << text.substr(0, 400);
+        EXPECT_NE(text.find("-299.999"), std::string::npos) << "a 1 um micro-step below -300 mm";
+    }
+    const auto synth = run_cli("synth --reference " + quoted(dir / "rev.csv") + " --backlash 8 --stiffness 150 --out " +
+                               quoted(dir / "rev-synth.csv"));
+    ASSERT_EQ(synth.exit_code, 0) << synth.err;
+    const auto fingerprint = run_cli("fingerprint " + quoted(dir / "rev-synth.csv") +
+                                     " --force-constant force_constant_N_per_A --json -");
+    ASSERT_EQ(fingerprint.exit_code, 0) << fingerprint.err;
+    const auto document = nlohmann::json::parse(fingerprint.out);
+    const auto& figures = document.at("fingerprint");
+    for (const auto& [key, truth] : std::map<std::string, double>{{"backlash_m", 8e-6}, {"stiffness_N_per_m", 150e6}}) {
+        ASSERT_FALSE(figures.at(key).at("value").is_null()) << document.dump(1);
+        const double value = figures.at(key).at("value");
+        const double stderr_value = figures.at(key).at("stderr");
+        EXPECT_LE(std::abs(value - truth), 0.1 * truth) << key << " " << value;
+        EXPECT_LE(std::abs(value - truth), 4.0 * stderr_value) << key << " " << value << " +/- " << stderr_value;
+    }
+    EXPECT_EQ(document.at("reversals").at("forward"), document.at("reversals").at("reverse"));
 }
 
 TEST(PlanCli, ProgramOnStdoutSummaryOnStderr) {

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "feedid/plan/gcode_writer.hpp"
+#include "feedid/plan/reversal_test.hpp"
 #include "feedid/plan/test_plan.hpp"
 #include "testing.hpp"
 
@@ -117,6 +118,27 @@ TEST(Rs274, ARotaryTableInDegrees) {
     options.travel_max = 360.0 * deg;
     options.centers = {0.0, 120.0 * deg, 240.0 * deg};
     check_plan_through_rs274(feedid::make_test_plan(options));
+}
+
+// The reversal test (feedid fingerprint's program): 1 um micro-steps through reversals and slow strokes, at two
+// centres; every micro-step a block of its own, 0.0001 mm apart at the finest.
+TEST(Rs274, ReversalTestMicroStepsAndStrokesRunMoveForMove) {
+    auto options = feedid::default_reversal_options("X");
+    options.travel_min = -0.4;
+    options.travel_max = 0.4;
+    options.centers = {-0.3, 0.1};
+    const auto plan = feedid::make_reversal_plan(options);
+    ASSERT_FALSE(plan.description.empty());
+    check_plan_through_rs274(plan);
+}
+
+TEST(Rs274, ReversalTestOnARotaryAxis) {
+    constexpr double deg = M_PI / 180.0;
+    auto options = feedid::default_reversal_options("C");
+    options.travel_min = -360.0 * deg;
+    options.travel_max = 360.0 * deg;
+    options.centers = {90.0 * deg};
+    check_plan_through_rs274(feedid::make_reversal_plan(options));
 }
 
 }  // namespace

@@ -211,3 +211,20 @@ def test_identify_on_arrays_and_on_their_dataframe_agree():
     for document in results[1:]:
         assert document["parameters"] == results[0]["parameters"]
     assert isinstance(frame, pd.DataFrame)
+
+
+def test_fingerprint_is_the_cli_document(sinumerik, folder):
+    """feedid.fingerprint on the SINUMERIK reversal trace: the lost motion of ``feedid fingerprint``, the stiffness
+    null with its reason (no force constant); and against the truth of ``feedid synth --backlash --stiffness``."""
+    document = feedid.fingerprint(sinumerik)
+    cli = cli_json("fingerprint", sinumerik)
+    assert document["fingerprint"] == cli["fingerprint"] and document["reasons"] == cli["reasons"]
+    lost = document["fingerprint"]["lost_motion_m"]["value"]
+    assert 0.5e-6 <= lost <= 3e-6
+    assert document["fingerprint"]["stiffness_N_per_m"]["value"] is None
+    assert "--force-constant" in document["reasons"]["stiffness"]
+    synthetic = str(folder / "rev-synth.csv")
+    run_cli("synth", "--backlash", "8", "--stiffness", "150", "--out", synthetic)
+    figures = feedid.fingerprint(synthetic, force_constant="force_constant_N_per_A")["fingerprint"]
+    assert abs(figures["backlash_m"]["value"] - 8e-6) <= 0.1 * 8e-6
+    assert abs(figures["stiffness_N_per_m"]["value"] - 150e6) <= 0.1 * 150e6

@@ -312,8 +312,15 @@ TEST(RotaryAxis, ASinumerikTraceStatedRotaryDropsTheLinearAssumption) {
     const auto linear = run_cli("info " + quoted(path) + " --json -");
     ASSERT_EQ(linear.exit_code, 0) << linear.err;
     EXPECT_NE(linear.out.find("linear metric axis"), std::string::npos);
-    // the same file read as a rotary axis (its numbers are not one; the units are what is checked)
-    const auto refused = run_cli("info " + quoted(path) + " --unit position=deg");
+    // the same file read as a rotary axis (its numbers are not one; the units are what is checked): one statement
+    // of the axis kind carries over to every posn and velo signal
+    const auto stated_once = run_cli("info " + quoted(path) + " --unit position=deg --json -");
+    ASSERT_EQ(stated_once.exit_code, 0) << stated_once.err;
+    EXPECT_EQ(nlohmann::json::parse(stated_once.out).at("rotary"), true);
+    // a CSV states its units per channel: a length beside an angle is still refused
+    const auto mixed = feedid::testing::temp_dir() / "mixed-kinds.csv";
+    feedid::testing::write_text(mixed, "t [s],x [deg],x_ref [mm]\n0,1,1\n0.001,2,2\n");
+    const auto refused = run_cli("info " + quoted(mixed));
     EXPECT_EQ(refused.exit_code, 2);
     EXPECT_NE(refused.err.find("(reference_position) has unit 'mm'"), std::string::npos) << refused.err;
     EXPECT_NE(refused.err.find("axis is rotary"), std::string::npos) << refused.err;

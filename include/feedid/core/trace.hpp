@@ -23,6 +23,7 @@ enum class Role {
     force,
     external_force,  ///< a force acting on the mass from outside the drive (a load cell, a weight), in +x
     injection,       ///< a test signal added to the controller's output before the drive (in the drive signal)
+    motor_position,  ///< the motor encoder's position in load units (m, rad), beside a direct scale in `position`
 };
 
 /// "position", "reference_position", ... (the names used on the command line and in JSON).
@@ -71,6 +72,9 @@ public:
     std::map<std::string, double> constants;  ///< Scalars from the source (e.g. EMPS's gtau, kp, kv).
     std::vector<std::string> findings;        ///< What import noticed: guessed roles, assumed units, jitter, ...
     bool rotary{false};                       ///< Position in rad (a rotary axis), not m.
+    /// The axes the source holds when it holds several (a SINUMERIK trace's axis indices, CNC name prefixes such as
+    /// X1, Y1); empty for a single-axis source.
+    std::vector<std::string> axes;
 
     /// Number of samples (length of the columns; 0 for an empty trace).
     [[nodiscard]] std::size_t samples() const;

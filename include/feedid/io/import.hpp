@@ -45,6 +45,14 @@ struct ImportOptions {
     /// Channels whose sign is flipped after the units are converted (`--invert ROLE`): a drive whose current (or
     /// torque) is positive in the direction the NC counts negative. Before the tares.
     std::vector<Role> invert;
+    /// The axis is rotary (`--rotary`): units the source states in its basic length system (a SINUMERIK trace's posn
+    /// and velo signals) are degrees and rpm, and channels without a unit are taken in rad, rad/s and N*m. Stating an
+    /// angle for a position role (`--unit position=deg`) says the same for the whole trace.
+    bool rotary{false};
+    /// Describe rather than analyse (`feedid info`): a file holding several axes and no --axis keeps every channel,
+    /// guesses no role and lists the axes (Trace::axes); a file without a time column and no sample time is described
+    /// without one (a finding says how to give it).
+    bool describe{false};
 };
 
 /// Parses `ROLE=VALUE` (for --channel and --unit); throws InputError naming the option.

@@ -8,9 +8,10 @@
 // sample where every role channel has a value; a finding says how many leading samples that drops.
 //
 // Units from `unitsType` (posn -> mm, velo -> mm/min, current -> A, torque -> N*m, percent -> %, accel -> m/s^2):
-// a linear metric axis is assumed, and a finding says so (a rotary axis: --unit position=deg ...). Roles are guessed
-// from the NC variable names (ActPos2ndEnc/measPos2 = direct measuring system = position; ActPos1stEnc/measPos1 =
-// motor encoder, position only without a direct system; CmdPos = reference_position; CmdVel = velocity_command;
+// a linear metric axis is assumed, and a finding says so (a rotary axis: --rotary or --unit position=deg, and the
+// import then takes every posn signal in deg and every velo signal in rpm). Roles are guessed from the NC variable
+// names (ActPos2ndEnc/measPos2 = direct measuring system = position; ActPos1stEnc/measPos1 = motor encoder:
+// motor_position beside a direct system, position without one; CmdPos = reference_position; CmdVel = velocity_command;
 // ActVel of the same measuring system = velocity; ActCurr = current iq), each guess recorded in findings.
 
 #include <string>

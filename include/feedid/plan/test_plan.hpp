@@ -140,6 +140,8 @@ struct TestPlan {
     std::vector<Pass> passes;
     double duration{0.0};            ///< predicted test duration (start to end of the program) [s]
     std::vector<std::string> notes;  ///< what the design changed or warns about (shortened strokes, unreached feeds)
+    /// The part program's header comment lines; empty = the friction test's (strokes, ladder and slow feeds).
+    std::vector<std::string> description;
 };
 
 /// Designs the test. Throws InputError for invalid options, or naming the first move that leaves the travel (and by
