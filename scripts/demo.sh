@@ -131,11 +131,12 @@ if [ -x /usr/sbin/mosquitto ] && ! "$feedid" watch --broker mqtt://127.0.0.1:1 2
     "$feedid" synth --program "$programs/$program.ngc" --seed "$m" --out "$mqtt/M$m.csv" 2> /dev/null || exit $?
   done
   echo "== feedid watch --broker mqtt://127.0.0.1:$port, three machines (pocket, contour, drilling) at 20x"
-  grep -h "^# [XYZ]_true_\(mass_kg\|viscous_forward_Ns_per_m\|coulomb_forward_N\) " "$mqtt/M1.csv" |
+  grep -h "^# [XYZ]_true_\(mass_kg\|viscous_forward_Ns_per_m\|coulomb_forward_N\|offset_N\) " "$mqtt/M1.csv" |
     awk '{ v[substr($2, 1, 1)] = v[substr($2, 1, 1)] sprintf(" %s %s", $2, $4) }
          END { for (a in v) print "   true (every machine):" v[a] }' | sort
   printf '[service]\nestimate_interval_s = 3\n' > "$mqtt/watch.toml"
-  "$feedid" watch --broker "mqtt://127.0.0.1:$port" --config "$mqtt/watch.toml" --idle-exit 3 2> "$mqtt/watch.err" &
+  "$feedid" watch --broker "mqtt://127.0.0.1:$port" --config "$mqtt/watch.toml" --idle-exit 10 2> "$mqtt/watch.err" |
+    tee "$mqtt/watch.out" &
   watch=$!
   sleep 0.5
   publishers=()
@@ -150,6 +151,20 @@ if [ -x /usr/sbin/mosquitto ] && ! "$feedid" watch --broker mqtt://127.0.0.1:1 2
   for p in "${publishers[@]}"; do wait "$p"; done
   wait "$watch"
   tail -1 "$mqtt/watch.err"
+  # The last estimate of every axis of every machine beside the truth (Z carries a 35 N weight: the offset F_0 is
+  # selected from the data; a Coulomb friction the windows cannot tell from it is '-', the reason in the document)
+  echo
+  echo "   final estimates (M1 pocket, M2 contour, M3 drilling) beside the truth:"
+  for m in 1 2 3; do
+    for axis in X Y Z; do
+      grep "^M$m/$axis:" "$mqtt/watch.out" | tail -1 | sed 's/^/   /'
+      awk -v a="$axis" '$2 == a"_true_mass_kg" { M = $4 } $2 == a"_true_viscous_forward_Ns_per_m" { B = $4 }
+        $2 == a"_true_coulomb_forward_N" { C = $4 } $2 == a"_true_offset_N" { O = $4 }
+        END { printf "   %-6s true: M %s kg  B %s N*s/m  F_C %s N", "", M, B, C
+              if (O != 0) printf "  F_0 %s N", O
+              printf "\n" }' "$mqtt/M$m.csv"
+    done
+  done
   kill "$broker"
   wait "$broker" 2> /dev/null
 fi

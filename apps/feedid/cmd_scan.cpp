@@ -2,6 +2,7 @@
 // run over the file, windows that carry information pooled, the others counted by why.
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <initializer_list>
@@ -53,7 +54,12 @@ struct ScanCommand {
         sub.add_flag("--no-systematic", no_systematic,
                      "Skip the second identifier (split speed doubled) that gives each parameter its systematic "
                      "uncertainty: standard errors only, about 2x faster");
-        sub.add_flag("--offset", options.offset, "Also estimate a constant force offset (gravity, sensor offset)");
+        sub.add_flag("--offset", options.offset,
+                     "Always estimate a constant force offset (gravity, sensor offset); by default it is taken when "
+                     "the windows show one (Wald test at 1e-3)")
+            ->excludes(sub.add_flag_function(
+                "--no-offset", [this](std::int64_t) { options.select_offset = false; },
+                "Never estimate a constant force offset (no selection): the model of earlier versions"));
         sub.add_option("--cutoff", options.cutoff_hz, "Butterworth cut-off [Hz] (default: min(100 Hz, fs / 10))")
             ->check(allowed_range(1e-3, 1e6, "Hz"));
         OnlineOptions rotary_options;
@@ -136,6 +142,7 @@ struct ScanCommand {
                 {"robust", o.robust},
                 {"forgetting", o.forgetting},
                 {"offset", o.offset},
+                {"select_offset", o.select_offset},
                 {"cutoff_hz", o.cutoff_hz ? nlohmann::json(*o.cutoff_hz) : nlohmann::json()},
                 {"split_velocity", o.split()},
                 {"systematic", !no_systematic},

@@ -1,17 +1,35 @@
 // The online identifier's estimate: theta = R^-1 z with the cluster covariance from the moment sums (or the
 // model-based one for few windows), and why the pool gives no value when it does not.
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <fmt/core.h>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
+#include "feedid/core/parameters.hpp"
 #include "online_state.hpp"
 
 namespace feedid {
 
 using State = OnlineIdentifier::State;
+
+namespace {
+
+// The two-sided standard normal quantile of a test level: z with erfc(z / sqrt 2) = level (bisection).
+double normal_quantile(double level) {
+    double low = 0.0;
+    double high = 40.0;
+    for (int k = 0; k < 100; ++k) {
+        const double middle = 0.5 * (low + high);
+        (std::erfc(middle / std::sqrt(2.0)) > level ? low : high) = middle;
+    }
+    return 0.5 * (low + high);
+}
+
+}  // namespace
 
 std::string State::no_value_reason() const {
     if (!have_pooled_)
@@ -41,62 +59,199 @@ std::string State::no_value_reason() const {
     return {};
 }
 
+// The pooled fit of the leading p columns. The pool's R is upper triangular, so its leading p x p block and z's
+// first p entries are the square-root information of the model of those columns alone (R11^T R11 = H11,
+// R11^T z1 = c1), as the moment sums' leading blocks are its cluster moments: the model without the offset is read
+// from the same pool as the one with it.
+State::PooledFit State::pooled_fit(std::size_t columns) const {
+    const auto p = static_cast<Eigen::Index>(columns);
+    PooledFit fit;
+    double largest = 0.0;
+    double smallest = std::numeric_limits<double>::max();
+    for (Eigen::Index i = 0; i < p; ++i) {
+        largest = std::max(largest, std::abs(r_z_(i, i)));
+        smallest = std::min(smallest, std::abs(r_z_(i, i)));
+    }
+    fit.separable = smallest > 1e-9 * largest;
+    if (!fit.separable) return fit;
+    const Mat r = r_z_.topLeftCorner(p, p);
+    fit.theta = r.triangularView<Eigen::Upper>().solve(r_z_.col(max_p).head(p));
+    const Vec& theta = fit.theta;
+    const Mat h = r.transpose() * r;
+    // the clusters' meat at the final theta: sum_w (c_w - H_w theta)(c_w - H_w theta)^T from the moment sums
+    Mat cross = Mat::Zero(p, p);      // sum_w c_w (H_w theta)^T
+    Mat quadratic = Mat::Zero(p, p);  // sum_w (H_w theta)(H_w theta)^T
+    for (Eigen::Index i = 0; i < p; ++i) {
+        cross.row(i) = (sum_cH_[static_cast<std::size_t>(i)].topLeftCorner(p, p) * theta).transpose();
+        for (Eigen::Index j = 0; j < p; ++j)
+            quadratic.row(i) +=
+                theta(j) *
+                (sum_HH_[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)].topLeftCorner(p, p) * theta)
+                    .transpose();
+    }
+    Mat meat = sum_cc_.topLeftCorner(p, p) - cross - cross.transpose() + quadratic;
+    // the small-sample factor G / (G - p) (CR1). CR2 (Bell-McCaffrey) would need each window's leverage against the
+    // final H, i.e. every window's H_w kept (not O(1)); on the part programs with 7-11 windows the scatter over seeds
+    // / standard error is 0.81-1.08 (drilling over 30 seeds 0.75-1.09): no downward bias left for it to remove.
+    const double clusters = forgotten_windows_;
+    const auto parameters = static_cast<double>(columns);
+    if (clusters > parameters) meat *= clusters / (clusters - parameters);
+    const Mat h_inverse = h.inverse();
+    fit.covariance = h_inverse * meat * h_inverse;
+    // with fewer than p + 2 windows the cluster covariance is not honest (its meat has the rank of the number of
+    // windows): the model-based one instead, s^2 kappa H^-1, the residuals' variance times their integrated
+    // autocorrelation after the zero-phase low-pass (about fs / (2 f_c) samples for white noise)
+    fit.model_based = clusters < parameters + 2.0;
+    if (fit.model_based) {
+        const double variance = sum_scale_sq_ / forgotten_windows_;
+        fit.covariance = (variance * std::max(1.0, 0.5 / (dt_ * cutoff_hz_))) * h_inverse;
+    }
+    return fit;
+}
+
+std::optional<double> State::offset_statistic(const PooledFit& full) const {
+    if (!full.separable) return std::nullopt;
+    const double variance = full.covariance(3, 3);
+    const double coulomb_variance = full.covariance(2, 2);
+    if (!(variance > 0.0) || !(coulomb_variance > 0.0)) return std::nullopt;
+    // F_0 and F_C are one number on moves in one direction (sgn(x') constant): the windows must separate them
+    const double correlation = full.covariance(2, 3) / std::sqrt(variance * coulomb_variance);
+    if (!(std::abs(correlation) < 0.999)) return std::nullopt;
+    return std::abs(full.theta(3)) / std::sqrt(variance);
+}
+
 OnlineEstimate State::estimate() const {
     OnlineEstimate e;
     e.windows = counts_;
     e.changes = changes_;
     e.samples = pushed_;
     e.rows_used = rows_used_;
-    const auto p = static_cast<Eigen::Index>(p_);
     e.mass_reason = no_value_reason();
     if (!e.mass_reason.empty()) {
         e.friction_reason = e.mass_reason;
         e.stribeck_reason = e.mass_reason;
+        e.offset_in_model = options_.offset;
         return e;
     }
     e.residual_std = std::sqrt(sum_scale_sq_ / forgotten_windows_);
-    const Mat r = r_z_.topLeftCorner(p, p);
-    const Vec theta = pooled_theta();
-    const Mat h = r.transpose() * r;
-    // the clusters' meat at the final theta: sum_w (c_w - H_w theta)(c_w - H_w theta)^T from the moment sums
-    Mat cross = Mat::Zero(p, p);      // sum_w c_w (H_w theta)^T
-    Mat quadratic = Mat::Zero(p, p);  // sum_w (H_w theta)(H_w theta)^T
-    for (Eigen::Index i = 0; i < p; ++i) {
-        cross.row(i) = (sum_cH_[static_cast<std::size_t>(i)] * theta).transpose();
-        for (Eigen::Index j = 0; j < p; ++j)
-            quadratic.row(i) +=
-                theta(j) * (sum_HH_[static_cast<std::size_t>(i)][static_cast<std::size_t>(j)] * theta).transpose();
+    describe_offset(e);
+    const std::size_t columns = e.offset_in_model ? max_p : 3;
+    const auto p = static_cast<Eigen::Index>(columns);
+    const PooledFit fit = pooled_fit(columns);
+    if (!fit.separable) {
+        e.mass_reason = "the qualified windows do not separate the model's parameters (one speed, one direction)";
+        e.friction_reason = e.stribeck_reason = e.mass_reason;
+        return e;
     }
-    Mat meat = sum_cc_ - cross - cross.transpose() + quadratic;
-    // the small-sample factor G / (G - p) (CR1). CR2 (Bell-McCaffrey) would need each window's leverage against the
-    // final H, i.e. every window's H_w kept (not O(1)); on the part programs with 7-11 windows the scatter over seeds
-    // / standard error is 0.81-1.08 (drilling over 30 seeds 0.75-1.09): no downward bias left for it to remove.
-    const double clusters = forgotten_windows_;
-    if (clusters > static_cast<double>(p_)) meat *= clusters / (clusters - static_cast<double>(p_));
-    const Mat h_inverse = h.inverse();
-    e.covariance = h_inverse * meat * h_inverse;
-    // with fewer than p + 2 windows the cluster covariance is not honest (its meat has the rank of the number of
-    // windows): the model-based one instead, s^2 kappa H^-1, the residuals' variance times their integrated
-    // autocorrelation after the zero-phase low-pass (about fs / (2 f_c) samples for white noise)
-    const bool few = forgotten_windows_ < static_cast<double>(p_) + 2.0;
-    if (few) e.covariance = (e.residual_std * e.residual_std * std::max(1.0, 0.5 / (dt_ * cutoff_hz_))) * h_inverse;
+    const Vec& theta = fit.theta;
+    e.covariance = fit.covariance;
     const Vec se = e.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
     e.information = e.covariance.diagonal().cwiseInverse();
-    const Vec d = se;
-    const Mat scaled_information = d.asDiagonal() * e.covariance.inverse() * d.asDiagonal();
+    const Mat scaled_information = se.asDiagonal() * e.covariance.inverse() * se.asDiagonal();
     e.information_eigenvalues =
         Eigen::SelfAdjointEigenSolver<Mat>(scaled_information, Eigen::EigenvaluesOnly).eigenvalues();
     e.mass = Estimate::of(theta(0), se(0));
     e.viscous = Estimate::of(theta(1), se(1));
     e.coulomb = Estimate::of(theta(2), se(2));
-    if (p_ == 4) e.offset = Estimate::of(theta(3), se(3));
-    if (few)
+    if (p == max_p) e.offset = Estimate::of(theta(3), se(3));
+    if (fit.model_based)
         e.friction_reason = fmt::format(
             "only {} window(s) qualified: standard errors model-based (residual scale and the filter's correlation), "
             "not from the scatter between windows ({} or more)",
-            counts_.qualified(), p_ + 2);
+            counts_.qualified(), columns + 2);
     estimate_stribeck(theta, se, e);
+    judge_plausibility(e);
     return e;
+}
+
+// Evidence before numbers: too few rows for a value, a value the physics forbids, or a Coulomb friction the windows
+// cannot tell from a constant force (a weight): null with the reason, never printed.
+void State::judge_plausibility(OnlineEstimate& e) const {
+    const ParameterNaming naming{options_.rotary};
+    const auto refuse = [&](Estimate& value, std::string& reason, const std::string& why) {
+        value = Estimate{};
+        reason = reason.empty() ? why : reason + "; " + why;
+    };
+    if (rows_used_ < options_.minimum_rows) {
+        const std::string why = fmt::format(
+            "only {} step-1 rows qualified ({} or more needed for a value: --window, a longer trace)", rows_used_,
+            options_.minimum_rows);
+        for (Estimate* value : {&e.mass, &e.viscous, &e.coulomb, &e.offset, &e.breakaway, &e.stribeck_velocity})
+            *value = Estimate{};
+        e.mass_reason = e.friction_reason = e.stribeck_reason = why;
+        return;
+    }
+    if (!e.offset_in_model && options_.select_offset && !e.offset_statistic) {
+        e.aliased_reason = fmt::format(
+            "{} not determined: the qualified windows move in one direction only, where a constant force (the weight "
+            "a vertical axis carries, a sensor's zero) and the Coulomb friction are one number; windows that move both "
+            "ways separate them",
+            ParameterNaming::symbol(Term::coulomb, Direction::both));
+        refuse(e.coulomb, e.friction_reason, e.aliased_reason);
+        refuse(e.breakaway, e.stribeck_reason, e.aliased_reason);
+        e.stribeck_velocity = Estimate{};
+    }
+    if (e.mass.value && !(*e.mass.value > 0.0)) {
+        e.mass_reason = fmt::format("the pooled {} is {:.4g} {}: not a mass; the windows do not determine it",
+                                    ParameterNaming::symbol(Term::mass, Direction::both), *e.mass.value, naming.unit(Term::mass));
+        e.mass = Estimate{};
+    }
+    if (e.coulomb.value && !(*e.coulomb.value > 0.0))
+        refuse(e.coulomb, e.friction_reason,
+               fmt::format("the pooled {} is {:.4g} {}: a Coulomb friction of the wrong sign for this model",
+                           ParameterNaming::symbol(Term::coulomb, Direction::both), *e.coulomb.value, naming.unit(Term::coulomb)));
+    if (e.viscous.value && e.viscous.standard_error && *e.viscous.value < -2.0 * *e.viscous.standard_error)
+        refuse(e.viscous, e.friction_reason,
+               fmt::format("the pooled {} is {:.4g} {}, negative beyond twice its standard error",
+                           ParameterNaming::symbol(Term::viscous, Direction::both), *e.viscous.value, naming.unit(Term::viscous)));
+}
+
+ModelChoice model_choice_of(const OnlineEstimate& e) {
+    ModelChoice choice;
+    choice.offset = e.offset_in_model;
+    choice.automatic = e.offset_selected;
+    ModelCandidate candidate;
+    candidate.name = "offset";
+    candidate.tested = "F_0";
+    candidate.estimate = e.offset_in_model && e.offset.value ? e.offset.value : e.offset_estimate;
+    candidate.standard_error =
+        e.offset_in_model && e.offset.standard_error ? e.offset.standard_error : e.offset_standard_error;
+    candidate.statistic = e.offset_statistic;
+    candidate.threshold = e.offset_threshold;
+    candidate.taken = e.offset_in_model;
+    candidate.verdict = e.offset_verdict;
+    choice.candidates.push_back(std::move(candidate));
+    choice.aliased_friction = e.aliased_reason;
+    return choice;
+}
+
+// Which model the estimate is of, and why: forced, or the offset's Wald test on the pool of all columns.
+void State::describe_offset(OnlineEstimate& e) const {
+    e.offset_threshold = normal_quantile(options_.offset_test_level);
+    e.offset_in_model = p_ == max_p;
+    e.offset_selected = options_.select_offset && !options_.offset;
+    if (options_.offset) {
+        e.offset_verdict = "forced (--offset)";
+        return;
+    }
+    const PooledFit full = pooled_fit(max_p);
+    e.offset_statistic = offset_statistic(full);
+    if (full.separable) {
+        e.offset_estimate = full.theta(3);
+        e.offset_standard_error = std::sqrt(std::max(0.0, full.covariance(3, 3)));
+    }
+    e.offset_in_model = options_.select_offset && e.offset_statistic && *e.offset_statistic > e.offset_threshold;
+    if (!options_.select_offset) {
+        e.offset_verdict = "not tested (--no-offset)";
+    } else if (e.offset_in_model) {
+        e.offset_verdict = fmt::format("taken: |F_0| / SE = {:.3g} > {:.3g}", *e.offset_statistic, e.offset_threshold);
+    } else if (!e.offset_statistic) {
+        e.offset_verdict = "not testable: the qualified windows do not separate a constant force from the Coulomb "
+                           "friction (moves in one direction)";
+    } else {
+        e.offset_verdict =
+            fmt::format("not taken: |F_0| / SE = {:.3g} <= {:.3g}", *e.offset_statistic, e.offset_threshold);
+    }
 }
 
 }  // namespace feedid

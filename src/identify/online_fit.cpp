@@ -77,7 +77,7 @@ State::Vec State::solve_weighted(std::size_t rows) const {
         const double* row = rows_.data() + k * (max_p + 1);
         for (std::size_t i = 0; i < p; ++i) {
             const double wi = w * row[i];
-            c[i] += wi * row[p];
+            c[i] += wi * row[max_p];
             for (std::size_t j = 0; j <= i; ++j) h[i * max_p + j] += wi * row[j];
         }
     }
@@ -100,7 +100,7 @@ void State::residuals(const Vec& theta, std::size_t rows) {
         const double* row = rows_.data() + k * (max_p + 1);
         double fitted = 0.0;
         for (std::size_t i = 0; i < p; ++i) fitted += row[i] * theta(static_cast<Eigen::Index>(i));
-        residual_[k] = row[p] - fitted;
+        residual_[k] = row[max_p] - fitted;
     }
 }
 

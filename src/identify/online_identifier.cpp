@@ -52,6 +52,8 @@ std::string OnlineOptions::validate() const {
     if (stribeck_lowest_speed >= split()) return "the lowest Stribeck speed must lie below the split speed";
     if (!positive(tukey_c) || irls_iterations < 1) return "Tukey constant and IRLS iterations must be positive";
     if (force_limit && !positive(*force_limit)) return "force limit must be positive";
+    if (!(offset_test_level > 0.0 && offset_test_level < 0.5))
+        return fmt::format("the offset's test level must lie in (0, 0.5) (got {})", offset_test_level);
     return "";
 }
 
@@ -94,9 +96,9 @@ std::size_t OnlineIdentifier::parameters() const {
 
 State::State(OnlineOptions options)
     : options_(std::move(options)), stick_slip_(options_.moving_threshold, options_.stick_slip) {
-    p_ = options_.offset ? 4 : 3;
+    p_ = options_.offset ? max_p : 3;
     counts_ = {};
-    sum_cc_ = Mat::Zero(static_cast<Eigen::Index>(p_), static_cast<Eigen::Index>(p_));
+    sum_cc_ = Mat::Zero(max_p, max_p);
     for (auto& m : sum_cH_) m = sum_cc_;
     for (auto& row : sum_HH_)
         for (auto& m : row) m = sum_cc_;

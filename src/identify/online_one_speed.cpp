@@ -19,7 +19,7 @@ using State = OnlineIdentifier::State;
 // its least-squares sufficient statistics and judged whole from them once one does (judge_one_speed: the rows are
 // gone by then). Without robust weighting it is pooled as it is.
 WindowVerdict State::one_speed(std::size_t rows, WindowVerdict own) {
-    const std::size_t p = p_;
+    constexpr std::size_t p = max_p;
     std::array<double, max_p * max_p> h{};
     std::array<double, max_p> c{};
     double yy = 0.0;
@@ -43,13 +43,18 @@ WindowVerdict State::one_speed(std::size_t rows, WindowVerdict own) {
     w.rows = rows;
     w.own = own;
     if (!options_.robust) {
-        // plain least squares pools every window; its scale: the residual of its own (minimum-norm) fit
-        const Eigen::SelfAdjointEigenSolver<Mat> eigen(w.h);
+        // plain least squares pools every window; its scale: the residual of its own (minimum-norm) fit of the
+        // model in use
+        const auto m = static_cast<Eigen::Index>(p_);
+        Mat judged = Mat::Zero(m, m);
+        for (Eigen::Index i = 0; i < m; ++i)
+            for (Eigen::Index j = 0; j < m; ++j) judged(i, j) = h[static_cast<std::size_t>(std::max(i, j) * max_p + std::min(i, j))];
+        const Eigen::SelfAdjointEigenSolver<Mat> eigen(judged);
         double explained = 0.0;
         const double top = eigen.eigenvalues().maxCoeff();
-        for (Eigen::Index k = 0; k < n; ++k) {
+        for (Eigen::Index k = 0; k < m; ++k) {
             const double lambda = eigen.eigenvalues()(k);
-            if (lambda > 1e-12 * top) explained += std::pow(eigen.eigenvectors().col(k).dot(w.c), 2) / lambda;
+            if (lambda > 1e-12 * top) explained += std::pow(eigen.eigenvectors().col(k).dot(w.c.head(m)), 2) / lambda;
         }
         pool(WindowInformation{w.h, w.c, std::sqrt(std::max(0.0, yy - explained) / static_cast<double>(rows)), rows});
         return WindowVerdict::qualified;
@@ -67,9 +72,12 @@ WindowVerdict State::one_speed(std::size_t rows, WindowVerdict own) {
 // speed (a cut the scale does not show) moves g.
 WindowVerdict State::judge_one_speed(const OneSpeedWindow& window) {
     const Vec theta = pooled_theta();
-    const double rss = window.yy - 2.0 * theta.dot(window.c) + theta.dot(window.h * theta);
+    const auto m = static_cast<Eigen::Index>(p_);
+    const Mat h = window.h.topLeftCorner(m, m);
+    const Vec c = window.c.head(m);
+    const double rss = window.yy - 2.0 * theta.dot(c) + theta.dot(h * theta);
     const double rms = std::sqrt(std::max(0.0, rss) / static_cast<double>(window.rows));
-    if (!(rms <= options_.maximum_scale_ratio * reference_scale_) || !fits_pool(window.h, window.c))
+    if (!(rms <= options_.maximum_scale_ratio * reference_scale_) || !fits_pool(h, c))
         return WindowVerdict::process_force;
     pool(WindowInformation{window.h, window.c, rms, window.rows});
     return WindowVerdict::qualified;
@@ -93,7 +101,9 @@ WindowVerdict State::judge_rows(std::size_t rows) {
     if (!settle_weights(rows, theta, std::min(scale, options_.scale_cap * reference_scale_)))
         return WindowVerdict::process_force;
     const WindowInformation window = information(rows, scale);
-    if (window.rows < p_ || !fits_pool(window.h, window.c)) return WindowVerdict::process_force;
+    const auto m = static_cast<Eigen::Index>(p_);
+    if (window.rows < p_ || !fits_pool(window.h.topLeftCorner(m, m), window.c.head(m)))
+        return WindowVerdict::process_force;
     pool(window);
     return WindowVerdict::qualified;
 }

@@ -15,7 +15,7 @@ namespace feedid {
 using State = OnlineIdentifier::State;
 
 State::WindowInformation State::information(std::size_t rows, double scale) const {
-    const auto p = static_cast<Eigen::Index>(p_);
+    constexpr Eigen::Index p = max_p;
     WindowInformation window;
     window.h = Mat::Zero(p, p);
     window.c = Vec::Zero(p);
@@ -25,7 +25,7 @@ State::WindowInformation State::information(std::size_t rows, double scale) cons
         if (w == 0.0) continue;
         const auto r = static_cast<Eigen::Index>(k);
         window.h.noalias() += w * rows_.row(r).head(p).transpose() * rows_.row(r).head(p);
-        window.c.noalias() += w * rows_(r, p) * rows_.row(r).head(p).transpose();
+        window.c.noalias() += w * rows_(r, max_p) * rows_.row(r).head(p).transpose();
         ++window.rows;
     }
     return window;
@@ -91,7 +91,7 @@ void State::settle_pending() {
     std::array<double, 8> column{};
     std::size_t clean = 0;
     for (std::size_t k = 0; k < pending_count_; ++k) {
-        estimates[k] = pending_[k].h.ldlt().solve(pending_[k].c);
+        estimates[k] = pending_[k].h.topLeftCorner(p, p).ldlt().solve(pending_[k].c.head(p));
         if (pending_[k].scale <= options_.maximum_scale_ratio * reference_scale_) ++clean;
     }
     Vec consensus = Vec::Zero(p);
@@ -111,8 +111,8 @@ void State::settle_pending() {
         Vec c = Vec::Zero(p);
         for (std::size_t k = 0; k < pending_count_; ++k) {
             if (!(pending_[k].scale <= options_.maximum_scale_ratio * reference_scale_)) continue;
-            h += pending_[k].h;
-            c += pending_[k].c;
+            h += pending_[k].h.topLeftCorner(p, p);
+            c += pending_[k].c.head(p);
         }
         if (clean > 0) consensus = h.ldlt().solve(c);
     }
@@ -128,15 +128,17 @@ void State::settle_pending() {
 bool State::consistent(const WindowInformation& window, const Vec& reference) const {
     // (theta_w - theta)^T H_w (theta_w - theta) / (s^2 kappa): chi^2 with p degrees of freedom for a window that
     // fits the model, its residuals correlated over kappa samples by the low-pass
-    const Vec theta = window.h.ldlt().solve(window.c);
+    const auto p = static_cast<Eigen::Index>(p_);
+    const Mat h = window.h.topLeftCorner(p, p);
+    const Vec theta = h.ldlt().solve(window.c.head(p));
     const Vec d = theta - reference;
     const double kappa = std::max(1.0, 1.0 / (dt_ * cutoff_hz_));
-    const double distance = d.dot(window.h * d) / (window.scale * window.scale * kappa);
+    const double distance = d.dot(h * d) / (window.scale * window.scale * kappa);
     return distance <= options_.consistency_chi2;
 }
 
 void State::pool(const WindowInformation& window) {
-    const auto p = static_cast<Eigen::Index>(p_);
+    constexpr Eigen::Index p = max_p;
     const double lambda = options_.forgetting;
     if (lambda < 1.0) {
         r_z_ *= std::sqrt(lambda);

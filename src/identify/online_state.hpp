@@ -8,6 +8,7 @@
 // v_s).
 
 #include <array>
+#include <optional>
 #include <cstddef>
 #include <span>
 #include <string>
@@ -31,15 +32,17 @@ struct OnlineIdentifier::State {
         std::size_t windows{0}, last_window{0};  ///< windows that put samples in it, the last of them (1-based)
     };
     /// A one-speed window's least-squares sufficient statistics: enough to judge it against any pooled estimate.
+    /// A window's sums are kept over all max_p columns (the offset's too, whichever model judges the windows): the
+    /// pool can then test the offset at any time; the model in use judges on their leading p_ x p_ block.
     struct OneSpeedWindow {
-        Mat h;  ///< Phi^T Phi
+        Mat h;  ///< Phi^T Phi (max_p x max_p)
         Vec c;  ///< Phi^T y
         double yy{0.0};
         std::size_t rows{0};
         WindowVerdict own{WindowVerdict::low_excitation};  ///< its verdict on its own
     };
     struct WindowInformation {
-        Mat h;  ///< Phi^T W Phi
+        Mat h;  ///< Phi^T W Phi (max_p x max_p)
         Vec c;  ///< Phi^T W y
         double scale{0.0};
         std::size_t rows{0};
@@ -91,6 +94,20 @@ struct OnlineIdentifier::State {
     void pool(const WindowInformation& window);
     [[nodiscard]] Vec pooled_theta() const;
     // the estimate (online_estimate.cpp)
+    /// The pooled fit of the leading `p` columns: theta, its covariance (cluster, or model-based for few windows).
+    struct PooledFit {
+        Vec theta;
+        Mat covariance;
+        bool model_based{false};
+        bool separable{true};  ///< the pool informs every one of the p directions
+    };
+    [[nodiscard]] PooledFit pooled_fit(std::size_t p) const;
+    /// The Wald test of the offset on the pool of all max_p columns (model_selection.hpp's rule, at
+    /// options_.offset_test_level): its statistic, or none where the pool cannot separate F_0 from F_C.
+    [[nodiscard]] std::optional<double> offset_statistic(const PooledFit& full) const;
+    void describe_offset(OnlineEstimate& e) const;
+
+    void judge_plausibility(OnlineEstimate& e) const;
     /// Why the pool gives no value ("" when it does): no window, one window, or windows that disagree.
     [[nodiscard]] std::string no_value_reason() const;
     [[nodiscard]] OnlineEstimate estimate() const;
@@ -99,6 +116,9 @@ struct OnlineIdentifier::State {
     void estimate_stribeck(const Vec& theta, const Vec& standard_error, OnlineEstimate& e) const;
 
     OnlineOptions options_;
+    /// Columns of the model the windows are judged by: 3, or 4 with a forced offset. The selection of the offset
+    /// happens at estimate time, on the pool of all max_p columns of the windows this model admitted: a direction-
+    /// dependent cutting force, which a model with an offset would take for one, does not choose the windows.
     std::size_t p_{3};
     bool ready_{false};
     double dt_{0.0};
@@ -112,7 +132,7 @@ struct OnlineIdentifier::State {
     std::vector<double> t_, x_, f_, xf_, ff_, v_, a_, s_, sf_, workspace_;
     std::vector<char> use_;
     // the window's rows (step-1 samples), allocated once
-    /// [x'', x', filtered sgn x' (, 1)], y after them; row-major, so that a row is contiguous
+    /// [x'', x', filtered sgn x', 1, y]; row-major, so that a row is contiguous (y in column max_p)
     Eigen::Matrix<double, Eigen::Dynamic, max_p + 1, Eigen::RowMajor> rows_;
     std::vector<double> weights_, residual_, scratch_;
     // pooled square-root information: R (p x p upper), z (p), and the cluster moments

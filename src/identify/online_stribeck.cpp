@@ -129,8 +129,9 @@ void State::estimate_stribeck(const Vec& theta, const Vec& standard_error, Onlin
         Vec moved = theta;
         moved(1) += db;
         moved(2) += dc;
+        const bool offset = moved.size() == max_p;
         const std::size_t used =
-            stribeck_points(bins_, moved, p_ == 4, correlation, options_, points, slow_samples, populated);
+            stribeck_points(bins_, moved, offset, correlation, options_, points, slow_samples, populated);
         return fit_stribeck(std::span<const BinPoint>(points.data(), used), options_.minimum_stribeck_bins);
     };
     const StribeckFit nominal = fit(0.0, 0.0);

@@ -97,15 +97,14 @@ bool State::stick_slips(std::size_t first, std::size_t last) {
 
 std::size_t State::build_rows(std::size_t first, std::size_t last) {
     std::size_t rows = 0;
-    const auto p = static_cast<Eigen::Index>(p_);
     for (std::size_t k = first; k < last; ++k) {
         if (use_[k] == 0 || !(std::abs(v_[k]) > options_.split())) continue;
         const auto r = static_cast<Eigen::Index>(rows++);
         rows_(r, 0) = a_[k];
         rows_(r, 1) = v_[k];
         rows_(r, 2) = sf_[k];
-        if (p_ == 4) rows_(r, 3) = 1.0;
-        rows_(r, p) = ff_[k];
+        rows_(r, 3) = 1.0;
+        rows_(r, max_p) = ff_[k];
     }
     return rows;
 }

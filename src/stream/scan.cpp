@@ -103,9 +103,17 @@ void push_trace(Identifiers& identifiers, const Trace& trace, std::span<const do
 // a finding where that exceeds twice the standard error.
 void assess_split(OnlineIdentifier& variant, const OnlineOptions& options, ScanResult& s) {
     variant.flush();
+    const OnlineEstimate doubled_estimate = variant.estimate();
+    if (doubled_estimate.offset_in_model != s.online.offset_in_model) {
+        // the two splits chose different models: their F_C differ by what the offset carries, not by the split
+        s.result.diagnostics.push_back(
+            "the systematic part is not assessed: with the split speed doubled the offset's selection came out "
+            "differently");
+        return;
+    }
     ScanResult other;
     other.result.parameters = s.result.parameters;
-    set_parameters(other, variant.estimate());
+    set_parameters(other, doubled_estimate);
     const ParameterNaming naming{s.result.rotary};
     for (std::size_t i = 0; i < s.result.parameters.size(); ++i) {
         Parameter& p = s.result.parameters[i];
@@ -131,7 +139,8 @@ ScanResult finish(Identifiers& identifiers, const TraceSummary& summary, const O
     s.online = online.estimate();
     IdentifyResult& r = s.result;
     r.model = FrictionModelKind::symmetric;
-    r.offset = options.offset;
+    r.offset = s.online.offset_in_model;
+    r.model_choice = model_choice_of(s.online);
     r.rotary = rotary;
     r.axis.rotary = rotary;
     r.feedid_version = version;
@@ -139,7 +148,7 @@ ScanResult finish(Identifiers& identifiers, const TraceSummary& summary, const O
     r.parameters = model_parameters(r.model, r.offset, r.rotary);
     set_parameters(s, s.online);
     const OnlineEstimate& e = s.online;
-    for (const std::string* reason : {&e.mass_reason, &e.friction_reason, &e.stribeck_reason})
+    for (const std::string* reason : {&e.mass_reason, &e.friction_reason, &e.stribeck_reason, &e.aliased_reason})
         if (!reason->empty() && std::find(r.diagnostics.begin(), r.diagnostics.end(), *reason) == r.diagnostics.end())
             r.diagnostics.push_back(*reason);
     if (e.changes > 0)
@@ -279,6 +288,18 @@ nlohmann::json scan_document(const ScanResult& s) {
     return document;
 }
 
+namespace {
+
+// Why a parameter of an online estimate is null.
+const std::string& null_reason(const OnlineEstimate& e, Term term) {
+    if (term == Term::breakaway || term == Term::stribeck_velocity) return e.stribeck_reason;
+    if ((term == Term::coulomb || term == Term::offset) && !e.aliased_reason.empty()) return e.aliased_reason;
+    if (term != Term::mass && !e.mass.determined() == false && !e.friction_reason.empty()) return e.friction_reason;
+    return e.mass_reason.empty() ? e.friction_reason : e.mass_reason;
+}
+
+}  // namespace
+
 std::vector<std::string> scan_verdicts(const ScanResult& s) {
     std::vector<std::string> lines;
     const std::size_t windows = s.online.windows.qualified();
@@ -290,8 +311,7 @@ std::vector<std::string> scan_verdicts(const ScanResult& s) {
         } else if (e.value) {
             lines.push_back(fmt::format("{} from {} windows, no standard error", p.symbol, windows));
         } else {
-            const bool stribeck = p.term == Term::breakaway || p.term == Term::stribeck_velocity;
-            const std::string& why = stribeck ? s.online.stribeck_reason : s.online.mass_reason;
+            const std::string& why = null_reason(s.online, p.term);
             lines.push_back(fmt::format("{} not determined: {}", p.symbol, why));
         }
     }

@@ -72,7 +72,9 @@ std::string estimate_line(const std::string& machine, const std::string& axis, c
     std::string line = fmt::format("{}/{}:", terminal_text(machine), terminal_text(axis));
     const auto& p = document["parameters"];
     const ParameterNaming naming;  // the watch identifies a linear axis's symmetric model
-    for (const auto term : {Term::mass, Term::viscous, Term::coulomb}) {
+    for (const auto term : {Term::mass, Term::viscous, Term::coulomb, Term::offset}) {
+        // the offset where the estimate's model has one (selected from the data, or --offset)
+        if (term == Term::offset && !p.contains(naming.key(term))) continue;
         const std::string symbol = ParameterNaming::symbol(term, Direction::both);
         const auto& e = p[naming.key(term)];
         if (e["value"].is_number() && e["stderr"].is_number())

@@ -361,7 +361,9 @@ nlohmann::json online_result_document(const OnlineEstimate& e, const OnlineOptio
                                       double duration_s) {
     IdentifyResult result;
     result.model = FrictionModelKind::symmetric;
-    result.offset = options.offset;
+    result.offset = e.offset_in_model || options.offset;
+    // which model (the offset's selection) and timing the estimate used: the document's model_selection and timing
+    result.model_choice = model_choice_of(e);
     result.feedid_version = std::string(version);
     result.trace.path = source;
     result.trace.format = "mqtt";
@@ -369,7 +371,7 @@ nlohmann::json online_result_document(const OnlineEstimate& e, const OnlineOptio
     result.trace.duration_s = duration_s;
     result.trace.sample_time_s = e.samples > 0 ? duration_s / static_cast<double>(e.samples) : 0.0;
     result.parameters = model_parameters(result.model, result.offset, false);
-    for (const auto* reason : {&e.mass_reason, &e.friction_reason, &e.stribeck_reason})
+    for (const auto* reason : {&e.mass_reason, &e.friction_reason, &e.stribeck_reason, &e.aliased_reason})
         if (!reason->empty()) result.diagnostics.push_back(*reason);
     for (auto& p : result.parameters) {
         p.estimate = e.of(p.term);
@@ -381,7 +383,8 @@ nlohmann::json online_result_document(const OnlineEstimate& e, const OnlineOptio
     }
     const auto value = [&](Term term) { return result.find(term) && result.find(term)->estimate.value; };
     const bool determined = value(Term::mass) && value(Term::viscous) && value(Term::coulomb);
-    result.status = !value(Term::coulomb)                  ? Status::failed
+    // a Coulomb friction the windows cannot tell from a weight is null while M and B stand: partial, as scan's
+    result.status = !value(Term::mass)                     ? Status::failed
                     : determined && value(Term::breakaway) ? Status::ok
                                                            : Status::partial;
     // the scan's document (windows, information per parameter), marked as the watch's

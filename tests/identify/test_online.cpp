@@ -335,6 +335,61 @@ TEST(Online, ForgettingFollowsAChangedMass) {
     EXPECT_GT(none.windows.count(WindowVerdict::inconsistent), 20U);
 }
 
+// The offset is selected from the data as identify selects it (Wald test at 1e-3 on the pool of the windows the
+// model without it admitted). With a weight of 60 N on the demo drive (F_C 742.8 N) no wrong number is given: each of
+// M, B, F_C within the acceptance tolerances (3 %, 10 %, 3 %) or null with the reason, F_C only with the offset in the
+// model. On the same traces without a weight the offset is not taken and every value is the model without it, bit
+// for bit. (The windows are judged by the model without the offset: on these traces, that moves both ways in every
+// window, a 60 N weight makes 10 of 36 windows disagree and the estimate is refused with that reason.)
+TEST(Online, TheOffsetIsSelectedFromTheData) {
+    const AxisModel truth = demo_spec().axis;
+    for (std::uint64_t seed : {1U, 2U, 3U}) {
+        SynthSpec spec = demo_spec();
+        spec.seed = seed;
+        spec.axis.offset = 60.0;
+        const testing::ProductionTrace p = testing::production_trace(seed);
+        const Columns weighted = columns(synthesize(spec, p.reference, p.cutting_force));
+        const OnlineEstimate e = run(weighted, {});
+        fmt::print("seed {}: offset {} ({}); M {}, F_C {}; {}\n", seed, e.offset_in_model ? "taken" : "not taken",
+                   e.offset_verdict, e.mass.value.value_or(NAN), e.coulomb.value.value_or(NAN), e.mass_reason);
+        if (e.mass.value) {
+            EXPECT_LT(std::abs(relative(*e.mass.value, truth.mass)), 0.03);
+        } else {
+            EXPECT_FALSE(e.mass_reason.empty());
+        }
+        if (e.viscous.value) {
+            EXPECT_LT(std::abs(relative(*e.viscous.value, truth.friction.forward.viscous)), 0.10);
+        }
+        if (e.coulomb.value) {
+            EXPECT_TRUE(e.offset_in_model) << "F_C without the offset on an axis with a weight";
+            EXPECT_LT(std::abs(relative(*e.coulomb.value, truth.friction.forward.coulomb)), 0.03);
+        }
+        OnlineOptions fixed;
+        fixed.select_offset = false;
+        const OnlineEstimate without = run(weighted, fixed);
+        EXPECT_FALSE(without.offset_in_model);
+        EXPECT_FALSE(without.offset.value);
+
+        const OnlineEstimate plain = run(columns(testing::production_synth(seed)), {});
+        const OnlineEstimate unselected = run(columns(testing::production_synth(seed)), fixed);
+        EXPECT_FALSE(plain.offset_in_model) << plain.offset_verdict;
+        ASSERT_TRUE(plain.mass.value && unselected.mass.value);
+        EXPECT_EQ(*plain.mass.value, *unselected.mass.value);
+        EXPECT_EQ(*plain.coulomb.value, *unselected.coulomb.value);
+        EXPECT_EQ(*plain.viscous.standard_error, *unselected.viscous.standard_error);
+    }
+}
+
+// Evidence before numbers: the model's impossible values are null with the reason, never printed.
+TEST(Online, TooFewRowsGiveNoValueButTheReason) {
+    OnlineOptions o;
+    o.minimum_rows = 1000000;
+    const OnlineEstimate e = run(columns(testing::production_synth(1)), o);
+    EXPECT_FALSE(e.mass.value);
+    EXPECT_FALSE(e.coulomb.value);
+    EXPECT_NE(e.mass_reason.find("step-1 rows qualified"), std::string::npos) << e.mass_reason;
+}
+
 TEST(Online, OptionsAreChecked) {
     OnlineOptions o;
     EXPECT_EQ(o.validate(), "");

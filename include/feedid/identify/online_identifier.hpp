@@ -30,6 +30,7 @@
 
 #include "feedid/core/estimate.hpp"
 #include "feedid/core/parameters.hpp"
+#include "feedid/identify/model_adequacy.hpp"
 #include "feedid/identify/stick_slip.hpp"
 
 namespace feedid {
@@ -40,7 +41,14 @@ struct OnlineOptions {
     std::optional<double> cutoff_hz;      ///< low-pass [Hz]; default min(100 Hz, fs/10) as identify's
     int filter_order{4};                  ///< Butterworth order
     double filter_settling_periods{2.5};  ///< filter margin at each window edge, in cut-off periods (as identify)
-    bool offset{false};                   ///< also estimate a constant force offset F_0
+    bool offset{false};                   ///< always estimate a constant force offset F_0 (no selection)
+    /// Select the offset from the data (identify's model selection): the pool keeps the offset's column of the
+    /// windows the model without it admitted, and the estimate includes the offset when its Wald statistic
+    /// |F_0| / SE (cluster standard error) exceeds the two-sided normal quantile of offset_test_level (1e-3: 3.29).
+    /// Where those windows move in one direction only (F_0 and F_C one number), F_C and F_B are null with the reason.
+    /// False: the model without offset unless `offset`.
+    bool select_offset{true};
+    double offset_test_level{1e-3};
     bool robust{true};                    ///< Tukey biweight by IRLS; false: plain least squares
     double tukey_c{4.685};                ///< Tukey's tuning constant, in robust scales (95 % efficiency)
     int irls_iterations{20};
@@ -92,6 +100,10 @@ struct OnlineOptions {
     /// move) is not fitted on its own but judged against the pooled model as a one-speed window is, when it has at
     /// least this many rows; below, low_excitation
     std::size_t minimum_pool_rows{50};
+    /// Evidence before numbers: no value from fewer pooled step-1 rows than this (with at least 2 qualified windows,
+    /// always); nor a mass <= 0, a Coulomb friction <= 0 or a viscous friction below -2 standard errors (null, with
+    /// the reason).
+    std::size_t minimum_rows{200};
 
     /// What is wrong ("" when nothing).
     [[nodiscard]] std::string validate() const;
@@ -140,6 +152,18 @@ struct OnlineEstimate {
         return mass;  // unreachable: every term is listed
     }
     std::string mass_reason, friction_reason, stribeck_reason;  ///< why null ("" when determined)
+    /// The model the estimate is of: with the offset F_0 (forced, or taken by the selection) or without.
+    bool offset_in_model{false};
+    bool offset_selected{false};  ///< the offset was chosen by the data (select_offset), not forced
+    /// The offset's Wald statistic |F_0| / SE on the pool (none: not testable, see offset_verdict), and the
+    /// threshold it is compared with.
+    std::optional<double> offset_statistic;
+    std::optional<double> offset_estimate, offset_standard_error;  ///< [N or N*m]
+    double offset_threshold{0.0};
+    std::string offset_verdict;  ///< why the offset was taken or not, in words
+    /// Why F_C (and F_B) are null although M is determined: the windows cannot separate a constant force from the
+    /// Coulomb friction ("" when they can).
+    std::string aliased_reason;
     /// What the data says of each step-1 parameter (M, B, F_C (, F_0)), from the cluster covariance.
     Eigen::VectorXd information;  ///< 1 / variance of each parameter (from the cluster covariance) [1/unit^2]
     /// Eigenvalues of the correlation-scaled information (the information matrix with every parameter in units of
@@ -153,6 +177,11 @@ struct OnlineEstimate {
     double residual_std{0.0};  ///< robust scale of the pooled windows' residuals [N]
     std::size_t stribeck_bins_used{0};
 };
+
+/// The model an online estimate is of, as identify's model-selection stage states it (the result document's
+/// model_selection and timing): the offset's candidate with its Wald statistic; no delay (the windows take the drive
+/// signal as logged).
+ModelChoice model_choice_of(const OnlineEstimate& estimate);
 
 /// One window as it was judged: its core's first and last time stamps [s] and its verdict.
 struct WindowRecord {
@@ -188,7 +217,8 @@ public:
     /// The window processed last (none before the first).
     [[nodiscard]] std::optional<WindowRecord> last_window() const;
     [[nodiscard]] const OnlineOptions& options() const;
-    /// Columns of the step-1 model: 3, or 4 with the offset.
+    /// Columns of the step-1 model the windows are judged by: 3, or 4 with the forced offset (the selected one is
+    /// the estimate's: OnlineEstimate::offset_in_model).
     [[nodiscard]] std::size_t parameters() const;
 
     /// Samples in the buffers (a window and its filter margins) of an identifier with these options on a stream
