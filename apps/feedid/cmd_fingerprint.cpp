@@ -43,7 +43,7 @@ void print_figure(const std::string& name, const DirectionalEstimate& estimate, 
 
 void print(const Trace& trace, const FingerprintResult& result) {
     const Units u = display_units(result.rotary);
-    fmt::print("{}: mechanical fingerprint ({}; {} reversals into +, {} into -)\n", terminal_text(trace.source_path),
+    fmt::print("{}: mechanical fingerprint ({}; reversals: {} into +, {} into -)\n", terminal_text(trace.source_path),
                result.two_measuring_systems ? "scale and motor encoder" : "one measuring system",
                result.reversals_forward, result.reversals_reverse);
     print_figure("lost motion", result.lost_motion, u.length_scale, u.length);
