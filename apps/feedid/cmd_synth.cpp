@@ -96,6 +96,8 @@ struct SynthCommand {
     std::string program_path;
     std::string machine_path;
     std::optional<double> cutting_force;
+    std::optional<double> feedforward;
+    std::optional<double> setpoint_delay_ms;
     // the transmission (a second encoder, backlash, finite stiffness): feedid fingerprint's truth
     std::optional<double> backlash_um;
     std::optional<double> stiffness_N_per_um;
@@ -134,7 +136,8 @@ struct SynthCommand {
              {std::pair{!drive_path.empty(), "--drive"}, std::pair{!reference_path.empty(), "--reference"},
               std::pair{!injection.empty(), "--injection"}, std::pair{no_slow_passes, "--no-slow-passes"},
               std::pair{print_drive, "--print-drive"}, std::pair{rotary, "--rotary"},
-              std::pair{!preset.empty(), "--preset"}}) {
+              std::pair{!preset.empty(), "--preset"}, std::pair{feedforward.has_value(), "--feedforward"},
+              std::pair{setpoint_delay_ms.has_value(), "--setpoint-delay"}}) {
             if (given)
                 throw InputError(
                     fmt::format("synth --program: {} does not apply (give the drives in --machine)", option));
@@ -172,6 +175,12 @@ struct SynthCommand {
         if (preset == "sinumerik") apply_sinumerik_recording(spec);
         if (seed) spec.seed = *seed;
         if (no_slow_passes) spec.test.slow_passes = false;
+        if (feedforward) spec.controller.velocity_feedforward = *feedforward;
+        if (setpoint_delay_ms) spec.controller.setpoint_delay_s = *setpoint_delay_ms * 1e-3;
+        if (feedforward || setpoint_delay_ms) {
+            if (const auto problem = spec.validate(); !problem.empty())
+                throw InputError("--feedforward/--setpoint-delay: " + problem);
+        }
         if (!injection.empty()) {
             spec.injection = parse_injection(injection);
             if (const auto problem = spec.validate(); !problem.empty()) throw InputError("--injection: " + problem);
@@ -225,6 +234,11 @@ Action add_synth_command(CLI::App& app) {
                     fmt::format("With --program: the peak cutting force as a fraction of the drive force "
                                 "(default {:g}; 0 = no cutting force)",
                                 ProductionOptions{}.cutting_force_fraction));
+    sub->add_option("--feedforward", command->feedforward,
+                    "The position loop's velocity feed-forward k_ff [-] (drive file: controller.velocity_feedforward)");
+    sub->add_option("--setpoint-delay", command->setpoint_delay_ms,
+                    "The position setpoint reaches the position loop this late [ms], its feed-forward too (drive "
+                    "file: controller.setpoint_delay_ms); e.g. 0.375 = 3 cycles of an 8 kHz servo");
     sub->add_flag("--no-slow-passes", command->no_slow_passes,
                   "Leave out the slow passes: the paper's feedrate ladder (1250..9350 mm/min) alone");
     sub->add_option("--backlash", command->backlash_um,

@@ -26,6 +26,7 @@ std::string ControllerModel::validate() const {
         return "the loop sample times must be >= 0";
     }
     if (!std::isfinite(injection_gain)) return "the injection's gain must be a finite number";
+    if (!finite_non_negative(setpoint_delay_s)) return "the setpoint delay must be a time >= 0";
     if (velocity_difference_samples < 1 || velocity_difference_samples > 8) {
         return "the velocity measurement must difference over 1 to 8 samples";
     }

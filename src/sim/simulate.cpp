@@ -210,25 +210,30 @@ public:
           lag_(model.current_lag_s > 0.0 ? std::exp(-h / model.current_lag_s) : 0.0),
           saturation_(model.saturation_N.value_or(std::numeric_limits<double>::infinity())),
           injection_gain_(model.injection_gain),
+          setpoint_delay_samples_(model.setpoint_delay_s / sample_time_s),
           controller_(model, reference_step_, static_cast<double>(velocity_every_) * h) {}
 
     // At rest at the measured position, on the first reference sample, the integrator holding `held_force` [N] (and
     // the force command with it, when there is an integrator).
-    void start(double measured, double reference, double held_force) {
+    void start(double measured, std::span<const double> reference, double held_force) {
+        reference_ = reference;
         controller_.reset(measured, held_force);
         force_command_ = controller_.model().velocity_integral_gain_N_per_m > 0.0 ? held_force : 0.0;
         drive_force_ = force_command_;
-        previous_reference_ = reference;
+        previous_reference_ = reference.front();
     }
 
     // One integration step. The reference between samples is interpolated linearly (exact at the samples) at
-    // `fraction` of the way from `reference_now` to `reference_next`; `injection` [N] is added to the force command
-    // before the current loop, and the sum saturates at the command's limit.
-    void step(double reference_now, double reference_next, double fraction, double measured,
+    // `fraction` of the way from `reference_now` to `reference_next` (sample `k`), or, with a setpoint delay, that
+    // long before; `injection` [N] is added to the force command before the current loop, and the sum saturates at
+    // the command's limit.
+    void step(std::size_t k, double reference_now, double reference_next, double fraction, double measured,
               double injection) noexcept {
         if (position_countdown_ == 0) {
             position_countdown_ = position_every_;
-            const double reference = reference_now + fraction * (reference_next - reference_now);
+            const double reference = setpoint_delay_samples_ > 0.0
+                                         ? delayed_reference(static_cast<double>(k) + fraction)
+                                         : reference_now + fraction * (reference_next - reference_now);
             const double reference_velocity = first_ ? 0.0 : (reference - previous_reference_) / reference_step_;
             first_ = false;
             previous_reference_ = reference;
@@ -249,6 +254,16 @@ public:
     [[nodiscard]] double drive_force() const noexcept { return drive_force_; }
 
 private:
+    // The reference at `at` - the setpoint delay [samples], linear between its samples; the first before the start.
+    [[nodiscard]] double delayed_reference(double at) const noexcept {
+        const double back = at - setpoint_delay_samples_;
+        if (!(back > 0.0)) return reference_.front();
+        const auto i = static_cast<std::size_t>(back);
+        if (i + 1 >= reference_.size()) return reference_.back();
+        const double f = back - static_cast<double>(i);
+        return reference_[i] + f * (reference_[i + 1] - reference_[i]);
+    }
+
     static double position_cycle(const ControllerModel& model, double sample_time_s) {
         return model.position_cycle_s > 0.0 ? model.position_cycle_s : sample_time_s;
     }
@@ -262,6 +277,8 @@ private:
     double lag_;             // exp(-h/tau)
     double saturation_;      // |F_cmd + u_inj| limit [N] (infinite = none)
     double injection_gain_;  // g of F_cmd + g*u_inj
+    double setpoint_delay_samples_;  // the setpoint delay [samples]
+    std::span<const double> reference_;
     Controller controller_;
     long position_countdown_{0};  // steps until the position loop runs again
     long velocity_countdown_{0};
@@ -338,7 +355,7 @@ void simulate(const AxisModel& axis, const ControllerModel& model, const Simulat
     const PositionSensor sensor(options.position_resolution_m);
     DriveLoops drive(model, dt, h);
     Motion motion{options.initial_position_m.value_or(input.reference[0]), 0.0};
-    drive.start(sensor.measure(motion.position), input.reference[0], options.hold_offset ? axis.offset : 0.0);
+    drive.start(sensor.measure(motion.position), input.reference, options.hold_offset ? axis.offset : 0.0);
 
     const double inverse_substeps = 1.0 / substeps;
     std::size_t stick_transitions = 0;
@@ -350,7 +367,7 @@ void simulate(const AxisModel& axis, const ControllerModel& model, const Simulat
         const double injection = input.injection.empty() ? 0.0 : input.injection[k];
         for (int sub = 0; sub < substeps; ++sub) {
             const double measured = sensor.measure(motion.position);
-            drive.step(reference_now, reference_next, static_cast<double>(sub) * inverse_substeps, measured, injection);
+            drive.step(k, reference_now, reference_next, static_cast<double>(sub) * inverse_substeps, measured, injection);
             history.push(drive.drive_force());
             const Motion at_sample = motion;
             const double applied = drive.drive_force() + external - plant.offset;

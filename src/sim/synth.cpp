@@ -253,6 +253,7 @@ void read_controller(ConfigSection& top, SynthSpec& spec) {
     c->accept("saturation_N");
     c->read("current_lag_ms", model.current_lag_s, 1e-3);
     c->read("injection_gain", model.injection_gain);
+    c->read("setpoint_delay_ms", model.setpoint_delay_s, 1e-3);
     c->read("position_cycle_ms", model.position_cycle_s, 1e-3);
     c->read("velocity_cycle_ms", model.velocity_cycle_s, 1e-3);
     if (const auto v = c->number("velocity_difference_samples"))
@@ -434,6 +435,7 @@ nlohmann::json spec_to_json(const SynthSpec& spec) {
                               {"saturation_N", c.saturation_N ? nlohmann::json(*c.saturation_N) : nlohmann::json()},
                               {"current_lag_ms", c.current_lag_s * 1e3},
                               {"injection_gain", c.injection_gain},
+                              {"setpoint_delay_ms", c.setpoint_delay_s * 1e3},
                               {"position_cycle_ms", c.position_cycle_s * 1e3},
                               {"velocity_cycle_ms", c.velocity_cycle_s * 1e3},
                               {"velocity_difference_samples", c.velocity_difference_samples},
@@ -658,6 +660,8 @@ void true_values(const SynthSpec& spec, const ControllerModel& controller, std::
     constants["true_" + naming.velocity_gain_key()] = controller.velocity_gain_N_s_per_m;
     constants["true_" + naming.velocity_integral_gain_key()] = controller.velocity_integral_gain_N_per_m;
     constants["true_current_lag_s"] = controller.current_lag_s;
+    if (controller.setpoint_delay_s > 0.0) constants["true_setpoint_delay_s"] = controller.setpoint_delay_s;
+    if (controller.velocity_feedforward != 0.0) constants["true_velocity_feedforward"] = controller.velocity_feedforward;
     if (spec.servo_rate_hz > 0.0) constants["true_servo_rate_hz"] = spec.servo_rate_hz;
     if (spec.recording.drive_delay_s > 0.0) constants["true_drive_delay_s"] = spec.recording.drive_delay_s;
 }

@@ -1,6 +1,7 @@
 #pragma once
 // The NC's cascaded P-PI position control loop (its gains are identified from a trace by gains.hpp).
-//   position loop (P, optional velocity feed-forward):   v_cmd = K_v*(x_ref - x) + k_ff*x_ref'
+//   position loop (P, optional velocity feed-forward):   v_cmd = K_v*(x_ref(t - D) - x) + k_ff*x_ref'(t - D)
+//   (D the setpoint delay)
 //   velocity loop (PI; P only when K_i = 0):               F_cmd = K_p*e_v + K_i*integral(e_v dt),  e_v = v_cmd - v
 //   current loop: ideal or a first-order lag of time constant tau;  output saturation |F_cmd| <= F_max
 // Each loop runs at its own sample time. The velocity the velocity loop sees is measured from the position: the mean
@@ -33,6 +34,9 @@ struct ControllerModel {
     /// [-] an injected test signal enters the drive with this gain: the drive gets F_cmd + g*u_inj for the u_inj
     /// logged (the scale of a DAC or an amplifier between the test signal and the drive)
     double injection_gain{1.0};
+    /// [s] the position setpoint reaches the position loop this much late (the path from the NC's interpolator to the
+    /// drive: a few servo cycles); the loop works on x_ref(t - delay) and its feed-forward on that setpoint's velocity
+    double setpoint_delay_s{0.0};
 
     /// K_v in the SINUMERIK unit (m/min)/mm.
     [[nodiscard]] double kv_m_per_min_per_mm() const { return position_gain_per_s * m_per_min_per_mm_per_1_per_s; }
