@@ -50,6 +50,7 @@ struct Session {
     double last_time{not_a_number};
     std::size_t input_bytes{0};
     std::vector<std::string> findings;
+    std::map<std::string, double> constants;  // the cycles the setup states (read_sample_rates())
 };
 
 bool contains_ci(std::string_view text, std::string_view pattern) {
@@ -197,6 +198,21 @@ SetupBySignalKey read_setup(const pugi::xml_node& session_node) {
     return setup;
 }
 
+// The cycles the capture setup's <sampleRateSettings> states [s]: driveSampleRate1, the drive's cycle for its signals
+// (its speed controller's, 125 us on a SINAMICS drive), as servo_cycle_s, the cycle `feedid gains` fits the velocity
+// loop at; servoSampleRate, the NC's position-control cycle, as position_cycle_s.
+void read_sample_rates(const pugi::xml_node& session_node, Session& session) {
+    for (const auto& section : session_node.children()) {
+        if (!std::string_view(section.name()).starts_with("traceCaptureSetup")) continue;
+        const auto rates = section.child("sampleRateSettings");
+        for (const auto& [attribute, key] :
+             {std::pair{"driveSampleRate1", "servo_cycle_s"}, std::pair{"servoSampleRate", "position_cycle_s"}}) {
+            const double value = rates.attribute(attribute).as_double(0.0);
+            if (value > 0.0 && std::isfinite(value)) session.constants[key] = value;
+        }
+    }
+}
+
 // One <dataSignal>: its id, NC variable and axis, unit type and description (from the setup where its own are
 // missing), and its interval.
 Signal read_data_signal(const pugi::xml_node& node, const SetupBySignalKey& setup, std::string_view xml,
@@ -240,6 +256,7 @@ Session read_declarations(const pugi::xml_document& document, std::string_view x
         session.findings.push_back("the trace holds several data frames; only the first is read");
     }
     const auto setup = read_setup(document.child("traceSession"));
+    read_sample_rates(document.child("traceSession"), session);
     std::unordered_set<std::string> ids;
     for (const auto& node : frame.children("dataSignal")) {
         Signal signal = read_data_signal(node, setup, xml, source);
@@ -655,6 +672,7 @@ Trace build_axis(const Session& session, const std::string& axis, const std::str
     Trace trace;
     trace.format = "sinumerik-trace";
     trace.findings = session.findings;
+    trace.constants = session.constants;
     const auto kept = signals_with_samples(signals, axis, source, trace.findings);
     double step = std::numeric_limits<double>::infinity();
     for (const auto index : kept) step = std::min(step, signals[index].interval_s);

@@ -158,6 +158,18 @@ TEST(SinumerikTrace, InfoOnTheReferenceTraceGivesItsPublishedFacts) {
     EXPECT_TRUE(contains(findings, "--channel position=NAME")) << findings;
 }
 
+TEST(SinumerikTrace, TheSetupsCyclesAreTheTracesConstants) {
+    // <sampleRateSettings driveSampleRate1="0.00012500" servoSampleRate="0.002" .../>: the drive's 125 us cycle is
+    // the servo cycle `gains` fits the velocity loop at, the NC's 2 ms one the position loop's.
+    FEEDID_REQUIRE_SHARED(sinumerik_file);
+    const auto result = run_cli("info " + quoted(shared_data() / sinumerik_file) + " --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto info = nlohmann::json::parse(result.out);
+    ASSERT_TRUE(info["constants"].contains("servo_cycle_s")) << info["constants"].dump();
+    EXPECT_DOUBLE_EQ(info["constants"]["servo_cycle_s"].get<double>(), 125e-6);
+    EXPECT_DOUBLE_EQ(info["constants"]["position_cycle_s"].get<double>(), 0.002);
+}
+
 TEST(SinumerikTrace, ValuesMatchTheRawXmlReadIndependently) {
     FEEDID_REQUIRE_SHARED(sinumerik_file);
     const auto path = shared_data() / sinumerik_file;
