@@ -71,8 +71,19 @@ struct GainsCommand {
                        format_estimate(result.position_gain_per_s, "(m/min)/mm", m_per_min_per_mm_per_1_per_s));
         }
         fmt::print("\n");
+        if (result.position_gain_within_model_stderr && result.position_gain_per_s.standard_error &&
+            *result.position_gain_per_s.standard_error > *result.position_gain_within_model_stderr) {
+            fmt::print("                       (± with the choice between a P and a P+FF position loop; within the "
+                       "{} loop ± {:.2g} 1/s)\n",
+                       result.velocity_feedforward.value ? "P+FF" : "P", *result.position_gain_within_model_stderr);
+        }
         if (result.velocity_feedforward.value) {
             fmt::print("                 k_ff  {}\n", format_estimate(result.velocity_feedforward, ""));
+        }
+        if (result.effective_position_gain_per_s.value) {
+            fmt::print("                 (a P-only fit gives {}: an effective gain of the loop with its feed-forward, "
+                       "not its K_v)\n",
+                       format_estimate(result.effective_position_gain_per_s, "1/s"));
         }
         fmt::print("  velocity loop  K_p   {:<28}",
                    format_estimate(result.velocity_gain_N_s_per_m, naming.velocity_gain_unit()));
@@ -97,6 +108,10 @@ struct GainsCommand {
             "  structure      velocity measured as (x_k - x_k-{0})/({0}*{3}); reference delay {1} samples; "
             "current-loop lag {2:.3g} ms\n",
             result.velocity_difference_samples, result.reference_delay_samples, result.current_lag_s * 1e3, cycle);
+        if (result.setpoint_delay_s.value) {
+            fmt::print("  setpoint       reaches the position loop {} after it is logged\n",
+                       format_estimate(result.setpoint_delay_s, "ms", 1000.0));
+        }
         if (result.injection_gain.value) {
             std::string gain = format_estimate(result.injection_gain, "");
             while (!gain.empty() && gain.back() == ' ') gain.pop_back();  // a gain has no unit

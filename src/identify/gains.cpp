@@ -16,8 +16,10 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numeric>
+#include <tuple>
 
 #include <fmt/core.h>
 #include <Eigen/Dense>
@@ -83,6 +85,7 @@ struct Structure {
     int reference_delay{0};  // d
     double lag_s{0.0};       // tau
     double mu{0.0};
+    int servo_delay_cycles{-1};  // on a servo grid: the delay in its cycles (-1: d of them per sample)
 };
 
 struct Problem {
@@ -456,34 +459,112 @@ SearchSpace search_space(const GainSignals& signals, const GainOptions& options)
     return space;
 }
 
-// The position loop's fit v_cmd = K_v*e(k-d) [+ k_ff*x_ref'(k-d)], the delay d by the smallest residual.
+// The position loop's fit v_cmd = K_v*e(k-d) [+ k_ff*x_ref'(k-d)], the delay d by the smallest residual, with its
+// standard error from the residual's curvature in d (delay_standard_error()).
 struct PositionLoopFit {
     Fit fit;
-    int delay{0};
+    double delay{0.0};  // d [samples]; whole samples for a held position
+    std::optional<double> delay_standard_error;  // [samples]
 };
 
+// x_ref at `at` samples (a fraction between two: linear, the NC's fine interpolation), the first before the start and
+// the last after the end.
+double reference_at(std::span<const double> reference, double at) {
+    if (!(at > 0.0)) return reference.front();
+    const auto i = static_cast<std::size_t>(at);
+    if (i + 1 >= reference.size()) return reference.back();
+    const double f = at - static_cast<double>(i);
+    return reference[i] + f * (reference[i + 1] - reference[i]);
+}
+
+// The position loop's columns for a setpoint delay of `delay` samples: e(k) = x_ref(k - d) - x(k) and, with the
+// feed-forward, the setpoint's velocity there, the slope of the interpolated reference just before k - d (its
+// backward difference for a whole d). A held position (a slower position loop) keeps whole samples and differences
+// over its own cycle.
+std::vector<Column> position_loop_columns(const GainSignals& signals, double delay, bool feedforward) {
+    std::vector<Column> columns;
+    if (signals.hold_factor > 1) {
+        const auto d = static_cast<int>(std::lround(delay));
+        columns.push_back(following_error(signals.reference, signals.position, d));
+        if (feedforward)
+            columns.push_back(delayed(difference_velocity(signals.reference, signals.hold_factor, signals.dt), d));
+        return columns;
+    }
+    Column error(signals.samples), velocity(feedforward ? signals.samples : 0);
+    const std::size_t last = signals.samples - 1;
+    for (std::size_t k = 0; k < signals.samples; ++k) {
+        const double at = static_cast<double>(k) - delay;
+        error[k] = reference_at(signals.reference, at) - signals.position[k];
+        if (!feedforward) continue;
+        const double upper = std::ceil(at);
+        const std::size_t i = upper < 1.0 ? 0 : std::min(static_cast<std::size_t>(upper), last);
+        velocity[k] = i == 0 ? 0.0 : (signals.reference[i] - signals.reference[i - 1]) / signals.dt;
+    }
+    columns.push_back(std::move(error));
+    if (feedforward) columns.push_back(std::move(velocity));
+    return columns;
+}
+
+// The standard error of a delay fitted by the smallest residual sum of squares S(d) beside p linear parameters on N
+// rows: S is -2 log-likelihood times sigma^2 (Gaussian residuals), so var(d) = 2*sigma^2 / S''(d), sigma^2 = S/(N-p),
+// S'' by central differences of step h (forward ones at d = 0). None where S'' is not positive (a flat profile).
+std::optional<double> delay_standard_error(const std::function<double(double)>& rss, double delay, double step,
+                                           std::size_t rows, std::size_t parameters) {
+    if (rows <= parameters + 1) return std::nullopt;
+    const double at = delay - step < 0.0 ? step : delay;  // the middle of three points at or above 0
+    const double curvature = (rss(at + step) - 2.0 * rss(at) + rss(at - step)) / (step * step);
+    const double sigma2 = rss(delay) / static_cast<double>(rows - parameters - 1);
+    if (!(curvature > 0.0) || !std::isfinite(curvature)) return std::nullopt;
+    return std::sqrt(2.0 * sigma2 / curvature);
+}
+
+// Steps per sample of the setpoint delay's search: a delay of a few servo cycles of a loop up to 16 times faster
+// than the log is a whole number of them (4, 8, 16 kHz at 1 kHz); between them it is refined by golden section.
+constexpr int delay_steps_per_sample = 16;
+
 PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, const RlsOptions& rls) {
-    // the reference changes once per position-loop cycle: its velocity over that cycle
-    const Column reference_velocity = difference_velocity(signals.reference, signals.hold_factor, signals.dt);
     std::vector<char> use = rows_past_start_up(signals.samples);
     keep_fresh_rows(signals, use);
-    double best_rss = std::numeric_limits<double>::infinity();
-    Problem best;
-    PositionLoopFit result;
-    for (int d : {0, 1, 2}) {
+    const auto problem_at = [&](double delay) {
         Problem problem;
-        problem.columns.push_back(following_error(signals.reference, signals.position, d));
-        if (feedforward) problem.columns.push_back(delayed(reference_velocity, d));
+        problem.columns = position_loop_columns(signals, delay, feedforward);
         problem.y = signals.velocity_command;
         problem.use = &use;
-        const double rss = residual_sum_of_squares(problem);
-        if (rss < best_rss) {
-            best_rss = rss;
-            best = std::move(problem);
-            result.delay = d;
+        return problem;
+    };
+    const auto rss = [&](double delay) { return residual_sum_of_squares(problem_at(delay)); };
+    // with a feed-forward a fraction of a sample is k_ff's doing here (setpoint_fraction())
+    const bool whole = signals.hold_factor > 1 || feedforward;
+    const int steps = whole ? 1 : delay_steps_per_sample;
+    double best_rss = std::numeric_limits<double>::infinity();
+    PositionLoopFit result;
+    for (int j = 0; j <= 2 * steps; ++j) {
+        const double delay = static_cast<double>(j) / steps;
+        if (const double r = rss(delay); r < best_rss) {
+            best_rss = r;
+            result.delay = delay;
         }
     }
-    result.fit = fit(best, rls);
+    if (!whole) {
+        // golden section within a step either side; kept only where it fits better than the grid
+        double low = std::max(0.0, result.delay - 1.0 / steps), high = result.delay + 1.0 / steps;
+        const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
+        for (int round = 0; round < 24; ++round) {
+            const double a = high - ratio * (high - low), b = low + ratio * (high - low);
+            if (rss(a) < rss(b))
+                high = b;
+            else
+                low = a;
+        }
+        const double refined = 0.5 * (low + high);
+        if (const double r = rss(refined); r < best_rss) {
+            best_rss = r;
+            result.delay = refined;
+        }
+    }
+    result.fit = fit(problem_at(result.delay), rls);
+    result.delay_standard_error = delay_standard_error(rss, result.delay, whole ? 1.0 : 1.0 / (4.0 * steps),
+                                                       result.fit.samples, feedforward ? 2 : 1);
     return result;
 }
 
@@ -491,39 +572,75 @@ PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, 
 // errors from 0: the P-only fit of such a loop gives an effective K_v, not the loop's gain.
 bool feedforward_shows(const PositionLoopFit& with, const PositionLoopFit& without) {
     if (with.fit.rank_deficient) return false;
+    // a loop that the fit without it reproduces to the rounding of the logged numbers (gain_resolution) has none
+    if (!(without.fit.relative_error_pct > 100.0 * gain_resolution)) return false;
     const double kff = with.fit.estimate(1);
     const double se = std::sqrt(std::max(0.0, with.fit.covariance(1, 1)));
     return std::isfinite(kff) && std::abs(kff) > 3.0 * se &&
            with.fit.relative_error_pct < 0.5 * without.fit.relative_error_pct;
 }
 
+// K_v over the position loop's models P and P+FF (their Akaike weights; AIC = N*ln(RSS/N) + 2*p, RSS proportional to
+// the squared relative error on the same rows): the chosen model's K_v with the unconditional standard error
+// sum_m w_m*sqrt(se_m^2 + (K_v,m - K_v)^2) (Burnham and Anderson, Model Selection and Multimodel Inference, 2002,
+// eq. 4.9, centred on the chosen K_v): as wide as its own where the other model has no weight, and taking in the
+// other's K_v where the data cannot tell the two apart.
+void add_model_choice(const PositionLoopFit& plain, const PositionLoopFit& with, GainResult& result) {
+    const double rows = static_cast<double>(with.fit.samples);
+    const double smallest = std::max({std::min(plain.fit.relative_error_pct, with.fit.relative_error_pct), 1e-300});
+    const auto delta_aic = [&](const PositionLoopFit& f, int parameters) {
+        return rows * 2.0 * std::log(std::max(f.fit.relative_error_pct, smallest) / smallest) + 2.0 * parameters;
+    };
+    const double plain_aic = delta_aic(plain, 1), with_aic = delta_aic(with, 2);
+    const double low = std::min(plain_aic, with_aic);
+    const double plain_w = std::exp(-0.5 * (plain_aic - low)), with_w = std::exp(-0.5 * (with_aic - low));
+    const double kv = result.position_gain_per_s.value.value_or(0.0);
+    double band = 0.0;
+    for (const auto& [name, f, weight] : {std::tuple{"P", &plain, plain_w / (plain_w + with_w)},
+                                          std::tuple{"P+FF", &with, with_w / (plain_w + with_w)}}) {
+        PositionLoopModel model{name, estimate_from_variance(f->fit.estimate(0), f->fit.covariance(0, 0)),
+                                f->fit.relative_error_pct, weight};
+        const double se = model.position_gain_per_s.standard_error.value_or(0.0);
+        const double apart = model.position_gain_per_s.value.value_or(kv) - kv;
+        band += weight * std::sqrt(se * se + apart * apart);
+        result.position_loop_models.push_back(std::move(model));
+    }
+    result.position_gain_within_model_stderr = result.position_gain_per_s.standard_error;
+    if (std::isfinite(band) && result.position_gain_per_s.standard_error)
+        result.position_gain_per_s.standard_error = std::max(*result.position_gain_per_s.standard_error, band);
+}
+
 // Position loop (only with a logged velocity command): v_cmd = K_v*e(k-d) [+ k_ff*x_ref'(k-d)], the feed-forward as
 // asked (--feedforward) or where it shows. Sets K_v (and k_ff), d and the position loop's relative error.
 void identify_position_loop(const GainSignals& signals, const GainOptions& options, GainResult& result) {
-    PositionLoopFit loop = fit_position_loop(signals, options.feedforward, options.rls);
-    bool feedforward = options.feedforward;
-    if (!feedforward && !loop.fit.rank_deficient) {
-        PositionLoopFit with = fit_position_loop(signals, true, options.rls);
-        if (feedforward_shows(with, loop)) {
-            result.diagnostics.push_back(fmt::format(
-                "a velocity feed-forward shows in the position loop (k_ff = {:.4g}; the position loop's relative "
-                "error falls from {:.3g} % to {:.3g} % with it): fitted with it, as --feedforward would; K_v fitted "
-                "without it would be {:.4g} 1/s, an effective gain of the loop with its feed-forward",
-                with.fit.estimate(1), loop.fit.relative_error_pct, with.fit.relative_error_pct, loop.fit.estimate(0)));
-            loop = std::move(with);
-            feedforward = true;
-        }
+    PositionLoopFit plain = fit_position_loop(signals, false, options.rls);
+    PositionLoopFit with = fit_position_loop(signals, true, options.rls);
+    const bool feedforward = options.feedforward || (!plain.fit.rank_deficient && feedforward_shows(with, plain));
+    if (feedforward && !options.feedforward) {
+        result.diagnostics.push_back(fmt::format(
+            "a velocity feed-forward shows in the position loop (k_ff = {:.4g} with the setpoint at whole samples; "
+            "the position loop's relative "
+            "error falls from {:.3g} % to {:.3g} % with it): fitted with it, as --feedforward would; K_v fitted "
+            "without it would be {:.4g} 1/s, an effective gain of the loop with its feed-forward",
+            with.fit.estimate(1), plain.fit.relative_error_pct, with.fit.relative_error_pct, plain.fit.estimate(0)));
     }
+    const PositionLoopFit& loop = feedforward ? with : plain;
     if (loop.fit.rank_deficient) {
         throw AnalysisError(
             fmt::format("{}: the following error does not determine the position gain", signals.source));
     }
-    result.reference_delay_samples = loop.delay;
+    result.reference_delay_samples = static_cast<int>(std::lround(loop.delay));
+    result.setpoint_delay_s.value = loop.delay * signals.dt;
+    if (loop.delay_standard_error) result.setpoint_delay_s.standard_error = *loop.delay_standard_error * signals.dt;
     result.position_gain_per_s = estimate_from_variance(loop.fit.estimate(0), loop.fit.covariance(0, 0));
     result.position_loop_relative_error_pct = loop.fit.relative_error_pct;
     if (feedforward) {
         result.velocity_feedforward = estimate_from_variance(loop.fit.estimate(1), loop.fit.covariance(1, 1));
+        if (!plain.fit.rank_deficient)
+            result.effective_position_gain_per_s =
+                estimate_from_variance(plain.fit.estimate(0), plain.fit.covariance(0, 0));
     }
+    if (!plain.fit.rank_deficient && !with.fit.rank_deficient) add_model_choice(plain, with, result);
 }
 
 // The velocity the controller measures: (x_k - x_{k-n})/(n*T), or the logged velocity for n = 0.
@@ -644,24 +761,8 @@ ServoGrid servo_grid(const GainSignals& signals, int factor) {
 struct PositionLoop {
     double gain_per_s{0.0};
     double feedforward{0.0};
-    int delay{0};
+    double delay{0.0};  // [samples]
 };
-
-// e = x_ref(t - d*T) - x(t) at the servo instants; a position loop on its own (slower) cycle holds the error of its
-// last run.
-Column servo_following_error(const GainSignals& signals, const ServoGrid& grid, int delay) {
-    Column error(grid.position.size());
-    if (signals.hold_factor > 1) {
-        const Column logged = following_error(signals.reference, signals.position, delay);
-        for (std::size_t j = 0; j < error.size(); ++j)
-            error[j] = logged[static_cast<std::size_t>(grid.last_loop_row[j])];
-        return error;
-    }
-    const auto shift = static_cast<std::size_t>(delay * grid.factor);
-    for (std::size_t j = 0; j < error.size(); ++j)
-        error[j] = grid.reference[j >= shift ? j - shift : 0] - grid.position[j];
-    return error;
-}
 
 // v_cmd at the servo instants: held from the logged command when the position loop runs on its own cycle, else the
 // identified position loop run at the servo rate (it reproduces the logged command at the logged instants).
@@ -672,12 +773,15 @@ Column servo_velocity_command(const GainSignals& signals, const ServoGrid& grid,
             command[j] = signals.velocity_command[static_cast<std::size_t>(grid.last_loop_row[j])];
         return command;
     }
-    const Column error = servo_following_error(signals, grid, loop.delay);
-    const auto shift = static_cast<std::size_t>(loop.delay * grid.factor);
+    // the setpoint d samples late, between the logged samples as the NC interpolates it; its velocity over the
+    // servo cycle before
+    const double per_cycle = 1.0 / static_cast<double>(grid.factor);
     for (std::size_t j = 0; j < command.size(); ++j) {
-        const std::size_t at = j >= shift ? j - shift : 0;
-        const double reference_velocity = at == 0 ? 0.0 : (grid.reference[at] - grid.reference[at - 1]) / grid.cycle_s;
-        command[j] = loop.gain_per_s * error[j] + loop.feedforward * reference_velocity;
+        const double at = static_cast<double>(j) * per_cycle - loop.delay;
+        const double setpoint = reference_at(signals.reference, at);
+        const double reference_velocity =
+            at - per_cycle < 0.0 ? 0.0 : (setpoint - reference_at(signals.reference, at - per_cycle)) / grid.cycle_s;
+        command[j] = loop.gain_per_s * (setpoint - grid.position[j]) + loop.feedforward * reference_velocity;
     }
     return command;
 }
@@ -750,7 +854,7 @@ struct VelocityLoopRegression {
 };
 
 ServoRow servo_row(const VelocityLoopRegression& r, const Column& logged_error, std::size_t j, int difference,
-                   int reference_delay) {
+                   int reference_delay, int delay_cycles) {
     const ServoGrid& g = *r.grid;
     const auto n = static_cast<std::size_t>(difference);
     const double v = (g.position[j] - g.position[j >= n ? j - n : 0]) / (difference * g.cycle_s);
@@ -760,7 +864,7 @@ ServoRow servo_row(const VelocityLoopRegression& r, const Column& logged_error, 
     } else if (r.signals.hold_factor > 1) {
         row.error = logged_error[static_cast<std::size_t>(g.last_loop_row[j])];
     } else {
-        const auto shift = static_cast<std::size_t>(reference_delay * g.factor);
+        const auto shift = static_cast<std::size_t>(delay_cycles >= 0 ? delay_cycles : reference_delay * g.factor);
         row.error = g.reference[j >= shift ? j - shift : 0] - g.position[j];
     }
     row.minus_v = -v;
@@ -784,7 +888,8 @@ VelocityLoopRegression::ServoFilterBank VelocityLoopRegression::servo_columns(co
     std::array<double, 6> in{}, last_in{}, last_out{};
     double error_sum = 0.0, minus_v_sum = 0.0;
     for (std::size_t j = 0; j < fine; ++j) {
-        const ServoRow row = servo_row(*this, logged_error, j, std::max(1, s.difference), s.reference_delay);
+        const ServoRow row = servo_row(*this, logged_error, j, std::max(1, s.difference), s.reference_delay,
+                                        s.servo_delay_cycles);
         error_sum += row.error * g.cycle_s;
         minus_v_sum += row.minus_v * g.cycle_s;
         if (structure) {
@@ -869,20 +974,69 @@ void refine_lag_and_delay(StructureSearch& search, const GainOptions& options, d
     }
 }
 
+// From the structure alone on a servo grid of m cycles per sample: the setpoint delay in servo cycles, within a
+// sample of the whole samples found (the residual varies smoothly between them).
+void search_servo_delay(StructureSearch& search, const VelocityLoopRegression& regression) {
+    if (regression.grid == nullptr || regression.signals.logged_command) return;
+    const int m = regression.grid->factor;
+    const Structure found = search.best();
+    const int cycles = found.servo_delay_cycles >= 0 ? found.servo_delay_cycles : found.reference_delay * m;
+    for (int q = std::max(0, cycles - m + 1); q < cycles + m; ++q) {
+        Structure s = found;
+        s.servo_delay_cycles = q;
+        search.consider(s);
+    }
+}
+
 Structure search_structure(const VelocityLoopRegression& regression, const SearchSpace& space,
                            const GainOptions& options, bool integral) {
     StructureSearch search(regression, integral);
     search_grid(search, space, options);
     refine_lag_and_delay(search, options, regression.signals.dt);
+    if (regression.grid != nullptr && !regression.signals.logged_command) {
+        // the lag and the drive signal's fractional delay move with the setpoint delay: refined again after it
+        search_servo_delay(search, regression);
+        refine_lag_and_delay(search, options, regression.signals.dt);
+        search_servo_delay(search, regression);
+    }
     return search.best();
 }
 
+// The setpoint delay's part within a logged sample, in servo cycles (setpoint_fraction()).
+struct SampleFraction {
+    int cycles{0};
+    std::optional<double> standard_error_cycles;
+};
+
 struct VelocityLoopFit {
+    std::optional<SampleFraction> setpoint_fraction;  // with a logged command and a feed-forward, on a servo grid
     Structure structure;
     Fit fit;
     bool integral{false};
     bool injection_gain{false};  // theta ends in the injection's gain
+    double setpoint_delay{0.0};  // [samples], from the structure alone
+    std::optional<double> setpoint_delay_standard_error;  // [samples]
 };
+
+// From the structure alone, the setpoint delay the search found (in servo cycles on a grid, search_servo_delay()),
+// with its standard error from the residual's curvature in it (delay_standard_error()).
+void fit_setpoint_delay(const VelocityLoopRegression& regression, VelocityLoopFit& loop) {
+    const int m = regression.grid != nullptr ? regression.grid->factor : 1;
+    const Structure& best = loop.structure;
+    const auto rss = [&](double cycles) {
+        Structure s = best;
+        if (m > 1)
+            s.servo_delay_cycles = static_cast<int>(std::lround(cycles));
+        else
+            s.reference_delay = static_cast<int>(std::lround(cycles));
+        return residual_sum_of_squares(regression.problem(s, loop.integral));
+    };
+    const int cycles = m > 1 && best.servo_delay_cycles >= 0 ? best.servo_delay_cycles : best.reference_delay * m;
+    loop.setpoint_delay = static_cast<double>(cycles) / m;
+    const auto parameters = static_cast<std::size_t>(loop.fit.batch.size());
+    if (const auto se = delay_standard_error(rss, cycles, 1.0, loop.fit.samples, parameters))
+        loop.setpoint_delay_standard_error = *se / m;
+}
 
 // Why the PI fit shows no integral action ("" when it does): K_i not significant (not above three standard errors),
 // or significant but with a reset time T_n = K_p/K_i longer than the trace, over which an integrator that slow cannot
@@ -936,6 +1090,7 @@ VelocityLoopFit fit_velocity_loop(const VelocityLoopRegression& regression, cons
                         "barely moved); a trace of a motion would",
                         regression.signals.source));
     }
+    if (!regression.signals.logged_command) fit_setpoint_delay(regression, loop);
     return loop;
 }
 
@@ -976,6 +1131,12 @@ void set_structure_and_fit(const VelocityLoopFit& loop, double dt, GainResult& r
     result.relative_error_pct = loop.fit.relative_error_pct;
     result.systematic_error_pct = loop.fit.systematic_error_pct;
     result.samples_used = loop.fit.samples;
+    if (result.method == "structure") {
+        result.reference_delay_samples = static_cast<int>(std::lround(loop.setpoint_delay));
+        result.setpoint_delay_s.value = loop.setpoint_delay * dt;
+        if (loop.setpoint_delay_standard_error)
+            result.setpoint_delay_s.standard_error = *loop.setpoint_delay_standard_error * dt;
+    }
 }
 
 // The identified controller, for simulation: the gains (0 where the data did not determine them), the structure
@@ -989,6 +1150,7 @@ ControllerModel identified_controller(const GainResult& result, const GainOption
     controller.velocity_feedforward = result.velocity_feedforward.value.value_or(0.0);
     controller.saturation_N = options.saturation_N;
     controller.current_lag_s = result.current_lag_s;
+    controller.setpoint_delay_s = result.setpoint_delay_s.value.value_or(0.0);
     const double servo_cycle = result.servo_rate_hz > 0.0 ? 1.0 / result.servo_rate_hz : dt;
     controller.position_cycle_s = hold_factor > 1 ? dt * hold_factor : servo_cycle;
     controller.velocity_cycle_s = servo_cycle;
@@ -1109,6 +1271,65 @@ void gate_signs(const GainOptions& options, bool rotary, GainResult& result) {
 
 }  // namespace
 
+// With a feed-forward, the position loop on the logged samples cannot tell a setpoint delay within a sample from
+// k_ff: for 0 <= f < 1, x_ref(k - d - f) = x_ref(k - d) - f*(x_ref(k - d) - x_ref(k - d - 1)) on the interpolated
+// reference, so K_v*e(d + f) + k_ff*x_ref'(k - d) = K_v*e(d) + (k_ff - K_v*f*T)*x_ref'(k - d) at every logged sample
+// (its fit takes whole samples). Between the samples the two differ where the delayed setpoint crosses a logged
+// sample, which the velocity loop on the servo grid sees: the fraction is the whole number q of servo cycles whose
+// position loop (d + q/m, k_ff + K_v*q*T_s, k_ff that of the whole-sample fit) leaves the least of the drive signal unexplained, with its standard error
+// from the residual's curvature in q (delay_standard_error()). Sets regression.servo_command to that position loop's.
+SampleFraction setpoint_fraction(VelocityLoopRegression& regression, const PositionLoop& whole,
+                                 const SearchSpace& space, const GainOptions& options) {
+    const ServoGrid& grid = *regression.grid;
+    const int m = grid.factor;
+    const auto command_at = [&](double cycles) {
+        const PositionLoop loop{whole.gain_per_s, whole.feedforward + whole.gain_per_s * cycles * grid.cycle_s,
+                                whole.delay + cycles / m};
+        return servo_velocity_command(regression.signals, grid, loop);
+    };
+    const bool integral = options.velocity_loop != VelocityLoopStructure::p;
+    const Structure structure = search_structure(regression, space, options, integral);
+    std::size_t parameters = 0;
+    const auto rss = [&](double cycles) {
+        VelocityLoopRegression shifted = regression;
+        shifted.servo_command = command_at(cycles);
+        const Problem problem = shifted.problem(structure, integral);
+        parameters = problem.columns.size();
+        return residual_sum_of_squares(problem);
+    };
+    SampleFraction fraction;
+    double best = rss(0.0);
+    for (int q = 1; q < m; ++q) {
+        if (const double r = rss(q); r < best) {
+            best = r;
+            fraction.cycles = q;
+        }
+    }
+    const auto rows = static_cast<std::size_t>(std::count(regression.use.begin(), regression.use.end(), char{1}));
+    fraction.standard_error_cycles = delay_standard_error(rss, fraction.cycles, 1.0, rows, parameters);
+    regression.servo_command = command_at(fraction.cycles);
+    return fraction;
+}
+
+// The position loop with the setpoint's fraction of a sample that the velocity loop on the servo grid found
+// (setpoint_fraction()): the delay d + q/m and k_ff + K_v*q*T_s, whose standard error takes in the delay's.
+void apply_setpoint_fraction(const SampleFraction& fraction, double servo_cycle_s, double dt, GainResult& result) {
+    const double kv = result.position_gain_per_s.value.value_or(0.0);
+    const double shift = fraction.cycles * servo_cycle_s;
+    result.setpoint_delay_s.value = result.setpoint_delay_s.value.value_or(0.0) + shift;
+    result.setpoint_delay_s.standard_error.reset();
+    if (fraction.standard_error_cycles)
+        result.setpoint_delay_s.standard_error = *fraction.standard_error_cycles * servo_cycle_s;
+    result.reference_delay_samples = static_cast<int>(std::lround(*result.setpoint_delay_s.value / dt));
+    Estimate& kff = result.velocity_feedforward;
+    if (!kff.value) return;
+    *kff.value += kv * shift;
+    if (kff.standard_error && fraction.standard_error_cycles) {
+        const double from_delay = kv * servo_cycle_s * *fraction.standard_error_cycles;
+        kff.standard_error = std::hypot(*kff.standard_error, from_delay);
+    }
+}
+
 // An injection's gain is taken from the data when its standard error is below this fraction of it: it is there to
 // catch a DAC's or an amplifier's scale, a few per cent (a recording whose 5 V pulses act as 5.07 V).
 constexpr double injection_gain_resolution = 0.02;
@@ -1126,15 +1347,18 @@ VelocityLoopFit fit_at_servo_factor(const GainSignals& signals, const std::vecto
         grid = servo_grid(signals, factor);
     }
     VelocityLoopRegression regression{signals, use, grid ? &*grid : nullptr};
+    const auto [low, high] = std::minmax_element(signals.injection.begin(), signals.injection.end());
+    regression.injection_gain_known = signals.injection.empty() || !(*high > *low);  // a constant is an offset
+    std::optional<SampleFraction> fraction;
     if (grid && signals.logged_command) {
         const PositionLoop loop{position_loop.position_gain_per_s.value.value_or(0.0),
                                 position_loop.velocity_feedforward.value.value_or(0.0),
-                                position_loop.reference_delay_samples};
+                                position_loop.setpoint_delay_s.value.value_or(0.0) / signals.dt};
         regression.servo_command = servo_velocity_command(signals, *grid, loop);
+        if (position_loop.velocity_feedforward.value) fraction = setpoint_fraction(regression, loop, space, options);
     }
-    const auto [low, high] = std::minmax_element(signals.injection.begin(), signals.injection.end());
-    regression.injection_gain_known = signals.injection.empty() || !(*high > *low);  // a constant is an offset
     VelocityLoopFit loop = fit_velocity_loop(regression, space, options, diagnostics);
+    loop.setpoint_fraction = fraction;
     loop.injection_gain = !regression.injection_gain_known;
     if (!loop.injection_gain) return loop;
     const Eigen::Index g = loop.fit.estimate.size() - 1;
@@ -1203,6 +1427,8 @@ VelocityLoopFit fit_velocity_loop_at_its_rate(const Trace& trace, const GainSign
     }
     for (auto& note : notes) result.diagnostics.push_back(std::move(note));
     result.servo_rate_hz = static_cast<double>(factor) / signals.dt;
+    if (best.setpoint_fraction && factor > 1)
+        apply_setpoint_fraction(*best.setpoint_fraction, signals.dt / factor, signals.dt, result);
     if (factor > 1) {
         result.fit_kind = "output_error";
         result.diagnostics.push_back(fmt::format(
@@ -1305,7 +1531,15 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
         result.controller = identified_controller(result, options, signals.dt, signals.hold_factor);
         return result;
     }
-    if (signals.logged_command) identify_position_loop(signals, options, result);
+    if (signals.logged_command) {
+        identify_position_loop(signals, options, result);
+    } else if (options.feedforward) {
+        result.diagnostics.push_back(
+            "--feedforward: a velocity feed-forward is fitted only from a logged velocity command (the position loop "
+            "on its own), which this trace lacks; from the structure alone K_v is that of a P position loop, for a "
+            "loop with a feed-forward an effective gain, not its K_v (map the command with --channel "
+            "velocity_command=NAME)");
+    }
     const VelocityLoopFit velocity_loop = fit_velocity_loop_at_its_rate(trace, signals, use, options, result);
     if (signals.hold_factor > 1) {
         result.diagnostics.insert(

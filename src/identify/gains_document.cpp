@@ -35,11 +35,17 @@ std::string gains_null_reason(std::string_view path, const GainResult& result, c
     const bool integral = path.find("integral") != std::string_view::npos || starts_with(path, "nc_units.tn_ms");
     const bool feedforward = path.find("feedforward") != std::string_view::npos;
     const bool stderr_only = path.ends_with("stderr") && !failed;
+    if (feedforward && result.method == "structure" && options.feedforward) {
+        return "a velocity feed-forward is fitted only from a logged velocity command, which this trace lacks";
+    }
     if (feedforward && !options.feedforward) return "no velocity feed-forward fitted (--feedforward not given)";
     if (integral && !failed && !result.velocity_integral_gain_N_per_m.value) {
         return options.velocity_loop == VelocityLoopStructure::p
                    ? "the velocity loop is fitted as P only (--velocity-loop p): no K_i, no T_n"
                    : "the velocity loop shows no integral action (see the diagnostic on it): no K_i, no T_n";
+    }
+    if (path == "structure.setpoint_delay_s.stderr" && !failed) {
+        return "the residual does not curve in the setpoint delay about its best value, so it has no standard error";
     }
     if (stderr_only) return "the fit's variance of this gain is not a finite number >= 0, so it has no standard error";
     if (path == "fit.position_loop_relative_error_pct" && result.method != "velocity_command") {
@@ -81,6 +87,7 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
         {"velocity_loop", result.velocity_integral_gain_N_per_m.value ? "PI" : "P"},
         {"velocity_difference_samples", result.velocity_difference_samples},
         {"reference_delay_samples", result.reference_delay_samples},
+        {"setpoint_delay_s", result.setpoint_delay_s},
         {"current_lag_s", result.current_lag_s},
         {"drive_delay_samples", result.drive_delay_samples},
         {naming.saturation_key(), result.controller.saturation_N},
@@ -100,6 +107,26 @@ nlohmann::json gains_document(const GainResult& result, const GainOptions& optio
                         result.method == "velocity_command" ? nlohmann::json(result.position_loop_relative_error_pct)
                                                             : nlohmann::json()},
                        {"samples_used", result.samples_used}};
+    if (result.effective_position_gain_per_s.value) {
+        // the P-only fit of a loop with a feed-forward: named, never printed as the loop's gain
+        document["gains"]["effective_position_gain_per_s"] = result.effective_position_gain_per_s;
+    }
+    if (!result.position_loop_models.empty()) {
+        nlohmann::json models = nlohmann::json::array();
+        for (const auto& model : result.position_loop_models) {
+            models.push_back({{"model", model.name},
+                              {"position_gain_per_s", model.position_gain_per_s},
+                              {"relative_error_pct", model.relative_error_pct},
+                              {"weight", model.weight}});
+        }
+        // position_gain_per_s.stderr takes in the choice between these; within the chosen one alone:
+        document["position_loop"] = {
+            {"model", result.velocity_feedforward.value ? "P+FF" : "P"},
+            {"models", std::move(models)},
+            {"position_gain_stderr_within_model", result.position_gain_within_model_stderr
+                                                      ? nlohmann::json(*result.position_gain_within_model_stderr)
+                                                      : nlohmann::json()}};
+    }
     if (result.injection_subtracted) {
         // g: the drive signal holds the controller's output plus g times the injection as logged
         document["injection"] = {{"gain", result.injection_gain},
@@ -152,6 +179,7 @@ ControllerModel controller_from_document(const nlohmann::json& document, const s
             model.velocity_difference_samples = static_cast<int>(std::lround(*n));
         }
         model.current_lag_s = value_of(structure, "current_lag_s").value_or(0.0);
+        model.setpoint_delay_s = value_of(structure, "setpoint_delay_s").value_or(0.0);
         model.saturation_N = value_of(structure, naming.saturation_key().c_str());
         model.velocity_cycle_s = value_of(structure, "sample_time_s").value_or(0.0);
         model.position_cycle_s = value_of(structure, "position_cycle_s").value_or(model.velocity_cycle_s);

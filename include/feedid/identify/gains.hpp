@@ -55,6 +55,16 @@ void set_drive_signal(GainOptions& options, const Trace& trace, const DriveConst
 /// below the other. Above it the gains are reported as failed.
 inline constexpr double gain_fit_error_limit_pct = 3.0;
 
+/// One model of the position loop fitted from a logged velocity command: "P" (v_cmd = K_v*e) or "P+FF" (with a
+/// velocity feed-forward k_ff*x_ref').
+struct PositionLoopModel {
+    std::string name;
+    Estimate position_gain_per_s;  ///< K_v of this model [1/s], its standard error within the model
+    double relative_error_pct{0.0};  ///< of its fit to the velocity command
+    /// Its Akaike weight [-]: exp(-AIC/2) normalised over the models, AIC = N*ln(RSS/N) + 2*p
+    double weight{0.0};
+};
+
 struct GainResult {
     /// ok; failed when the controller model does not explain the drive signal (systematic error above
     /// gain_fit_error_limit_pct), when the drive force is too large for its squares to be finite numbers (nothing is
@@ -66,13 +76,27 @@ struct GainResult {
     Estimate position_gain_per_s;             ///< K_v
     Estimate velocity_gain_N_s_per_m;         ///< K_p
     Estimate velocity_integral_gain_N_per_m;  ///< K_i (null for a P-only loop)
-    Estimate velocity_feedforward;            ///< k_ff (null unless asked for)
+    Estimate velocity_feedforward;            ///< k_ff (null unless asked for or shown by the data)
+    /// The position-loop models fitted from a logged velocity command (P and P+FF), with K_v of each; empty from the
+    /// structure alone. position_gain_per_s is the chosen model's K_v, its standard error taken over the models by
+    /// their weights (Burnham and Anderson's unconditional standard error, sum of w*sqrt(se^2 + (K_v,m - K_v)^2)).
+    std::vector<PositionLoopModel> position_loop_models;
+    /// K_v's standard error within the chosen model alone [1/s]; none where no other model was fitted.
+    std::optional<double> position_gain_within_model_stderr;
+    /// K_v of the P-only fit of a loop fitted with a feed-forward [1/s]: an effective gain (the one a P loop would
+    /// need to follow as this one does), not the loop's; null otherwise.
+    Estimate effective_position_gain_per_s;
     Estimate reset_time_s;                    ///< T_n = K_p / K_i
     /// "velocity_command" when the trace holds the velocity command (each loop identified on its own), or
     /// "structure" when only reference, position and drive signal are there (v = K_p*(K_v*e - v) [+ integral]).
     std::string method;
     int velocity_difference_samples{1};
     int reference_delay_samples{0};  ///< samples by which the controller's reference lags the logged one
+    /// The setpoint delay [s]: the position loop works on the reference this much after it was logged (a few servo
+    /// cycles), with its standard error from the residual's curvature in it. Finer than whole samples where the
+    /// loop is fitted from a logged velocity command or at a servo rate above the log's; reference_delay_samples
+    /// is it rounded to samples.
+    Estimate setpoint_delay_s;
     int drive_delay_samples{0};      ///< samples by which the logged drive signal lags the command
     double current_lag_s{0.0};
     /// The velocity loop's rate [Hz]: the log rate, or a multiple of it for a loop that runs between the logged
