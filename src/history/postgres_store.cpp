@@ -105,7 +105,7 @@ std::string schema_two() {
 // Schema 3: fingerprint runs (model 'fingerprint') beside the identifications, and a series_<key> view per figure
 // they store (fingerprint_parameter_keys()), as schema 2 gave the identification's.
 std::string schema_three() {
-    std::string sql = "CREATE INDEX runs_by_kind ON runs (machine, axis, model);";
+    std::string sql = "CREATE INDEX IF NOT EXISTS runs_by_kind ON runs (machine, axis, model);";
     for (const std::string& key : fingerprint_parameter_keys()) {
         std::string name = key;
         for (auto& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));

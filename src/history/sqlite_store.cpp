@@ -86,7 +86,7 @@ const char* const migrations[] = {
     "ALTER TABLE parameters ADD COLUMN uncertainty REAL;",
     // 6: fingerprint runs (model 'fingerprint') beside the identifications, each kind its own trend; a build of
     // schema 5 would take them for identifications, so the version keeps it out
-    "CREATE INDEX runs_by_kind ON runs (machine, axis, model);",
+    "CREATE INDEX IF NOT EXISTS runs_by_kind ON runs (machine, axis, model);",
 };
 static_assert(std::size(migrations) == sqlite_schema_version);
 
