@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cctype>
 #include <cmath>
 #include <map>
 #include <thread>
@@ -21,6 +22,7 @@
 #include "feedid/sim/synth.hpp"
 #include "feedid/sim/transmission_synth.hpp"
 #include "history_testing.hpp"
+#include "postgres_testing.hpp"
 #include "testing.hpp"
 
 namespace {
@@ -238,5 +240,41 @@ TEST(FingerprintHistory, ADocumentThatIsNotAFingerprintIsRefusedNamingTheKey) {
     } catch (const InputError& e) {
         EXPECT_NE(std::string(e.what()).find("odd.json"), std::string::npos) << e.what();
         EXPECT_NE(std::string(e.what()).find("fingerprint"), std::string::npos) << e.what();
+    }
+}
+
+// Both backends store fingerprint runs beside the identifications and read them back as two trends; PostgreSQL's
+// dashboards get a series view per fingerprint figure (schema 3).
+class FingerprintHistoryOn : public HistoryBackendTest {};
+INSTANTIATE_TEST_SUITE_P(Backends, FingerprintHistoryOn, ::testing::Values(Backend::sqlite, Backend::postgresql),
+                         backend_name);
+
+TEST_P(FingerprintHistoryOn, FingerprintRunsAreStoredBesideIdentificationsAndTrendApart) {
+    const auto location = new_location();
+    auto store = open(location);
+    EXPECT_EQ(store->schema_version(),
+              postgresql() ? history::postgres_schema_version : history::sqlite_schema_version);
+    store->add_run(identification_run("aa"));
+    const auto fingerprint = fingerprint_run("bb");
+    EXPECT_TRUE(store->add_run(fingerprint).inserted);
+    const auto trends = history::analyse_trends(store->series(), store->pins(), {});
+    ASSERT_EQ(trends.size(), 2u);
+    EXPECT_EQ(trends[0].kind, "identification");
+    EXPECT_EQ(trends[1].kind, "fingerprint");
+    const auto runs = store->runs();
+    ASSERT_EQ(runs.size(), 2u);
+    EXPECT_EQ(runs[1].parameters.at("backlash_m").value, fingerprint.parameters.at("backlash_m").value);
+    if (postgresql()) {
+        const auto database = location.substr(location.rfind('/') + 1);
+        for (const auto& key : history::fingerprint_parameter_keys()) {
+            std::string view = "series_" + key;
+            for (auto& c : view) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+            const bool linear_key = fingerprint.parameters.count(key) > 0;
+            EXPECT_EQ(test_server().value(fmt::format("SELECT count(*) FROM {}", view), database),
+                      linear_key ? "1" : "0")
+                << view;
+        }
+        EXPECT_NEAR(std::stod(test_server().value("SELECT value FROM series_backlash_m", database)),
+                    *fingerprint.parameters.at("backlash_m").value, 1e-15);
     }
 }
