@@ -7,7 +7,10 @@
 
 #include "cli.hpp"
 #include "feedid/core/terminal_text.hpp"
+#include "feedid/core/version.hpp"
 #include "feedid/identify/fingerprint.hpp"
+#include "feedid/report/fingerprint_report.hpp"
+#include "record_arguments.hpp"
 
 namespace feedid::cli {
 
@@ -63,17 +66,40 @@ struct FingerprintCommand {
     TraceArguments trace_arguments;
     DriveArguments drive_arguments;
     FingerprintOptions options;
+    RecordArguments record;
     std::string json_path;
+    std::string report_path;
+
+    // What shapes the figures, stored with a recorded run: the same trace fingerprinted alike is recorded once.
+    [[nodiscard]] nlohmann::json options_document() const {
+        const DriveConstants& drive = options.drive;
+        return {{"settle_s", options.settle_s},
+                {"reversal_window_s", options.reversal_window_s},
+                {"contact_fraction", options.contact_fraction},
+                {"force_constant", drive.force_constant ? nlohmann::json(*drive.force_constant) : nlohmann::json()},
+                {"channels", trace_arguments.channel_assignments},
+                {"units", trace_arguments.unit_assignments}};
+    }
 
     int run() {
-        require_separate_outputs({{"--json", json_path}}, trace_arguments.inputs());
+        auto inputs = trace_arguments.inputs();
+        if (record.enabled()) inputs.push_back({"the --record history database", record.database, true});
+        require_separate_outputs({{"--json", json_path}, {"--report", report_path}}, inputs);
+        record.check(trace_arguments.axis);
         const Trace trace = read_trace_for_drive(trace_arguments, drive_arguments);
         options.drive = drive_arguments.constants();
         const FingerprintResult result = fingerprint(trace, options);
         nlohmann::json document = fingerprint_document(result);
+        document["feedid_version"] = feedid::version;
         document["trace"] = {{"path", trace.source_path}, {"samples", trace.samples()}};
+        document["options"] = options_document();
         if (!json_path.empty()) write_json(document, json_path);
         if (json_path != "-") print(trace, result);
+        if (!report_path.empty()) {
+            write_output(report_path, report::fingerprint_report_html(document, result.curves, trace.source_path));
+            if (report_path != "-") fmt::print(stderr, "feedid: wrote {}\n", terminal_text(report_path));
+        }
+        if (record.enabled()) record.record(document, trace_arguments.file, trace_arguments.axis, document["options"]);
         return 0;
     }
 };
@@ -89,12 +115,18 @@ Action add_fingerprint_command(CLI::App& app) {
     command->trace_arguments.add_to(*sub);
     command->drive_arguments.add_to(*sub);
     sub->add_option("--json", command->json_path, "Write the fingerprint document to PATH ('-' for stdout)");
+    sub->add_option("--report", command->report_path,
+                    "Write an HTML page with the encoder difference against position and the force against "
+                    "deflection to PATH");
+    command->record.add_to(*sub);
     sub->add_option("--settle", command->options.settle_s,
                     "How long the reference must hold its speed before a sample counts as settled [s] (default 0.05)")
         ->check(allowed_range(0.0, 10.0, "s"));
     sub->footer(
         "Example:\n  feedid fingerprint ../shared/data/sinumerik-trace/X_BK300_1.xml\n"
         "  feedid fingerprint reversal.csv --kt 1.444 --lead 20 --json fingerprint.json\n"
+        "  feedid fingerprint reversal.csv --kt 1.444 --lead 20 --report x.html --record shop.db --machine DMU50 "
+        "--axis X\n"
         "Without a motor encoder only the reversal error (from the following error) and the breakaway force (from the "
         "drive signal) are given; the others are null with the reason.");
     return [command] { return command->run(); };

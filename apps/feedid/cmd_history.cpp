@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <map>
 #include <set>
+#include <tuple>
 #include <unordered_set>
 
 #include <fmt/core.h>
@@ -88,15 +89,18 @@ std::map<std::string, std::unordered_set<std::int64_t>> runs_in_alarm(const hist
 }
 
 void print_table(const std::vector<history::RunRecord>& runs, const std::vector<history::SeriesTrend>& trends) {
-    std::map<std::pair<std::string, std::string>, std::vector<const history::RunRecord*>> by_series;
-    for (const auto& run : runs) by_series[{run.machine, run.axis}].push_back(&run);
+    // a series per axis and kind: its identifications, and its fingerprint runs apart
+    std::map<std::tuple<std::string, std::string, bool>, std::vector<const history::RunRecord*>> by_series;
+    for (const auto& run : runs)
+        by_series[{run.machine, run.axis, history::is_fingerprint_run(run)}].push_back(&run);
     for (const auto& series : trends) {
-        const auto& series_runs = by_series[{series.machine, series.axis}];
+        const bool fingerprint = series.kind == "fingerprint";
+        const auto& series_runs = by_series[{series.machine, series.axis, fingerprint}];
         std::set<std::string> keys;
         for (const auto* run : series_runs)
             for (const auto& [key, estimate] : run->parameters) keys.insert(key);
-        fmt::print("machine '{}' axis '{}': {} run(s); baseline: ", terminal_text(series.machine),
-                   terminal_text(series.axis), series_runs.size());
+        fmt::print("machine '{}' axis '{}'{}: {} run(s); baseline: ", terminal_text(series.machine),
+                   terminal_text(series.axis), fingerprint ? " (fingerprint)" : "", series_runs.size());
         if (series.baseline_run_ids.empty())
             fmt::print("none\n");
         else
@@ -198,17 +202,19 @@ nlohmann::json history_document(const history::HistoryStore& store, const std::v
 // What --check checked when no alarm fired: the runs compared with a complete baseline (as the listing marks them),
 // and the axes whose baseline is still forming, where nothing is checked yet.
 std::string check_summary(const std::vector<history::SeriesTrend>& trends, const history::TrendOptions& options) {
-    std::size_t checked_runs = 0, checked_axes = 0;
+    std::size_t checked_runs = 0;
+    std::set<std::pair<std::string, std::string>> checked_axes;
     std::string forming;
     for (const auto& series : trends) {
         if (!series.baseline_complete) {
-            forming += fmt::format("{}machine '{}' axis '{}': {} of {} runs", forming.empty() ? "" : ", ",
+            forming += fmt::format("{}machine '{}' axis '{}'{}: {} of {} runs", forming.empty() ? "" : ", ",
                                    terminal_text(series.machine), terminal_text(series.axis),
+                                   series.kind == "fingerprint" ? " (fingerprint)" : "",
                                    series.baseline_run_ids.size(), options.baseline_runs);
             continue;
         }
         checked_runs += series.checked_runs;
-        if (series.checked_runs > 0) ++checked_axes;
+        if (series.checked_runs > 0) checked_axes.emplace(series.machine, series.axis);
     }
     if (trends.empty()) return "no drift alarm, but nothing checked: no runs recorded";
     if (checked_runs == 0) {
@@ -217,7 +223,7 @@ std::string check_summary(const std::vector<history::SeriesTrend>& trends, const
                    : "no drift alarm, but nothing checked yet: the baseline is still forming (" + forming + ")";
     }
     std::string summary = fmt::format("no drift alarm: {} run(s) of {} axis/axes checked against their baseline",
-                                      checked_runs, checked_axes);
+                                      checked_runs, checked_axes.size());
     if (!forming.empty()) summary += "; not checked yet, the baseline still forming: " + forming;
     return summary;
 }

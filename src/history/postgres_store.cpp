@@ -102,6 +102,21 @@ std::string schema_two() {
     return sql;
 }
 
+// Schema 3: fingerprint runs (model 'fingerprint') beside the identifications, and a series_<key> view per figure
+// they store (fingerprint_parameter_keys()), as schema 2 gave the identification's.
+std::string schema_three() {
+    std::string sql = "CREATE INDEX IF NOT EXISTS runs_by_kind ON runs (machine, axis, model);";
+    for (const std::string& key : fingerprint_parameter_keys()) {
+        std::string name = key;
+        for (auto& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        sql += fmt::format(
+            "CREATE OR REPLACE VIEW series_{} AS SELECT time, machine, axis, location, run_id, value, stderr, "
+            "systematic, uncertainty FROM parameter_series WHERE key = '{}';",
+            name, key);
+    }
+    return sql;
+}
+
 // The FEEDID_TEST_ABORT_AFTER_STATEMENT and FEEDID_TEST_DROP_CONNECTION_AT_STATEMENT hooks (see store.hpp).
 long test_hook(const char* name) {
     const char* text = std::getenv(name);
@@ -702,7 +717,7 @@ void PostgresStore::migrate() {
         query("CREATE TABLE IF NOT EXISTS feedid_schema (version integer PRIMARY KEY, applied_at text NOT NULL)");
         int version =
             static_cast<int>(query("SELECT coalesce(max(version), 0)::bigint FROM feedid_schema").integer(0, 0));
-        const std::string migrations[] = {schema_one(), schema_two()};
+        const std::string migrations[] = {schema_one(), schema_two(), schema_three()};
         static_assert(std::size(migrations) == postgres_schema_version);
         for (; version < postgres_schema_version; ++version) {
             script(migrations[version]);
@@ -764,7 +779,8 @@ void PostgresStore::read_series_rows(
     const RunFilter& filter, std::vector<SeriesRuns>& result,
     std::unordered_map<std::int64_t, std::pair<std::uint32_t, std::uint32_t>>& where) const {
     const Result select =
-        query(std::string("SELECT r.id, r.machine, r.axis, r.recorded_at, r.options_json FROM runs r") + filter_clause +
+        query(std::string("SELECT r.id, r.machine, r.axis, r.recorded_at, r.options_json, r.model FROM runs r") +
+                  filter_clause +
                   " ORDER BY r.machine, r.axis, r.recorded_at, r.id",
               Parameters{}.add(filter.machine).add(filter.axis).add(filter.location));
     OptionsGroups groups;
@@ -781,6 +797,7 @@ void PostgresStore::read_series_rows(
         series.run_ids.push_back(id);
         series.recorded_at.push_back(select.text(row, 3));
         series.options_groups.push_back(groups.of(select.view(row, 4)));
+        note_kind(series, select.view(row, 5) == fingerprint_model);
     }
 }
 

@@ -92,7 +92,88 @@ nlohmann::json optional_json(const std::optional<double>& value) {
     return value && std::isfinite(*value) ? nlohmann::json(*value) : nlohmann::json(nullptr);
 }
 
+// What a fingerprint run stores: the figures and their per-direction values, in both kinds' units.
+constexpr std::pair<const char*, const char*> fingerprint_figures[] = {
+    {"lost_motion", "m"}, {"backlash", "m"}, {"stiffness", "N_per_m"}, {"reversal_error", "m"}};
+
+std::string rotary_unit(std::string_view unit) { return unit == "N_per_m" ? "Nm_per_rad" : "rad"; }
+
+// An entry of the fingerprint document's "fingerprint": {"value": number|null, "stderr": number|null}.
+StoredEstimate fingerprint_entry(const nlohmann::json& entry, const std::string& key, const std::string& source) {
+    const auto bad = [&](const std::string& why) {
+        return InputError(fmt::format("{}: not a feedid fingerprint document (fingerprint.{}: {})", source, key, why));
+    };
+    if (!entry.is_object()) throw bad("not an object with value and stderr");
+    for (const char* field : {"value", "stderr"})
+        if (!entry.contains(field) || !(entry[field].is_null() || entry[field].is_number()))
+            throw bad(fmt::format("\"{}\" is not a number or null", field));
+    return {optional_number(entry, "value"), optional_number(entry, "stderr")};
+}
+
+// The document's figures the run stores (fingerprint_parameter_keys), checked; whether they are a rotary axis's.
+std::map<std::string, StoredEstimate> fingerprint_parameters(const nlohmann::json& figures, const std::string& source,
+                                                             bool& rotary) {
+    std::map<std::string, StoredEstimate> parameters;
+    rotary = figures.contains("backlash_rad");
+    for (const auto& [name, linear_unit] : fingerprint_figures) {
+        const std::string unit = rotary ? rotary_unit(linear_unit) : std::string(linear_unit);
+        const bool directional = std::string_view(name) != "backlash";
+        for (const char* side : {"", "_forward", "_reverse"}) {
+            if (!directional && *side != '\0') continue;
+            const std::string key = fmt::format("{}{}_{}", name, side, unit);
+            if (!figures.contains(key))
+                throw InputError(
+                    fmt::format("{}: not a feedid fingerprint document (it has no fingerprint.{})", source, key));
+            parameters[key] = fingerprint_entry(figures[key], key, source);
+        }
+    }
+    return parameters;
+}
+
 }  // namespace
+
+bool is_fingerprint_run(const RunRecord& run) { return run.model == fingerprint_model; }
+
+std::vector<std::string> fingerprint_parameter_keys() {
+    std::vector<std::string> keys;
+    for (const bool rotary : {false, true})
+        for (const auto& [name, linear_unit] : fingerprint_figures)
+            for (const char* side : {"", "_forward", "_reverse"}) {
+                if (std::string_view(name) == "backlash" && *side != '\0') continue;
+                keys.push_back(fmt::format("{}{}_{}", name, side, rotary ? rotary_unit(linear_unit) : linear_unit));
+            }
+    return keys;
+}
+
+RunRecord run_from_fingerprint(const nlohmann::json& document, const std::string& source,
+                               const StoredTextLimits& limits) {
+    if (!document.is_object() || !document.contains("fingerprint") || !document["fingerprint"].is_object())
+        throw InputError(fmt::format("{}: not a feedid fingerprint document (no \"fingerprint\" object)", source));
+    RunRecord run;
+    run.model = std::string(fingerprint_model);
+    bool rotary = false;
+    run.parameters = fingerprint_parameters(document["fingerprint"], source, rotary);
+    run.axis_kind = rotary ? "rotary" : "linear";
+    if (document.contains("feedid_version") && document["feedid_version"].is_string())
+        run.feedid_version = document["feedid_version"].get<std::string>();
+    if (document.contains("trace") && document["trace"].is_object() && document["trace"].contains("path") &&
+        document["trace"]["path"].is_string())
+        run.trace_path = document["trace"]["path"].get<std::string>();
+    run.fit_figures.samples_used = optional_number(document, "samples_used");
+    if (run.fit_figures.samples_used) run.fit = {{"samples_used", *run.fit_figures.samples_used}};
+    std::vector<std::string> diagnostics;
+    if (document.contains("diagnostics") && document["diagnostics"].is_array())
+        for (const auto& line : document["diagnostics"])
+            if (line.is_string()) diagnostics.push_back(line.get<std::string>());
+    run.diagnostics = stored_diagnostics(diagnostics, limits, run.recording_findings);
+    nlohmann::json stored = document;
+    stored.erase("curves");  // the samples of the report's plots: the trace has them
+    run.result = stored_result(stored, run.diagnostics, source, limits, run.recording_findings);
+    if (document.contains("options") && document["options"].dump().size() > limits.options_bytes)
+        throw InputError(
+            fmt::format("{}: options: larger than the {} bytes a run may store", source, limits.options_bytes));
+    return run;
+}
 
 std::string axis_kind_of(const std::map<std::string, StoredEstimate>& parameters) {
     for (const auto& [key, estimate] : parameters) {
@@ -106,6 +187,7 @@ RunRecord run_from_result(const nlohmann::json& result, const std::string& sourc
         return InputError(fmt::format("{}: not a feedid identify result document ({})", source, why));
     };
     if (!result.is_object()) throw not_a_result("it is not a JSON object");
+    if (result.contains("fingerprint")) return run_from_fingerprint(result, source, limits);
     if (!result.contains("parameters") || !result["parameters"].is_object())
         throw not_a_result("it has no \"parameters\" object");
     if (!result.contains("model") || !result["model"].is_string()) throw not_a_result("it has no \"model\"");

@@ -10,7 +10,7 @@
 // quick_check for a reader, application_id, schema version). A file that fails a check is closed untouched, so a
 // failed command never modifies it.
 //
-// Layout (schema 5): `runs` holds one narrow row per run with typed columns (names, times, status, options, the fit's
+// Layout (schema 6; 6 added fingerprint runs, told by their model): `runs` holds one narrow row per run with typed columns (names, times, status, options, the fit's
 // figures); `parameters` one row per run and key (value, stderr, systematic, uncertainty); `documents` the bulky
 // result document and diagnostics, read only for the run that needs them. Listings and the trend never touch it.
 
@@ -84,6 +84,9 @@ const char* const migrations[] = {
     " samples_used = " FEEDID_FIT_NUMBER("fit_json", "samples_used") ";"
     "ALTER TABLE parameters ADD COLUMN systematic REAL;"
     "ALTER TABLE parameters ADD COLUMN uncertainty REAL;",
+    // 6: fingerprint runs (model 'fingerprint') beside the identifications, each kind its own trend; a build of
+    // schema 5 would take them for identifications, so the version keeps it out
+    "CREATE INDEX IF NOT EXISTS runs_by_kind ON runs (machine, axis, model);",
 };
 static_assert(std::size(migrations) == sqlite_schema_version);
 
@@ -417,7 +420,8 @@ private:
     void read_series_rows(const RunFilter& filter, std::vector<SeriesRuns>& result,
                           std::unordered_map<std::int64_t, std::pair<std::uint32_t, std::uint32_t>>& where) const {
         Statement select(db_,
-                         fmt::format("SELECT r.id, r.machine, r.axis, r.recorded_at, r.options_json FROM runs r{} "
+                         fmt::format("SELECT r.id, r.machine, r.axis, r.recorded_at, r.options_json, r.model "
+                                     "FROM runs r{} "
                                      "ORDER BY r.machine, r.axis, r.recorded_at, r.id",
                                      filter_clause),
                          path_);
@@ -435,6 +439,7 @@ private:
             series.run_ids.push_back(id);
             series.recorded_at.push_back(select.text(3));
             series.options_groups.push_back(groups.of(select.view(4)));
+            note_kind(series, select.view(5) == fingerprint_model);
         }
     }
 

@@ -85,6 +85,14 @@ inline StoredText stored_text_of(const RunRecord& run, std::string_view where) {
     return text;
 }
 
+/// Marks the run just appended to `series` as a fingerprint run or not (SeriesRuns::fingerprint stays empty while
+/// no run is one).
+inline void note_kind(SeriesRuns& series, bool fingerprint) {
+    if (!fingerprint && series.fingerprint.empty()) return;
+    series.fingerprint.resize(series.size(), 0);
+    series.fingerprint.back() = fingerprint ? 1 : 0;
+}
+
 /// Numbers each distinct options text of one listing: runs with equal options get equal groups.
 class OptionsGroups {
 public:

@@ -193,6 +193,8 @@ Alarm alarm_at(const SeriesTrend& series, const std::string& key, const TrendPoi
     fired.change = *point.change;
     fired.change_pct = mean != 0.0 ? 100.0 * *point.change / std::abs(mean) : 0.0;
     fired.z = *point.z;
+    fired.sigma = point.sigma.value_or(0.0);
+    fired.baseline_runs = series.baseline_run_ids;
     return fired;
 }
 
@@ -230,11 +232,14 @@ std::string TrendOptions::validate() const {
 }
 
 std::string Alarm::message() const {
+    const std::string baseline =
+        baseline_runs.empty() ? std::string()
+                              : fmt::format(" from the baseline of runs #{}..#{}", baseline_runs.front(), baseline_runs.back());
     return fmt::format(
-        "drift alarm: machine '{}' axis '{}' parameter {} at run #{} (recorded {}): {} by {:+.4g} "
+        "drift alarm: machine '{}' axis '{}' parameter {} at run #{} (recorded {}): {} by {:+.4g} ± {:.2g}{} "
         "({:+.1f} %, {:+.1f} combined standard errors), CUSUM {:.1f}",
-        machine, axis, parameter, run_id, recorded_at, direction == "up" ? "rose" : "fell", change, change_pct, z,
-        cusum);
+        machine, axis, parameter, run_id, recorded_at, direction == "up" ? "rose" : "fell", change, sigma, baseline,
+        change_pct, z, cusum);
 }
 
 SeriesTrend analyse_series(const SeriesRuns& runs, const TrendOptions& options) {
@@ -256,20 +261,74 @@ SeriesTrend analyse_series(const SeriesRuns& runs, const TrendOptions& options) 
     return series;
 }
 
+namespace {
+
+// The runs of one kind of a series (fingerprint or not), in their order.
+SeriesRuns runs_of_kind(const SeriesRuns& runs, bool fingerprint) {
+    SeriesRuns part;
+    part.machine = runs.machine;
+    part.axis = runs.axis;
+    std::vector<std::size_t> members;
+    for (std::size_t i = 0; i < runs.size(); ++i)
+        if ((runs.fingerprint.size() == runs.size() && runs.fingerprint[i] != 0) == fingerprint) members.push_back(i);
+    for (const auto i : members) {
+        part.run_ids.push_back(runs.run_ids[i]);
+        part.recorded_at.push_back(runs.recorded_at[i]);
+        part.options_groups.push_back(runs.options_groups[i]);
+        if (fingerprint) part.fingerprint.push_back(1);
+    }
+    for (std::size_t k = 0; k < runs.keys.size(); ++k) {
+        std::vector<StoredEstimate> estimates;
+        for (const auto i : members) estimates.push_back(runs.estimates[k][i]);
+        if (std::any_of(estimates.begin(), estimates.end(), [](const auto& e) { return e.value; })) {
+            part.keys.push_back(runs.keys[k]);
+            part.estimates.push_back(std::move(estimates));
+        }
+    }
+    return part;
+}
+
+// The pinned run as the part sees it: the pin itself, or the part's first run from the pin on (in recording order).
+std::int64_t pin_in_part(const SeriesRuns& runs, const SeriesRuns& part, std::int64_t pin) {
+    const auto pinned = std::find(runs.run_ids.begin(), runs.run_ids.end(), pin);
+    if (pinned == runs.run_ids.end()) return pin;  // analyse_series says it is not among the axis's runs
+    for (auto i = static_cast<std::size_t>(pinned - runs.run_ids.begin()); i < runs.size(); ++i)
+        if (std::find(part.run_ids.begin(), part.run_ids.end(), runs.run_ids[i]) != part.run_ids.end())
+            return runs.run_ids[i];
+    return pin;  // no run of this kind since the pin: analyse_series says the baseline starts at its first
+}
+
+}  // namespace
+
 std::vector<SeriesTrend> analyse_trends(const std::vector<SeriesRuns>& series, const std::vector<BaselinePin>& pins,
                                         const TrendOptions& options) {
     std::vector<SeriesTrend> result;
-    for (const auto& runs : series) {
-        TrendOptions series_options = options;
+    for (const auto& all : series) {
+        // an explicit pin applies to the axis holding it only; a stored one to its axis
+        bool pinned = false;
+        std::int64_t pin = 0;
         if (options.pinned_run) {
-            const bool holds =
-                std::find(runs.run_ids.begin(), runs.run_ids.end(), *options.pinned_run) != runs.run_ids.end();
-            if (!holds) series_options.pinned_run.reset();
+            pin = *options.pinned_run;
+            pinned = std::find(all.run_ids.begin(), all.run_ids.end(), pin) != all.run_ids.end();
         } else {
-            for (const auto& pin : pins)
-                if (pin.machine == runs.machine && pin.axis == runs.axis) series_options.pinned_run = pin.run_id;
+            for (const auto& stored : pins)
+                if (stored.machine == all.machine && stored.axis == all.axis) {
+                    pinned = true;
+                    pin = stored.run_id;
+                }
         }
-        result.push_back(analyse_series(runs, series_options));
+        const bool mixed = std::count(all.fingerprint.begin(), all.fingerprint.end(), 1) > 0;
+        for (const bool fingerprint : {false, true}) {
+            if (fingerprint && !mixed) break;
+            const SeriesRuns part = mixed ? runs_of_kind(all, fingerprint) : SeriesRuns{};
+            const SeriesRuns& runs = mixed ? part : all;
+            if (runs.size() == 0) continue;
+            TrendOptions series_options = options;
+            series_options.pinned_run.reset();
+            if (pinned) series_options.pinned_run = pin_in_part(all, runs, pin);
+            result.push_back(analyse_series(runs, series_options));
+            if (fingerprint) result.back().kind = "fingerprint";
+        }
     }
     return result;
 }
@@ -304,6 +363,10 @@ std::vector<SeriesRuns> series_of(const std::vector<RunRecord>& runs) {
             for (std::size_t k = 0; k < series.keys.size(); ++k)
                 if (const auto found = run.parameters.find(series.keys[k]); found != run.parameters.end())
                     series.estimates[k][i] = found->second;
+            if (is_fingerprint_run(run)) {
+                series.fingerprint.resize(members.size(), 0);
+                series.fingerprint[i] = 1;
+            }
         }
         result.push_back(std::move(series));
     }
@@ -326,6 +389,8 @@ nlohmann::json alarm_document(const Alarm& alarm) {
             {"change", alarm.change},
             {"change_pct", alarm.change_pct},
             {"z", alarm.z},
+            {"sigma", alarm.sigma},
+            {"baseline_runs", alarm.baseline_runs},
             {"message", alarm.message()}};
 }
 
@@ -357,6 +422,7 @@ nlohmann::json to_json(const SeriesTrend& trend) {
     for (const auto& alarm : trend.alarms) alarms.push_back(alarm_document(alarm));
     return {{"machine", trend.machine},
             {"axis", trend.axis},
+            {"kind", trend.kind},
             {"baseline_runs", trend.baseline_run_ids},
             {"baseline_complete", trend.baseline_complete},
             {"pinned_run", trend.pinned_run ? nlohmann::json(*trend.pinned_run) : nlohmann::json(nullptr)},

@@ -402,11 +402,41 @@ std::vector<char> quasi_static_samples(const Signals& s, const std::vector<char>
     return out;
 }
 
+// The report's samples, thinned evenly, and the fitted lines: a_+/- = mean d - c mean F over the fit's rows of each
+// direction (the corrected slope c, as the backlash takes it).
+void fill_curves(FingerprintCurves& curves, const Signals& s, const std::vector<int>& direction,
+                 const std::vector<std::size_t>& rows, const std::optional<double>& compliance) {
+    const std::size_t n = s.load.size();
+    std::vector<char> in_fit(n, 0);
+    for (const auto k : rows) in_fit[k] = 1;
+    const std::size_t stride = std::max<std::size_t>(1, (n + FingerprintCurves::max_points - 1) /
+                                                            FingerprintCurves::max_points);
+    for (std::size_t k = 0; k < n; k += stride) {
+        curves.position.push_back(s.load[k]);
+        curves.deflection.push_back(s.motor[k] - s.load[k]);
+        curves.direction.push_back(direction[k]);
+        if (!s.drive.empty()) curves.drive.push_back(s.drive[k]);
+        curves.in_fit.push_back(in_fit[k]);
+    }
+    if (!compliance) return;
+    curves.compliance = compliance;
+    double sum_d[2] = {0.0, 0.0}, sum_f[2] = {0.0, 0.0}, count[2] = {0.0, 0.0};
+    for (const auto k : rows) {
+        const int g = direction[k] > 0 ? 0 : 1;
+        sum_d[g] += s.motor[k] - s.load[k];
+        sum_f[g] += s.drive[k];
+        count[g] += 1.0;
+    }
+    if (count[0] > 0.0) curves.intercept_forward = (sum_d[0] - *compliance * sum_f[0]) / count[0];
+    if (count[1] > 0.0) curves.intercept_reverse = (sum_d[1] - *compliance * sum_f[1]) / count[1];
+}
+
 void fill_deflection_figures(FingerprintResult& result, const Signals& s, const std::vector<char>& settled,
                              const std::vector<int>& direction, const FingerprintOptions& options) {
     const auto rows = contact_samples(s, quasi_static_samples(s, settled), direction, options);
     result.samples_used = static_cast<int>(rows.size());
     const auto fit = fit_deflection(s, rows, direction, correlation_block(s.sample_time_s));
+    fill_curves(result.curves, s, direction, rows, fit.compliance.value);
     result.backlash = fit.backlash;
     result.backlash_reason = fit.backlash.value ? std::string() : fit.reason;
     if (!s.drive_is_force) {
@@ -477,6 +507,7 @@ FingerprintResult fingerprint(const Trace& trace, const FingerprintOptions& opti
         return result;
     }
     result.lost_motion = lost_motion(s, settled, stretches);
+    if (s.drive.empty()) fill_curves(result.curves, s, direction, {}, std::nullopt);
     set_reason(result.lost_motion,
                stretches.size() < 3 ? no_reversal : "no settled samples on both sides of a reversal in this direction");
     if (s.drive.empty()) {

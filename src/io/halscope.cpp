@@ -10,6 +10,7 @@
 
 #include "feedid/core/error.hpp"
 #include "text_scan.hpp"
+#include "channel_hint.hpp"
 
 namespace feedid {
 
@@ -65,9 +66,9 @@ void guess_roles(Trace& trace) {
             if (channel.role != Role::other || !ends_with(channel.name, rule.suffix)) continue;
             channel.role = rule.role;
             trace.findings.push_back(
-                fmt::format("channel '{}' taken as {} (guessed from the HAL pin name; set it "
-                            "with --channel {}=NAME)",
-                            channel.name, role_name(rule.role), role_name(rule.role)));
+                fmt::format("channel '{}' taken as {} (guessed from the HAL pin name; set it with {})",
+                            channel.name, role_name(rule.role),
+                            io_detail::channel_option(role_name(rule.role), channel.name)));
             break;
         }
     }

@@ -19,6 +19,7 @@
 #include "feedid/io/tare.hpp"
 #include "feedid/io/twincat_scope.hpp"
 #include "feedid/numeric/native_interval.hpp"
+#include "channel_hint.hpp"
 
 namespace feedid {
 
@@ -160,6 +161,13 @@ void assign_explicit_roles(Trace& trace, const ImportOptions& options) {
             if (other.role == role) other.role = Role::other;
         }
         channel->role = role;
+        // a reader's guess (SINUMERIK's, made as it reads) that this assignment overrules is no longer what happened
+        const std::string guessed_role = fmt::format(" taken as {} (guessed", role_name(role));
+        const std::string this_channel = fmt::format("channel '{}'", channel->name);
+        std::erase_if(trace.findings, [&](const std::string& finding) {
+            const bool a_guess = finding.starts_with("channel '") && finding.find(" (guessed ") != std::string::npos;
+            return a_guess && (finding.find(guessed_role) != std::string::npos || finding.starts_with(this_channel));
+        });
     }
 }
 
@@ -234,9 +242,8 @@ std::vector<std::string> guess_roles(Trace& trace, const std::string& axis,
                 channel.role = role;
                 guessed.push_back(channel.name);
                 trace.findings.push_back(
-                    fmt::format("channel '{}' taken as {} (guessed from its name; set it with "
-                                "--channel {}=NAME)",
-                                channel.name, role_name(role), role_name(role)));
+                    fmt::format("channel '{}' taken as {} (guessed from its name; set it with {})", channel.name,
+                                role_name(role), io_detail::channel_option(role_name(role), channel.name)));
                 break;
             }
         }

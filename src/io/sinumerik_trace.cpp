@@ -24,6 +24,7 @@
 
 #include "feedid/core/error.hpp"
 #include "text_scan.hpp"
+#include "channel_hint.hpp"
 
 namespace feedid {
 
@@ -620,10 +621,9 @@ void assign_roles(const std::vector<Signal>& signals, const std::vector<std::siz
         channel.role = guess.role;
         const auto& description = signals[guess.signal].description;
         findings.push_back(
-            fmt::format("channel '{}'{} taken as {} (guessed from the NC variable name; set it "
-                        "with --channel {}=NAME)",
+            fmt::format("channel '{}'{} taken as {} (guessed from the NC variable name; set it with {})",
                         channel.name, description.empty() ? "" : " (" + description + ")", role_name(guess.role),
-                        role_name(guess.role)));
+                        io_detail::channel_option(role_name(guess.role), channel.name)));
     }
     if (!guesses.empty()) {
         findings.push_back(

@@ -15,6 +15,7 @@
 #include "feedid/core/error.hpp"
 #include "feedid/report/history_report.hpp"
 #include "feedid/report/result_report.hpp"
+#include "html_page.hpp"
 
 #include "feedid/model/friction.hpp"
 #include "feedid/core/parameters.hpp"
@@ -425,7 +426,36 @@ std::vector<Plot> simulation_plots(const nlohmann::json& simulation, const std::
     return {std::move(tracking), std::move(modelling)};
 }
 
+namespace {
+
+// A figure of a fingerprint run (history::fingerprint_parameter_keys) in µm and N/µm (rotary: mdeg, N·m/mdeg).
+std::optional<ParameterLabel> fingerprint_label(const std::string& key) {
+    static const std::pair<const char*, const char*> names[] = {{"lost_motion", "Lost motion"},
+                                                                {"backlash", "Backlash"},
+                                                                {"stiffness", "Stiffness k"},
+                                                                {"reversal_error", "Reversal error"}};
+    constexpr double degree = 3.14159265358979323846 / 180.0;
+    for (const auto& [stem, name] : names) {
+        if (!key.starts_with(stem)) continue;
+        std::string rest = key.substr(std::string_view(stem).size());
+        std::string suffix;
+        for (const auto& [side, shown] : {std::pair{"_forward", "+ (forward)"}, std::pair{"_reverse", "− (reverse)"}})
+            if (rest.starts_with(side)) {
+                suffix = shown;
+                rest.erase(0, std::string_view(side).size());
+            }
+        if (rest == "_m") return ParameterLabel{name + suffix, "µm", 1e6};
+        if (rest == "_rad") return ParameterLabel{name + suffix, "mdeg", 1e3 / degree};
+        if (rest == "_N_per_m") return ParameterLabel{name + suffix, "N/µm", 1e-6};
+        if (rest == "_Nm_per_rad") return ParameterLabel{name + suffix, "N·m/mdeg", degree / 1e3};
+    }
+    return std::nullopt;
+}
+
+}  // namespace
+
 ParameterLabel parameter_label(const std::string& key) {
+    if (auto fingerprint = fingerprint_label(key)) return *fingerprint;
     const auto parsed = parse_parameter_key(key);
     if (!parsed) return {key, "1"};
     const ParameterNaming naming{parsed->rotary};
@@ -541,16 +571,23 @@ struct AxisRuns {
     std::optional<double> baseline_end;           // x between the last baseline run and the next
 };
 
+// A run of the trend's series: its machine and axis, and its kind (a fingerprint run or an identification).
+bool in_series(const history::RunRecord& run, const history::SeriesTrend& trend) {
+    return run.machine == trend.machine && run.axis == trend.axis &&
+           history::is_fingerprint_run(run) == (trend.kind == "fingerprint");
+}
+
 AxisRuns axis_runs(const std::vector<history::RunRecord>& runs, const history::SeriesTrend& trend) {
     AxisRuns axis;
     for (const auto& run : runs)
-        if (run.machine == trend.machine && run.axis == trend.axis) axis.runs.push_back(&run);
+        if (in_series(run, trend)) axis.runs.push_back(&run);
     std::stable_sort(axis.runs.begin(), axis.runs.end(), [](const auto* a, const auto* b) {
         return a->recorded_at != b->recorded_at ? a->recorded_at < b->recorded_at : a->id < b->id;
     });
     for (std::size_t i = 0; i < axis.runs.size(); ++i) axis.ordinal[axis.runs[i]->id] = static_cast<double>(i + 1);
-    axis.where = fmt::format("machine '{}' axis '{}'", trend.machine, trend.axis);
-    axis.prefix = slug(trend.machine + "-" + trend.axis);
+    const bool fingerprint = trend.kind == "fingerprint";
+    axis.where = fmt::format("machine '{}' axis '{}'{}", trend.machine, trend.axis, fingerprint ? " (fingerprint)" : "");
+    axis.prefix = slug(trend.machine + "-" + trend.axis) + (fingerprint ? "-fingerprint" : "");
     if (!trend.baseline_run_ids.empty() && axis.ordinal.count(trend.baseline_run_ids.back()))
         axis.baseline_end = axis.ordinal.at(trend.baseline_run_ids.back()) + 0.5;
     return axis;
@@ -580,28 +617,32 @@ Plot trend_plot(const history::ParameterTrend& parameter, const AxisRuns& axis, 
     for (const auto& point : parameter.points) {
         if (!point.value || !axis.ordinal.count(point.run_id)) continue;
         const double x = axis.ordinal.at(point.run_id);
+        const double scale = label.scale;
+        const auto scaled_error =
+            point.standard_error ? std::optional<double>(*point.standard_error * std::abs(scale)) : std::nullopt;
         series.x.push_back(x);
-        series.y.push_back(*point.value);
-        series.band.push_back(point.standard_error ? 2.0 * *point.standard_error : 0.0);
+        series.y.push_back(*point.value * scale);
+        series.band.push_back(scaled_error ? 2.0 * *scaled_error : 0.0);
         series.tooltips.push_back(fmt::format("run #{} recorded {}: {}", point.run_id, point.recorded_at,
-                                              format_estimate(point.value, point.standard_error, label.unit)));
+                                              format_estimate(*point.value * scale, scaled_error, label.unit)));
         if (point.role != history::RunRole::before_baseline && point.sigma && parameter.baseline_mean) {
             const double limit = (options.cusum_h + options.cusum_k) * *point.sigma;
             upper.x.push_back(x);
-            upper.y.push_back(*parameter.baseline_mean + limit);
+            upper.y.push_back((*parameter.baseline_mean + limit) * scale);
             lower.x.push_back(x);
-            lower.y.push_back(*parameter.baseline_mean - limit);
+            lower.y.push_back((*parameter.baseline_mean - limit) * scale);
         }
         if (point.alarm)
             values.highlights.push_back(
-                {x, *point.value, fmt::format("drift alarm at run #{} ({})", point.run_id, point.recorded_at)});
+                {x, *point.value * scale, fmt::format("drift alarm at run #{} ({})", point.run_id, point.recorded_at)});
     }
     values.series.push_back(std::move(series));
     if (!upper.x.empty()) {
         values.series.push_back(std::move(upper));
         values.series.push_back(std::move(lower));
     }
-    if (parameter.baseline_mean) values.horizontal.push_back({"baseline mean", *parameter.baseline_mean, green, false});
+    if (parameter.baseline_mean)
+        values.horizontal.push_back({"baseline mean", *parameter.baseline_mean * label.scale, green, false});
     if (axis.baseline_end) values.vertical.push_back({"baseline ends", *axis.baseline_end, grey});
     return values;
 }
@@ -715,6 +756,13 @@ std::string page(const std::string& title, const std::string& body) {
 std::string figure(const Plot& plot, const std::string& caption) {
     return fmt::format("<figure>\n{}<figcaption>{}</figcaption>\n</figure>\n", render_svg(plot), escape_xml(caption));
 }
+
+}  // namespace
+
+std::string html_page(const std::string& title, const std::string& body) { return page(title, body); }
+std::string html_figure(const Plot& plot, const std::string& caption) { return figure(plot, caption); }
+
+namespace {
 
 /// A warning box: a heading line and the document's diagnostics under it.
 std::string warning(const std::string& heading, const nlohmann::json& diagnostics) {
@@ -1030,10 +1078,12 @@ std::string runs_table(const history::SeriesTrend& trend, const std::vector<cons
         for (const auto& key : keys) {
             const auto found = run->parameters.find(key);
             std::string cell = "—";
+            const double scale = parameter_label(key).scale;
             if (found != run->parameters.end() && found->second.value)
                 cell = found->second.standard_error
-                           ? fmt::format("{:.5g} ± {:.2g}", *found->second.value, *found->second.standard_error)
-                           : fmt::format("{:.5g}", *found->second.value);
+                           ? fmt::format("{:.5g} ± {:.2g}", *found->second.value * scale,
+                                         *found->second.standard_error * std::abs(scale))
+                           : fmt::format("{:.5g}", *found->second.value * scale);
             const bool alarm = in_alarm.count(key) && in_alarm.at(key).count(run->id);
             body += alarm ? fmt::format("<td class=\"alarm\">{} !</td>", escape_xml(cell))
                           : fmt::format("<td>{}</td>", escape_xml(cell));
@@ -1051,11 +1101,13 @@ std::string history_report_html(const std::vector<history::RunRecord>& runs,
     std::string body;
     std::size_t alarm_count = 0;
     for (const auto& trend : trends) alarm_count += trend.alarms.size();
+    std::set<std::pair<std::string, std::string>> axes;
+    for (const auto& trend : trends) axes.emplace(trend.machine, trend.axis);
     body += fmt::format(
         "<p>History <code>{}</code>: {} run(s) of {} axis/axes. Baseline: the first {} runs of each "
-        "axis (or from a pinned run); CUSUM allowance k = {:g}, decision interval h = {:g} "
-        "(combined standard errors).</p>\n",
-        escape_xml(source), runs.size(), trends.size(), options.baseline_runs, options.cusum_k, options.cusum_h);
+        "axis (or from a pinned run), its fingerprint runs apart from its identifications; CUSUM allowance k = {:g}, "
+        "decision interval h = {:g} (combined standard errors).</p>\n",
+        escape_xml(source), runs.size(), axes.size(), options.baseline_runs, options.cusum_k, options.cusum_h);
     body += alarm_count == 0 ? std::string("<p>No drift alarm.</p>\n")
                              : fmt::format("<p class=\"alarm\">{} drift alarm(s).</p>\n", alarm_count);
     // Every axis's plots first: how many the page holds decides how far each is thinned.
@@ -1069,7 +1121,8 @@ std::string history_report_html(const std::vector<history::RunRecord>& runs,
     for (auto& plots : axis_plots) thin_history_plots(plots, page_plots);
     for (std::size_t t = 0; t < trends.size(); ++t) {
         const auto& trend = trends[t];
-        body += fmt::format("<h2>Machine {} — axis {}</h2>\n", escape_xml(trend.machine), escape_xml(trend.axis));
+        body += fmt::format("<h2>Machine {} — axis {}{}</h2>\n", escape_xml(trend.machine), escape_xml(trend.axis),
+                            trend.kind == "fingerprint" ? " — mechanical fingerprint" : "");
         if (!trend.alarms.empty()) {
             body += "<ul>\n";
             for (const auto& alarm : trend.alarms)
@@ -1081,7 +1134,7 @@ std::string history_report_html(const std::vector<history::RunRecord>& runs,
         std::set<std::string> keys;
         std::vector<const history::RunRecord*> series_runs;
         for (const auto& run : runs)
-            if (run.machine == trend.machine && run.axis == trend.axis) {
+            if (in_series(run, trend)) {
                 series_runs.push_back(&run);
                 for (const auto& [key, estimate] : run.parameters) keys.insert(key);
             }

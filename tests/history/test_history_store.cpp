@@ -175,7 +175,9 @@ TEST(HistoryStore, MigrationToSchemaFiveKeepsEveryDocumentAndTypesTheFit) {
         const auto summary = store->runs({}, history::RunDetail::summary);
         EXPECT_EQ(summary[0].fit_figures.condition_number, 26.0);  // from fit_json, in SQL
     }
-    auto store = history::open_sqlite_store(path);
+    history::SqliteOpenOptions to_five;  // this migration alone (schema 6 has its own test)
+    to_five.target_schema_version = 5;
+    auto store = history::open_sqlite_store(path, to_five);
     EXPECT_EQ(store->schema_version(), 5);
     auto second = sample_run("bb", 743.0);
     second.parameters["coulomb_N"] = {743.0, 0.4, 1.5, 1.6};

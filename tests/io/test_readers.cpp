@@ -152,10 +152,11 @@ TEST(SinumerikTrace, InfoOnTheReferenceTraceGivesItsPublishedFacts) {
     EXPECT_LT(current["min"].get<double>(), -2.50);
     EXPECT_LE(current["max"].get<double>(), 1.97);
     EXPECT_GT(current["max"].get<double>(), 1.96);
-    // The role guesses are said, with the option that overrides them.
+    // The role guesses are said, with the option that sets them, naming the channel (it works pasted as printed).
     const std::string findings = info["findings"].dump();
     EXPECT_TRUE(contains(findings, "taken as position")) << findings;
-    EXPECT_TRUE(contains(findings, "--channel position=NAME")) << findings;
+    EXPECT_TRUE(contains(findings, "--channel position=nckServoDataActPos2ndEnc64")) << findings;
+    EXPECT_FALSE(contains(findings, "=NAME")) << findings;
 }
 
 TEST(SinumerikTrace, TheSetupsCyclesAreTheTracesConstants) {

@@ -67,7 +67,9 @@ struct RunRecord {
     std::string trace_path;      ///< the trace file as given when recorded
     std::string trace_sha256;    ///< lower-case hex SHA-256 of the trace file's bytes
     std::string feedid_version;  ///< version that produced the result
-    std::string model;           ///< "symmetric", "asymmetric", ...
+    /// "symmetric", "asymmetric", ... for an identification; fingerprint_model for a fingerprint run (feedid
+    /// fingerprint --record), whose parameters are the fingerprint's figures and whose trend is its own.
+    std::string model;
     /// "linear" or "rotary" (from the result; runs stored before schema version 4 get it from their parameter keys).
     /// One axis of one machine holds runs of one kind: add_run refuses the other with an InputError.
     std::string axis_kind;
@@ -105,6 +107,8 @@ struct SeriesRuns {
     std::vector<std::string> keys;             ///< every parameter key of these runs, sorted
     /// estimates[k][i]: parameter keys[k] of run i (all null where the run lacks it).
     std::vector<std::vector<StoredEstimate>> estimates;
+    /// fingerprint[i]: 1 when run i is a fingerprint run (model fingerprint_model); empty when none is.
+    std::vector<char> fingerprint;
 
     [[nodiscard]] std::size_t size() const { return run_ids.size(); }
 };
@@ -164,8 +168,16 @@ public:
     [[nodiscard]] virtual int schema_version() const = 0;
 };
 
-/// The newest schema this build writes (PRAGMA user_version of the SQLite file).
-inline constexpr int sqlite_schema_version = 5;
+/// The model of a fingerprint run: lost motion, backlash, stiffness and reversal error of an axis
+/// (fingerprint.hpp), recorded beside its identifications.
+inline constexpr std::string_view fingerprint_model = "fingerprint";
+
+/// True for a run of feedid fingerprint (its model is fingerprint_model).
+bool is_fingerprint_run(const RunRecord& run);
+
+/// The newest schema this build writes (PRAGMA user_version of the SQLite file). Schema 6: fingerprint runs beside
+/// the identifications (a build of schema 5 would read them as identifications, so it refuses the file as newer).
+inline constexpr int sqlite_schema_version = 6;
 
 /// Limits of the text a run stores; longer text is cut (at a character boundary, with a mark) and a finding says so.
 struct StoredTextLimits {
@@ -212,8 +224,9 @@ public:
     using InputError::InputError;
 };
 
-/// The newest schema of the PostgreSQL backend (the highest version in its feedid_schema table).
-inline constexpr int postgres_schema_version = 2;
+/// The newest schema of the PostgreSQL backend (the highest version in its feedid_schema table). Schema 3:
+/// fingerprint runs, and a series_<key> view per fingerprint figure.
+inline constexpr int postgres_schema_version = 3;
 
 /// True when `location` names a PostgreSQL database (a URI starting postgresql:// or postgres://) rather than a
 /// SQLite file.
@@ -277,12 +290,24 @@ std::string file_modification_time_utc(const std::filesystem::path& path);
 std::string now_utc();
 
 /// Builds a run record from an identify result document (docs/documents.md), copying every parameter key
-/// it holds. InputError naming `source` and the key when the document is not an identify result: every value is
+/// it holds; a fingerprint document (one with a "fingerprint" object) goes to run_from_fingerprint. InputError naming `source` and the key when the document is not an identify result: every value is
 /// checked against the result document's schema (result_document.hpp's from_json), so a document that could not be
 /// read back later is never stored. Text beyond `limits` is cut, with a finding in recording_findings and in the
 /// stored diagnostics. Machine, axis, location, recorded_at, trace hash and options are left for the caller to fill
 /// in (prepare_run in record.hpp does it).
 RunRecord run_from_result(const nlohmann::json& result, const std::string& source, const StoredTextLimits& limits = {});
+
+/// Builds a run record from a fingerprint document (feedid fingerprint --json; fingerprint.hpp): model
+/// fingerprint_model, the figures of "fingerprint" as its parameters (lost motion, backlash, stiffness and reversal
+/// error, each per direction where the document has it; not the breakaway force, whose keys are the identification's
+/// breakaway friction and which the identification runs track), samples_used as the fit's figure, the document
+/// without its "curves" as the stored result. InputError naming `source` and the key when it is not a fingerprint
+/// document. Machine, axis and the rest are left for the caller (prepare_run).
+RunRecord run_from_fingerprint(const nlohmann::json& document, const std::string& source,
+                               const StoredTextLimits& limits = {});
+
+/// The parameter keys a fingerprint run stores (linear and rotary).
+std::vector<std::string> fingerprint_parameter_keys();
 
 /// "rotary" when a parameter key is of a rotary axis (inertia_kgm2, viscous_Nms_per_rad, ...), else "linear".
 std::string axis_kind_of(const std::map<std::string, StoredEstimate>& parameters);

@@ -20,6 +20,10 @@
 // (8 baseline runs, 12 runs checked, 6 parameters, reported standard errors three times too optimistic) these
 // defaults raised a false alarm in about 5 % of series and caught a drift of one scatter unit per run within six
 // runs in about 90 % (two units per run: always). A parameter stays in alarm until a new baseline is pinned.
+//
+// The fingerprint runs of an axis (feedid fingerprint --record: lost motion, backlash, stiffness, reversal error)
+// form a series of their own beside its identifications, with its own baseline of as many fingerprint runs; a pinned
+// run starts the baseline of both, the other kind's at its first run recorded from the pinned one on.
 
 #include <cstdint>
 #include <optional>
@@ -83,14 +87,18 @@ struct Alarm {
     double change{0.0};      ///< value - mu_0 at that run
     double change_pct{0.0};  ///< 100 * change / |mu_0| (0 when mu_0 is 0)
     double z{0.0};
+    double sigma{0.0};                      ///< the combined standard error of the change (change / z)
+    std::vector<std::int64_t> baseline_runs;  ///< the runs of the baseline the change is measured from
 
-    /// One line for people: machine, axis, parameter, run, by how much.
+    /// One line for people: machine, axis, parameter, run, by how much (with its combined standard error) and
+    /// against which baseline runs.
     [[nodiscard]] std::string message() const;
 };
 
 struct SeriesTrend {
     std::string machine;
     std::string axis;
+    std::string kind{"identification"};  ///< "identification" or "fingerprint" (the runs of fingerprint_model)
     std::vector<std::int64_t> baseline_run_ids;
     bool baseline_complete{false};  ///< as many baseline runs as asked for
     /// Runs compared with the complete baseline (a change and its z for at least one parameter), as the listing
@@ -106,7 +114,8 @@ struct SeriesTrend {
 SeriesTrend analyse_series(const SeriesRuns& runs, const TrendOptions& options);
 
 /// Applies stored pins (unless options.pinned_run is set, which applies to every series holding that run) and
-/// analyses each series, in the order given (HistoryStore::series orders them by machine, then axis).
+/// analyses each series, in the order given (HistoryStore::series orders them by machine, then axis); a series that
+/// holds fingerprint runs gives two trends, its identifications' and then its fingerprints'.
 std::vector<SeriesTrend> analyse_trends(const std::vector<SeriesRuns>& series, const std::vector<BaselinePin>& pins,
                                         const TrendOptions& options);
 
@@ -120,10 +129,10 @@ std::vector<SeriesTrend> analyse_trends(const std::vector<RunRecord>& runs, cons
 
 /// The alarm document, the one spelling of an alarm: an element of the "alarms" of `feedid history --json`'s trends
 /// and the payload `feedid watch` publishes on <prefix>/feedid/alarm (machine, axis, parameter, run, recorded_at,
-/// direction, cusum, change, change_pct, z, message).
+/// direction, cusum, change, change_pct, z, sigma, baseline_runs, message).
 nlohmann::json alarm_document(const Alarm& alarm);
 
-/// The `feedid history --json` "trends" element of one series (its alarms as alarm_document() writes them).
+/// The `feedid history --json` "trends" element of one series (its kind, its alarms as alarm_document() writes them).
 nlohmann::json to_json(const SeriesTrend& trend);
 
 }  // namespace feedid::history

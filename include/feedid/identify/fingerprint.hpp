@@ -48,6 +48,22 @@ struct DirectionalEstimate {
     std::string reason;  ///< why a figure is null ("" when all are given)
 };
 
+/// The samples a report plots, evenly thinned to at most `max_points`: the scale's position, the encoder difference
+/// d = x_motor - x_load and the direction of the last commanded move at each, the drive force (or signal) and
+/// whether the sample is in the force-deflection fit; the fitted lines d = a_+/- + c*F. Empty with one measuring
+/// system.
+struct FingerprintCurves {
+    static constexpr std::size_t max_points = 2000;
+    std::vector<double> position;    ///< x_load [m; rad]
+    std::vector<double> deflection;  ///< d [m; rad]
+    std::vector<int> direction;      ///< +1, -1 (0 before the first move)
+    std::vector<double> drive;       ///< force [N; N*m] (or the drive signal); empty without a drive signal
+    std::vector<char> in_fit;        ///< 1 where the sample is in the force-deflection fit
+    std::optional<double> compliance;         ///< c of the fit [m/N; rad/(N*m)], or per signal unit
+    std::optional<double> intercept_forward;  ///< a_+ [m; rad]
+    std::optional<double> intercept_reverse;  ///< a_- [m; rad]
+};
+
 struct FingerprintResult {
     bool rotary{false};
     bool two_measuring_systems{false};
@@ -64,6 +80,7 @@ struct FingerprintResult {
     std::string signal_unit;  ///< the drive signal's unit for deflection_per_signal
     int samples_used{0};      ///< settled samples in contact in the force-deflection fit
     std::vector<std::string> diagnostics;
+    FingerprintCurves curves;  ///< for the report's plots; not in the document
 };
 
 /// Estimates the fingerprint. InputError when the trace lacks a position, a reference position or a time base, or

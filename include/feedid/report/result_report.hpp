@@ -15,10 +15,13 @@
 
 namespace feedid::report {
 
-/// Human name and unit of a result-document parameter key: "coulomb_forward_N" -> {"Coulomb friction F_C+", "N"}.
+/// Human name and unit of a result-document parameter key: "coulomb_forward_N" -> {"Coulomb friction F_C+", "N"};
+/// of a fingerprint figure in the unit people read it in: "lost_motion_forward_m" -> {"Lost motion+ (forward)", "µm",
+/// 1e6}.
 struct ParameterLabel {
     std::string name;
     std::string unit;
+    double scale{1.0};  ///< the value in `unit` per SI value of the key
 };
 ParameterLabel parameter_label(const std::string& key);
 
