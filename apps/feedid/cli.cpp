@@ -66,7 +66,9 @@ void TraceArguments::add_to(CLI::App& app) {
         ->required();
     app.add_option("--channel", channel_assignments,
                    "Use a channel for a role: ROLE=NAME (roles: time, position, reference_position, velocity, "
-                   "velocity_command, current, force, external_force, injection, motor_position); repeatable")
+                   "velocity_command, current, force, external_force, injection, motor_position); ROLE=none: no channel "
+                   "for that role, none guessed (position=none: the motion from the logged velocity alone); "
+                   "repeatable")
         ->take_all()
         ->allow_extra_args(false);
     app.add_option("--unit", unit_assignments, "The unit of a role's channel where the file gives none: ROLE=UNIT")

@@ -241,16 +241,21 @@ void State::describe_offset(OnlineEstimate& e) const {
         e.offset_standard_error = std::sqrt(std::max(0.0, full.covariance(3, 3)));
     }
     e.offset_in_model = options_.select_offset && e.offset_statistic && *e.offset_statistic > e.offset_threshold;
+    e.offset_judged = options_.judge_with_offset;
+    const char* judged = options_.judge_with_offset ? " (windows judged by the model with the offset)" : "";
     if (!options_.select_offset) {
         e.offset_verdict = "not tested (--no-offset)";
     } else if (e.offset_in_model) {
-        e.offset_verdict = fmt::format("taken: |F_0| / SE = {:.3g} > {:.3g}", *e.offset_statistic, e.offset_threshold);
+        e.offset_verdict =
+            fmt::format("taken: |F_0| / SE = {:.3g} > {:.3g}{}", *e.offset_statistic, e.offset_threshold, judged);
     } else if (!e.offset_statistic) {
-        e.offset_verdict = "not testable: the qualified windows do not separate a constant force from the Coulomb "
-                           "friction (moves in one direction)";
+        e.offset_verdict = fmt::format(
+            "not testable: the qualified windows do not separate a constant force from the Coulomb friction (moves "
+            "in one direction){}",
+            judged);
     } else {
         e.offset_verdict =
-            fmt::format("not taken: |F_0| / SE = {:.3g} <= {:.3g}", *e.offset_statistic, e.offset_threshold);
+            fmt::format("not taken: |F_0| / SE = {:.3g} <= {:.3g}{}", *e.offset_statistic, e.offset_threshold, judged);
     }
 }
 

@@ -96,7 +96,7 @@ std::size_t OnlineIdentifier::parameters() const {
 
 State::State(OnlineOptions options)
     : options_(std::move(options)), stick_slip_(options_.moving_threshold, options_.stick_slip) {
-    p_ = options_.offset ? max_p : 3;
+    p_ = options_.offset || options_.judge_with_offset ? max_p : 3;
     counts_ = {};
     sum_cc_ = Mat::Zero(max_p, max_p);
     for (auto& m : sum_cH_) m = sum_cc_;

@@ -147,10 +147,22 @@ std::string_view default_si_unit(Role role, bool rotary) {
     return "";
 }
 
+// The channel name that takes a role away (--channel position=none) where no channel bears that name.
+constexpr std::string_view removed_role = "none";
+
 void assign_explicit_roles(Trace& trace, const ImportOptions& options) {
     // Explicit assignments first; they take a role away from any channel that had it.
     for (const auto& [role, name] : options.channels) {
         auto* channel = trace.find(name);
+        if (channel == nullptr && name == removed_role) {
+            // --channel ROLE=none: no channel has the role, none is guessed for it (a position that jumps, when the
+            // logged velocity is the measure of the motion)
+            for (auto& other : trace.channels)
+                if (other.role == role) other.role = Role::other;
+            trace.findings.push_back(fmt::format("--channel {}=none: no channel taken as {}", role_name(role),
+                                                 role_name(role)));
+            continue;
+        }
         if (channel == nullptr) {
             std::string available;
             for (const auto& c : trace.channels) available += (available.empty() ? "" : ", ") + c.name;
@@ -513,7 +525,10 @@ std::pair<Role, std::string> parse_role_assignment(std::string_view text, std::s
 
 void prepare_trace(Trace& trace, const ImportOptions& options) {
     assign_explicit_roles(trace, options);
-    const auto guessed = guess_roles(trace, select_axis(trace, options), options.assigned_elsewhere);
+    std::vector<Role> not_guessed = options.assigned_elsewhere;
+    for (const auto& [role, name] : options.channels)
+        if (name == removed_role && trace.find(name) == nullptr) not_guessed.push_back(role);
+    const auto guessed = guess_roles(trace, select_axis(trace, options), not_guessed);
     drop_unusable_guesses(trace, options, guessed);
     add_time_from_sample_time(trace, options);
     convert_units(trace, options);

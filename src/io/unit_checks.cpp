@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <optional>
 
@@ -86,6 +87,39 @@ void compare(const std::string& a, const Level& la, const std::string& b, const 
         a, b, ratio, la.typical, lb.typical, unit, suspect(ratio)));
 }
 
+// A position that jumps between samples (a log that writes the position rounded and late, a glitch, a re-homing):
+// the path it covers, sum |dx|, far exceeds the one the logged velocity covers, integral |v| dt. A step is a jump when
+// it exceeds three times what the velocity at its two ends covers plus two of the position's quanta (its smallest
+// step), so that rounding to whole millimetres at 10 Hz is none. Such a trace compared by speeds looks like a unit
+// mix-up; it is not one, and the message says what it is, where, and how to identify without the position.
+std::optional<std::string> position_jumps(const Trace& trace, const Channel& position, const Channel& velocity) {
+    const auto time = trace.column(Role::time);
+    const auto& x = position.values;
+    const auto& v = velocity.values;
+    double quantum = std::numeric_limits<double>::max();
+    for (std::size_t k = 1; k < x.size(); ++k)
+        if (const double step = std::abs(x[k] - x[k - 1]); step > 0.0) quantum = std::min(quantum, step);
+    double path = 0.0, travelled = 0.0, largest = 0.0;
+    std::size_t jumps = 0, first = 0;
+    for (std::size_t k = 1; k < x.size(); ++k) {
+        const double dt = time[k] - time[k - 1];
+        const double step = std::abs(x[k] - x[k - 1]);
+        const double covered = 0.5 * (std::abs(v[k]) + std::abs(v[k - 1])) * dt;
+        path += step;
+        travelled += covered;
+        if (!(dt > 0.0) || step <= 3.0 * covered + 2.0 * quantum) continue;
+        if (jumps++ == 0) first = k;
+        largest = std::max(largest, step);
+    }
+    if (jumps == 0 || !(path > 2.0 * travelled)) return std::nullopt;
+    return fmt::format(
+        "the {} '{}' jumps {} times between samples (first at t = {:.6g} s, by up to {:.4g} {}): it covers {:.4g} {} "
+        "where the {} '{}' covers {:.4g} {}; not a unit error, a position that does not follow the motion: identify "
+        "from the logged velocity alone with --channel position=none",
+        role_name(position.role), position.name, jumps, time[first], largest, position.unit, path, position.unit,
+        role_name(velocity.role), velocity.name, travelled, position.unit);
+}
+
 }  // namespace
 
 std::vector<std::string> unit_inconsistencies(const Trace& trace, const ConsistencyOptions& options) {
@@ -124,8 +158,12 @@ std::vector<std::string> unit_inconsistencies(const Trace& trace, const Consiste
                             named(velocity), fast, speed_unit));
         }
     }
-    if (position != nullptr && velocity != nullptr)
-        compare(named(velocity), *logged_speed, named(position), *position_speed, speed_unit, options, problems);
+    if (position != nullptr && velocity != nullptr) {
+        if (const auto jumps = position_jumps(trace, *position, *velocity))
+            problems.push_back(*jumps);
+        else
+            compare(named(velocity), *logged_speed, named(position), *position_speed, speed_unit, options, problems);
+    }
     if (position != nullptr && reference != nullptr) {
         const auto speeds = speeds_of(trace, *reference);
         compare(named(position), *position_speed, named(reference), level_of(speeds, speeds, options.noise_multiple),

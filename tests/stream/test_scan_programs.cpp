@@ -237,18 +237,21 @@ std::size_t check_vertical(const std::string& program) {
 }
 
 TEST(ScanPrograms, AxisZPocket) {
-    check_vertical("pocket");
+    // judged by the model with the offset, the pocket's windows move both ways: F_C and F_0 in every seed
+    EXPECT_EQ(check_vertical("pocket"), static_cast<std::size_t>(seeds));
 }
 
-// The next two are the acceptance of the Z axes and do not pass yet: scan still judges its windows by the model
-// without the offset, which biases B on a vertical axis (drilling: B 10.2 % and 10.7 % low in 2 of 10 seeds;
-// contour: B's scatter over the seeds 0.64 of its standard error, from 4 windows). Kept here, disabled, so that
-// the fix has its test waiting; GoogleTest lists them as disabled in every run.
+// The contour's Z axis: since the windows are judged by the model the data select (the offset's, on these axes), M,
+// B, F_C and F_0 are within tolerance in every seed (9 windows qualify, both ways, F_0 taken; judged without the
+// offset, 4 windows of one direction, F_C null and B 6 % low) but B's and F_C's scatter over the seeds is only 0.36
+// and 0.39 of the mean standard error (M 0.84, F_0 1.06): the cluster standard error of these 9 windows is too
+// large, not the value wrong (it varies 1.1-5.0 N*s/m over the seeds for B, whose values lie within 117-120.3).
+// Kept here, disabled, so that the fix of the standard error has its test waiting; GoogleTest lists it as disabled.
 TEST(ScanPrograms, DISABLED_AxisZContour) {
     check_vertical("contour");
 }
 
-TEST(ScanPrograms, DISABLED_AxisZDrilling) {
+TEST(ScanPrograms, AxisZDrilling) {
     // drilling moves Z both ways in every cycle: the offset is separated and taken in every seed
     EXPECT_EQ(check_vertical("drilling"), static_cast<std::size_t>(seeds));
 }

@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <regex>
 #include <sstream>
 #include <string>
@@ -192,5 +194,70 @@ TEST(UmichMill, TheCommandLineReadsThePandasFileAsItIs) {
                 << axis << " " << key;
         }
         EXPECT_TRUE(contains(document.at("friction_only").at("reason").get<std::string>(), "10 Hz sampling")) << axis;
+    }
+}
+
+namespace {
+
+// The UMich log of X1 with its position written 50 mm off on every 50th row (a glitch of the log, as some of the
+// mill's other runs have): 21 rows, 42 jumps, the first at t = 5 s.
+std::filesystem::path umich_with_jumps() {
+    const auto source = shared_data() / "umich-cnc-mill" / "experiment_01.csv";
+    const auto out = feedid::testing::temp_dir() / "umich_jumps.csv";
+    std::ifstream in(source);
+    std::ofstream file(out);
+    std::string line;
+    std::getline(in, line);
+    file << line << '\n';
+    std::vector<std::string> header;
+    std::stringstream names(line);
+    for (std::string cell; std::getline(names, cell, ',');) header.push_back(cell);
+    const auto x = static_cast<std::size_t>(std::find(header.begin(), header.end(), "X1_ActualPosition") - header.begin());
+    for (std::size_t row = 0; std::getline(in, line); ++row) {
+        std::vector<std::string> cells;
+        std::stringstream text(line);
+        for (std::string cell; std::getline(text, cell, ',');) cells.push_back(cell);
+        if (row > 0 && row % 50 == 0) cells.at(x) = std::to_string(std::stod(cells.at(x)) + 50.0);
+        for (std::size_t c = 0; c < cells.size(); ++c) file << (c > 0 ? "," : "") << cells[c];
+        file << '\n';
+    }
+    return out;
+}
+
+const std::string umich_options =
+    " --axis X1 --sample-time 0.1 --unit position=mm --unit velocity=mm/s --unit reference_position=mm "
+    "--unit velocity_command=mm/s --force-constant 1";
+
+}  // namespace
+
+// A position that jumps is named as such, with the count and where, not taken for a unit error; and the logged
+// velocity alone (--channel position=none) gives the friction of the log without the jumps, M null with the reason.
+TEST(UmichMill, APositionThatJumpsIsNamedAndTheVelocityAloneGivesTheFriction) {
+    FEEDID_REQUIRE_SHARED("umich-cnc-mill/experiment_01.csv");
+    const auto jumpy = umich_with_jumps();
+    const auto refused = run_cli("identify " + quoted(jumpy) + umich_options + " --json -");
+    EXPECT_EQ(refused.exit_code, 2) << refused.err;
+    const std::string last = refused.err.substr(refused.err.rfind("feedid: "));
+    EXPECT_TRUE(contains(last, "'X1_ActualPosition' jumps 42 times between samples (first at t = 5 s")) << last;
+    EXPECT_TRUE(contains(last, "--channel position=none")) << last;
+    EXPECT_FALSE(contains(last, "units is wrong")) << last;
+    const auto scanned = run_cli("scan " + quoted(jumpy) + umich_options + " --json -");
+    EXPECT_EQ(scanned.exit_code, 2) << scanned.err;
+    EXPECT_TRUE(contains(scanned.err, "jumps 42 times")) << scanned.err;
+
+    const auto clean =
+        run_cli("identify " + quoted(shared_data() / "umich-cnc-mill" / "experiment_01.csv") + umich_options +
+                " --json -");
+    ASSERT_EQ(clean.exit_code, 0) << clean.err;
+    const auto velocity_only = run_cli("identify " + quoted(jumpy) + umich_options + " --channel position=none --json -");
+    ASSERT_EQ(velocity_only.exit_code, 0) << velocity_only.err;
+    const Json with = Json::parse(clean.out), without = Json::parse(velocity_only.out);
+    EXPECT_TRUE(without.at("parameters").at("mass_kg").at("value").is_null());
+    EXPECT_TRUE(contains(without.at("friction_only").at("reason").get<std::string>(), "mass not identifiable: 10 Hz"));
+    for (const std::string key : {"viscous_Ns_per_m", "coulomb_N"}) {
+        ASSERT_FALSE(without.at("parameters").at(key).at("value").is_null()) << key;
+        EXPECT_GT(value(without, key), 0.0) << key;
+        // the friction-only step reads the logged velocity: the same numbers as the log with its position
+        EXPECT_NEAR(value(without, key), value(with, key), 1e-9 * std::abs(value(with, key))) << key;
     }
 }

@@ -49,6 +49,11 @@ struct OnlineOptions {
     /// False: the model without offset unless `offset`.
     bool select_offset{true};
     double offset_test_level{1e-3};
+    /// Judge the windows (robust weights, acceptance, the one-speed windows' gradient) by the model with the offset
+    /// while the estimate still selects it (select_offset): on an axis that carries a weight the model without it bends
+    /// or rejects every window that moves both ways, and keeps those that move one way with the weight in F_C, so that
+    /// the windows it admits are chosen by the wrong model before the selection sees them. scan's second pass.
+    bool judge_with_offset{false};
     bool robust{true};                    ///< Tukey biweight by IRLS; false: plain least squares
     double tukey_c{4.685};                ///< Tukey's tuning constant, in robust scales (95 % efficiency)
     int irls_iterations{20};
@@ -155,6 +160,7 @@ struct OnlineEstimate {
     /// The model the estimate is of: with the offset F_0 (forced, or taken by the selection) or without.
     bool offset_in_model{false};
     bool offset_selected{false};  ///< the offset was chosen by the data (select_offset), not forced
+    bool offset_judged{false};    ///< the windows were judged by the model with the offset (judge_with_offset)
     /// The offset's Wald statistic |F_0| / SE on the pool (none: not testable, see offset_verdict), and the
     /// threshold it is compared with.
     std::optional<double> offset_statistic;
