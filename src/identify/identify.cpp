@@ -9,6 +9,7 @@
 #include <thread>
 
 #include <fmt/core.h>
+#include <fmt/ranges.h>
 
 #include "feedid/io/tare.hpp"
 #include "feedid/io/unit_checks.hpp"
@@ -499,14 +500,27 @@ void apply_model_choice(IdentifyResult& result, const ModelChoice& choice, const
             return parsed && aliased(parsed->term);
         });
     }
-    if (!choice.delay_applied || !choice.delay_standard_error || choice.delay_sensitivity.size() != columns.size())
+    if (!(choice.delay_applied || choice.delay_uncertain) || !choice.delay_standard_error ||
+        choice.delay_sensitivity.size() != columns.size())
         return;
+    std::vector<std::string> widened;
     for (std::size_t c = 0; c < columns.size(); ++c) {
         Parameter* p = find_parameter(result, columns[c].term, columns[c].direction);
         if (p == nullptr || !p->estimate.value || !p->estimate.standard_error) continue;
         // d theta / d tau * sigma_tau, in quadrature with the fit's own standard error
-        p->estimate.standard_error =
-            std::hypot(*p->estimate.standard_error, choice.delay_sensitivity[c] * *choice.delay_standard_error);
+        const double own = *p->estimate.standard_error;
+        p->estimate.standard_error = std::hypot(own, choice.delay_sensitivity[c] * *choice.delay_standard_error);
+        if (*p->estimate.standard_error > 2.0 * own)
+            widened.push_back(fmt::format("{} from {:.2g} to {:.2g} {}", p->symbol, own, *p->estimate.standard_error,
+                                          p->unit));
+    }
+    if (!choice.delay_applied && choice.delay_s && !widened.empty()) {
+        // the user sees why a standard error is wide, and what test would narrow it
+        result.diagnostics.push_back(fmt::format(
+            "the drive signal's timing is not determined by these samples ({:.3g} ms +/- {:.2g}, not significant: "
+            "no delay applied); its uncertainty widens the standard error of {}. Passes at constant speed at several "
+            "feedrates, or reversals at speed, determine it (--delay TIME applies a known one)",
+            *choice.delay_s * 1e3, *choice.delay_standard_error * 1e3, fmt::join(widened, ", ")));
     }
 }
 

@@ -132,9 +132,12 @@ struct ModelChoice {
     std::optional<double> delay_s;
     std::optional<double> delay_standard_error;
     bool delay_applied{false};  ///< the drive force was read delay_s later
+    /// estimated, but not significant: not applied, and its standard error carried into the parameters
+    bool delay_uncertain{false};
     std::string delay_source;   ///< "estimated", "given", "" (none)
     /// dtheta/dtau of step 1's linear parameters (per column of linear_columns(model, offset)) [unit per s]: the
-    /// delay's standard error times this is added to each parameter's.
+    /// delay's standard error times this is added to each parameter's where the delay was applied or is uncertain (a
+    /// delay the test does not take is still known only to its standard error).
     std::vector<double> delay_sensitivity;
     std::vector<ModelCandidate> candidates;
     std::vector<std::string> findings;
