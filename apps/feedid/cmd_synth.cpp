@@ -235,10 +235,12 @@ Action add_synth_command(CLI::App& app) {
                                 "(default {:g}; 0 = no cutting force)",
                                 ProductionOptions{}.cutting_force_fraction));
     sub->add_option("--feedforward", command->feedforward,
-                    "The position loop's velocity feed-forward k_ff [-] (drive file: controller.velocity_feedforward)");
+                    "The position loop's velocity feed-forward k_ff [-] (drive file: controller.velocity_feedforward)")
+        ->check(allowed_range(0.0, 2.0, ""));
     sub->add_option("--setpoint-delay", command->setpoint_delay_ms,
                     "The position setpoint reaches the position loop this late [ms], its feed-forward too (drive "
-                    "file: controller.setpoint_delay_ms); e.g. 0.375 = 3 cycles of an 8 kHz servo");
+                    "file: controller.setpoint_delay_ms); e.g. 0.375 = 3 cycles of an 8 kHz servo")
+        ->check(allowed_range(0.0, 1000.0, "ms"));
     sub->add_flag("--no-slow-passes", command->no_slow_passes,
                   "Leave out the slow passes: the paper's feedrate ladder (1250..9350 mm/min) alone");
     sub->add_option("--backlash", command->backlash_um,
