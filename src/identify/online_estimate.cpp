@@ -143,8 +143,10 @@ OnlineEstimate State::estimate() const {
         e.friction_reason = e.stribeck_reason = e.mass_reason;
         return e;
     }
-    const Vec& theta = fit.theta;
-    e.covariance = fit.covariance;
+    Vec theta = fit.theta;
+    Mat covariance = fit.covariance;
+    estimate_timing(e, theta, covariance);
+    e.covariance = covariance;
     const Vec se = e.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
     e.information = e.covariance.diagonal().cwiseInverse();
     const Mat scaled_information = se.asDiagonal() * e.covariance.inverse() * se.asDiagonal();
@@ -222,6 +224,30 @@ ModelChoice model_choice_of(const OnlineEstimate& e) {
     candidate.verdict = e.offset_verdict;
     choice.candidates.push_back(std::move(candidate));
     choice.aliased_friction = e.aliased_reason;
+    // the timing: the delay applied to every window plus what the pool says is left (scan's timing pass applies the
+    // estimated one, so that what is left is not significant)
+    const double total = e.delay_applied_s + e.delay_residual_s.value_or(0.0);
+    if (e.delay_residual_s || e.delay_applied_s != 0.0) choice.delay_s = total;
+    choice.delay_standard_error = e.delay_standard_error_s;
+    choice.delay_applied = e.delay_applied_s != 0.0 || e.delay_corrected;
+    choice.delay_uncertain = e.delay_statistic && *e.delay_statistic <= e.delay_threshold;
+    choice.delay_source = e.delay_given ? "given" : choice.delay_applied ? "estimated" : "";
+    if (!e.delay_given) {
+        ModelCandidate delay;
+        delay.name = "delay";
+        delay.tested = "tau";
+        if (e.delay_residual_s) delay.estimate = total;
+        delay.standard_error = e.delay_standard_error_s;
+        delay.statistic = e.delay_statistic;
+        delay.threshold = e.delay_threshold;
+        delay.taken = choice.delay_applied;
+        delay.verdict = e.delay_applied_s != 0.0
+                            ? fmt::format("taken: the drive signal read {:.4g} ms later in every window; left beyond it: "
+                                          "{}",
+                                          e.delay_applied_s * 1e3, e.delay_verdict)
+                            : e.delay_verdict;
+        choice.candidates.push_back(std::move(delay));
+    }
     return choice;
 }
 

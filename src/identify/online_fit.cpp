@@ -74,7 +74,7 @@ State::Vec State::solve_weighted(std::size_t rows) const {
     for (std::size_t k = 0; k < rows; ++k) {
         const double w = weights_[k];
         if (w == 0.0) continue;
-        const double* row = rows_.data() + k * (max_p + 1);
+        const double* row = rows_.data() + k * row_stride;
         for (std::size_t i = 0; i < p; ++i) {
             const double wi = w * row[i];
             c[i] += wi * row[max_p];
@@ -97,7 +97,7 @@ State::Vec State::solve_weighted(std::size_t rows) const {
 void State::residuals(const Vec& theta, std::size_t rows) {
     const std::size_t p = p_;
     for (std::size_t k = 0; k < rows; ++k) {
-        const double* row = rows_.data() + k * (max_p + 1);
+        const double* row = rows_.data() + k * row_stride;
         double fitted = 0.0;
         for (std::size_t i = 0; i < p; ++i) fitted += row[i] * theta(static_cast<Eigen::Index>(i));
         residual_[k] = row[max_p] - fitted;

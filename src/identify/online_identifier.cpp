@@ -52,6 +52,11 @@ std::string OnlineOptions::validate() const {
     if (stribeck_lowest_speed >= split()) return "the lowest Stribeck speed must lie below the split speed";
     if (!positive(tukey_c) || irls_iterations < 1) return "Tukey constant and IRLS iterations must be positive";
     if (force_limit && !positive(*force_limit)) return "force limit must be positive";
+    if (!(max_delay_s > 0.0 && max_delay_s <= 0.02))
+        return fmt::format("the largest drive-signal delay must lie in (0, 20] ms (got {} ms)", max_delay_s * 1e3);
+    if (!(std::abs(drive_delay_s) <= max_delay_s))
+        return fmt::format("the drive signal's delay must lie within +-{:g} ms (got {:.4g} ms)", max_delay_s * 1e3,
+                           drive_delay_s * 1e3);
     if (!(offset_test_level > 0.0 && offset_test_level < 0.5))
         return fmt::format("the offset's test level must lie in (0, 0.5) (got {})", offset_test_level);
     return "";
@@ -103,6 +108,7 @@ State::State(OnlineOptions options)
     for (auto& row : sum_HH_)
         for (auto& m : row) m = sum_cc_;
     r_z_.setZero();
+    reset_pool();
     for (auto& b : bins_) b.assign(bins_per_direction, StribeckBin{});
     deferred_.assign(options_.deferred_windows, OneSpeedWindow{});
     // the start-up buffer: enough for the sample time from the first time stamps
@@ -133,11 +139,11 @@ std::size_t OnlineIdentifier::buffer_samples(const OnlineOptions& options, doubl
 }
 
 std::size_t OnlineIdentifier::memory_bytes(const OnlineOptions& options, double sample_time_s) {
-    // the state behind the pointer, the buffers of setup() (12 of doubles, one of flags, the workspace, the rows),
+    // the state behind the pointer, the buffers of setup() (13 of doubles, one of flags, the workspace, the rows),
     // the start-up buffers they grow from, the deferred windows and the Stribeck bins
     const std::size_t capacity = std::max(buffer_samples(options, sample_time_s), startup_samples);
     const std::size_t per_sample =
-        12 * sizeof(double) + sizeof(char) + sizeof(double) + (State::max_p + 1) * sizeof(double);
+        13 * sizeof(double) + sizeof(char) + sizeof(double) + State::row_stride * sizeof(double);
     return sizeof(OnlineIdentifier) + sizeof(State) + capacity * per_sample + 64 * sizeof(double) +
            options.deferred_windows * sizeof(State::OneSpeedWindow) +
            2 * State::bins_per_direction * sizeof(State::StribeckBin);
@@ -152,11 +158,11 @@ void State::setup(double sample_time_s) {
     window_ = l.window;
     margin_ = l.margin;
     const std::size_t capacity = window_ + 2 * margin_;
-    for (auto* b : {&t_, &x_, &f_, &xf_, &ff_, &v_, &a_, &s_, &sf_, &residual_, &scratch_, &weights_})
+    for (auto* b : {&t_, &x_, &f_, &xf_, &ff_, &v_, &a_, &s_, &sf_, &residual_, &scratch_, &weights_, &shifted_})
         b->resize(capacity);
     use_.resize(capacity);
     workspace_.resize(capacity + 64);
-    rows_.resize(static_cast<Eigen::Index>(capacity), max_p + 1);
+    rows_.resize(static_cast<Eigen::Index>(capacity), row_stride);
     ready_ = true;
 }
 

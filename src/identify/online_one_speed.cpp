@@ -24,7 +24,7 @@ WindowVerdict State::one_speed(std::size_t rows, WindowVerdict own) {
     std::array<double, max_p> c{};
     double yy = 0.0;
     for (std::size_t k = 0; k < rows; ++k) {
-        const double* row = rows_.data() + k * (max_p + 1);
+        const double* row = rows_.data() + k * row_stride;
         yy += row[p] * row[p];
         for (std::size_t i = 0; i < p; ++i) {
             c[i] += row[i] * row[p];
@@ -42,6 +42,9 @@ WindowVerdict State::one_speed(std::size_t rows, WindowVerdict own) {
     w.yy = yy;
     w.rows = rows;
     w.own = own;
+    // held before a pooled estimate exists: no estimate to take the delay's column from, and none is needed (a few
+    // one-speed windows at the start)
+    if (options_.estimate_delay && have_pooled_) w.timed = timed_sums(rows, false, pooled_theta());
     if (!options_.robust) {
         // plain least squares pools every window; its scale: the residual of its own (minimum-norm) fit of the
         // model in use
@@ -56,7 +59,8 @@ WindowVerdict State::one_speed(std::size_t rows, WindowVerdict own) {
             const double lambda = eigen.eigenvalues()(k);
             if (lambda > 1e-12 * top) explained += std::pow(eigen.eigenvectors().col(k).dot(w.c.head(m)), 2) / lambda;
         }
-        pool(WindowInformation{w.h, w.c, std::sqrt(std::max(0.0, yy - explained) / static_cast<double>(rows)), rows});
+        pool(WindowInformation{w.h, w.c, std::sqrt(std::max(0.0, yy - explained) / static_cast<double>(rows)), rows,
+                               w.timed});
         return WindowVerdict::qualified;
     }
     if (have_pooled_ && reference_scale_ > 0.0) return judge_rows(rows);
@@ -79,7 +83,7 @@ WindowVerdict State::judge_one_speed(const OneSpeedWindow& window) {
     const double rms = std::sqrt(std::max(0.0, rss) / static_cast<double>(window.rows));
     if (!(rms <= options_.maximum_scale_ratio * reference_scale_) || !fits_pool(h, c))
         return WindowVerdict::process_force;
-    pool(WindowInformation{window.h, window.c, rms, window.rows});
+    pool(WindowInformation{window.h, window.c, rms, window.rows, window.timed});
     return WindowVerdict::qualified;
 }
 

@@ -14,7 +14,7 @@ namespace feedid {
 
 using State = OnlineIdentifier::State;
 
-State::WindowInformation State::information(std::size_t rows, double scale) const {
+State::WindowInformation State::information(std::size_t rows, double scale) {
     constexpr Eigen::Index p = max_p;
     WindowInformation window;
     window.h = Mat::Zero(p, p);
@@ -28,6 +28,12 @@ State::WindowInformation State::information(std::size_t rows, double scale) cons
         window.c.noalias() += w * rows_(r, max_p) * rows_.row(r).head(p).transpose();
         ++window.rows;
     }
+    if (options_.estimate_delay) {
+        const auto p = static_cast<Eigen::Index>(p_);
+        const Vec theta = have_pooled_ ? pooled_theta()
+                                       : Vec(window.h.topLeftCorner(p, p).ldlt().solve(window.c.head(p)));
+        window.timed = timed_sums(rows, true, theta);
+    }
     return window;
 }
 
@@ -36,6 +42,11 @@ void State::reset_pool() {
     sum_cc_.setZero();
     for (auto& m : sum_cH_) m.setZero();
     for (auto& row : sum_HH_)
+        for (auto& m : row) m.setZero();
+    timed_pool_ = TimedSums{};
+    timed_cc_.setZero();
+    for (auto& m : timed_cH_) m.setZero();
+    for (auto& row : timed_HH_)
         for (auto& m : row) m.setZero();
     forgotten_windows_ = 0.0;
     sum_scale_sq_ = 0.0;
@@ -192,6 +203,7 @@ void State::pool(const WindowInformation& window) {
         sum_cH_[ii] += window.c(i) * window.h;
         for (Eigen::Index j = 0; j < p; ++j) sum_HH_[ii][static_cast<std::size_t>(j)] += window.h(i, j) * window.h;
     }
+    if (options_.estimate_delay) pool_timed(window.timed);
     have_pooled_ = true;
 }
 

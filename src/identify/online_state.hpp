@@ -24,9 +24,21 @@ namespace feedid {
 
 struct OnlineIdentifier::State {
     static constexpr int max_p = 4;
+    /// The model's columns and the delay's, -F_log' (OnlineOptions::estimate_delay): [x'', x', s, 1, -F_log']
+    static constexpr int timed_p = max_p + 1;
+    /// A row of rows_: the model's max_p columns, the drive force y, the delay's column, and the derivatives the
+    /// delay's column is made of (x''' and the filtered sgn's)
+    static constexpr int row_stride = max_p + 4;
     static constexpr std::size_t bins_per_direction = 24;
     using Vec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, max_p, 1>;
     using Mat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, max_p, max_p>;
+    using TVec = Eigen::Matrix<double, timed_p, 1>;
+    using TMat = Eigen::Matrix<double, timed_p, timed_p>;
+    /// A window's (weighted) sums over the model's columns and the delay's: Phi_t^T W Phi_t, Phi_t^T W y.
+    struct TimedSums {
+        TMat h{TMat::Zero()};
+        TVec c{TVec::Zero()};
+    };
     struct StribeckBin {
         double n{0}, speed{0}, force{0}, force_sq{0}, acceleration{0};
         std::size_t windows{0}, last_window{0};  ///< windows that put samples in it, the last of them (1-based)
@@ -40,12 +52,23 @@ struct OnlineIdentifier::State {
         double yy{0.0};
         std::size_t rows{0};
         WindowVerdict own{WindowVerdict::low_excitation};  ///< its verdict on its own
+        TimedSums timed;
     };
     struct WindowInformation {
         Mat h;  ///< Phi^T W Phi (max_p x max_p)
         Vec c;  ///< Phi^T W y
         double scale{0.0};
         std::size_t rows{0};
+        TimedSums timed;
+    };
+    /// The delay as one more parameter of the pooled model (estimate_delay).
+    struct TimedFit {
+        bool valid{false};
+        double delay{0.0};           ///< [s]
+        double standard_error{0.0};  ///< [s]
+        Vec sensitivity;             ///< d theta / d tau of the model's parameters [unit/s]
+        double correlation{0.0};     ///< of the delay's column with the model's (0..1)
+        std::size_t columns{0};  ///< the model's columns (3 or 4), the delay after them
     };
 
     /// The low-pass cut-off [Hz], the window's core samples and its filter margin at a sample time.
@@ -85,7 +108,7 @@ struct OnlineIdentifier::State {
     [[nodiscard]] bool fits_pool(const Mat& h, const Vec& c) const;
     void settle_deferred();
     // pooling (online_pool.cpp)
-    [[nodiscard]] WindowInformation information(std::size_t rows, double scale) const;
+    [[nodiscard]] WindowInformation information(std::size_t rows, double scale);
     void reset_pool();
     WindowVerdict admit(std::size_t rows, double scale);
     void update_reference_scale();
@@ -93,6 +116,14 @@ struct OnlineIdentifier::State {
     [[nodiscard]] bool consistent(const WindowInformation& window, const Vec& reference) const;
     void pool(const WindowInformation& window);
     [[nodiscard]] Vec pooled_theta() const;
+    void pool_timed(const TimedSums& window);
+    /// The timed sums of the first `rows` rows with weights_ (all 1 when `weighted` is false), their delay column
+    /// -(Phi' theta) from `theta` (M, B, F_C leading).
+    [[nodiscard]] TimedSums timed_sums(std::size_t rows, bool weighted, const Vec& theta);
+    // the drive signal's timing (online_timing.cpp)
+    void shift_force(std::size_t count);
+    [[nodiscard]] TimedFit timed_fit(std::size_t columns) const;
+    void estimate_timing(OnlineEstimate& e, Vec& theta, Mat& covariance) const;
     // the estimate (online_estimate.cpp)
     /// The pooled fit of the leading `p` columns: theta, its covariance (cluster, or model-based for few windows).
     struct PooledFit {
@@ -129,17 +160,23 @@ struct OnlineIdentifier::State {
     std::size_t filled_{0};  ///< samples in the buffers
     std::size_t pushed_{0};
     // buffers (margin + window + margin), allocated once
-    std::vector<double> t_, x_, f_, xf_, ff_, v_, a_, s_, sf_, workspace_;
+    std::vector<double> t_, x_, f_, xf_, ff_, v_, a_, s_, sf_, workspace_, shifted_;
     std::vector<char> use_;
     // the window's rows (step-1 samples), allocated once
-    /// [x'', x', filtered sgn x', 1, y]; row-major, so that a row is contiguous (y in column max_p)
-    Eigen::Matrix<double, Eigen::Dynamic, max_p + 1, Eigen::RowMajor> rows_;
+    /// [x'', x', filtered sgn x', 1, y, -F', x''', (filtered sgn x')']; row-major, so that a row is contiguous (y in
+    /// column max_p)
+    Eigen::Matrix<double, Eigen::Dynamic, row_stride, Eigen::RowMajor> rows_;
     std::vector<double> weights_, residual_, scratch_;
     // pooled square-root information: R (p x p upper), z (p), and the cluster moments
     Eigen::Matrix<double, max_p, max_p + 1> r_z_;
     Mat sum_cc_;
     std::array<Mat, max_p> sum_cH_;                     ///< sum_w c_w[i] * H_w
     std::array<std::array<Mat, max_p>, max_p> sum_HH_;  ///< sum_w H_w[i][j] * H_w
+    // the same sums over the model's and the delay's columns (estimate_delay)
+    TimedSums timed_pool_;
+    TMat timed_cc_{TMat::Zero()};
+    std::array<TMat, timed_p> timed_cH_{};
+    std::array<std::array<TMat, timed_p>, timed_p> timed_HH_{};
     double forgotten_windows_{0.0};                     ///< effective qualified windows (with forgetting)
     double sum_scale_sq_{0.0};
     std::size_t rows_used_{0};

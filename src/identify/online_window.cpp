@@ -31,6 +31,7 @@ void State::process_window(std::size_t count) {
     }
     filter(x_, xf_, count);
     filter(f_, ff_, count);
+    if (options_.drive_delay_s != 0.0) shift_force(count);
     // central differences of the filtered position, and of the velocity for the acceleration
     for (std::size_t k = 1; k + 1 < count; ++k) v_[k] = (xf_[k + 1] - xf_[k - 1]) / (2.0 * dt_);
     v_[0] = v_[1];
@@ -105,6 +106,8 @@ std::size_t State::build_rows(std::size_t first, std::size_t last) {
         rows_(r, 2) = sf_[k];
         rows_(r, 3) = 1.0;
         rows_(r, max_p) = ff_[k];
+        rows_(r, max_p + 2) = (a_[k + 1] - a_[k - 1]) / (2.0 * dt_);    // x'''
+        rows_(r, max_p + 3) = (sf_[k + 1] - sf_[k - 1]) / (2.0 * dt_);  // the filtered sgn's derivative
     }
     return rows;
 }

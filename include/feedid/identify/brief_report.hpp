@@ -13,6 +13,10 @@ namespace feedid {
 /// figure is null. Every line is indented by two spaces and ends in a newline.
 [[nodiscard]] std::string parameter_table_text(const IdentifyResult& result);
 
+/// The drive signal's delay behind the position where it was applied ("timing: the drive signal lags the position by
+/// 0.5 ms +/- 0.01 (estimated): read that much later", and a newline); "" where none was.
+[[nodiscard]] std::string timing_line(const IdentifyResult& result);
+
 /// The trace (path, samples, duration [s]), the model and the status on two lines, an empty line, then
 /// parameter_table_text(). Text from input files (the path) passes through terminal_text().
 [[nodiscard]] std::string brief_report(const IdentifyResult& result);

@@ -54,6 +54,17 @@ struct OnlineOptions {
     /// or rejects every window that moves both ways, and keeps those that move one way with the weight in F_C, so that
     /// the windows it admits are chosen by the wrong model before the selection sees them. scan's second pass.
     bool judge_with_offset{false};
+    /// The drive signal's timing (identify's model-adequacy stage, model_adequacy.hpp, made online). With the drive
+    /// signal logged tau late (a current sampled at another instant of the servo cycle than the position, a loop
+    /// faster than the log, a current loop's lag), F_log = Phi*theta - tau*F_log' to first order. estimate_delay: the
+    /// pool keeps the column -F_log' of every pooled window beside the model's, so that the estimate knows tau (its
+    /// Wald statistic against the offset's threshold) and carries its uncertainty into M, B, F_C and F_0 (the
+    /// covariance of the model with tau as one more parameter); where tau is significant and within max_delay_s the
+    /// estimate is that model's (first-order corrected). drive_delay_s: each window reads the filtered drive force
+    /// this much later (cubic interpolation), exactly; scan's timing pass applies the estimated one so.
+    bool estimate_delay{true};
+    double drive_delay_s{0.0};  ///< [s], within the filter margin
+    double max_delay_s{0.005};  ///< a larger one is two recorders' clocks, not a timing within the servo cycle [s]
     bool robust{true};                    ///< Tukey biweight by IRLS; false: plain least squares
     double tukey_c{4.685};                ///< Tukey's tuning constant, in robust scales (95 % efficiency)
     int irls_iterations{20};
@@ -170,6 +181,18 @@ struct OnlineEstimate {
     /// Why F_C (and F_B) are null although M is determined: the windows cannot separate a constant force from the
     /// Coulomb friction ("" when they can).
     std::string aliased_reason;
+    /// The drive signal's timing: the delay applied to every window (OnlineOptions::drive_delay_s) [s]; what the pool
+    /// says is left beyond it (none where not estimated or not estimable), its standard error and Wald statistic; and
+    /// whether that residual delay was corrected in the estimate (significant and plausible: to first order).
+    double delay_applied_s{0.0};
+    std::optional<double> delay_residual_s, delay_standard_error_s, delay_statistic;
+    double delay_threshold{0.0};
+    bool delay_corrected{false};
+    bool delay_given{false};  ///< the applied delay was given, not estimated (OnlineOptions::estimate_delay false)
+    /// d theta / d tau of M, B, F_C (, F_0) [unit/s] (empty where the delay was not estimated): their covariance took
+    /// in sensitivity sensitivity^T var(tau)
+    Eigen::VectorXd delay_sensitivity;
+    std::string delay_verdict;  ///< in words: "not significant", "corrected to first order", ...
     /// What the data says of each step-1 parameter (M, B, F_C (, F_0)), from the cluster covariance.
     Eigen::VectorXd information;  ///< 1 / variance of each parameter (from the cluster covariance) [1/unit^2]
     /// Eigenvalues of the correlation-scaled information (the information matrix with every parameter in units of
@@ -185,8 +208,8 @@ struct OnlineEstimate {
 };
 
 /// The model an online estimate is of, as identify's model-selection stage states it (the result document's
-/// model_selection and timing): the offset's candidate with its Wald statistic; no delay (the windows take the drive
-/// signal as logged).
+/// model_selection and timing): the offset's candidate with its Wald statistic, and the drive signal's delay (applied,
+/// estimated, with its standard error).
 ModelChoice model_choice_of(const OnlineEstimate& estimate);
 
 /// One window as it was judged: its core's first and last time stamps [s] and its verdict.
