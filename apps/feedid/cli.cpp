@@ -1,10 +1,12 @@
 #include "cli.hpp"
 
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <optional>
 #include <iostream>
 
 #include <fmt/core.h>
@@ -16,6 +18,36 @@
 #include "feedid/core/terminal_text.hpp"
 
 namespace feedid::cli {
+
+std::optional<double> delay_seconds(const std::string& text) {
+    const std::array<std::pair<const char*, double>, 3> units{{{"us", 1e-6}, {"ms", 1e-3}, {"s", 1.0}}};
+    double scale = 1.0;
+    std::string number = text;
+    for (const auto& [suffix, factor] : units) {
+        const std::string_view unit(suffix);
+        if (number.size() > unit.size() && number.ends_with(unit)) {
+            number.resize(number.size() - unit.size());
+            scale = factor;
+            break;
+        }
+    }
+    double value = 0.0;
+    const auto [end, error] = std::from_chars(number.data(), number.data() + number.size(), value);
+    if (error != std::errc{} || end != number.data() + number.size() || !std::isfinite(value)) return std::nullopt;
+    return value * scale;
+}
+
+std::string delay_problem(const std::string& text) {
+    if (text == "auto" || text == "none") return {};
+    const auto seconds = delay_seconds(text);
+    if (!seconds) return fmt::format("'{}' is not auto, none or a time with its unit (0.5ms, 250us, 0.001s)", text);
+    if (std::abs(*seconds) > 1.0) return fmt::format("'{}' is more than 1 s: two recorders' clocks? (--join)", text);
+    return {};
+}
+
+double parse_delay(const std::string& text) {
+    return *delay_seconds(text);
+}
 
 CLI::Validator allowed_range(double low, double high, const std::string& unit) {
     const std::string range = fmt::format("{:g} to {:g}{}", low, high, unit.empty() ? "" : " " + unit);

@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -27,6 +28,12 @@ CLI::Validator allowed_range(double low, double high, const std::string& unit);
 /// The allowed ranges of --lead [mm] and --gear-ratio (drive.hpp's allowed_lead_m, allowed_gear_ratio).
 CLI::Validator lead_range();
 CLI::Validator gear_ratio_range();
+/// A delay with its unit ("0.5ms", "-250us", "0.001s"; a bare number is seconds) [s]; nullopt when not one.
+std::optional<double> delay_seconds(const std::string& text);
+/// What is wrong with a --delay value (auto, none or a time with its unit); "" when nothing.
+std::string delay_problem(const std::string& text);
+/// A --delay time that delay_problem accepted [s].
+double parse_delay(const std::string& text);
 
 /// `FILE [--channel ROLE=NAME]... [--unit ROLE=UNIT]... [--axis N] [--format F] [--sample-time S] [--skip-rows N]`
 struct TraceArguments {

@@ -28,6 +28,7 @@ struct ScanCommand {
     OnlineOptions options;
     bool no_robust{false};
     bool no_systematic{false};
+    std::string delay{"auto"};
     std::vector<std::string> only_when;
     std::string json_path;
     std::size_t block_rows{0};
@@ -60,6 +61,12 @@ struct ScanCommand {
             ->excludes(sub.add_flag_function(
                 "--no-offset", [this](std::int64_t) { options.select_offset = false; },
                 "Never estimate a constant force offset (no selection): the model of earlier versions"));
+        sub.add_option("--delay", delay,
+                       "The drive signal's delay behind the position: auto (estimated from the pooled windows and, "
+                       "where significant, applied to every window; its uncertainty in every parameter), none (the "
+                       "force as logged), or a known one, e.g. 0.5ms (within +-5 ms)")
+            ->capture_default_str()
+            ->check([](const std::string& text) { return delay_problem(text); });
         sub.add_option("--cutoff", options.cutoff_hz, "Butterworth cut-off [Hz] (default: min(100 Hz, fs / 10))")
             ->check(allowed_range(1e-3, 1e6, "Hz"));
         OnlineOptions rotary_options;
@@ -83,6 +90,10 @@ struct ScanCommand {
     int run() const {
         OnlineOptions o = options;
         o.robust = !no_robust;
+        o.estimate_delay = delay == "auto";
+        if (delay != "auto" && delay != "none") o.drive_delay_s = parse_delay(delay);
+        if (const auto problem = o.validate(); !problem.empty() && o.drive_delay_s != 0.0)
+            throw InputError(fmt::format("--delay {}: {}", delay, problem));
         if (const auto problem = o.validate(); !problem.empty()) throw InputError(problem);
         std::vector<GateCondition> gates;
         for (const auto& text : only_when) gates.push_back(parse_gate_condition(text));
@@ -145,6 +156,7 @@ struct ScanCommand {
                 {"select_offset", o.select_offset},
                 {"cutoff_hz", o.cutoff_hz ? nlohmann::json(*o.cutoff_hz) : nlohmann::json()},
                 {"split_velocity", o.split()},
+                {"delay", delay == "auto" || delay == "none" ? nlohmann::json(delay) : nlohmann::json(o.drive_delay_s)},
                 {"systematic", !no_systematic},
                 {"only_when", only_when},
                 {"channels", trace_arguments.channel_assignments},
@@ -169,7 +181,7 @@ struct ScanCommand {
         const IdentifyResult& r = s.result;
         fmt::print("{} ({} samples, {:.6g} s): production scan\n", terminal_text(r.trace.path), r.trace.samples,
                    r.trace.duration_s);
-        fmt::print("windows: {}\n\n", counts_text(s.online.windows));
+        fmt::print("windows: {}\n{}\n", counts_text(s.online.windows), timing_line(r));
         // the standard error (statistical) and the combined uncertainty (with the split speed's systematic part)
         fmt::print("{}", parameter_table_text(r));
         fmt::print("\n");

@@ -83,6 +83,14 @@ bool read_config(const std::string& path, watch::ServiceOptions& options) {
         if (const auto v = t->number("cutoff_hz", {1e-3, 1e6, "Hz"})) online.cutoff_hz = *v;
         if (const auto v = t->boolean("offset")) online.offset = *v;
         if (const auto v = t->boolean("robust")) online.robust = *v;
+        if (const auto v = t->text("delay")) {
+            // auto: estimated, its uncertainty in every parameter, and a significant one corrected to first order (a
+            // stream is not run twice); none: the drive signal as logged; a time: applied to every window
+            if (const auto problem = delay_problem(*v); !problem.empty()) t->refuse("delay", problem);
+            online.estimate_delay = *v == "auto";
+            online.drive_delay_s = *v == "auto" || *v == "none" ? 0.0 : parse_delay(*v);
+            if (const auto problem = online.validate(); !problem.empty()) t->refuse("delay", problem);
+        }
         t->reject_unknown();
     }
     if (auto t = root.section("force_constants")) {

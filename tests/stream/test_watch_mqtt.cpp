@@ -498,6 +498,16 @@ TEST(WatchMqtt, BadConfigurationIsExit2WithOneLineNamingIt) {
         run_cli(fmt::format("watch --broker mqtt://127.0.0.1:{} --config '{}'", nobody, (dir / "watch.toml").string()));
     EXPECT_EQ(config.exit_code, 2);
     EXPECT_NE(config.err.find("watch.toml: unknown key 'run.windowz'"), std::string::npos) << config.err;
+    for (const auto& [delay, why] : {std::pair{"\"soon\"", "not auto, none or a time"},
+                                     std::pair{"\"9ms\"", "within +-5 ms"}}) {
+        write_text(dir / "watch.toml", fmt::format("[online]\ndelay = {}\n", delay));
+        const auto timing = run_cli(
+            fmt::format("watch --broker mqtt://127.0.0.1:{} --config '{}'", nobody, (dir / "watch.toml").string()));
+        EXPECT_EQ(timing.exit_code, 2) << delay;
+        EXPECT_NE(timing.err.find("online.delay"), std::string::npos) << timing.err;
+        EXPECT_NE(timing.err.find(why), std::string::npos) << timing.err;
+        EXPECT_EQ(count_lines(timing.err), 1) << timing.err;
+    }
     const auto url = run_cli("watch --broker http://127.0.0.1:1883");
     EXPECT_EQ(url.exit_code, 2);
     EXPECT_NE(url.err.find("--broker 'http://127.0.0.1:1883'"), std::string::npos) << url.err;
