@@ -209,13 +209,13 @@ ScanResult select_and_scan(const OnlineOptions& options, Pass&& pass) {
     return third;
 }
 
-// Widens every parameter's standard error for a delay known only to `standard_error` [s] rather than the pass's own
-// (whose covariance took that one in: OnlineEstimate::delay_sensitivity).
-void widen_for_timing(ScanResult& s, double standard_error) {
+// Widens every parameter's standard error for a delay known only to `standard_error` [s], of which the pass's
+// covariance took in `included` already (a pass with a delay applied: its own delay's; as logged: none), by the
+// parameters' sensitivities to it (OnlineEstimate::delay_sensitivity).
+void widen_for_timing(ScanResult& s, double standard_error, double included) {
     OnlineEstimate& e = s.online;
-    const double own = e.delay_standard_error_s.value_or(0.0);
-    if (!(standard_error > own) || e.delay_sensitivity.size() == 0) return;
-    const double extra = standard_error * standard_error - own * own;
+    if (!(standard_error > included) || e.delay_sensitivity.size() == 0) return;
+    const double extra = standard_error * standard_error - included * included;
     Eigen::Index column = 0;
     for (auto& p : s.result.parameters) {
         if (p.term == Term::breakaway || p.term == Term::stribeck_velocity) continue;
@@ -368,18 +368,30 @@ ScanResult time_and_scan(const OnlineOptions& options, Pass&& pass) {
                                                          std::abs(total_delay(e)) <= options.max_delay_s);
     if (!options.estimate_delay || !worth_a_search) return first;
     Refined refined = refine_timing(options, coarse_start(options, first, pass), pass);
-    // the timing found is taken, significant or not: the search starts where the as-logged pool shows a delay of two
-    // standard errors, and a delay applied is known to its standard error, which every parameter then takes in (on
-    // the pocket's Z axis, 6 windows, the current 0.5 ms late: the as-logged B 10.6 % high at 4.3 standard errors; at
-    // the delay found, 0.40 +- 0.16 ms, 5 % high at 1.3; on axes logged on time it finds -0.14 +- 0.055 ms on
-    // drilling's Y in 2 seeds of 10, B within 1 of its standard error)
-    const bool found = refined.result.online.mass.determined();
+    // a timing found is taken where it is significant in its own pass; one that is not (the search starts at two
+    // standard errors) leaves the force as logged, every parameter's standard error widened by the delay's (on axes
+    // logged on time it finds -0.14 +- 0.055 ms on drilling's Y in 2 seeds of 10: applied, it moved B by 4 of its
+    // standard errors, and B's scatter over the seeds rose to twice its standard error; on the pocket's Z, 6 windows,
+    // the current 0.5 ms late, it finds 0.40 +- 0.16 ms, and B as logged, 10.6 % high, is within 3.2 of its widened
+    // standard error)
+    const OnlineEstimate& found_e = refined.result.online;
+    const bool found = found_e.mass.determined();
+    if (found && refined.converged && !e.delay_corrected && found_e.delay_standard_error_s &&
+        !(std::abs(total_delay(found_e)) > found_e.delay_threshold * *found_e.delay_standard_error_s)) {
+        if (first.online.delay_sensitivity.size() == 0) first.online.delay_sensitivity = found_e.delay_sensitivity;
+        first.online.delay_residual_s = total_delay(found_e);
+        first.online.delay_statistic = std::abs(total_delay(found_e)) / *found_e.delay_standard_error_s;
+        first.online.delay_verdict = "searched, not significant: the force taken as logged, the delay's standard error "
+                                     "in every parameter's";
+        widen_for_timing(first, *found_e.delay_standard_error_s, 0.0);
+        return first;
+    }
     if (refined.converged && found) return std::move(refined.result);
     // the delays the passes gave stay within a fraction of a sample of each other (the pool moving by a window or
     // two with each): the last pass, its delay known to half their range
     if (found && refined.highest - refined.lowest <= settled_range_samples * first.result.trace.sample_time_s) {
-        widen_for_timing(refined.result, std::hypot(refined.result.online.delay_standard_error_s.value_or(0.0),
-                                                    0.5 * (refined.highest - refined.lowest)));
+        const double own = refined.result.online.delay_standard_error_s.value_or(0.0);
+        widen_for_timing(refined.result, std::hypot(own, 0.5 * (refined.highest - refined.lowest)), own);
         return std::move(refined.result);
     }
     // the search found no timing whose windows give a value (fewer qualify at the delays tried): the first pass
