@@ -319,3 +319,27 @@ TEST(Gains, AFeedForwardThatShowsIsFittedAndNamed) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(Gains, TheRealSinumerikTraceIsFittedAtItsDriveRateAndFailsTheGateHonestly) {
+    // A real SINUMERIK servo trace (2 ms, the drive at 8 kHz by its setup's driveSampleRate1): 60 micro-steps of
+    // 1 um, whose drive current is stiction and noise rather than the velocity loop's answer. Its gains are not known
+    // (no parameter list comes with it), so what is checked is that the velocity loop is fitted at the drive's rate
+    // the trace states and that the fit, which explains almost none of the current, fails the gate (exit 1) instead
+    // of printing gains with exit 0.
+    FEEDID_REQUIRE_SHARED("sinumerik-trace/X_BK300_1.xml");
+    const auto result = run_cli("gains '" + (shared_data() / "sinumerik-trace/X_BK300_1.xml").string() +
+                                "' --force-constant -1 --json -");
+    ASSERT_EQ(result.exit_code, 1) << result.err;
+    const auto document = nlohmann::json::parse(result.out);
+    EXPECT_EQ(document["status"], "failed");
+    EXPECT_EQ(document["structure"]["fit"], "output_error");
+    EXPECT_EQ(document["structure"]["servo_rate_from"], "trace");
+    EXPECT_NEAR(document["structure"]["servo_rate_hz"].get<double>(), 8000.0, 1e-6 * 8000.0);
+    EXPECT_GT(document["fit"]["systematic_error_pct"].get<double>(), feedid::gain_fit_error_limit_pct);
+    const std::string first = document["diagnostics"][0].get<std::string>();
+    EXPECT_NE(first.find("the controller fit is poor"), std::string::npos) << first;
+}
+
+}  // namespace
