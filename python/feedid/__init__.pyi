@@ -258,6 +258,7 @@ class Gains:
     reference_delay_samples: int
     drive_delay_samples: int
     current_lag_s: float
+    setpoint_delay_s: Estimate
     relative_error_pct: float
     systematic_error_pct: float
     samples_used: int

@@ -556,6 +556,7 @@ Example::
                               [](const PyGains& g) { return g.result.reference_delay_samples; });
     cls.def_property_readonly("drive_delay_samples", [](const PyGains& g) { return g.result.drive_delay_samples; });
     cls.def_property_readonly("current_lag_s", [](const PyGains& g) { return g.result.current_lag_s; });
+    cls.def_property_readonly("setpoint_delay_s", [](const PyGains& g) { return g.result.setpoint_delay_s; });
     cls.def_property_readonly("relative_error_pct", [](const PyGains& g) { return g.result.relative_error_pct; });
     cls.def_property_readonly("systematic_error_pct", [](const PyGains& g) { return g.result.systematic_error_pct; });
     cls.def_property_readonly("samples_used", [](const PyGains& g) { return g.result.samples_used; });

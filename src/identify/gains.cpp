@@ -95,9 +95,14 @@ struct Problem {
     const std::vector<char>* use{nullptr};
 };
 
-// Residual sum of squares of the least-squares fit on the selected rows (normal equations on normalised columns:
-// fast enough for the structure search; the final estimate uses QR and RLS).
-double residual_sum_of_squares(const Problem& problem) {
+struct NormalSolution {
+    Eigen::VectorXd theta;  // unscaled
+    double rss{0.0};
+};
+
+// The least-squares fit on the selected rows (normal equations on normalised columns: fast enough for the structure
+// search; the final estimate uses QR and RLS): its coefficients and residual sum of squares.
+NormalSolution normal_solution(const Problem& problem) {
     const auto p = static_cast<Eigen::Index>(problem.columns.size());
     const auto& y = problem.y;
     const auto& use = *problem.use;
@@ -131,8 +136,10 @@ double residual_sum_of_squares(const Problem& problem) {
             fitted += problem.columns[static_cast<std::size_t>(j)][k] * scale(j) * theta(j);
         rss += (y[k] - fitted) * (y[k] - fitted);
     }
-    return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
+    return {theta.cwiseProduct(scale), std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity()};
 }
+
+double residual_sum_of_squares(const Problem& problem) { return normal_solution(problem).rss; }
 
 struct Fit {
     Eigen::VectorXd estimate;    // RLS, unscaled
@@ -218,7 +225,8 @@ Fit fit(const Problem& problem, const RlsOptions& options) {
         case 3: rls = run_rls<3>(phi, scaled_target, options); break;
         case 4: rls = run_rls<4>(phi, scaled_target, options); break;
         case 5: rls = run_rls<5>(phi, scaled_target, options); break;
-        default: rls = run_rls<6>(phi, scaled_target, options); break;  // PI structure and an injection's gain
+        case 6: rls = run_rls<6>(phi, scaled_target, options); break;  // PI structure and an injection's gain
+        default: rls = run_rls<7>(phi, scaled_target, options); break;  // ... and a feed-forward's step
     }
     const Eigen::VectorXd unscale = scale.cwiseInverse() * y_scale;
     result.estimate = rls.cwiseProduct(unscale);
@@ -585,21 +593,28 @@ bool feedforward_shows(const PositionLoopFit& with, const PositionLoopFit& witho
 // sum_m w_m*sqrt(se_m^2 + (K_v,m - K_v)^2) (Burnham and Anderson, Model Selection and Multimodel Inference, 2002,
 // eq. 4.9, centred on the chosen K_v): as wide as its own where the other model has no weight, and taking in the
 // other's K_v where the data cannot tell the two apart.
-void add_model_choice(const PositionLoopFit& plain, const PositionLoopFit& with, GainResult& result) {
-    const double rows = static_cast<double>(with.fit.samples);
-    const double smallest = std::max({std::min(plain.fit.relative_error_pct, with.fit.relative_error_pct), 1e-300});
-    const auto delta_aic = [&](const PositionLoopFit& f, int parameters) {
-        return rows * 2.0 * std::log(std::max(f.fit.relative_error_pct, smallest) / smallest) + 2.0 * parameters;
+// One of the position loop's models: its K_v, the relative error of its fit and its number of parameters.
+struct ModelCandidate {
+    Estimate position_gain_per_s;
+    double relative_error_pct{0.0};
+    int parameters{0};
+};
+
+void add_model_choice(const ModelCandidate& plain, const ModelCandidate& with, std::size_t samples,
+                      GainResult& result) {
+    const auto rows = static_cast<double>(samples);
+    const double smallest = std::max({std::min(plain.relative_error_pct, with.relative_error_pct), 1e-300});
+    const auto delta_aic = [&](const ModelCandidate& f) {
+        return rows * 2.0 * std::log(std::max(f.relative_error_pct, smallest) / smallest) + 2.0 * f.parameters;
     };
-    const double plain_aic = delta_aic(plain, 1), with_aic = delta_aic(with, 2);
+    const double plain_aic = delta_aic(plain), with_aic = delta_aic(with);
     const double low = std::min(plain_aic, with_aic);
     const double plain_w = std::exp(-0.5 * (plain_aic - low)), with_w = std::exp(-0.5 * (with_aic - low));
     const double kv = result.position_gain_per_s.value.value_or(0.0);
     double band = 0.0;
     for (const auto& [name, f, weight] : {std::tuple{"P", &plain, plain_w / (plain_w + with_w)},
                                           std::tuple{"P+FF", &with, with_w / (plain_w + with_w)}}) {
-        PositionLoopModel model{name, estimate_from_variance(f->fit.estimate(0), f->fit.covariance(0, 0)),
-                                f->fit.relative_error_pct, weight};
+        PositionLoopModel model{name, f->position_gain_per_s, f->relative_error_pct, weight};
         const double se = model.position_gain_per_s.standard_error.value_or(0.0);
         const double apart = model.position_gain_per_s.value.value_or(kv) - kv;
         band += weight * std::sqrt(se * se + apart * apart);
@@ -640,7 +655,13 @@ void identify_position_loop(const GainSignals& signals, const GainOptions& optio
             result.effective_position_gain_per_s =
                 estimate_from_variance(plain.fit.estimate(0), plain.fit.covariance(0, 0));
     }
-    if (!plain.fit.rank_deficient && !with.fit.rank_deficient) add_model_choice(plain, with, result);
+    if (!plain.fit.rank_deficient && !with.fit.rank_deficient) {
+        add_model_choice({estimate_from_variance(plain.fit.estimate(0), plain.fit.covariance(0, 0)),
+                          plain.fit.relative_error_pct, 1},
+                         {estimate_from_variance(with.fit.estimate(0), with.fit.covariance(0, 0)),
+                          with.fit.relative_error_pct, 2},
+                         with.fit.samples, result);
+    }
 }
 
 // The velocity the controller measures: (x_k - x_{k-n})/(n*T), or the logged velocity for n = 0.
@@ -790,6 +811,7 @@ Column servo_velocity_command(const GainSignals& signals, const ServoGrid& grid,
 struct ServoRow {
     double error{0.0};  // e_v with a logged command, else e
     double minus_v{0.0};
+    double reference_velocity{0.0};  // from the structure alone: the delayed setpoint's, over the servo cycle before
 };
 
 // The velocity loop's regression on its rows: one problem per structure, every column through the drive filter L.
@@ -801,6 +823,11 @@ struct VelocityLoopRegression {
     const ServoGrid* grid{nullptr};  // the servo grid, when the velocity loop runs faster than the log
     Column servo_command{};          // v_cmd on it (logged command only)
     bool injection_gain_known{false};  // the injection enters with gain 1 (else its gain is fitted)
+    // From the structure alone on the servo grid, a velocity command K_v*e + k_ff*x_ref': whether the bank keeps
+    // L[x_ref'] and L[sum(T_s*x_ref')] (problem_at_feedforward()), and whether each structure's problem is taken at
+    // the k_ff that fits it best.
+    bool feedforward_columns{false};
+    bool feedforward_profiled{false};  // k_ff the best for each structure (profiled_feedforward())
 
     [[nodiscard]] Problem problem(const Structure& s, bool integral) const {
         if (grid != nullptr) return servo_rate_problem(s, integral);
@@ -823,20 +850,15 @@ struct VelocityLoopRegression {
 
     // The same on the servo grid (ServoGrid): the columns and the injection (held over its logged sample) through
     // the current loop at T_s, taken at the logged instants; in one pass, the servo grid's columns never stored.
-    [[nodiscard]] Problem servo_rate_problem(const Structure& s, bool integral) const {
-        const ServoFilterBank bank = servo_columns(s, integral);
-        Problem problem;
-        problem.columns = bank.columns;
-        problem.y = signals.force;
-        if (!signals.injection.empty()) add_injection(problem, bank.injection);
-        problem.use = &use;
-        problem.row_step = static_cast<std::size_t>(signals.hold_factor);
-        return problem;
-    }
+    [[nodiscard]] Problem servo_rate_problem(const Structure& s, bool integral) const;
+
+    struct ServoFilterBank;
+    [[nodiscard]] Problem bank_problem(const ServoFilterBank& bank) const;
 
     struct ServoFilterBank {
         std::vector<Column> columns;  // at the logged instants
         Column injection;             // L[u_inj] at the logged instants (zeros without one)
+        std::vector<Column> feedforward;  // L[x_ref'], L[sum(T_s*x_ref')] (feedforward_columns only)
     };
 
     [[nodiscard]] ServoFilterBank servo_columns(const Structure& s, bool integral) const;
@@ -853,6 +875,16 @@ struct VelocityLoopRegression {
     }
 };
 
+Problem VelocityLoopRegression::bank_problem(const ServoFilterBank& bank) const {
+    Problem problem;
+    problem.columns = bank.columns;
+    problem.y = signals.force;
+    if (!signals.injection.empty()) add_injection(problem, bank.injection);
+    problem.use = &use;
+    problem.row_step = static_cast<std::size_t>(signals.hold_factor);
+    return problem;
+}
+
 ServoRow servo_row(const VelocityLoopRegression& r, const Column& logged_error, std::size_t j, int difference,
                    int reference_delay, int delay_cycles) {
     const ServoGrid& g = *r.grid;
@@ -866,6 +898,7 @@ ServoRow servo_row(const VelocityLoopRegression& r, const Column& logged_error, 
     } else {
         const auto shift = static_cast<std::size_t>(delay_cycles >= 0 ? delay_cycles : reference_delay * g.factor);
         row.error = g.reference[j >= shift ? j - shift : 0] - g.position[j];
+        if (j > shift) row.reference_velocity = (g.reference[j - shift] - g.reference[j - shift - 1]) / g.cycle_s;
     }
     row.minus_v = -v;
     return row;
@@ -883,20 +916,22 @@ VelocityLoopRegression::ServoFilterBank VelocityLoopRegression::servo_columns(co
     ServoFilterBank bank;
     bank.columns.assign(p, Column(signals.samples));
     bank.injection.assign(signals.samples, 0.0);
+    if (feedforward_columns) bank.feedforward.assign(2, Column(signals.samples));
     const double a = lag_coefficient(s.lag_s, g.cycle_s);
-    // per column (and the injection last): its running sums, the filter's last input and output
-    std::array<double, 6> in{}, last_in{}, last_out{};
-    double error_sum = 0.0, minus_v_sum = 0.0;
+    // per column (the injection sixth, then L[x_ref'] and its sum): its running sums, the filter's last in- and output
+    std::array<double, 8> in{}, last_in{}, last_out{};
+    double error_sum = 0.0, minus_v_sum = 0.0, reference_sum = 0.0;
     for (std::size_t j = 0; j < fine; ++j) {
         const ServoRow row = servo_row(*this, logged_error, j, std::max(1, s.difference), s.reference_delay,
                                         s.servo_delay_cycles);
         error_sum += row.error * g.cycle_s;
         minus_v_sum += row.minus_v * g.cycle_s;
+        reference_sum += row.reference_velocity * g.cycle_s;
         if (structure) {
-            in = {row.error, row.minus_v, error_sum, minus_v_sum, 1.0, 0.0};
-            if (!integral) in[2] = in[3] = in[4] = 0.0;
+            in = {row.error, row.minus_v, error_sum, minus_v_sum, 1.0, 0.0, row.reference_velocity, reference_sum};
+            if (!integral) in[2] = in[3] = in[4] = in[7] = 0.0;
         } else {
-            in = {row.error, error_sum, 1.0, 0.0, 0.0, 0.0};
+            in = {row.error, error_sum, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0};
         }
         in[5] = signals.injection.empty() ? 0.0 : signals.injection[j / m];
         for (std::size_t c = 0; c < in.size(); ++c) {
@@ -908,8 +943,85 @@ VelocityLoopRegression::ServoFilterBank VelocityLoopRegression::servo_columns(co
         if (j % m != 0) continue;
         for (std::size_t c = 0; c < p; ++c) bank.columns[c][j / m] = last_out[c];
         bank.injection[j / m] = last_out[5];
+        if (feedforward_columns) {
+            bank.feedforward[0][j / m] = last_out[6];
+            bank.feedforward[1][j / m] = last_out[7];
+        }
     }
     return bank;
+}
+
+// From the structure alone with a velocity feed-forward k_ff the drive signal is
+// F = L[K_p*(K_v*e + k_ff*x_ref' - v) + K_i*sum(T_s*(K_v*e + k_ff*x_ref' - v)) + c], linear in
+// th = (K_p*K_v, K_p, K_i*K_v, K_i, c) for a given k_ff; L being linear, its columns at k_ff are those at 0 plus k_ff
+// times L[x_ref'] (the second) and L[sum(T_s*x_ref')] (the fourth): one pass over the servo grid serves every k_ff.
+Problem problem_at_feedforward(const VelocityLoopRegression& regression,
+                               const VelocityLoopRegression::ServoFilterBank& bank, bool integral, double k) {
+    Problem problem = regression.bank_problem(bank);
+    for (std::size_t i = 0; i < problem.y.size(); ++i) {
+        problem.columns[1][i] += k * bank.feedforward[0][i];
+        if (integral) problem.columns[3][i] += k * bank.feedforward[1][i];
+    }
+    return problem;
+}
+
+// The same with, after the structure's columns, F's derivative in k_ff, th2*L[x_ref'] + th4*L[sum(T_s*x_ref')] with
+// th fitted at k_ff: its coefficient is the Gauss-Newton step in k_ff, and the fit with it gives the covariance of
+// (th, k_ff) linearised there (variable projection).
+Problem feedforward_problem(const VelocityLoopRegression& regression,
+                            const VelocityLoopRegression::ServoFilterBank& bank, bool integral, double k) {
+    Problem problem = problem_at_feedforward(regression, bank, integral, k);
+    const NormalSolution at = normal_solution(problem);
+    const double th2 = at.theta(1), th4 = integral ? at.theta(3) : 0.0;
+    Column derivative(problem.y.size());
+    for (std::size_t i = 0; i < derivative.size(); ++i)
+        derivative[i] = th2 * bank.feedforward[0][i] + th4 * bank.feedforward[1][i];
+    problem.columns.insert(problem.columns.begin() + (integral ? 5 : 2), std::move(derivative));
+    return problem;
+}
+
+// A starting k_ff: with x_ref' over one servo cycle, sum(T_s*x_ref') = e + sum(T_s*v) + const, so
+// F = L[(K_p*K_v + K_i*k_ff)*e + K_p*(-v) + K_p*k_ff*x_ref' + K_i*K_v*sum(T_s*e) + K_i*(1 - k_ff)*(-sum(T_s*v)) + c]
+// is linear in its coefficients (exactly for a velocity over one cycle, nearly over n): k_ff is that of L[x_ref']
+// over that of -L[v].
+double starting_feedforward(const VelocityLoopRegression& regression,
+                            const VelocityLoopRegression::ServoFilterBank& bank, bool integral) {
+    Problem problem = regression.bank_problem(bank);
+    const auto at = static_cast<Eigen::Index>(integral ? 5 : 2);
+    problem.columns.insert(problem.columns.begin() + at, bank.feedforward[0]);
+    const Eigen::VectorXd theta = normal_solution(problem).theta;
+    const double k = theta(at) / theta(1);
+    return std::isfinite(k) ? k : 0.0;
+}
+
+// The k_ff that leaves the least unexplained for the structure of `bank`: Gauss-Newton steps from
+// starting_feedforward() (F is bilinear in th and k_ff), a step halved while it leaves more.
+double profiled_feedforward(const VelocityLoopRegression& regression,
+                            const VelocityLoopRegression::ServoFilterBank& bank, bool integral) {
+    const auto at = static_cast<Eigen::Index>(integral ? 5 : 2);
+    double k = starting_feedforward(regression, bank, integral);
+    double now = normal_solution(problem_at_feedforward(regression, bank, integral, k)).rss;
+    for (int step = 0; step < 30; ++step) {
+        double delta = normal_solution(feedforward_problem(regression, bank, integral, k)).theta(at);
+        if (!std::isfinite(delta)) break;
+        double next = std::numeric_limits<double>::infinity();
+        for (int halving = 0; halving < 20; ++halving) {
+            next = normal_solution(problem_at_feedforward(regression, bank, integral, k + delta)).rss;
+            if (next <= now) break;
+            delta *= 0.5;
+        }
+        if (!(next <= now)) break;
+        k += delta;
+        now = next;
+        if (!(std::abs(delta) > 1e-10 * std::max(1.0, std::abs(k)))) break;
+    }
+    return k;
+}
+
+Problem VelocityLoopRegression::servo_rate_problem(const Structure& s, bool integral) const {
+    if (!feedforward_profiled) return bank_problem(servo_columns(s, integral));
+    const ServoFilterBank bank = servo_columns(s, integral);
+    return problem_at_feedforward(*this, bank, integral, profiled_feedforward(*this, bank, integral));
 }
 
 // The structure of the smallest residual so far.
@@ -1010,6 +1122,11 @@ struct SampleFraction {
 
 struct VelocityLoopFit {
     std::optional<SampleFraction> setpoint_fraction;  // with a logged command and a feed-forward, on a servo grid
+    // From the structure alone on a servo grid: k_ff (theta then holds its Gauss-Newton step after the structure's
+    // columns), the position loop's models P and P+FF, and the P-only K_v where the loop is fitted with k_ff.
+    Estimate feedforward;
+    std::vector<ModelCandidate> models;
+    std::optional<Estimate> effective_position_gain;
     Structure structure;
     Fit fit;
     bool integral{false};
@@ -1117,6 +1234,14 @@ void set_velocity_loop_gains(const VelocityLoopFit& loop, bool logged_command, G
             theta(kp) / theta(ki),
             ratio_variance(theta(kp), theta(ki), covariance(kp, kp), covariance(ki, ki), covariance(kp, ki)));
     }
+}
+
+// From the structure alone on a servo grid: k_ff, the P-only K_v as the effective gain where k_ff is fitted, and K_v's
+// standard error over the models P and P+FF (add_model_choice()).
+void apply_structure_feedforward(const VelocityLoopFit& loop, GainResult& result) {
+    if (loop.feedforward.value) result.velocity_feedforward = loop.feedforward;
+    if (loop.effective_position_gain) result.effective_position_gain_per_s = *loop.effective_position_gain;
+    if (loop.models.size() == 2) add_model_choice(loop.models[0], loop.models[1], loop.fit.samples, result);
 }
 
 // The structure found and the velocity loop's fit figures, with a note on a logged velocity used and one on gains of
@@ -1269,6 +1394,96 @@ void gate_signs(const GainOptions& options, bool rotary, GainResult& result) {
     result.diagnostics.insert(result.diagnostics.begin(), std::move(why));
 }
 
+// K_v = th1/th2 of a structure fit, with its variance by the delta method.
+Estimate structure_position_gain(const Fit& fit) {
+    const auto& theta = fit.estimate;
+    const auto& covariance = fit.covariance;
+    return estimate_from_variance(
+        theta(0) / theta(1), ratio_variance(theta(0), theta(1), covariance(0, 0), covariance(1, 1), covariance(0, 1)));
+}
+
+// The structure with k_ff profiled (feedforward_profiled): as search_structure(), but the current-loop lag searched
+// for every velocity measurement, not only the one that fits best without a lag: with k_ff free, a velocity over
+// more cycles stands in for the lag, and the staged search stays there.
+Structure search_feedforward_structure(const VelocityLoopRegression& regression, const SearchSpace& space,
+                                       const GainOptions& options, bool integral) {
+    StructureSearch search(regression, integral);
+    search_grid(search, space, options);
+    const int delay = search.best().reference_delay;
+    for (int difference : space.differences) {
+        for (double lag : space.lags) {
+            for (double mu : mu_grid) search.consider({difference, delay, lag, mu});
+        }
+    }
+    refine_lag_and_delay(search, options, regression.signals.dt);
+    search_servo_delay(search, regression);
+    refine_lag_and_delay(search, options, regression.signals.dt);
+    search_servo_delay(search, regression);
+    refine_lag_and_delay(search, options, regression.signals.dt);
+    return search.best();
+}
+
+// The velocity loop from the structure alone on the servo grid with a velocity feed-forward: the structure searched
+// with k_ff profiled out (the setpoint delay in servo cycles with it: with k_ff held, a delay would be traded for k_ff,
+// K_v*e(d + f) + k_ff*x_ref' being nearly K_v*e(d) + (k_ff - K_v*f*T_s)*x_ref'), then k_ff, its standard error and
+// K_v's from the fit with the derivative column (feedforward_problem()). None where the fit cannot tell k_ff.
+std::optional<VelocityLoopFit> fit_structure_feedforward(VelocityLoopRegression regression, const SearchSpace& space,
+                                                         const GainOptions& options, const VelocityLoopFit& plain) {
+    regression.feedforward_columns = true;
+    regression.feedforward_profiled = true;
+    VelocityLoopFit loop;
+    loop.integral = plain.integral;
+    loop.structure = search_feedforward_structure(regression, space, options, loop.integral);
+    const auto bank = regression.servo_columns(loop.structure, loop.integral);
+    const double k = profiled_feedforward(regression, bank, loop.integral);
+    if (!std::isfinite(k)) return std::nullopt;
+    loop.fit = fit(feedforward_problem(regression, bank, loop.integral, k), options.rls);
+    if (loop.fit.rank_deficient) return std::nullopt;
+    const Eigen::Index i = loop.integral ? 5 : 2;
+    loop.feedforward = estimate_from_variance(k, loop.fit.covariance(i, i));
+    loop.injection_gain = plain.injection_gain;
+    fit_setpoint_delay(regression, loop);  // k_ff profiled: the profile likelihood's curvature
+    return loop;
+}
+
+// A feed-forward shows from the structure alone as from a logged command (feedforward_shows()): fitting it halves
+// the part of the drive signal left unexplained beyond its noise (the structure's fit error; its white noise stays
+// whatever the model) and k_ff lies beyond three standard errors from 0.
+bool structure_feedforward_shows(const VelocityLoopFit& with, const VelocityLoopFit& plain) {
+    const double kff = with.feedforward.value.value_or(0.0);
+    const double se = with.feedforward.standard_error.value_or(std::numeric_limits<double>::infinity());
+    return std::isfinite(kff) && std::abs(kff) > 3.0 * se &&
+           with.fit.systematic_error_pct < 0.5 * plain.fit.systematic_error_pct;
+}
+
+// From the structure alone on the servo grid: the loop fitted with k_ff where --feedforward asks or it shows, with
+// the P and P+FF models for K_v's uncertainty (add_model_choice()), else the plain one with both models.
+VelocityLoopFit choose_structure_feedforward(const VelocityLoopRegression& regression, const SearchSpace& space,
+                                             const GainOptions& options, VelocityLoopFit plain,
+                                             std::vector<std::string>& diagnostics) {
+    auto with = fit_structure_feedforward(regression, space, options, plain);
+    if (!with) return plain;
+    const ModelCandidate plain_model{structure_position_gain(plain.fit), plain.fit.relative_error_pct,
+                                     static_cast<int>(plain.fit.batch.size())};
+    const ModelCandidate with_model{structure_position_gain(with->fit), with->fit.relative_error_pct,
+                                    static_cast<int>(with->fit.batch.size())};
+    if (!options.feedforward && !structure_feedforward_shows(*with, plain)) {
+        plain.models = {plain_model, with_model};
+        return plain;
+    }
+    if (!options.feedforward) {
+        diagnostics.push_back(fmt::format(
+            "a velocity feed-forward shows in the structure (k_ff = {:.4g}; the part of the drive signal left "
+            "unexplained beyond its noise falls from {:.3g} % to {:.3g} % with it): fitted with it, as --feedforward "
+            "would; K_v fitted without it would be {:.4g} 1/s, an effective gain of the loop with its feed-forward",
+            with->feedforward.value.value_or(0.0), plain.fit.systematic_error_pct, with->fit.systematic_error_pct,
+            plain_model.position_gain_per_s.value.value_or(0.0)));
+    }
+    with->models = {plain_model, with_model};
+    with->effective_position_gain = plain_model.position_gain_per_s;
+    return std::move(*with);
+}
+
 }  // namespace
 
 // With a feed-forward, the position loop on the logged samples cannot tell a setpoint delay within a sample from
@@ -1373,6 +1588,20 @@ VelocityLoopFit fit_at_servo_factor(const GainSignals& signals, const std::vecto
     return loop;
 }
 
+// From the structure alone at `factor` servo cycles per logged sample: the plain loop, or the loop with a velocity
+// feed-forward where one is asked or shows (choose_structure_feedforward()).
+VelocityLoopFit structure_feedforward_at(const GainSignals& signals, const std::vector<char>& use, int factor,
+                                         const GainOptions& options, VelocityLoopFit plain,
+                                         std::vector<std::string>& diagnostics) {
+    SearchSpace space = search_space(signals, options);
+    std::erase(space.differences, 0);  // a logged velocity is no measurement between the samples
+    if (space.differences.empty()) space.differences = {1, 2, 3, 4};
+    const ServoGrid grid = servo_grid(signals, factor);
+    VelocityLoopRegression regression{signals, use, &grid};
+    regression.injection_gain_known = !plain.injection_gain;
+    return choose_structure_feedforward(regression, space, options, std::move(plain), diagnostics);
+}
+
 // Servo cycles per logged sample of a rate [Hz]; InputError unless a whole multiple (1 to 64) of the sample rate.
 int servo_factor_of(double rate_hz, double dt, const std::string& what) {
     const double per_sample = rate_hz * dt;
@@ -1425,6 +1654,10 @@ VelocityLoopFit fit_velocity_loop_at_its_rate(const Trace& trace, const GainSign
             }
         }
     }
+    // the feed-forward from the structure alone where the velocity loop runs between the logged samples: at the log
+    // rate (EMPS) and on a held position the structure fit stays P-only
+    if (factor > 1 && !signals.logged_command && signals.hold_factor < 2)
+        best = structure_feedforward_at(signals, use, factor, options, std::move(best), notes);
     for (auto& note : notes) result.diagnostics.push_back(std::move(note));
     result.servo_rate_hz = static_cast<double>(factor) / signals.dt;
     if (best.setpoint_fraction && factor > 1)
@@ -1531,16 +1764,15 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
         result.controller = identified_controller(result, options, signals.dt, signals.hold_factor);
         return result;
     }
-    if (signals.logged_command) {
-        identify_position_loop(signals, options, result);
-    } else if (options.feedforward) {
+    if (signals.logged_command) identify_position_loop(signals, options, result);
+    const VelocityLoopFit velocity_loop = fit_velocity_loop_at_its_rate(trace, signals, use, options, result);
+    if (!signals.logged_command && options.feedforward && !velocity_loop.feedforward.value) {
         result.diagnostics.push_back(
             "--feedforward: a velocity feed-forward is fitted only from a logged velocity command (the position loop "
-            "on its own), which this trace lacks; from the structure alone K_v is that of a P position loop, for a "
-            "loop with a feed-forward an effective gain, not its K_v (map the command with --channel "
-            "velocity_command=NAME)");
+            "on its own) or from the structure with the velocity loop faster than the log, which this trace lacks; "
+            "from the structure alone K_v is that of a P position loop, for a loop with a feed-forward an effective "
+            "gain, not its K_v (map the command with --channel velocity_command=NAME, or give --servo-rate)");
     }
-    const VelocityLoopFit velocity_loop = fit_velocity_loop_at_its_rate(trace, signals, use, options, result);
     if (signals.hold_factor > 1) {
         result.diagnostics.insert(
             result.diagnostics.end() - (result.fit_kind == "output_error" ? 1 : 0),
@@ -1550,6 +1782,7 @@ GainResult identify_gains(const Trace& trace, std::span<const double> drive_forc
                         result.fit_kind == "output_error" ? "" : " (the drive signal's interval)"));
     }
     set_velocity_loop_gains(velocity_loop, signals.logged_command, result);
+    apply_structure_feedforward(velocity_loop, result);
     set_structure_and_fit(velocity_loop, signals.dt, result);
     result.injection_subtracted = !signals.injection.empty();
     if (velocity_loop.injection_gain) {

@@ -167,6 +167,21 @@ def test_gains_and_simulate_equal_the_cli(emps, folder):
     assert frame.index.name == "time"
 
 
+def test_gains_give_the_setpoint_delay_with_its_standard_error():
+    """The setpoint delay (structure.setpoint_delay_s of the document) as an Estimate, as every other gain: on a 1 kHz
+    loop whose setpoint reaches the position loop 2 ms late, 2 ms."""
+    drive = feedid.demo_drive()
+    drive["controller"]["setpoint_delay_ms"] = 2.0
+    drive["test"]["feedrates_mm_per_min"] = [2000, 6000]
+    gains = feedid.gains(feedid.synth(drive, seed=3, slow_passes=False), force_constant="force_constant_N_per_A")
+    assert gains.status == "ok"
+    delay = gains.setpoint_delay_s
+    expected = gains.to_dict()["structure"]["setpoint_delay_s"]
+    assert delay.value == expected["value"] and delay.standard_error == expected["stderr"]
+    assert delay.value == pytest.approx(2e-3, abs=1e-5)
+    assert delay.standard_error is not None and abs(delay.value - 2e-3) <= 4.0 * delay.standard_error
+
+
 def test_synth_writes_the_file_the_cli_writes(folder):
     ours = folder / "python.csv"
     theirs = folder / "cli.csv"

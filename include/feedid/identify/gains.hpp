@@ -60,7 +60,7 @@ inline constexpr double gain_fit_error_limit_pct = 3.0;
 struct PositionLoopModel {
     std::string name;
     Estimate position_gain_per_s;  ///< K_v of this model [1/s], its standard error within the model
-    double relative_error_pct{0.0};  ///< of its fit to the velocity command
+    double relative_error_pct{0.0};  ///< of its fit [%]: to the velocity command, or from the structure to the drive signal
     /// Its Akaike weight [-]: exp(-AIC/2) normalised over the models, AIC = N*ln(RSS/N) + 2*p
     double weight{0.0};
 };
