@@ -1051,17 +1051,22 @@ ModelCandidate low_speed_asymmetry(const Derivatives& d, const Selection& select
     }
     low = std::max(low, 1e-12);
     const double span = std::log(std::max(high / low, 1.0 + 1e-9));
-    // the symmetric model with an offset on these rows alone
-    const RowSupport support(d, rows, false);
-    RowColumns columns(d, support, cache);
-    const RowRegressors regressors = columns.regressors(FrictionModelKind::symmetric, true);
+    // the symmetric model with an offset on the whole trace: the slow rows are about half of it, and its x'', x'
+    // and sgn(x') columns are views of columns held anyway
+    Regressors regressors;
+    regressors.columns = linear_columns(FrictionModelKind::symmetric, true);
+    regressors.output = d.force;
+    for (const auto& column : regressors.columns) {
+        RegressorValues formed = regressor_values(d, column, cache);
+        regressors.values.push_back(formed.values);
+        if (formed.owned) regressors.owned.push_back(std::move(formed.owned));
+    }
     std::vector<double> residual(rows.size());
     std::vector<std::size_t> group(rows.size());
     Eigen::VectorXd phi(static_cast<Eigen::Index>(regressors.parameters()));
     for (std::size_t i = 0; i < rows.size(); ++i) {
         const std::size_t k = rows[i];
-        regressors.row(i, phi.data());
-        residual[i] = d.force[k] - phi.dot(fit.estimate);
+        residual[i] = regressors.row(k, phi.data()) - phi.dot(fit.estimate);
         const int b = std::clamp(static_cast<int>(bins * std::log(std::abs(d.velocity[k]) / low) / span), 0, bins - 1);
         group[i] = 2 * static_cast<std::size_t>(b) + (d.velocity[k] > 0.0 ? 0 : 1);
     }
