@@ -687,9 +687,13 @@ IdentifyResult run_stages_on(IdentifyResult result, Preprocessed& p, const Ident
                                              return a.term == b.term && a.direction == b.direction;
                                          });
     if (!same_columns) {
-        // the Stribeck checks of the selection fit the step-1 model: the chosen one
+        // the Stribeck checks of the selection fit the step-1 model: the chosen one. The old regressor, the columns
+        // the new one does not take and the old selection are released first (identify's peak is here then)
+        p.regressors = Regressors{};
+        if (choice.model == FrictionModelKind::asymmetric) columns.reset();
         p.regressors = build_regressors(derivatives, choice.model, choice.offset, columns.get());
         columns.reset();
+        selection = Selection{};
         selection = select_samples(derivatives, p.regressors, selection_options);
         result.selection = selection.report;
     }

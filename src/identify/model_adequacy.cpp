@@ -65,9 +65,9 @@ std::vector<std::span<const double>> columns_of(const Regressors& regressors, st
 }
 
 /// Index of the column (term, direction) in a regressor; -1 when absent.
-Eigen::Index column_index(const Regressors& regressors, Term term, Direction direction) {
-    for (std::size_t c = 0; c < regressors.columns.size(); ++c) {
-        if (regressors.columns[c].term == term && regressors.columns[c].direction == direction)
+Eigen::Index column_index(const std::vector<RegressorColumn>& columns, Term term, Direction direction) {
+    for (std::size_t c = 0; c < columns.size(); ++c) {
+        if (columns[c].term == term && columns[c].direction == direction)
             return static_cast<Eigen::Index>(c);
     }
     return -1;
@@ -90,6 +90,134 @@ ModelCandidate test_combination(std::string name, std::string tested, const Leas
     candidate.statistic = std::abs(value) / *candidate.standard_error;
     candidate.taken = *candidate.statistic > threshold;
     return candidate;
+}
+
+/// A list of rows (ascending sample indices) and the samples their central differences reach: the model-adequacy
+/// stage holds its regressor columns there only (step 1's rows are about a quarter of the trace), not on every sample.
+class RowSupport {
+public:
+    /// With `neighbours`, each row's neighbours within its stretch are held too (for slope()).
+    RowSupport(const Derivatives& d, std::span<const std::size_t> rows, bool neighbours) : d_(d), rows_(rows) {
+        const std::size_t n = d.size();
+        std::size_t s = 0;
+        std::vector<std::array<std::size_t, 2>> reach;  // each row's central difference's ends (sample indices)
+        reach.reserve(rows.size());
+        for (const std::size_t k : rows) {
+            while (s + 1 < d.segment_starts.size() && d.segment_starts[s + 1] <= k) ++s;
+            const std::size_t begin = d.segment_starts[s];
+            const std::size_t end = s + 1 < d.segment_starts.size() ? d.segment_starts[s + 1] : n;
+            // central differences within the stretch, none in a stretch under 3 samples (its slope is 0)
+            const bool differenced = neighbours && end - begin >= 3;
+            const std::size_t before = differenced && k > begin ? k - 1 : k;
+            const std::size_t after = differenced && k + 1 < end ? k + 1 : k;
+            for (const std::size_t m : {before, k, after})
+                if (samples_.empty() || m > samples_.back()) samples_.push_back(m);
+            reach.push_back({before, after});
+        }
+        const auto at = [&](std::size_t m) {
+            return static_cast<std::uint32_t>(std::lower_bound(samples_.begin(), samples_.end(), m) - samples_.begin());
+        };
+        position_.resize(rows.size());
+        ends_.resize(rows.size());
+        for (std::size_t i = 0; i < rows.size(); ++i) {
+            position_[i] = at(rows[i]);
+            ends_[i] = {at(reach[i][0]), at(reach[i][1])};
+        }
+    }
+    [[nodiscard]] std::span<const std::size_t> rows() const { return rows_; }
+    [[nodiscard]] std::size_t size() const { return rows_.size(); }
+    /// Where row i's value lies in a column held on the support.
+    [[nodiscard]] std::size_t at(std::size_t i) const { return position_[i]; }
+    /// A whole-trace column on the support.
+    [[nodiscard]] std::vector<double> gather(std::span<const double> full) const {
+        std::vector<double> out(samples_.size());
+        for (std::size_t j = 0; j < samples_.size(); ++j) out[j] = full[samples_[j]];
+        return out;
+    }
+    /// The time derivative at row i of a column held on the support (central differences within the stretch; 0 in
+    /// a stretch under 3 samples).
+    [[nodiscard]] double slope(const std::vector<double>& held, std::size_t i) const {
+        const std::size_t before = ends_[i][0], after = ends_[i][1];
+        const double dt = d_.time[samples_[after]] - d_.time[samples_[before]];
+        return dt > 0.0 ? (held[after] - held[before]) / dt : 0.0;
+    }
+    /// The column -F'(t) (delay_column) at row i.
+    [[nodiscard]] double negated_force_slope(std::size_t i) const {
+        const std::size_t before = samples_[ends_[i][0]], after = samples_[ends_[i][1]];
+        const double dt = d_.time[after] - d_.time[before];
+        return dt > 0.0 ? -(d_.force[after] - d_.force[before]) / dt : 0.0;
+    }
+
+private:
+    const Derivatives& d_;
+    std::span<const std::size_t> rows_;
+    std::vector<std::size_t> samples_;                     // the support's sample indices, ascending
+    std::vector<std::uint32_t> position_;                  // row i's place in samples_
+    std::vector<std::array<std::uint32_t, 2>> ends_;       // the places of its central difference's ends
+};
+
+/// A regressor on the rows of a RowSupport: values[c] column c on the support.
+struct RowRegressors {
+    const RowSupport* support{nullptr};
+    std::vector<RegressorColumn> columns;
+    std::vector<std::shared_ptr<const std::vector<double>>> values;
+    [[nodiscard]] std::size_t parameters() const { return columns.size(); }
+    /// Row i of Phi into phi.
+    void row(std::size_t i, double* phi) const {
+        const std::size_t j = support->at(i);
+        for (std::size_t c = 0; c < values.size(); ++c) phi[c] = (*values[c])[j];
+    }
+};
+
+/// The columns of the models the stage fits, on a RowSupport: each formed on the whole trace (or taken from the
+/// caller's cache), gathered and released, so that only one whole-trace column exists at a time.
+class RowColumns {
+public:
+    RowColumns(const Derivatives& d, const RowSupport& support, const RegressorColumnCache* full)
+        : d_(d), support_(support), full_(full) {}
+    RowRegressors regressors(FrictionModelKind model, bool offset) {
+        RowRegressors r;
+        r.support = &support_;
+        r.columns = linear_columns(model, offset);
+        for (const auto& column : r.columns) r.values.push_back(held(column));
+        return r;
+    }
+
+private:
+    std::shared_ptr<const std::vector<double>> held(const RegressorColumn& column) {
+        for (const auto& [key, values] : held_)
+            if (key.term == column.term && key.direction == column.direction) return values;
+        auto values = std::make_shared<const std::vector<double>>(
+            support_.gather(regressor_values(d_, column, full_).values));
+        held_.emplace_back(column, values);
+        return values;
+    }
+    const Derivatives& d_;
+    const RowSupport& support_;
+    const RegressorColumnCache* full_;
+    std::vector<std::pair<RegressorColumn, std::shared_ptr<const std::vector<double>>>> held_;
+};
+
+/// A whole-trace column at the rows.
+std::vector<double> at_rows(std::span<const double> full, std::span<const std::size_t> rows) {
+    std::vector<double> out(rows.size());
+    for (std::size_t i = 0; i < rows.size(); ++i) out[i] = full[rows[i]];
+    return out;
+}
+
+/// Least squares of `output` (one value per row) on the regressor's columns, and `extra` (one value per row) when
+/// given, with standard errors that allow for residuals correlated over `block` samples.
+LeastSquaresResult fit_rows(const RowRegressors& r, std::span<const double> extra, std::span<const double> output,
+                            std::size_t block) {
+    const auto rows = r.support->rows();
+    const std::size_t p = r.parameters();
+    const auto row = [&](std::size_t i, double* phi) {
+        r.row(i, phi);
+        if (!extra.empty()) phi[p] = extra[i];
+        return output[i];
+    };
+    return solve_least_squares_rows(rows.size(), static_cast<Eigen::Index>(p + (extra.empty() ? 0 : 1)), row,
+                                    [&](std::size_t i) { return rows[i]; }, block);
 }
 
 /// Step 1's samples per direction.
@@ -198,7 +326,7 @@ struct RowRun {
     double step;
 };
 
-std::vector<RowRun> row_runs(const Derivatives& d, const std::vector<std::size_t>& rows) {
+std::vector<RowRun> row_runs(const Derivatives& d, std::span<const std::size_t> rows) {
     std::vector<RowRun> runs;
     std::size_t s = 0;
     const std::size_t n = d.size();
@@ -238,14 +366,16 @@ public:
     static constexpr Eigen::Index max_parameters = 8;
     using Vector = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, max_parameters, 1>;
 
-    DelayProfile(const Derivatives& d, const Regressors& regressors, const std::vector<std::size_t>& rows)
-        : d_(d), regressors_(regressors), rows_(rows), runs_(row_runs(d, rows)) {
+    /// On rows [first, last) of the regressor's rows.
+    DelayProfile(const Derivatives& d, const RowRegressors& regressors, std::size_t first, std::size_t last)
+        : d_(d), regressors_(regressors), first_(first), rows_(regressors.support->rows().subspan(first, last - first)),
+          runs_(row_runs(d, rows_)) {
         const auto p = static_cast<Eigen::Index>(regressors.parameters());
         if (p > max_parameters) return;
         Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(p, p);
         Eigen::VectorXd phi(p);
-        for (const auto k : rows) {
-            regressors.row(k, phi.data());
+        for (std::size_t i = first; i < last; ++i) {
+            regressors.row(i, phi.data());
             gram.selfadjointView<Eigen::Lower>().rankUpdate(phi);
         }
         gram = gram.selfadjointView<Eigen::Lower>();
@@ -263,7 +393,7 @@ public:
             for (std::size_t i = run.first; i < run.last; ++i) {
                 const std::size_t k = rows_[i];
                 const double y = force_at(d_.force, static_cast<double>(k) + offset, run.begin, run.end);
-                regressors_.row(k, phi.data());
+                regressors_.row(first_ + i, phi.data());
                 cross += phi * y;
                 squares += y * y;
             }
@@ -273,8 +403,9 @@ public:
 
 private:
     const Derivatives& d_;
-    const Regressors& regressors_;
-    const std::vector<std::size_t>& rows_;
+    const RowRegressors& regressors_;
+    std::size_t first_;
+    std::span<const std::size_t> rows_;
     std::vector<RowRun> runs_;
     Eigen::LDLT<Eigen::MatrixXd> solver_;
     bool valid_{false};
@@ -324,43 +455,47 @@ double minimise_profile(const DelayProfile& profile, double limit, double sample
     return (static_cast<double>(best) + vertex) * sample_time;
 }
 
-/// out -= theta * (the time derivative of `column` within each stretch, central differences), sample by sample.
-void subtract_derivative(const Derivatives& d, std::span<const double> column, double theta, std::vector<double>& out) {
-    const std::size_t n = d.size();
-    for (std::size_t s = 0; s < d.segment_starts.size(); ++s) {
-        const std::size_t begin = d.segment_starts[s];
-        const std::size_t end = s + 1 < d.segment_starts.size() ? d.segment_starts[s + 1] : n;
-        if (end - begin < 3) continue;
-        for (std::size_t k = begin; k < end; ++k) {
-            const std::size_t before = k > begin ? k - 1 : k, after = k + 1 < end ? k + 1 : k;
-            const double dt = d.time[after] - d.time[before];
-            const double derivative = dt > 0.0 ? (column[after] - column[before]) / dt : 0.0;
-            out[k] -= theta * derivative;
+/// The filtered force read `delay` later (shift_drive_force) at the rows.
+std::vector<double> shifted_force_at_rows(const Derivatives& d, std::span<const std::size_t> rows, double delay) {
+    std::vector<double> out(rows.size());
+    for (const RowRun& run : row_runs(d, rows)) {
+        const double offset = delay / run.step;  // in samples
+        for (std::size_t i = run.first; i < run.last; ++i) {
+            const std::size_t k = rows[i];
+            // a stretch under 4 samples is not shifted (shift_drive_force)
+            out[i] = run.end - run.begin < 4 ? d.force[k]
+                                             : force_at(d.force, static_cast<double>(k) + offset, run.begin, run.end);
         }
     }
+    return out;
 }
 
-/// -d(Phi theta)/dt of the model fitted on `rows` (the linearised delay's column), or empty where it has no fit.
-std::vector<double> negated_model_derivative(const Derivatives& d, const Regressors& regressors,
-                                             const std::vector<std::size_t>& rows, std::size_t block) {
-    const LeastSquaresResult base = fit_columns(columns_of(regressors), regressors.output, rows, block);
+/// -d(Phi theta)/dt at the rows, of the model fitted to `output` on them (the linearised delay's column), or empty
+/// where it has no fit.
+std::vector<double> negated_model_derivative(const RowRegressors& regressors, std::span<const double> output,
+                                             std::size_t block) {
+    const LeastSquaresResult base = fit_rows(regressors, {}, output, block);
     if (base.rank_deficient) return {};
-    std::vector<double> column(d.size(), 0.0);
-    for (std::size_t c = 0; c < regressors.values.size(); ++c)
-        subtract_derivative(d, regressors.values[c], base.estimate(static_cast<Eigen::Index>(c)), column);
+    const RowSupport& support = *regressors.support;
+    std::vector<double> column(support.size(), 0.0);
+    for (std::size_t c = 0; c < regressors.values.size(); ++c) {
+        const double theta = base.estimate(static_cast<Eigen::Index>(c));
+        for (std::size_t i = 0; i < support.size(); ++i) column[i] -= theta * support.slope(*regressors.values[c], i);
+    }
     return column;
 }
 
-/// What `rows` tell of a shift along `column` beyond the regressor's own columns: the Schur complement
-/// c'c - c'Phi (Phi'Phi)^-1 Phi'c of the Gram matrix of [Phi, c] (the delay's information up to the noise variance).
-double delay_information(const Regressors& regressors, std::span<const double> column,
-                         std::span<const std::size_t> rows) {
+/// What rows [first, last) tell of a shift along `column` (one value per row) beyond the regressor's own columns:
+/// the Schur complement c'c - c'Phi (Phi'Phi)^-1 Phi'c of the Gram matrix of [Phi, c] (the delay's information up to
+/// the noise variance).
+double delay_information(const RowRegressors& regressors, std::span<const double> column, std::size_t first,
+                         std::size_t last) {
     const auto p = static_cast<Eigen::Index>(regressors.parameters());
     Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(p + 1, p + 1);
     Eigen::VectorXd phi(p + 1);
-    for (const std::size_t k : rows) {
-        regressors.row(k, phi.data());
-        phi(p) = column[k];
+    for (std::size_t i = first; i < last; ++i) {
+        regressors.row(i, phi.data());
+        phi(p) = column[i];
         gram.selfadjointView<Eigen::Lower>().rankUpdate(phi);
     }
     gram = gram.selfadjointView<Eigen::Lower>();
@@ -370,20 +505,20 @@ double delay_information(const Regressors& regressors, std::span<const double> c
     return std::max(0.0, gram(p, p) - cross.dot(solver.solve(cross)));
 }
 
-/// The delay's standard error at the (aligned) force: the Gauss-Newton linearisation F_log = Phi theta - tau
-/// d(Phi theta)/dt, with the model's own derivative (from the position, not the noisy force: no attenuation), and
-/// standard errors that allow for correlated residuals. Its estimate is the residual delay (about 0 at the optimum).
-DelayFit linearised_delay(const Derivatives& d, const Regressors& regressors, const std::vector<std::size_t>& rows,
-                          std::size_t block) {
+/// The delay's standard error at the (aligned) force `output` (one value per row): the Gauss-Newton linearisation
+/// F_log = Phi theta - tau d(Phi theta)/dt, with the model's own derivative (from the position, not the noisy force:
+/// no attenuation), and standard errors that allow for correlated residuals. Its estimate is the residual delay
+/// (about 0 at the optimum).
+DelayFit linearised_delay(const RowRegressors& regressors, std::span<const double> output, std::size_t block) {
     DelayFit out;
-    const std::vector<double> column = negated_model_derivative(d, regressors, rows, block);
+    const std::vector<double> column = negated_model_derivative(regressors, output, block);
     if (column.empty()) return out;
-    const LeastSquaresResult fit = fit_columns(columns_of(regressors, column), regressors.output, rows, block);
+    const LeastSquaresResult fit = fit_rows(regressors, column, output, block);
     if (fit.rank_deficient) return out;
     const auto last = fit.estimate.size() - 1;
     out.delay = fit.estimate(last);
     out.standard_error = fit.standard_error(last);
-    const LeastSquaresResult plain = fit_columns(columns_of(regressors, column), regressors.output, rows, 1);
+    const LeastSquaresResult plain = fit_rows(regressors, column, output, 1);
     out.plain_standard_error = plain.rank_deficient ? 0.0 : plain.standard_error(last);
     for (Eigen::Index j = 0; j < last; ++j) {
         const double scale = std::sqrt(fit.covariance(last, last) * fit.covariance(j, j));
@@ -444,21 +579,22 @@ double student_quantile(double level, double dof) {
 /// rise) put it, and its local curvature measures their ripple, not the information: on sinusoidal strokes of one
 /// frequency built with 0.5 ms it lay at 4.1 ms with a curvature that said +-0.3 ms. The blocks' minima scatter by
 /// milliseconds there, and agree to their own error where the data carry the delay.
-double block_standard_error(const Derivatives& d, const Regressors& largest, const std::vector<std::size_t>& rows,
-                            const ModelSelectionOptions& options, std::size_t block) {
+double block_standard_error(const Derivatives& d, const RowRegressors& largest, const ModelSelectionOptions& options,
+                            std::size_t block) {
+    const std::size_t n = largest.support->size();
     const double search = 2.0 * options.max_delay_s, level = options.test_level;
     const std::size_t least = 20 * largest.parameters();
     std::size_t blocks = 16;
-    while (blocks >= 8 && rows.size() / blocks < least) blocks /= 2;
+    while (blocks >= 8 && n / blocks < least) blocks /= 2;
     if (blocks < 8) return 0.0;
-    const std::vector<double> column = negated_model_derivative(d, largest, rows, block);
+    const std::vector<double> column =
+        negated_model_derivative(largest, at_rows(d.force, largest.support->rows()), block);
     if (column.empty()) return 0.0;
     std::vector<double> minima, weights;
     for (std::size_t b = 0; b < blocks; ++b) {
-        const std::vector<std::size_t> part(rows.begin() + static_cast<std::ptrdiff_t>(b * rows.size() / blocks),
-                                            rows.begin() + static_cast<std::ptrdiff_t>((b + 1) * rows.size() / blocks));
-        const DelayProfile profile(d, largest, part);
-        const double information = delay_information(largest, column, part);
+        const std::size_t first = b * n / blocks, last = (b + 1) * n / blocks;
+        const DelayProfile profile(d, largest, first, last);
+        const double information = delay_information(largest, column, first, last);
         if (!profile.valid() || !(information > 0.0)) continue;
         minima.push_back(minimise_profile(profile, search, d.sample_time_s));
         weights.push_back(information);
@@ -475,9 +611,8 @@ double block_standard_error(const Derivatives& d, const Regressors& largest, con
 
 /// The delay: the profile's minimum in the largest model the data can take, tested against its standard error,
 /// applied where significant; or the known one applied.
-void choose_delay(Derivatives& d, const std::vector<std::size_t>& rows, bool one_way,
-                  const ModelSelectionOptions& options, double threshold, std::size_t block,
-                  RegressorColumnCache& columns, ModelChoice& choice) {
+void choose_delay(Derivatives& d, bool one_way, const ModelSelectionOptions& options, double threshold,
+                  std::size_t block, RowColumns& columns, ModelChoice& choice) {
     if (options.known_delay_s) {
         shift_drive_force(d, *options.known_delay_s);
         choice.delay_s = *options.known_delay_s;
@@ -487,25 +622,22 @@ void choose_delay(Derivatives& d, const std::vector<std::size_t>& rows, bool one
     }
     if (options.delay == ModelSelectionOptions::Delay::none) return;
     const bool apply = options.automatic || options.delay == ModelSelectionOptions::Delay::estimate;
-    const Regressors largest =
-        build_regressors(d, one_way ? FrictionModelKind::symmetric : FrictionModelKind::asymmetric, false, &columns);
+    const RowRegressors largest =
+        columns.regressors(one_way ? FrictionModelKind::symmetric : FrictionModelKind::asymmetric, false);
+    const std::size_t rows = largest.support->size();
     ModelCandidate candidate;
     candidate.name = "delay";
     candidate.tested = "tau";
     candidate.threshold = threshold;
-    const DelayProfile profile(d, largest, rows);
+    const DelayProfile profile(d, largest, 0, rows);
     // the search reaches a little beyond the plausible range, so that a clock offset shows as one
     const double delay = profile.valid() ? minimise_profile(profile, 2.0 * options.max_delay_s, d.sample_time_s) : 0.0;
     DelayFit fit;
     if (profile.valid()) {
-        const std::vector<double> logged = d.force;
-        shift_drive_force(d, delay);
-        fit = linearised_delay(d, largest, rows, block);
-        std::copy(logged.begin(), logged.end(), d.force.begin());
-        widen_to_profile(profile, delay, d.sample_time_s, 2.0 * options.max_delay_s, rows.size(),
-                         largest.parameters(), fit);
+        fit = linearised_delay(largest, shifted_force_at_rows(d, largest.support->rows(), delay), block);
+        widen_to_profile(profile, delay, d.sample_time_s, 2.0 * options.max_delay_s, rows, largest.parameters(), fit);
     }
-    if (fit.valid) fit.standard_error = std::max(fit.standard_error, block_standard_error(d, largest, rows, options, block));
+    if (fit.valid) fit.standard_error = std::max(fit.standard_error, block_standard_error(d, largest, options, block));
     if (!fit.valid) {
         candidate.verdict = "not estimable from these samples";
         choice.candidates.push_back(candidate);
@@ -571,16 +703,18 @@ double robust_deviation(std::vector<double> values) {
 /// Step 1's model fitted robustly (iteratively reweighted least squares with Tukey's biweight, from the least-squares
 /// fit, in the residuals' robust scale): what the samples that follow the model say, whatever a minority of them
 /// carries besides.
-Eigen::VectorXd robust_fit(const Regressors& regressors, const std::vector<std::size_t>& rows, double tukey_constant) {
+Eigen::VectorXd robust_fit(const RowRegressors& regressors, std::span<const double> output, double tukey_constant) {
     const auto p = static_cast<Eigen::Index>(regressors.parameters());
+    const std::size_t n = regressors.support->size();
     Eigen::VectorXd theta = Eigen::VectorXd::Zero(p), phi(p);
-    std::vector<double> weights(rows.size(), 1.0), residuals(rows.size());
+    std::vector<double> weights(n, 1.0), residuals(n);
     for (int iteration = 0; iteration < 12; ++iteration) {
         Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(p, p);
         Eigen::VectorXd cross = Eigen::VectorXd::Zero(p);
-        for (std::size_t i = 0; i < rows.size(); ++i) {
+        for (std::size_t i = 0; i < n; ++i) {
             if (weights[i] == 0.0) continue;
-            const double y = regressors.row(rows[i], phi.data());
+            regressors.row(i, phi.data());
+            const double y = output[i];
             gram.selfadjointView<Eigen::Lower>().rankUpdate(phi, weights[i]);
             cross += weights[i] * y * phi;
         }
@@ -592,13 +726,13 @@ Eigen::VectorXd robust_fit(const Regressors& regressors, const std::vector<std::
                                                   1e-6 * std::max(1.0, next.cwiseAbs().maxCoeff());
         theta = next;
         if (settled) break;
-        for (std::size_t i = 0; i < rows.size(); ++i) {
-            const double y = regressors.row(rows[i], phi.data());
-            residuals[i] = y - phi.dot(theta);
+        for (std::size_t i = 0; i < n; ++i) {
+            regressors.row(i, phi.data());
+            residuals[i] = output[i] - phi.dot(theta);
         }
         const double scale = robust_deviation(residuals);
         if (!(scale > 0.0)) break;
-        for (std::size_t i = 0; i < rows.size(); ++i) weights[i] = biweight(residuals[i], tukey_constant * scale);
+        for (std::size_t i = 0; i < n; ++i) weights[i] = biweight(residuals[i], tukey_constant * scale);
     }
     return theta;
 }
@@ -676,20 +810,28 @@ void steady_pass_levels(const Derivatives& d, const Selection& selection, double
 /// the quasi-static samples of every steady pass (whose friction is one level) against the pass's median force less
 /// M x''. Said in `choice.process_forces` when there is one.
 void detect_process_forces(const Derivatives& d, const Selection& selection, bool one_way,
-                           const ModelSelectionOptions& options, RegressorColumnCache& columns, ModelChoice& choice) {
+                           const ModelSelectionOptions& options, RowColumns& columns, ModelChoice& choice) {
     const auto& rows = selection.step1;
-    Regressors largest =
-        build_regressors(d, one_way ? FrictionModelKind::symmetric : FrictionModelKind::asymmetric, false, &columns);
+    RowRegressors largest =
+        columns.regressors(one_way ? FrictionModelKind::symmetric : FrictionModelKind::asymmetric, false);
     // with the timing term: a drive signal out of step with the position leaves one-sided stretches wherever the
     // force changes, which are not a process force (the column is not a friction term: Term::offset marks it)
-    largest.owned.push_back(std::make_shared<const std::vector<double>>(delay_column(d)));
-    largest.values.emplace_back(*largest.owned.back());
-    largest.columns.push_back(RegressorColumn{Term::offset, Direction::both});
-    const Eigen::VectorXd theta = robust_fit(largest, rows, options.tukey_constant);
+    {
+        const RowSupport& support = *largest.support;
+        std::vector<double> timing(support.size() == 0 ? 0 : support.at(support.size() - 1) + 1, 0.0);
+        for (std::size_t i = 0; i < support.size(); ++i) timing[support.at(i)] = support.negated_force_slope(i);
+        largest.values.push_back(std::make_shared<const std::vector<double>>(std::move(timing)));
+        largest.columns.push_back(RegressorColumn{Term::offset, Direction::both});
+    }
+    const std::vector<double> force = at_rows(d.force, rows);
+    const Eigen::VectorXd theta = robust_fit(largest, force, options.tukey_constant);
     const double mass = theta(0);
     Eigen::VectorXd phi(static_cast<Eigen::Index>(largest.parameters()));
     std::vector<double> fast(rows.size());
-    for (std::size_t i = 0; i < rows.size(); ++i) fast[i] = largest.row(rows[i], phi.data()) - phi.dot(theta);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        largest.row(i, phi.data());
+        fast[i] = force[i] - phi.dot(theta);
+    }
     std::vector<std::size_t> slow_index;
     std::vector<double> slow;
     steady_pass_levels(d, selection, mass, slow_index, slow);
@@ -890,8 +1032,8 @@ FitCheck judge_groups(std::string name, Groups& groups, double typical, const Mo
 /// +rise(|v|) forward and -rise(|v|) reverse when the rise is the same both ways. Per speed bin (log-spaced), the sum
 /// of the two directions' mean residuals is tested against zero (chi-square over the bins, each mean's variance from
 /// sums over blocks of correlated neighbours).
-ModelCandidate low_speed_asymmetry(const Derivatives& d, const Selection& selection, const Regressors& regressors,
-                                   const LeastSquaresResult& fit, double threshold) {
+ModelCandidate low_speed_asymmetry(const Derivatives& d, const Selection& selection,
+                                   const RegressorColumnCache* cache, const LeastSquaresResult& fit, double threshold) {
     ModelCandidate candidate;
     candidate.name = "per direction at low speed";
     candidate.tested = "Stribeck friction forward - reverse";
@@ -909,6 +1051,16 @@ ModelCandidate low_speed_asymmetry(const Derivatives& d, const Selection& select
     }
     low = std::max(low, 1e-12);
     const double span = std::log(std::max(high / low, 1.0 + 1e-9));
+    // the symmetric model with an offset on the whole trace: the slow rows are about half of it, and its x'', x'
+    // and sgn(x') columns are views of columns held anyway
+    Regressors regressors;
+    regressors.columns = linear_columns(FrictionModelKind::symmetric, true);
+    regressors.output = d.force;
+    for (const auto& column : regressors.columns) {
+        RegressorValues formed = regressor_values(d, column, cache);
+        regressors.values.push_back(formed.values);
+        if (formed.owned) regressors.owned.push_back(std::move(formed.owned));
+    }
     std::vector<double> residual(rows.size());
     std::vector<std::size_t> group(rows.size());
     Eigen::VectorXd phi(static_cast<Eigen::Index>(regressors.parameters()));
@@ -956,22 +1108,23 @@ std::vector<double> estimates_of(const LeastSquaresResult& fit) {
 /// Symmetric within symmetric with an offset within per direction, tested on the (aligned) force.
 void choose_friction_model(const Derivatives& d, const Selection& selection, FrictionModelKind forced_model,
                            bool forced_offset, const ModelSelectionOptions& options, double threshold,
-                           std::size_t block, RegressorColumnCache& columns, ModelChoice& choice) {
+                           std::size_t block, RowColumns& columns, const RegressorColumnCache* cache,
+                           ModelChoice& choice) {
     const ParameterNaming naming{d.rotary};
-    const auto& rows = selection.step1;
-    const Regressors with_offset = build_regressors(d, FrictionModelKind::symmetric, true, &columns);
-    const LeastSquaresResult offset_fit = fit_columns(columns_of(with_offset), with_offset.output, rows, block);
+    const std::vector<double> force = at_rows(d.force, selection.step1);
+    const RowRegressors with_offset = columns.regressors(FrictionModelKind::symmetric, true);
+    const LeastSquaresResult offset_fit = fit_rows(with_offset, {}, force, block);
     Eigen::VectorXd c_offset = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(with_offset.parameters()));
-    c_offset(column_index(with_offset, Term::offset, Direction::both)) = 1.0;
+    c_offset(column_index(with_offset.columns, Term::offset, Direction::both)) = 1.0;
     ModelCandidate offset = test_combination("offset", "F_0", offset_fit, c_offset, threshold);
 
-    const Regressors per_direction = build_regressors(d, FrictionModelKind::asymmetric, false, &columns);
-    const LeastSquaresResult direction_fit = fit_columns(columns_of(per_direction), per_direction.output, rows, block);
+    const RowRegressors per_direction = columns.regressors(FrictionModelKind::asymmetric, false);
+    const LeastSquaresResult direction_fit = fit_rows(per_direction, {}, force, block);
     Eigen::VectorXd c_viscous = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(per_direction.parameters()));
-    c_viscous(column_index(per_direction, Term::viscous, Direction::forward)) = 1.0;
-    c_viscous(column_index(per_direction, Term::viscous, Direction::reverse)) = -1.0;
+    c_viscous(column_index(per_direction.columns, Term::viscous, Direction::forward)) = 1.0;
+    c_viscous(column_index(per_direction.columns, Term::viscous, Direction::reverse)) = -1.0;
     ModelCandidate asymmetric = test_combination("per direction", "B+ - B-", direction_fit, c_viscous, threshold);
-    ModelCandidate slow = low_speed_asymmetry(d, selection, with_offset, offset_fit, threshold);
+    ModelCandidate slow = low_speed_asymmetry(d, selection, cache, offset_fit, threshold);
 
     const auto unit = [&](Term term) { return std::string(naming.unit(term)); };
     const auto describe = [&](const ModelCandidate& c, Term term) {
@@ -1035,11 +1188,12 @@ void choose_friction_model(const Derivatives& d, const Selection& selection, Fri
 }
 
 /// d theta / d tau of the chosen model's step-1 parameters: the regression of the delay column on its regressors.
-std::vector<double> delay_sensitivity(const Derivatives& d, const std::vector<std::size_t>& rows,
-                                      const ModelChoice& choice, std::size_t block, RegressorColumnCache& columns) {
-    const Regressors chosen = build_regressors(d, choice.model, choice.offset, &columns);
-    const std::vector<double> column = delay_column(d);
-    const LeastSquaresResult fit = fit_columns(columns_of(chosen), column, rows, block);
+std::vector<double> delay_sensitivity(const ModelChoice& choice, std::size_t block, RowColumns& columns) {
+    const RowRegressors chosen = columns.regressors(choice.model, choice.offset);
+    const RowSupport& support = *chosen.support;
+    std::vector<double> column(support.size());
+    for (std::size_t i = 0; i < support.size(); ++i) column[i] = support.negated_force_slope(i);
+    const LeastSquaresResult fit = fit_rows(chosen, {}, column, block);
     if (fit.rank_deficient) return {};
     return {fit.estimate.data(), fit.estimate.data() + fit.estimate.size()};
 }
@@ -1148,9 +1302,7 @@ std::vector<FitCheck> check_fit(const Derivatives& d, const Selection& selection
 ModelChoice choose_model(Derivatives& d, const Selection& selection, FrictionModelKind forced_model,
                          bool forced_offset, bool drive_tared, const std::optional<RestLevel>& rest,
                          const ModelSelectionOptions& options, double correlation_blocks,
-                         RegressorColumnCache* cache) {
-    RegressorColumnCache local;
-    RegressorColumnCache& columns = cache != nullptr ? *cache : local;
+                         const RegressorColumnCache* cache) {
     ModelChoice choice;
     choice.automatic = options.automatic;
     choice.model = forced_model;
@@ -1162,12 +1314,15 @@ ModelChoice choose_model(Derivatives& d, const Selection& selection, FrictionMod
     if (rows.size() < 50) return choice;  // step 1 will say why it cannot fit
     const std::size_t block = correlation_block(d, correlation_blocks);
     const double threshold = normal_quantile(options.test_level);
+    // the models' columns on step 1's rows and their neighbours only, released with the stage
+    const RowSupport support(d, rows, true);
+    RowColumns columns(d, support, cache);
     if (options.automatic || options.test_forced) {
         detect_process_forces(d, selection, choice.one_way, options, columns, choice);
         if (!choice.process_forces.empty()) return choice;
     }
 
-    choose_delay(d, rows, choice.one_way, options, threshold, block, columns, choice);
+    choose_delay(d, choice.one_way, options, threshold, block, columns, choice);
     if (choice.one_way) {
         if (options.automatic) {
             choice.model = FrictionModelKind::symmetric;
@@ -1181,12 +1336,13 @@ ModelChoice choose_model(Derivatives& d, const Selection& selection, FrictionMod
         choice.candidates.push_back(offset);
         judge_one_way(d, selection, choice.offset, drive_tared, rest, options, choice);
     } else if (options.automatic || options.test_forced) {
-        choose_friction_model(d, selection, forced_model, forced_offset, options, threshold, block, columns, choice);
+        choose_friction_model(d, selection, forced_model, forced_offset, options, threshold, block, columns, cache,
+                              choice);
     }
     // applied, or too uncertain to apply: the delay is known only to its standard error, and the parameters move
     // with it (a significant one a forced model leaves out is said in a finding instead)
     if (choice.delay_applied || choice.delay_uncertain)
-        choice.delay_sensitivity = delay_sensitivity(d, rows, choice, block, columns);
+        choice.delay_sensitivity = delay_sensitivity(choice, block, columns);
     return choice;
 }
 

@@ -151,44 +151,42 @@ void RegressorColumnCache::remember(const Regressors& regressors) {
     }
 }
 
+RegressorValues regressor_values(const Derivatives& derivatives, const RegressorColumn& column,
+                                 const RegressorColumnCache* cache) {
+    // x'' and x' are the Derivatives' columns: decimated (when decimating) by the same decimate_segments over the
+    // same stretches, so the same values; viewed, not copied
+    if (column.term == Term::mass) return {derivatives.acceleration, nullptr};
+    if (column.term == Term::viscous && column.direction == Direction::both) return {derivatives.velocity, nullptr};
+    if (auto kept = cache != nullptr ? cache->find(column) : nullptr) return {*kept, std::move(kept)};
+    const int factor = derivatives.used.decimation;
+    const bool decimated = factor > 1;
+    const auto& a = decimated ? derivatives.full_rate_acceleration : derivatives.acceleration;
+    const auto& v = decimated ? derivatives.full_rate_velocity : derivatives.velocity;
+    std::vector<double> values = regressor_column(column, a, v);
+    if (nonlinear(column)) {
+        // sgn(x') (and x' per direction) of the filtered x' is not the filtered sgn(x'): through the force's
+        // low-pass, then decimated like every column
+        values = filter_like_force(values, derivatives);
+    } else if (decimated) {
+        // every column through the same anti-alias filter, the constant one too: the filter passes a constant scaled
+        // by its DC gain squared (-0.1 dB for the order-8 Chebyshev, forwards and backwards), as it scales the force
+        values = decimate_segments(values, derivatives.full_rate_segment_starts, factor);
+    }
+    auto formed = std::make_shared<const std::vector<double>>(std::move(values));
+    return {*formed, std::move(formed)};
+}
+
 Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind model, bool offset,
                             RegressorColumnCache* cache) {
     Regressors r;
     r.columns = linear_columns(model, offset);
     r.output = derivatives.force;
-    const int factor = derivatives.used.decimation;
-    const bool decimated = factor > 1;
-    const auto& a = decimated ? derivatives.full_rate_acceleration : derivatives.acceleration;
-    const auto& v = decimated ? derivatives.full_rate_velocity : derivatives.velocity;
     for (const auto& column : r.columns) {
-        // x'' and x' are the Derivatives' columns: decimated (when decimating) by the same decimate_segments over the
-        // same stretches, so the same values; viewed, not copied
-        if (column.term == Term::mass) {
-            r.values.emplace_back(derivatives.acceleration);
-            continue;
-        }
-        if (column.term == Term::viscous && column.direction == Direction::both) {
-            r.values.emplace_back(derivatives.velocity);
-            continue;
-        }
-        std::shared_ptr<const std::vector<double>> kept = cache != nullptr ? cache->find(column) : nullptr;
-        if (!kept) {
-            std::vector<double> values = regressor_column(column, a, v);
-            if (nonlinear(column)) {
-                // sgn(x') (and x' per direction) of the filtered x' is not the filtered sgn(x'): through the force's
-                // low-pass, then decimated like every column
-                values = filter_like_force(values, derivatives);
-            } else if (decimated) {
-                // every column through the same anti-alias filter, the constant one too: the filter passes a
-                // constant scaled by its DC gain squared (-0.1 dB for the order-8 Chebyshev, forwards and backwards),
-                // as it scales the force
-                values = decimate_segments(values, derivatives.full_rate_segment_starts, factor);
-            }
-            kept = std::make_shared<const std::vector<double>>(std::move(values));
-            if (cache != nullptr) cache->store(column, kept);
-        }
-        r.values.emplace_back(*kept);
-        r.owned.push_back(std::move(kept));
+        RegressorValues formed = regressor_values(derivatives, column, cache);
+        r.values.push_back(formed.values);
+        if (!formed.owned) continue;
+        if (cache != nullptr) cache->store(column, formed.owned);
+        r.owned.push_back(std::move(formed.owned));
     }
     return r;
 }

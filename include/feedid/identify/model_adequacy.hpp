@@ -187,11 +187,11 @@ std::vector<FitCheck> check_fit(const Derivatives& derivatives, const Selection&
 /// in `derivatives` is shifted in place), and says what the data cannot separate. `forced_model` and `forced_offset`
 /// are the options' model (taken as it is when !options.automatic). `drive_tared`: the drive signal's zero was
 /// removed at import (--tare), so on a one-way move no constant force remains; `rest` the drive force at rest before
-/// the move. The regressor columns of the models it fits come from and stay in `columns` when given (the caller's
-/// regressor and the chosen model's then cost no second low-pass).
+/// the move. The models' regressor columns are held on step 1's samples (and their neighbours) only, for the stage
+/// alone; those `columns` holds are taken from it (the caller's regressor's then cost no second low-pass).
 ModelChoice choose_model(Derivatives& derivatives, const Selection& selection, FrictionModelKind forced_model,
                          bool forced_offset, bool drive_tared, const std::optional<RestLevel>& rest,
                          const ModelSelectionOptions& options, double correlation_blocks,
-                         RegressorColumnCache* columns = nullptr);
+                         const RegressorColumnCache* columns = nullptr);
 
 }  // namespace feedid

@@ -80,6 +80,18 @@ private:
     std::vector<std::pair<RegressorColumn, std::shared_ptr<const std::vector<double>>>> columns_;
 };
 
+/// The values of one regressor column on every analysed sample, and the storage behind them when they are not the
+/// Derivatives' own (x'' and x' are viewed).
+struct RegressorValues {
+    std::span<const double> values;
+    std::shared_ptr<const std::vector<double>> owned;
+};
+
+/// Column `column` of the regressor on `derivatives`, as build_regressors forms it: taken from `cache` when it holds
+/// it, else formed (a low-pass of the whole trace for the columns nonlinear in x') and not stored.
+RegressorValues regressor_values(const Derivatives& derivatives, const RegressorColumn& column,
+                                 const RegressorColumnCache* cache = nullptr);
+
 /// The regressor of `model` (with an offset column when `offset`) on `derivatives`; the columns it has to form are
 /// taken from and left in `cache` when one is given.
 Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind model, bool offset,
