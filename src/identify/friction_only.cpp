@@ -6,6 +6,7 @@
 
 #include <fmt/core.h>
 
+#include "feedid/core/error.hpp"
 #include "feedid/core/parameters.hpp"
 #include "feedid/numeric/signal.hpp"
 #include "feedid/identify/step1.hpp"
@@ -133,6 +134,18 @@ Resolution assess_resolution(const Derivatives& d, const FrictionOnlyOptions& op
             display.length(r.largest_speed_step), display.speed_unit(), 100.0 * r.largest_speed_step / r.typical_speed);
     }
     return r;
+}
+
+Resolution assess_trace_resolution(const Trace& trace, std::span<const double> force,
+                                   const PreprocessOptions& preprocess_options, const FrictionOnlyOptions& options) {
+    Derivatives d;
+    try {
+        d = preprocess(trace, force, preprocess_options);
+    } catch (const InputError&) {
+        return {};
+    }
+    if (!d.failure.empty() || d.velocity.size() < 2) return {};
+    return assess_resolution(d, options);
 }
 
 FrictionOnlyFit fit_friction_only(const Derivatives& d, const Selection& s, FrictionModelKind model, bool offset,

@@ -5,6 +5,7 @@
 // can be identified at all is decided from the data's figures (assess_resolution), not from a failed fit.
 
 #include <cstddef>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -59,6 +60,12 @@ struct Resolution {
 /// The figures of the analysed samples: sample rate against the speed's changes, position resolution against the
 /// travel per sample.
 Resolution assess_resolution(const Derivatives& derivatives, const FrictionOnlyOptions& options);
+
+/// identify's rule on a whole trace, for front-ends that do not run identify's stages (scan): the samples
+/// preprocessed as identify preprocesses them (`preprocess`), then assess_resolution. `force` [N] per sample. A trace
+/// the preprocessing cannot take (too short, no motion, an option it refuses) is not coarse.
+Resolution assess_trace_resolution(const Trace& trace, std::span<const double> force,
+                                   const PreprocessOptions& preprocess, const FrictionOnlyOptions& options);
 
 struct FrictionOnlyFit {
     std::vector<RegressorColumn> columns;  ///< the friction columns of the step-1 model (no mass)
