@@ -1046,6 +1046,10 @@ std::vector<double> delay_sensitivity(const Derivatives& d, const std::vector<st
 
 }  // namespace
 
+double integrated_autocorrelation_time(const std::vector<std::size_t>& rows, const std::vector<double>& values) {
+    return integrated_autocorrelation(rows, values);
+}
+
 double residual_autocorrelation_time(const Derivatives& d, const Regressors& regressors,
                                      const std::vector<std::size_t>& rows) {
     (void)d;

@@ -74,6 +74,11 @@ struct FrictionOnlyFit {
     double largest_acceleration{0.0};  ///< [m/s^2] among the moving samples
     /// The smallest mass whose inertial force at the largest acceleration stands above the friction scatter [kg].
     double smallest_detectable_mass{0.0};
+    /// The standard errors count each steady pass's own level once (account_for_pass_levels in the source): the
+    /// passes, the scatter of their levels beyond their noise [N], and the batch means' block [samples].
+    std::size_t passes{0};
+    double pass_level_std{0.0};
+    std::size_t correlation_block{1};
     std::string failure;  ///< why the steady samples cannot determine B and F_C ("" when they can)
     [[nodiscard]] bool failed() const { return !failure.empty(); }
 };
