@@ -108,7 +108,9 @@ struct ScanCommand {
         if (!json_path.empty()) write_json(document, json_path);
         if (json_path != "-") print_table(result);
         if (result.result.status == Status::failed) {
-            if (result.online.windows.qualified() == 0)
+            if (result.friction_only)
+                fmt::print(stderr, "feedid: {}\n", terminal_message(result.online.mass_reason));
+            else if (result.online.windows.qualified() == 0)
                 fmt::print(stderr, "feedid: no window qualified: {}\n", counts_text(result.online.windows));
             else
                 fmt::print(stderr, "feedid: {} ({})\n", terminal_message(result.online.mass_reason),
@@ -181,7 +183,10 @@ struct ScanCommand {
         const IdentifyResult& r = s.result;
         fmt::print("{} ({} samples, {:.6g} s): production scan\n", terminal_text(r.trace.path), r.trace.samples,
                    r.trace.duration_s);
-        fmt::print("windows: {}\n{}\n", counts_text(s.online.windows), timing_line(r));
+        if (s.friction_only)
+            fmt::print("no windows: the log is too coarse for a mass; friction only, from its steady-speed samples\n\n");
+        else
+            fmt::print("windows: {}\n{}\n", counts_text(s.online.windows), timing_line(r));
         // the standard error (statistical) and the combined uncertainty (with the split speed's systematic part)
         fmt::print("{}", parameter_table_text(r));
         fmt::print("\n");

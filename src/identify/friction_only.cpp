@@ -6,8 +6,10 @@
 
 #include <fmt/core.h>
 
+#include "feedid/core/error.hpp"
 #include "feedid/core/parameters.hpp"
 #include "feedid/numeric/signal.hpp"
+#include "feedid/identify/model_adequacy.hpp"
 #include "feedid/identify/step1.hpp"
 
 namespace feedid {
@@ -98,6 +100,66 @@ std::string speed_spread_problem(const Derivatives& d, const std::vector<std::si
     return {};
 }
 
+
+/// Standard errors that count each steady pass's own level once. On a machine's log the residual of a pass keeps
+/// one level along it (a load, friction that differs by place or direction): the residual is e = u_pass + w with
+/// u_pass ~ (0, s_u^2) per pass and w the within-pass noise, and Cov(theta) = A^-1 (S_w + s_u^2 sum_p g_p g_p^T)
+/// A^-1, A = Phi^T Phi, g_p the sum of a pass's regressor rows, S_w the batch-means long-run covariance of w (blocks
+/// of `correlation_block` samples). s_u^2 by moments: the passes' mean residuals squared less their within-pass
+/// variance (2 tau_w s_w^2 / n_p, tau_w w's integrated autocorrelation time), over P - p (the fit absorbs p of
+/// the pass levels). A pass whose level alone sets a parameter (B from one rapid) then carries a level's
+/// uncertainty, not that of its n_p samples. Fewer than p + 2 passes: the batch means of e alone.
+void account_for_pass_levels(FrictionOnlyFit& fit, const Eigen::MatrixXd& phi, const Eigen::VectorXd& y,
+                             const std::vector<std::size_t>& rows) {
+    LeastSquaresResult& batch = fit.batch;
+    if (batch.rank_deficient || !(batch.residual_std > 0.0)) return;
+    const Eigen::VectorXd residual = y - phi * batch.estimate;
+    const auto p = phi.cols();
+    std::vector<std::size_t> starts;  // of each pass, into rows; a sentinel at the end
+    for (std::size_t i = 0; i < rows.size(); ++i)
+        if (i == 0 || rows[i] != rows[i - 1] + 1) starts.push_back(i);
+    starts.push_back(rows.size());
+    const std::size_t passes = starts.size() - 1;
+    if (passes < static_cast<std::size_t>(p) + 2) {
+        account_for_correlated_residuals(batch, phi, y, rows, fit.correlation_block);
+        return;
+    }
+    std::vector<double> within(rows.size()), mean(passes);
+    Eigen::MatrixXd sums(p, static_cast<Eigen::Index>(passes));
+    double squares = 0.0;
+    for (std::size_t q = 0; q < passes; ++q) {
+        const auto first = static_cast<Eigen::Index>(starts[q]), n = static_cast<Eigen::Index>(starts[q + 1]) - first;
+        mean[q] = residual.segment(first, n).mean();
+        sums.col(static_cast<Eigen::Index>(q)) = phi.middleRows(first, n).colwise().sum().transpose();
+        for (std::size_t i = starts[q]; i < starts[q + 1]; ++i) {
+            within[i] = residual(static_cast<Eigen::Index>(i)) - mean[q];
+            squares += within[i] * within[i];
+        }
+    }
+    const double within_variance = squares / static_cast<double>(rows.size() - passes);
+    const double inflation = std::max(1.0, 2.0 * integrated_autocorrelation_time(rows, within));
+    double excess = 0.0;
+    for (std::size_t q = 0; q < passes; ++q)
+        excess += mean[q] * mean[q] - inflation * within_variance / static_cast<double>(starts[q + 1] - starts[q]);
+    const double level_variance = std::max(0.0, excess / static_cast<double>(passes - static_cast<std::size_t>(p)));
+    LeastSquaresResult blocks = batch;  // the batch means of e alone, for the larger of the two below
+    account_for_correlated_residuals(blocks, phi, y, rows, fit.correlation_block);
+    const Eigen::VectorXd w = Eigen::Map<const Eigen::VectorXd>(within.data(), static_cast<Eigen::Index>(within.size()));
+    const Eigen::MatrixXd inverse_information = batch.covariance / (batch.residual_std * batch.residual_std);
+    const Eigen::MatrixXd middle =
+        long_run_covariance(phi, w, rows, fit.correlation_block) + level_variance * sums * sums.transpose();
+    batch.covariance = inverse_information * middle * inverse_information;
+    batch.standard_error = batch.covariance.diagonal().cwiseMax(0.0).cwiseSqrt();
+    // each parameter's standard error the larger of the two (the pass levels' correlations kept): with no scatter
+    // of the levels beyond their noise (s_u = 0) the batch means of e count the short correlations the within-pass
+    // residual lost with its pass means
+    const Eigen::VectorXd scale =
+        blocks.standard_error.cwiseMax(batch.standard_error).cwiseQuotient(batch.standard_error.cwiseMax(1e-300));
+    batch.covariance = scale.asDiagonal() * batch.covariance * scale.asDiagonal();
+    batch.standard_error = batch.standard_error.cwiseProduct(scale);
+    fit.passes = passes;
+    fit.pass_level_std = std::sqrt(level_variance);
+}
 }  // namespace
 
 Resolution assess_resolution(const Derivatives& d, const FrictionOnlyOptions& options) {
@@ -133,6 +195,18 @@ Resolution assess_resolution(const Derivatives& d, const FrictionOnlyOptions& op
             display.length(r.largest_speed_step), display.speed_unit(), 100.0 * r.largest_speed_step / r.typical_speed);
     }
     return r;
+}
+
+Resolution assess_trace_resolution(const Trace& trace, std::span<const double> force,
+                                   const PreprocessOptions& preprocess_options, const FrictionOnlyOptions& options) {
+    Derivatives d;
+    try {
+        d = preprocess(trace, force, preprocess_options);
+    } catch (const InputError&) {
+        return {};
+    }
+    if (!d.failure.empty() || d.velocity.size() < 2) return {};
+    return assess_resolution(d, options);
 }
 
 FrictionOnlyFit fit_friction_only(const Derivatives& d, const Selection& s, FrictionModelKind model, bool offset,
@@ -174,7 +248,8 @@ FrictionOnlyFit fit_friction_only(const Derivatives& d, const Selection& s, Fric
         }
     }
     fit.batch = solve_least_squares(phi, y);
-    account_for_correlated_residuals(fit.batch, phi, y, rows, correlation_block(d, options.correlation_blocks));
+    fit.correlation_block = correlation_block(d, options.correlation_blocks);
+    account_for_pass_levels(fit, phi, y, rows);
     if (fit.batch.rank_deficient) {
         fit.failure =
             "the steady-speed samples cannot separate the friction parameters (one direction only, and an "

@@ -1200,6 +1200,10 @@ std::vector<double> delay_sensitivity(const ModelChoice& choice, std::size_t blo
 
 }  // namespace
 
+double integrated_autocorrelation_time(const std::vector<std::size_t>& rows, const std::vector<double>& values) {
+    return integrated_autocorrelation(rows, values);
+}
+
 double residual_autocorrelation_time(const Derivatives& d, const Regressors& regressors,
                                      const std::vector<std::size_t>& rows) {
     (void)d;

@@ -11,6 +11,7 @@
 #include "feedid/core/error.hpp"
 #include "feedid/io/csv.hpp"
 #include "feedid/core/parameters.hpp"
+#include "feedid/identify/friction_only.hpp"
 #include "feedid/identify/result_document.hpp"
 #include "feedid/core/version.hpp"
 
@@ -407,21 +408,107 @@ ScanResult time_and_scan(const OnlineOptions& options, Pass&& pass) {
 
 }  // namespace
 
+namespace {
+
+/// The samples the gate keeps, every channel (a gated-out stretch becomes a gap in time, which identify cuts at).
+Trace kept_samples(const Trace& trace, std::span<const char> use) {
+    Trace kept = trace;
+    for (Channel& channel : kept.channels) {
+        std::size_t n = 0;
+        for (std::size_t k = 0; k < channel.values.size(); ++k)
+            if (use[k]) channel.values[n++] = channel.values[k];
+        channel.values.resize(n);
+    }
+    return kept;
+}
+
+/// The trace with the drive force as scan formed it (its constants applied) in place of the drive signal.
+Trace with_drive_force(Trace trace, std::vector<double> force) {
+    std::optional<double> tare;
+    std::erase_if(trace.channels, [&](const Channel& c) {
+        const bool drive = c.role == Role::current || c.role == Role::force;
+        if (drive && c.tare_removed) tare = c.tare_removed;
+        return drive || c.role == Role::injection;
+    });
+    trace.set("drive force", Role::force, trace.rotary ? "N*m" : "N", std::move(force)).tare_removed = tare;
+    return trace;
+}
+
+/// A log too coarse for a mass (identify's rule, assess_resolution: a machine's own 10 Hz log with positions in whole
+/// millimetres) has no window the online identifier can fit: M is not identifiable, and B and F_C are identify's
+/// friction-only estimate from the steady-speed samples (of the samples the gate keeps), the same numbers, M null with
+/// the reason in figures. Failed, with identify's reason, where the steady-speed samples cannot give them either.
+ScanResult friction_only_scan(const Trace& seen, std::span<const double> force, const OnlineOptions& options,
+                              const TraceSummary& summary) {
+    IdentifyOptions identify_options;
+    identify_options.offset = options.offset;
+    ScanResult s;
+    s.friction_only = true;
+    s.result = identify(with_drive_force(seen, {force.begin(), force.end()}), identify_options);
+    s.result.trace = summary;
+    OnlineEstimate& e = s.online;
+    const auto& diagnostics = s.result.diagnostics;
+    e.mass_reason = s.result.friction_only ? s.result.friction_only->reason
+                    : diagnostics.empty()  ? std::string("mass not identifiable")
+                                           : diagnostics.back();
+    e.stribeck_reason = "F_B and v_s not estimated: friction only (no window of the log resolves an acceleration)";
+    if (s.result.friction_only) e.rows_used = s.result.friction_only->samples_used;
+    return s;
+}
+
+/// The logged velocity integrated (trapezoids) into the position the online identifier differentiates: its central
+/// difference is (v[k-1] + 2 v[k] + v[k+1]) / 4, the logged velocity smoothed, not delayed.
+Trace with_integrated_position(const Trace& trace) {
+    Trace out = trace;
+    const auto t = trace.column(Role::time);
+    const auto v = trace.column(Role::velocity);
+    std::vector<double> x(v.size(), 0.0);
+    for (std::size_t k = 1; k < v.size(); ++k) x[k] = x[k - 1] + 0.5 * (v[k] + v[k - 1]) * (t[k] - t[k - 1]);
+    out.set("position from the logged velocity", Role::position, trace.rotary ? "rad" : "m", std::move(x));
+    return out;
+}
+
+}  // namespace
+
 ScanResult scan(const Trace& trace, std::span<const double> force, std::span<const char> use,
                 const OnlineOptions& given, std::size_t block, bool systematic) {
     OnlineOptions options = given;
     options.rotary = trace.rotary;
     if (const auto problem = options.validate(); !problem.empty()) throw InputError("scan: " + problem);
-    if (!trace.has(Role::position))
-        throw InputError(fmt::format("{}: scan needs a position channel (--channel position=NAME)", trace.source_path));
-    require_consistent_units(trace);
+    const bool velocity_only = !trace.has(Role::position);
+    if (velocity_only && !trace.has(Role::velocity))
+        throw InputError(fmt::format(
+            "{}: scan needs a position or a logged velocity (--channel position=NAME or --channel velocity=NAME)",
+            trace.source_path));
+    if (!velocity_only) require_consistent_units(trace);
     const TimeBase base = trace.samples() >= 2 ? trace.time_base() : TimeBase{};
     const TraceSummary summary{trace.source_path, trace.format, trace.samples(), base.sample_time_s, base.duration_s};
-    return time_and_scan(options, [&](const OnlineOptions& o) {
+    // identify's rule first, on the samples the gate keeps: a log too coarse for a mass is not scanned by windows
+    const bool gated = std::find(use.begin(), use.end(), char{0}) != use.end();
+    std::optional<Trace> kept;
+    std::vector<double> kept_force;
+    if (gated) {
+        kept = kept_samples(trace, use);
+        for (std::size_t k = 0; k < force.size(); ++k)
+            if (use[k]) kept_force.push_back(force[k]);
+    }
+    const Trace& seen = gated ? *kept : trace;
+    const std::span<const double> seen_force = gated ? std::span<const double>(kept_force) : force;
+    const IdentifyOptions rule;
+    if (assess_trace_resolution(seen, seen_force, rule.preprocess, rule.friction_only).coarse())
+        return friction_only_scan(seen, seen_force, options, summary);
+    kept.reset();
+    const Trace integrated = velocity_only ? with_integrated_position(trace) : Trace{};
+    const Trace& moving = velocity_only ? integrated : trace;
+    ScanResult s = time_and_scan(options, [&](const OnlineOptions& o) {
         Identifiers identifiers(o, systematic);
-        push_trace(identifiers, trace, force, use, block);
+        push_trace(identifiers, moving, force, use, block);
         return finish(identifiers, summary, o, trace.rotary);
     });
+    if (velocity_only)
+        s.result.diagnostics.push_back(
+            "no position channel: the windows' motion is the logged velocity, integrated");
+    return s;
 }
 
 namespace {
@@ -522,7 +609,9 @@ nlohmann::json scan_document(const ScanResult& s) {
     for (const auto& p : s.result.parameters) {
         if (p.term == Term::breakaway || p.term == Term::stribeck_velocity) continue;
         const bool known = column < static_cast<std::size_t>(e.information.size());
-        const double value = known ? e.information(static_cast<Eigen::Index>(column)) : NAN;
+        double value = known ? e.information(static_cast<Eigen::Index>(column)) : NAN;
+        if (s.friction_only && p.estimate.standard_error)  // no windows: the friction-only fit's own variance
+            value = 1.0 / (*p.estimate.standard_error * *p.estimate.standard_error);
         information[p.key] = {{"inverse_variance", std::isfinite(value) ? nlohmann::json(value) : nlohmann::json()}};
         ++column;
     }
@@ -550,11 +639,13 @@ std::vector<std::string> scan_verdicts(const ScanResult& s) {
     const std::size_t windows = s.online.windows.qualified();
     for (const auto& p : s.result.parameters) {
         const Estimate& e = p.estimate;
+        const std::string from = s.friction_only ? fmt::format("{} steady-speed samples", s.online.rows_used)
+                                                 : fmt::format("{} windows", windows);
         if (e.value && e.standard_error && *e.value != 0.0) {
-            lines.push_back(fmt::format("{} from {} windows, σ {:.2g} %", p.symbol, windows,
+            lines.push_back(fmt::format("{} from {}, σ {:.2g} %", p.symbol, from,
                                         100.0 * *e.standard_error / std::abs(*e.value)));
         } else if (e.value) {
-            lines.push_back(fmt::format("{} from {} windows, no standard error", p.symbol, windows));
+            lines.push_back(fmt::format("{} from {}, no standard error", p.symbol, from));
         } else {
             const std::string& why = null_reason(s.online, p.term);
             // a reason that already names the parameter ("F_C not determined: the qualified windows move in one

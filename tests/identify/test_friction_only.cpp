@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <vector>
 #include <random>
 #include <string>
 
@@ -190,4 +192,79 @@ TEST(FrictionOnly, TheCommandLineExitsZeroAndWritesTheResult) {
     const auto bare = feedid::testing::run_cli("identify '" + path.string() + "'");
     EXPECT_EQ(bare.exit_code, 2) << bare.err;
     EXPECT_TRUE(contains(bare.err, "give --kt and --lead, or --force-constant")) << bare.err;
+}
+
+namespace {
+
+/// A mill's log as the UMich one is: 10 Hz, 1 mm positions, strokes of 30 samples at 6 mm/s both ways and two at 18
+/// mm/s, and a force level of its own on every stroke (a load, friction that differs along the axis: 3 N) on top of
+/// white noise (2 N); B 2000 N*s/m, F_C 150 N.
+Trace stroke_level_log(unsigned seed) {
+    const Branch branch{2000.0, 150.0};
+    std::vector<double> t, x, v, f;
+    std::mt19937 random(seed);
+    std::normal_distribution<double> noise(0.0, 2.0), level(0.0, 3.0);
+    double position = 0.1;
+    int k = 0;
+    const auto stroke = [&](double speed, int samples) {
+        const double own = speed != 0.0 ? level(random) : 0.0;
+        for (int i = 0; i < samples; ++i) {
+            position += speed * 0.1;
+            t.push_back(0.1 * k++);
+            x.push_back(std::round(position * 1e3) * 1e-3);
+            v.push_back(speed);
+            f.push_back(friction(speed, branch, branch) + own + noise(random));
+        }
+    };
+    for (int pass = 0; pass < 24; ++pass) {
+        stroke(0.0, 5);
+        const double direction = pass % 2 == 0 ? 1.0 : -1.0;
+        stroke(direction * (pass == 5 || pass == 14 ? 0.018 : 0.006), 30);
+    }
+    stroke(0.0, 10);
+    Trace trace;
+    trace.source_path = "stroke-levels.csv";
+    trace.set("t", Role::time, "s", std::move(t));
+    trace.set("x", Role::position, "m", std::move(x));
+    trace.set("v", Role::velocity, "m/s", std::move(v));
+    trace.set("F", Role::force, "N", std::move(f));
+    trace.validate();
+    return trace;
+}
+
+}  // namespace
+
+// Each stroke's own level is news once, not once per sample: over 40 seeds the scatter of B and F_C is 0.7-1.5 times
+// their mean standard error (with batch means over 2 s blocks alone, B's scatter was 1.61 times its standard error).
+TEST(FrictionOnly, StandardErrorsCountEachStrokesLevelOnce) {
+    std::vector<double> viscous, coulomb, viscous_error, coulomb_error;
+    for (unsigned seed = 1; seed <= 40; ++seed) {
+        const IdentifyResult result = identify(stroke_level_log(seed), IdentifyOptions{});
+        ASSERT_TRUE(result.friction_only) << seed;
+        viscous.push_back(value(result, "viscous_Ns_per_m"));
+        coulomb.push_back(value(result, "coulomb_N"));
+        viscous_error.push_back(stderr_of(result, "viscous_Ns_per_m"));
+        coulomb_error.push_back(stderr_of(result, "coulomb_N"));
+    }
+    const auto mean = [](const std::vector<double>& a) {
+        double s = 0.0;
+        for (const double x : a) s += x;
+        return s / static_cast<double>(a.size());
+    };
+    const auto scatter = [&](const std::vector<double>& a) {
+        const double m = mean(a);
+        double s = 0.0;
+        for (const double x : a) s += (x - m) * (x - m);
+        return std::sqrt(s / static_cast<double>(a.size() - 1));
+    };
+    const double viscous_ratio = scatter(viscous) / mean(viscous_error);
+    const double coulomb_ratio = scatter(coulomb) / mean(coulomb_error);
+    std::printf("B %.1f scatter %.2f se %.2f ratio %.2f; F_C %.2f scatter %.3f se %.3f ratio %.2f\n", mean(viscous),
+                scatter(viscous), mean(viscous_error), viscous_ratio, mean(coulomb), scatter(coulomb),
+                mean(coulomb_error), coulomb_ratio);
+    EXPECT_GT(viscous_ratio, 0.7);
+    EXPECT_LT(viscous_ratio, 1.5);
+    EXPECT_GT(coulomb_ratio, 0.7);
+    EXPECT_LT(coulomb_ratio, 1.5);
+    EXPECT_NEAR(mean(viscous), 2000.0, 3.0 * scatter(viscous) / std::sqrt(40.0) + 1e-9);
 }

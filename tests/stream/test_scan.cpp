@@ -14,6 +14,7 @@
 #include "feedid/io/import.hpp"
 #include "feedid/identify/online_identifier.hpp"
 #include "feedid/identify/result_document.hpp"
+#include "feedid/stream/scan.hpp"
 #include "production_traces.hpp"
 #include "testing.hpp"
 
@@ -250,6 +251,41 @@ TEST(Scan, RecordFilesTheScanInTheHistoryMarkedAsAScan) {
     const std::string text = runs.dump();
     EXPECT_NE(text.find("\"kind\":\"scan\""), std::string::npos);
     EXPECT_NE(text.find("DMU50"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace feedid
+
+namespace feedid {
+namespace {
+
+// Without a position, the logged velocity integrated is the windows' motion (scan --channel position=none): on the
+// production trace with its position replaced by a velocity (central differences of the encoder), M, B and F_C are
+// within the production tolerances of the truth (M 3 %, B 10 %, F_C 3 %), from windows, not from a friction-only fit.
+TEST(Scan, TheLoggedVelocityAloneIsScannedByWindows) {
+    Trace trace = read_trace(production_csv());
+    const auto t = trace.column(Role::time);
+    const auto x = trace.column(Role::position);
+    std::vector<double> v(x.size(), 0.0);
+    for (std::size_t k = 1; k + 1 < x.size(); ++k) v[k] = (x[k + 1] - x[k - 1]) / (t[k + 1] - t[k - 1]);
+    trace.set("v", Role::velocity, "m/s", std::move(v));
+    trace.find(Role::position)->role = Role::other;
+    DriveConstants constants;
+    constants.torque_constant_Nm_per_A = 1.444;
+    constants.lead_m = 0.020;
+    const ScanResult s = scan(trace, drive_force(trace, constants), {}, OnlineOptions{});
+    ASSERT_FALSE(s.friction_only);
+    ASSERT_NE(s.result.status, Status::failed);
+    const AxisModel truth = demo_spec().axis;
+    const auto near = [&](Term term, double expected, double tolerance) {
+        const Parameter* p = s.result.find(term);
+        ASSERT_TRUE(p != nullptr && p->estimate.value) << static_cast<int>(term);
+        EXPECT_NEAR(*p->estimate.value, expected, tolerance * expected) << p->symbol;
+    };
+    near(Term::mass, truth.mass, 0.03);
+    near(Term::viscous, truth.friction.forward.viscous, 0.10);
+    near(Term::coulomb, truth.friction.forward.coulomb, 0.03);
+    EXPECT_GT(s.online.windows.qualified(), 10U);
 }
 
 }  // namespace

@@ -261,3 +261,46 @@ TEST(UmichMill, APositionThatJumpsIsNamedAndTheVelocityAloneGivesTheFriction) {
         EXPECT_NEAR(value(without, key), value(with, key), 1e-9 * std::abs(value(with, key))) << key;
     }
 }
+
+namespace {
+
+double standard_error(const Json& result, const std::string& key) {
+    const auto& v = result.at("parameters").at(key).at("stderr");
+    return v.is_number() ? v.get<double>() : NAN;
+}
+
+}  // namespace
+
+// scan applies identify's rule for a log too coarse for a mass: M null with the reason in figures, the friction from
+// the steady-speed samples; the two agree within their combined standard error (README's options, X1 and Y1), also
+// from the logged velocity alone (--channel position=none), where scan had exited 1 with 50 low_excitation windows.
+TEST(UmichMill, ScanAndIdentifyAgreeOnTheCoarseLogWithinTheirUncertainties) {
+    FEEDID_REQUIRE_SHARED("umich-cnc-mill/experiment_01.csv");
+    const auto file = quoted(shared_data() / "umich-cnc-mill" / "experiment_01.csv");
+    const std::string options =
+        " --sample-time 0.1 --unit position=mm --unit velocity=mm/s --unit reference_position=mm "
+        "--unit velocity_command=mm/s --force-constant 1 --json -";
+    for (const std::string axis : {"X1", "Y1"}) {
+        const auto identified = run_cli("identify " + file + " --axis " + axis + options);
+        ASSERT_EQ(identified.exit_code, 0) << axis << ": " << identified.err;
+        const Json reference = Json::parse(identified.out);
+        for (const std::string extra : {"", " --channel position=none"}) {
+            const auto scanned = run_cli("scan " + file + " --axis " + axis + options + extra);
+            ASSERT_EQ(scanned.exit_code, 0) << axis << extra << ": " << scanned.err;
+            const Json document = Json::parse(scanned.out);
+            EXPECT_EQ(document.at("kind"), "scan");
+            EXPECT_EQ(document.at("status"), "partial") << axis << extra;
+            EXPECT_TRUE(document.at("parameters").at("mass_kg").at("value").is_null()) << axis << extra;
+            EXPECT_TRUE(contains(document.at("friction_only").at("reason").get<std::string>(),
+                                 "mass not identifiable: 10 Hz sampling"))
+                << axis << extra;
+            for (const std::string key : {"viscous_Ns_per_m", "coulomb_N"}) {
+                const double scan_value = value(document, key), identify_value = value(reference, key);
+                const double combined = std::hypot(standard_error(document, key), standard_error(reference, key));
+                ASSERT_TRUE(std::isfinite(scan_value) && std::isfinite(combined)) << axis << extra << " " << key;
+                EXPECT_GT(scan_value, 0.0) << axis << extra << " " << key;
+                EXPECT_LE(std::abs(scan_value - identify_value), combined) << axis << extra << " " << key;
+            }
+        }
+    }
+}

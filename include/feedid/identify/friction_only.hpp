@@ -5,6 +5,7 @@
 // can be identified at all is decided from the data's figures (assess_resolution), not from a failed fit.
 
 #include <cstddef>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -60,6 +61,12 @@ struct Resolution {
 /// travel per sample.
 Resolution assess_resolution(const Derivatives& derivatives, const FrictionOnlyOptions& options);
 
+/// identify's rule on a whole trace, for front-ends that do not run identify's stages (scan): the samples
+/// preprocessed as identify preprocesses them (`preprocess`), then assess_resolution. `force` [N] per sample. A trace
+/// the preprocessing cannot take (too short, no motion, an option it refuses) is not coarse.
+Resolution assess_trace_resolution(const Trace& trace, std::span<const double> force,
+                                   const PreprocessOptions& preprocess, const FrictionOnlyOptions& options);
+
 struct FrictionOnlyFit {
     std::vector<RegressorColumn> columns;  ///< the friction columns of the step-1 model (no mass)
     LeastSquaresResult batch;
@@ -67,6 +74,11 @@ struct FrictionOnlyFit {
     double largest_acceleration{0.0};  ///< [m/s^2] among the moving samples
     /// The smallest mass whose inertial force at the largest acceleration stands above the friction scatter [kg].
     double smallest_detectable_mass{0.0};
+    /// The standard errors count each steady pass's own level once (account_for_pass_levels in the source): the
+    /// passes, the scatter of their levels beyond their noise [N], and the batch means' block [samples].
+    std::size_t passes{0};
+    double pass_level_std{0.0};
+    std::size_t correlation_block{1};
     std::string failure;  ///< why the steady samples cannot determine B and F_C ("" when they can)
     [[nodiscard]] bool failed() const { return !failure.empty(); }
 };

@@ -172,6 +172,10 @@ std::vector<double> delay_column(const Derivatives& derivatives);
 /// each stretch (held at the stretch's ends).
 void shift_drive_force(Derivatives& derivatives, double delay_s);
 
+/// The integrated autocorrelation time [samples] of `values` at ascending sample indices `rows` (gaps allowed), by
+/// blocking as below; 1 for uncorrelated values or fewer than 100.
+double integrated_autocorrelation_time(const std::vector<std::size_t>& rows, const std::vector<double>& values);
+
 /// The integrated autocorrelation time of step 1's residual under `regressors` [analysed samples], by blocking:
 /// half the largest ratio, over blocks of 2, 4, 8 ... samples (at least 50 of them), of the sum of squared block sums
 /// to the sum of squares; 1 for an uncorrelated residual.

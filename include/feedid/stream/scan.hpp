@@ -36,10 +36,15 @@ std::vector<char> gate_samples(const Trace& trace, std::span<const GateCondition
 struct ScanResult {
     IdentifyResult result;  ///< status, parameters, trace, diagnostics, as identify's
     OnlineEstimate online;
+    /// The log is too coarse for a mass (identify's rule): no windows, identify's friction-only estimate, M null.
+    bool friction_only{false};
 };
 
 /// Pushes the trace's time, position and `force` [N] (drive_force()) through an OnlineIdentifier in blocks of
-/// `block` samples; `use` (empty = all) is the --only-when gate. InputError for a trace without a position. With
+/// `block` samples; `use` (empty = all) is the --only-when gate. Without a position, the logged velocity integrated
+/// is the motion; InputError for a trace with neither. A trace too coarse for a mass (identify's rule,
+/// assess_trace_resolution, on the samples the gate keeps) is not scanned by windows: `friction_only`, identify's
+/// friction-only estimate (B, F_C from the steady-speed samples; M, F_B, v_s null with the reason). With
 /// `systematic`, a second identifier runs with the split speed doubled: each parameter's systematic part is how far it
 /// moves (Estimate::set_systematic), with a finding where that exceeds twice its standard error.
 ScanResult scan(const Trace& trace, std::span<const double> force, std::span<const char> use,
