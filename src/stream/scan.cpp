@@ -589,7 +589,10 @@ ScanResult scan_csv_stream(const std::filesystem::path& path, const ImportOption
             fmt::format("{}: --join, --tare, --invert and --sample-time need the whole file; it is read "
                         "in blocks",
                         path.string()));
-    return time_and_scan(options, [&](const OnlineOptions& o) {
+    // no timing search: every pass reads and parses the whole file again (20 CPU s for 8 hours at 1 kHz, and the
+    // search takes up to 11 passes); the pool's delay is corrected to first order where significant, as watch does,
+    // and its uncertainty carried into every parameter
+    return select_and_scan(options, [&](const OnlineOptions& o) {
         return scan_csv_pass(path, import, drive, gates, o, block_rows, findings, systematic);
     });
 }

