@@ -162,7 +162,7 @@ void account_for_pass_levels(FrictionOnlyFit& fit, const Eigen::MatrixXd& phi, c
 }
 }  // namespace
 
-Resolution assess_resolution(const Derivatives& d, const FrictionOnlyOptions& options) {
+Resolution assess_resolution(const Derivatives& d, const FrictionOnlyOptions& options, double moving_speed) {
     Resolution r;
     const double dt = d.sample_time_s * d.used.decimation;
     r.sample_rate_hz = 1.0 / dt;
@@ -170,11 +170,17 @@ Resolution assess_resolution(const Derivatives& d, const FrictionOnlyOptions& op
     const auto& v = steady_source(d).velocity;
     if (v.size() < 2) return r;
     // one buffer for both percentiles, moved in (a copy of each would be 16 bytes per sample more)
-    std::vector<double> buffer(v.size());
-    for (std::size_t k = 0; k < v.size(); ++k) buffer[k] = std::abs(v[k]);
+    const auto moving = [&](std::size_t k) { return !(moving_speed > 0.0) || std::abs(v[k]) > moving_speed; };
+    std::vector<double> buffer;
+    buffer.reserve(v.size());
+    for (std::size_t k = 0; k < v.size(); ++k)
+        if (moving(k)) buffer.push_back(std::abs(v[k]));
+    if (buffer.size() < 2) return r;
     r.typical_speed = percentile(std::move(buffer), 0.95);
-    buffer.assign(v.size() - 1, 0.0);
-    for (std::size_t k = 1; k < v.size(); ++k) buffer[k - 1] = std::abs(v[k] - v[k - 1]);
+    buffer.clear();
+    for (std::size_t k = 1; k < v.size(); ++k)
+        if (moving(k) || moving(k - 1)) buffer.push_back(std::abs(v[k] - v[k - 1]));
+    if (buffer.empty()) return r;
     r.largest_speed_step = percentile(std::move(buffer), 0.99);
     const double travel = r.typical_speed * dt;
     r.position_too_coarse = r.position_quantum > options.coarse_position_fraction * travel;
@@ -198,7 +204,8 @@ Resolution assess_resolution(const Derivatives& d, const FrictionOnlyOptions& op
 }
 
 Resolution assess_trace_resolution(const Trace& trace, std::span<const double> force,
-                                   const PreprocessOptions& preprocess_options, const FrictionOnlyOptions& options) {
+                                   const PreprocessOptions& preprocess_options, const FrictionOnlyOptions& options,
+                                   double moving_speed) {
     Derivatives d;
     try {
         d = preprocess(trace, force, preprocess_options);
@@ -206,7 +213,7 @@ Resolution assess_trace_resolution(const Trace& trace, std::span<const double> f
         return {};
     }
     if (!d.failure.empty() || d.velocity.size() < 2) return {};
-    return assess_resolution(d, options);
+    return assess_resolution(d, options, moving_speed);
 }
 
 FrictionOnlyFit fit_friction_only(const Derivatives& d, const Selection& s, FrictionModelKind model, bool offset,

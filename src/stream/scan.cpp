@@ -495,7 +495,9 @@ ScanResult scan(const Trace& trace, std::span<const double> force, std::span<con
     const Trace& seen = gated ? *kept : trace;
     const std::span<const double> seen_force = gated ? std::span<const double>(kept_force) : force;
     const IdentifyOptions rule;
-    if (assess_trace_resolution(seen, seen_force, rule.preprocess, rule.friction_only).coarse())
+    const Resolution resolution =
+        assess_trace_resolution(seen, seen_force, rule.preprocess, rule.friction_only, options.moving_threshold);
+    if (resolution.coarse())
         return friction_only_scan(seen, seen_force, options, summary);
     kept.reset();
     const Trace integrated = velocity_only ? with_integrated_position(trace) : Trace{};

@@ -58,14 +58,20 @@ struct Resolution {
 };
 
 /// The figures of the analysed samples: sample rate against the speed's changes, position resolution against the
-/// travel per sample.
-Resolution assess_resolution(const Derivatives& derivatives, const FrictionOnlyOptions& options);
+/// travel per sample. `moving_speed` > 0: of the samples faster than it only (and the steps to or from one of them:
+/// a start from rest within one sample is what a coarse log shows), so that a production trace at rest most of the
+/// time is judged by its moves [m/s or rad/s].
+Resolution assess_resolution(const Derivatives& derivatives, const FrictionOnlyOptions& options,
+                             double moving_speed = 0.0);
 
 /// identify's rule on a whole trace, for front-ends that do not run identify's stages (scan): the samples
 /// preprocessed as identify preprocesses them (`preprocess`), then assess_resolution. `force` [N] per sample. A trace
-/// the preprocessing cannot take (too short, no motion, an option it refuses) is not coarse.
+/// the preprocessing cannot take (too short, no motion, an option it refuses) is not coarse. Judged by the samples
+/// faster than `moving_speed` (a production trace rests most of the time: the drilling program's Y axis, at rest
+/// in 9 of 10 samples, was taken for a coarse log by all of them).
 Resolution assess_trace_resolution(const Trace& trace, std::span<const double> force,
-                                   const PreprocessOptions& preprocess, const FrictionOnlyOptions& options);
+                                   const PreprocessOptions& preprocess, const FrictionOnlyOptions& options,
+                                   double moving_speed);
 
 struct FrictionOnlyFit {
     std::vector<RegressorColumn> columns;  ///< the friction columns of the step-1 model (no mass)
