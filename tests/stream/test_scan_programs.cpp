@@ -63,12 +63,10 @@ std::vector<Run> scan_program(const std::string& program, const std::string& axi
     std::vector<Run> runs;
     for (int seed = 1; seed <= seeds; ++seed) {
         const auto trace = dir / fmt::format("{}_{}.csv", program, seed);
-        if (!std::filesystem::exists(trace)) {
-            const auto source = std::filesystem::path(FEEDID_TEST_SOURCE_DIR) / ".." / "examples" / "programs";
-            const auto r = testing::run_cli(fmt::format("synth --program '{}' --seed {} --out '{}'",
-                                                        (source / (program + ".ngc")).string(), seed, trace.string()));
-            EXPECT_EQ(r.exit_code, 0) << r.err;
-        }
+        const auto source = std::filesystem::path(FEEDID_TEST_SOURCE_DIR) / ".." / "examples" / "programs";
+        const auto made = testing::run_cli(fmt::format("synth --program '{}' --seed {} --out '{}'",
+                                                       (source / (program + ".ngc")).string(), seed, trace.string()));
+        EXPECT_EQ(made.exit_code, 0) << made.err;
         Run run;
         const std::string common = fmt::format(
             "scan '{}' --axis {} --force-constant {}_force_constant_N_per_A --json -", trace.string(), axis, axis);
@@ -80,6 +78,7 @@ std::vector<Run> scan_program(const std::string& program, const std::string& axi
         }
         run.constants = header_constants(trace);
         runs.push_back(std::move(run));
+        std::filesystem::remove(trace);  // tens of MB each, ctest runs two such tests at once: the disk is not large
     }
     return runs;
 }
@@ -314,6 +313,7 @@ void check_timing(double delay_ms) {
                             << where << " " << p.key << " " << value << " +- " << band;
                     }
                 }
+                std::filesystem::remove(trace);
             }
         }
     }

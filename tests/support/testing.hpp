@@ -11,6 +11,8 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <system_error>
+#include <vector>
 
 namespace feedid::testing {
 
@@ -37,12 +39,42 @@ inline std::filesystem::path test_files_root() {
     return std::filesystem::path(FEEDID_TEST_TMP);
 }
 
+/// The test folders this process made, removed when it exits if every test it ran passed (a failing test's files
+/// stay for a look). The disk of a CI machine is not large: a suite that synthesizes production traces writes
+/// gigabytes, and ctest runs over 600 test processes one after the other.
+class TestFolders {
+public:
+    static TestFolders& instance() {
+        static TestFolders folders;
+        return folders;
+    }
+    void add(const std::filesystem::path& dir) {
+        if (std::find(dirs_.begin(), dirs_.end(), dir) == dirs_.end()) dirs_.push_back(dir);
+    }
+    TestFolders(const TestFolders&) = delete;
+    TestFolders& operator=(const TestFolders&) = delete;
+
+private:
+    TestFolders() = default;
+    ~TestFolders() {
+        // gtest's UnitTest was made before the first test folder, so it is destroyed after this
+        const auto* unit = ::testing::UnitTest::GetInstance();
+        if (unit == nullptr || !unit->Passed()) return;
+        for (const auto& dir : dirs_) {
+            std::error_code error;
+            std::filesystem::remove_all(dir, error);
+        }
+    }
+    std::vector<std::filesystem::path> dirs_;
+};
+
 /// A fresh folder for the running test's files, named after the test.
 inline std::filesystem::path temp_dir() {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
     auto dir = test_files_root() / (std::string(info->test_suite_name()) + "." + info->name());
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
+    TestFolders::instance().add(dir);
     return dir;
 }
 
@@ -77,6 +109,7 @@ inline int run_rs274(const std::filesystem::path& rs274, const std::filesystem::
 inline std::filesystem::path suite_dir(const std::string& name) {
     auto dir = test_files_root() / (name + "-" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir);
+    TestFolders::instance().add(dir);
     return dir;
 }
 
