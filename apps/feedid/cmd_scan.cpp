@@ -128,7 +128,7 @@ struct ScanCommand {
         const bool csv = trace_arguments.format.empty() ? detect_format(trace_arguments.file) == "csv"
                                                         : trace_arguments.format == "csv";
         return !error && csv && size > (std::uintmax_t{256} << 20) && trace_arguments.join.empty() &&
-               trace_arguments.tare.empty() && trace_arguments.invert.empty() && !trace_arguments.sample_time_s;
+               trace_arguments.tare.empty() && trace_arguments.invert.empty();
     }
 
     ScanResult scan_whole(const OnlineOptions& o, const std::vector<GateCondition>& gates) const {
