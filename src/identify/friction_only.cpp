@@ -157,9 +157,10 @@ struct RobustFit {
     double m_scale{std::numeric_limits<double>::max()};  ///< the residuals' M-scale, by which fits compare
 };
 
-/// Tukey's biweight by IRLS from `start`, the scale the residuals' MAD at each step (as scan's windows are fitted).
+/// Tukey's biweight by IRLS from `start`, the scale the residuals' MAD at each step (as scan's windows are fitted);
+/// rows not `judged` keep weight 1.
 RobustFit tukey_fit(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, Eigen::VectorXd theta,
-                    const FrictionOnlyOptions& options) {
+                    const std::vector<char>& judged, const FrictionOnlyOptions& options) {
     const double floor = 1e-12 * std::max(1.0, y.cwiseAbs().maxCoeff());
     RobustFit fit;
     Eigen::VectorXd residual;
@@ -167,7 +168,11 @@ RobustFit tukey_fit(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, Eigen:
         residual = y - phi * theta;
         fit.scale = robust_scale_of(residual);
         const double limit = options.tukey_c * std::max(fit.scale, floor);
-        fit.weights = residual.unaryExpr([&](double r) { return fit.scale > floor ? tukey_weight(r, limit) : 1.0; });
+        fit.weights.resize(residual.size());
+        for (Eigen::Index i = 0; i < residual.size(); ++i)
+            fit.weights(i) = fit.scale > floor && judged[static_cast<std::size_t>(i)] != 0
+                                 ? tukey_weight(residual(i), limit)
+                                 : 1.0;
     };
     for (int iteration = 0; iteration < options.irls_iterations; ++iteration) {
         weigh();
@@ -229,13 +234,41 @@ Eigen::VectorXd pass_median_start(const SteadyRows& rows, const Eigen::VectorXd&
     return start;
 }
 
+/// The rows the robust weights may judge: those of passes with two more passes at their speed (within 10 %, either
+/// direction). A load shows as a stroke whose friction stands off the others' at its speed; a pass alone at its speed
+/// (the one rapid of a log) is what determines B, and no other pass can say it is off: it keeps its weight.
+std::vector<char> judged_rows(const SteadyRows& rows) {
+    std::vector<std::size_t> begin;
+    std::vector<double> speed;
+    for (std::size_t i = 0; i < rows.index.size(); ++i) {
+        if (i > 0 && rows.pass[i] == rows.pass[i - 1]) continue;
+        begin.push_back(i);
+        std::size_t end = i + 1;
+        while (end < rows.index.size() && rows.pass[end] == rows.pass[i]) ++end;
+        std::vector<double> magnitude(end - i);
+        for (std::size_t j = i; j < end; ++j) magnitude[j - i] = std::abs(rows.velocity(static_cast<Eigen::Index>(j)));
+        speed.push_back(percentile(std::move(magnitude), 0.5));
+    }
+    begin.push_back(rows.index.size());
+    std::vector<char> judged(rows.index.size(), 0);
+    for (std::size_t q = 0; q < speed.size(); ++q) {
+        const auto alike = std::count_if(speed.begin(), speed.end(), [&](double other) {
+            return std::abs(other - speed[q]) <= 0.1 * std::max(other, speed[q]);
+        });
+        if (alike >= 3) std::fill(judged.begin() + static_cast<std::ptrdiff_t>(begin[q]),
+                                  judged.begin() + static_cast<std::ptrdiff_t>(begin[q + 1]), char{1});
+    }
+    return judged;
+}
+
 /// Tukey's biweight from least squares, from the fastest third of the rows (rapids do not cut) and from the passes'
 /// medians (pass_median_start): a feed stroke's cutting load pulls least squares, and IRLS from there keeps it when
 /// the scale it starts from covers the load. The fit of smallest M-scale is kept (the S-estimator's rule).
 RobustFit robust_friction_fit(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, const SteadyRows& rows,
                               const std::vector<RegressorColumn>& columns, const Eigen::VectorXd& least_squares,
                               const FrictionOnlyOptions& options) {
-    RobustFit best = tukey_fit(phi, y, least_squares, options);
+    const std::vector<char> judged = judged_rows(rows);
+    RobustFit best = tukey_fit(phi, y, least_squares, judged, options);
     const Eigen::VectorXd speed = rows.velocity.cwiseAbs();
     std::vector<double> speeds(speed.data(), speed.data() + speed.size());
     const double fast = percentile(std::move(speeds), 2.0 / 3.0);
@@ -243,7 +276,7 @@ RobustFit robust_friction_fit(const Eigen::MatrixXd& phi, const Eigen::VectorXd&
         weighted_solution(phi, y, speed.unaryExpr([&](double s) { return s >= fast ? 1.0 : 0.0; }));
     for (const Eigen::VectorXd& start : {fastest, pass_median_start(rows, y, columns)}) {
         if (!start.allFinite()) continue;
-        RobustFit other = tukey_fit(phi, y, start, options);
+        RobustFit other = tukey_fit(phi, y, start, judged, options);
         if (other.m_scale < best.m_scale) best = std::move(other);
     }
     return best;
