@@ -80,8 +80,9 @@ struct ScanCommand {
                        "The drive's force limit [N]: a window reaching 99 % of it is rejected as saturated")
             ->check(allowed_range(1e-6, 1e9, "N"));
         sub.add_option("--block-rows", block_rows,
-                       "Read a CSV file in blocks of this many lines (memory of one block; the same estimate). "
-                       "Default: blocks of 500000 for CSV files above 256 MB, the whole file otherwise")
+                       "Read a CSV file in blocks of this many lines (memory of one block; the same estimate; a log "
+                       "too coarse for a mass, judged by its first block, is read whole). Default: blocks of 500000 "
+                       "for CSV files above 256 MB, the whole file otherwise")
             ->check(allowed_range(1000, 1e9, "lines"));
         sub.add_option("--json", json_path, "Write the result document to PATH ('-' for stdout)");
         record.add_to(sub);
