@@ -140,8 +140,8 @@ double m_scale(const Eigen::VectorXd& r, double mad) {
     for (int iteration = 0; iteration < 50; ++iteration) {
         double loss = 0.0;
         for (Eigen::Index i = 0; i < r.size(); ++i) {
-            const double u = r(i) / (c * scale);
-            loss += std::abs(u) >= 1.0 ? 1.0 : 1.0 - std::pow(1.0 - u * u, 3);
+            const double u = r(i) / (c * scale), t = 1.0 - u * u;
+            loss += std::abs(u) >= 1.0 ? 1.0 : 1.0 - t * t * t;
         }
         const double next = scale * std::sqrt(loss / static_cast<double>(r.size()) / 0.5);
         if (std::abs(next - scale) <= 1e-9 * scale) return next;
@@ -157,10 +157,10 @@ struct RobustFit {
     double m_scale{std::numeric_limits<double>::max()};  ///< the residuals' M-scale, by which fits compare
 };
 
-/// Tukey's biweight by IRLS from `start`, the scale the residuals' MAD at each step (as scan's windows are fitted);
-/// rows not `judged` keep weight 1.
+/// Tukey's biweight by IRLS from `start` (up to `iterations` steps), the scale the residuals' MAD at each step (as
+/// scan's windows are fitted); rows not `judged` keep weight 1.
 RobustFit tukey_fit(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, Eigen::VectorXd theta,
-                    const std::vector<char>& judged, const FrictionOnlyOptions& options) {
+                    const std::vector<char>& judged, const FrictionOnlyOptions& options, int iterations) {
     const double floor = 1e-12 * std::max(1.0, y.cwiseAbs().maxCoeff());
     RobustFit fit;
     Eigen::VectorXd residual;
@@ -174,7 +174,7 @@ RobustFit tukey_fit(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, Eigen:
                                  ? tukey_weight(residual(i), limit)
                                  : 1.0;
     };
-    for (int iteration = 0; iteration < options.irls_iterations; ++iteration) {
+    for (int iteration = 0; iteration < iterations; ++iteration) {
         weigh();
         const Eigen::VectorXd next = weighted_solution(phi, y, fit.weights);
         if (!next.allFinite()) break;
@@ -251,10 +251,12 @@ std::vector<char> judged_rows(const SteadyRows& rows) {
     }
     begin.push_back(rows.index.size());
     std::vector<char> judged(rows.index.size(), 0);
+    std::vector<double> sorted = speed;
+    std::sort(sorted.begin(), sorted.end());
     for (std::size_t q = 0; q < speed.size(); ++q) {
-        const auto alike = std::count_if(speed.begin(), speed.end(), [&](double other) {
-            return std::abs(other - speed[q]) <= 0.1 * std::max(other, speed[q]);
-        });
+        // |other - s| <= 0.1 max(other, s): other within [0.9 s, s / 0.9]
+        const auto alike = std::upper_bound(sorted.begin(), sorted.end(), speed[q] / 0.9) -
+                           std::lower_bound(sorted.begin(), sorted.end(), 0.9 * speed[q]);
         if (alike >= 3) std::fill(judged.begin() + static_cast<std::ptrdiff_t>(begin[q]),
                                   judged.begin() + static_cast<std::ptrdiff_t>(begin[q + 1]), char{1});
     }
@@ -267,8 +269,10 @@ std::vector<char> judged_rows(const SteadyRows& rows) {
 RobustFit robust_friction_fit(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, const SteadyRows& rows,
                               const std::vector<RegressorColumn>& columns, const Eigen::VectorXd& least_squares,
                               const FrictionOnlyOptions& options) {
+    // each start a few steps, then the best one to convergence (a day's log at 10 Hz has 10^6 steady samples)
+    constexpr int trial_iterations = 5;
     const std::vector<char> judged = judged_rows(rows);
-    RobustFit best = tukey_fit(phi, y, least_squares, judged, options);
+    RobustFit best = tukey_fit(phi, y, least_squares, judged, options, trial_iterations);
     const Eigen::VectorXd speed = rows.velocity.cwiseAbs();
     std::vector<double> speeds(speed.data(), speed.data() + speed.size());
     const double fast = percentile(std::move(speeds), 2.0 / 3.0);
@@ -276,10 +280,10 @@ RobustFit robust_friction_fit(const Eigen::MatrixXd& phi, const Eigen::VectorXd&
         weighted_solution(phi, y, speed.unaryExpr([&](double s) { return s >= fast ? 1.0 : 0.0; }));
     for (const Eigen::VectorXd& start : {fastest, pass_median_start(rows, y, columns)}) {
         if (!start.allFinite()) continue;
-        RobustFit other = tukey_fit(phi, y, start, judged, options);
+        RobustFit other = tukey_fit(phi, y, start, judged, options, trial_iterations);
         if (other.m_scale < best.m_scale) best = std::move(other);
     }
-    return best;
+    return tukey_fit(phi, y, best.theta, judged, options, options.irls_iterations);
 }
 
 /// Robust weights on the steady rows: phi, y and the rows reduced to those of positive weight, each scaled by the

@@ -440,9 +440,10 @@ Trace with_drive_force(Trace trace, std::vector<double> force) {
 /// friction-only estimate from the steady-speed samples (of the samples the gate keeps), the same numbers, M null with
 /// the reason in figures. Failed, with identify's reason, where the steady-speed samples cannot give them either.
 ScanResult friction_only_scan(const Trace& seen, std::span<const double> force, const OnlineOptions& options,
-                              const TraceSummary& summary) {
+                              const TraceSummary& summary, bool systematic) {
     IdentifyOptions identify_options;
     identify_options.offset = options.offset;
+    identify_options.systematic = systematic;  // --no-systematic: identify's preprocessing family skipped too
     identify_options.friction_only.robust = options.robust;  // --no-robust: least squares, as the windows
     ScanResult s;
     s.friction_only = true;
@@ -522,7 +523,7 @@ ScanResult scan(const Trace& trace, std::span<const double> force, std::span<con
     // identify's rule first, on the samples the gate keeps: a log too coarse for a mass is not scanned by windows
     if (too_coarse(trace, force, use, options))
         return on_kept_samples(trace, force, use, [&](const Trace& kept, std::span<const double> kept_force) {
-            return friction_only_scan(kept, kept_force, options, summary);
+            return friction_only_scan(kept, kept_force, options, summary, systematic);
         });
     IntegratedPosition start;
     const Trace integrated = velocity_only ? with_integrated_position(trace, start) : Trace{};
