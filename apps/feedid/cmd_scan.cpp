@@ -41,8 +41,9 @@ struct ScanCommand {
             ->capture_default_str()
             ->check(allowed_range(0.01, 3600, "s"));
         sub.add_flag("--no-robust", no_robust,
-                     "Plain least squares in every window (no Tukey weights, no window rejected for its residual): "
-                     "to see what the process forces do to the estimate");
+                     "Plain least squares in every window (no Tukey weights, no window rejected for its residual; "
+                     "on a log too coarse for a mass, in the friction-only fit): to see what the process forces do "
+                     "to the estimate");
         sub.add_option("--only-when", only_when,
                        "Use only the samples where another channel meets a condition, e.g. 'spindle_load<5' (also >, "
                        "<=, >=; in the channel's units as read); repeat it for several, which are ANDed")
@@ -54,7 +55,8 @@ struct ScanCommand {
             ->check(allowed_range(1e-6, 1.0, ""));
         sub.add_flag("--no-systematic", no_systematic,
                      "Skip the second identifier (split speed doubled) that gives each parameter its systematic "
-                     "uncertainty: standard errors only, about 2x faster");
+                     "uncertainty (on a log too coarse for a mass, identify's preprocessing family): standard errors "
+                     "only, about 2x faster");
         sub.add_flag("--offset", options.offset,
                      "Always estimate a constant force offset (gravity, sensor offset); by default it is taken when "
                      "the windows show one (Wald test at 1e-3)")
@@ -80,8 +82,9 @@ struct ScanCommand {
                        "The drive's force limit [N]: a window reaching 99 % of it is rejected as saturated")
             ->check(allowed_range(1e-6, 1e9, "N"));
         sub.add_option("--block-rows", block_rows,
-                       "Read a CSV file in blocks of this many lines (memory of one block; the same estimate). "
-                       "Default: blocks of 500000 for CSV files above 256 MB, the whole file otherwise")
+                       "Read a CSV file in blocks of this many lines (memory of one block; the same estimate; a log "
+                       "too coarse for a mass, judged by its first block, is read whole). Default: blocks of 500000 "
+                       "for CSV files above 256 MB, the whole file otherwise")
             ->check(allowed_range(1000, 1e9, "lines"));
         sub.add_option("--json", json_path, "Write the result document to PATH ('-' for stdout)");
         record.add_to(sub);
@@ -128,7 +131,7 @@ struct ScanCommand {
         const bool csv = trace_arguments.format.empty() ? detect_format(trace_arguments.file) == "csv"
                                                         : trace_arguments.format == "csv";
         return !error && csv && size > (std::uintmax_t{256} << 20) && trace_arguments.join.empty() &&
-               trace_arguments.tare.empty() && trace_arguments.invert.empty() && !trace_arguments.sample_time_s;
+               trace_arguments.tare.empty() && trace_arguments.invert.empty();
     }
 
     ScanResult scan_whole(const OnlineOptions& o, const std::vector<GateCondition>& gates) const {

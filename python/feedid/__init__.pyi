@@ -197,6 +197,7 @@ class FrictionOnlyReport:
     samples_used: int
     relative_error_pct: float
     residual_std: float
+    rejected_samples: int
 
 class Result:
     """An identification: parameters with standard errors, the stages' records, the result document."""

@@ -335,11 +335,13 @@ void bind_friction_records(py::module_& m) {
         .def_readonly("variants", &SystematicReport::variants);
     py::class_<FrictionOnlyReport>(m, "FrictionOnlyReport",
                                    "Why the mass could not be identified (reason, in figures) and the steady-speed "
-                                   "friction fit: samples_used, relative_error_pct [%], residual_std [N or N*m]")
+                                   "friction fit: samples_used, relative_error_pct [%], residual_std [N or N*m], "
+                                   "rejected_samples (by the robust weights)")
         .def_readonly("reason", &FrictionOnlyReport::reason)
         .def_readonly("samples_used", &FrictionOnlyReport::samples_used)
         .def_readonly("relative_error_pct", &FrictionOnlyReport::relative_error_pct)
-        .def_readonly("residual_std", &FrictionOnlyReport::residual_std);
+        .def_readonly("residual_std", &FrictionOnlyReport::residual_std)
+        .def_readonly("rejected_samples", &FrictionOnlyReport::rejected_samples);
 }
 
 void bind_records(py::module_& m) {

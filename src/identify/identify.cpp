@@ -378,13 +378,23 @@ IdentifyResult friction_only_result(IdentifyResult result, const Derivatives& d,
     flag_correlations(report, fit.columns, options.correlation_finding, result.diagnostics);
     result.step1 = std::move(report);
     const std::string reason = mass_reason(d, resolution, fit, step1_failure);
-    result.friction_only =
-        FrictionOnlyReport{reason, fit.samples, fit.batch.relative_error_pct, fit.batch.residual_std};
+    result.friction_only = FrictionOnlyReport{reason, fit.samples, fit.batch.relative_error_pct,
+                                              fit.batch.residual_std, fit.rejected};
     result.diagnostics.push_back(reason);
     result.diagnostics.push_back(fmt::format(
-        "friction only: B and F_C from {} steady-speed samples (the drive force there is friction); F_B and v_s not "
+        "friction only: B and F_C from {} steady-speed samples (the drive force there is friction){}; F_B and v_s not "
         "estimated",
-        fit.samples));
+        fit.samples,
+        fit.rejected == 0 ? std::string()
+                          : fmt::format(", {} of them rejected by the robust weights (a load the model has no term "
+                                        "for: cutting?)",
+                                        fit.rejected)));
+    if (fit.level_correlation > 0.0)
+        result.diagnostics.push_back(fmt::format(
+            "friction only: the steady passes' friction levels carry over from pass to pass (correlation {:.2f} from "
+            "one to the next, {} passes: the friction drifts during the log, warming up?); the standard errors count "
+            "it",
+            fit.level_correlation, fit.passes));
     flag_undetermined(result);
     result.axis = axis_from_parameters(result.parameters, result.model, result.rotary);
     result.friction_curve =

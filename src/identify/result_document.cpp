@@ -254,7 +254,8 @@ void to_json(Json& document, const IdentifyResult& result) {
         document["friction_only"] = {{"reason", result.friction_only->reason},
                                      {"samples_used", result.friction_only->samples_used},
                                      {"relative_error_pct", result.friction_only->relative_error_pct},
-                                     {"residual_std", result.friction_only->residual_std}};
+                                     {"residual_std", result.friction_only->residual_std},
+                                     {"rejected_samples", result.friction_only->rejected_samples}};
     }
     if (!result.options.is_null()) document["options"] = result.options;
 }
@@ -549,7 +550,8 @@ void read_records(const JsonField& j, IdentifyResult& r) {
         v->object();
         r.friction_only =
             FrictionOnlyReport{v->at("reason").text(), v->at("samples_used").count(),
-                               number_or_nan(*v, "relative_error_pct"), number_or_nan(*v, "residual_std")};
+                               number_or_nan(*v, "relative_error_pct"), number_or_nan(*v, "residual_std"),
+                               v->has("rejected_samples") ? v->at("rejected_samples").count() : 0};
     }
     if (const auto v = j.find("friction_curve")) r.friction_curve = read_friction_curve(*v, ParameterNaming{r.rotary});
     if (const auto v = j.find("systematic")) r.systematic = read_systematic(*v);

@@ -557,11 +557,11 @@ void drop_text_columns(Trace& trace, const TextColumns& text, const CsvOptions& 
 
 // An unnamed first column counting 0, 1, 2, ... is the index pandas writes: left out, with a finding. Unnamed and
 // counting anything else, it is a column without a name: an error.
-void drop_index_column(Trace& trace, const std::string& source, std::size_t header_line) {
+void drop_index_column(Trace& trace, const std::string& source, std::size_t header_line, std::size_t first) {
     if (trace.channels.empty() || !trace.channels.front().name.empty()) return;
     const auto& values = trace.channels.front().values;
     for (std::size_t k = 0; k < values.size(); ++k) {
-        if (values[k] != static_cast<double>(k)) {
+        if (values[k] != static_cast<double>(first + k)) {
             throw InputError(
                 fmt::format("{}:{}: column 1 has no name in the header, and it does not count 0, 1, 2, "
                             "... like an index (it holds {} in row {})",
@@ -609,7 +609,7 @@ Trace parse_csv_text(std::string_view text, const std::string& source, const Csv
         throw InputError(fmt::format("{}: the file has a header but no data rows", source));
     }
     drop_text_columns(trace, text_columns, options, source);
-    drop_index_column(trace, source, header_line);
+    drop_index_column(trace, source, header_line, options.first_index);
     shrink_columns(trace.channels);
     return trace;
 }

@@ -8,6 +8,7 @@
 #include <fmt/core.h>
 
 #include "feedid/io/unit_checks.hpp"
+#include "feedid/numeric/native_interval.hpp"
 #include "feedid/core/error.hpp"
 #include "feedid/io/csv.hpp"
 #include "feedid/core/parameters.hpp"
@@ -439,9 +440,11 @@ Trace with_drive_force(Trace trace, std::vector<double> force) {
 /// friction-only estimate from the steady-speed samples (of the samples the gate keeps), the same numbers, M null with
 /// the reason in figures. Failed, with identify's reason, where the steady-speed samples cannot give them either.
 ScanResult friction_only_scan(const Trace& seen, std::span<const double> force, const OnlineOptions& options,
-                              const TraceSummary& summary) {
+                              const TraceSummary& summary, bool systematic) {
     IdentifyOptions identify_options;
     identify_options.offset = options.offset;
+    identify_options.systematic = systematic;  // --no-systematic: identify's preprocessing family skipped too
+    identify_options.friction_only.robust = options.robust;  // --no-robust: least squares, as the windows
     ScanResult s;
     s.friction_only = true;
     s.result = identify(with_drive_force(seen, {force.begin(), force.end()}), identify_options);
@@ -456,16 +459,50 @@ ScanResult friction_only_scan(const Trace& seen, std::span<const double> force, 
     return s;
 }
 
+/// Where the integration of the logged velocity stands after the samples so far (a file read in blocks continues it).
+struct IntegratedPosition {
+    bool started{false};
+    double t{0.0}, v{0.0}, x{0.0};  ///< the last sample [s, m/s, m]
+};
+
 /// The logged velocity integrated (trapezoids) into the position the online identifier differentiates: its central
-/// difference is (v[k-1] + 2 v[k] + v[k+1]) / 4, the logged velocity smoothed, not delayed.
-Trace with_integrated_position(const Trace& trace) {
+/// difference is (v[k-1] + 2 v[k] + v[k+1]) / 4, the logged velocity smoothed, not delayed. `at` carries the
+/// integral from block to block (the first sample of the first block is at 0).
+Trace with_integrated_position(const Trace& trace, IntegratedPosition& at) {
     Trace out = trace;
     const auto t = trace.column(Role::time);
     const auto v = trace.column(Role::velocity);
     std::vector<double> x(v.size(), 0.0);
-    for (std::size_t k = 1; k < v.size(); ++k) x[k] = x[k - 1] + 0.5 * (v[k] + v[k - 1]) * (t[k] - t[k - 1]);
+    for (std::size_t k = 0; k < v.size(); ++k) {
+        if (at.started) at.x += 0.5 * (v[k] + at.v) * (t[k] - at.t);
+        at = {true, t[k], v[k], at.x};
+        x[k] = at.x;
+    }
     out.set("position from the logged velocity", Role::position, trace.rotary ? "rad" : "m", std::move(x));
     return out;
+}
+
+constexpr const char* velocity_only_note = "no position channel: the windows' motion is the logged velocity, integrated";
+
+/// `run` on the samples the gate keeps (the trace itself where it keeps every one).
+template <typename Run>
+auto on_kept_samples(const Trace& trace, std::span<const double> force, std::span<const char> use, Run&& run) {
+    if (std::find(use.begin(), use.end(), char{0}) == use.end()) return run(trace, force);
+    const Trace kept = kept_samples(trace, use);
+    std::vector<double> kept_force;
+    for (std::size_t k = 0; k < force.size(); ++k)
+        if (use[k]) kept_force.push_back(force[k]);
+    return run(kept, std::span<const double>(kept_force));
+}
+
+/// identify's rule for a log too coarse for a mass, judged on the samples the gate keeps.
+bool too_coarse(const Trace& trace, std::span<const double> force, std::span<const char> use,
+                const OnlineOptions& options) {
+    return on_kept_samples(trace, force, use, [&](const Trace& kept, std::span<const double> kept_force) {
+        const IdentifyOptions rule;
+        return assess_trace_resolution(kept, kept_force, rule.preprocess, rule.friction_only, options.moving_threshold)
+            .coarse();
+    });
 }
 
 }  // namespace
@@ -484,32 +521,19 @@ ScanResult scan(const Trace& trace, std::span<const double> force, std::span<con
     const TimeBase base = trace.samples() >= 2 ? trace.time_base() : TimeBase{};
     const TraceSummary summary{trace.source_path, trace.format, trace.samples(), base.sample_time_s, base.duration_s};
     // identify's rule first, on the samples the gate keeps: a log too coarse for a mass is not scanned by windows
-    const bool gated = std::find(use.begin(), use.end(), char{0}) != use.end();
-    std::optional<Trace> kept;
-    std::vector<double> kept_force;
-    if (gated) {
-        kept = kept_samples(trace, use);
-        for (std::size_t k = 0; k < force.size(); ++k)
-            if (use[k]) kept_force.push_back(force[k]);
-    }
-    const Trace& seen = gated ? *kept : trace;
-    const std::span<const double> seen_force = gated ? std::span<const double>(kept_force) : force;
-    const IdentifyOptions rule;
-    const Resolution resolution =
-        assess_trace_resolution(seen, seen_force, rule.preprocess, rule.friction_only, options.moving_threshold);
-    if (resolution.coarse())
-        return friction_only_scan(seen, seen_force, options, summary);
-    kept.reset();
-    const Trace integrated = velocity_only ? with_integrated_position(trace) : Trace{};
+    if (too_coarse(trace, force, use, options))
+        return on_kept_samples(trace, force, use, [&](const Trace& kept, std::span<const double> kept_force) {
+            return friction_only_scan(kept, kept_force, options, summary, systematic);
+        });
+    IntegratedPosition start;
+    const Trace integrated = velocity_only ? with_integrated_position(trace, start) : Trace{};
     const Trace& moving = velocity_only ? integrated : trace;
     ScanResult s = time_and_scan(options, [&](const OnlineOptions& o) {
         Identifiers identifiers(o, systematic);
         push_trace(identifiers, moving, force, use, block);
         return finish(identifiers, summary, o, trace.rotary);
     });
-    if (velocity_only)
-        s.result.diagnostics.push_back(
-            "no position channel: the windows' motion is the logged velocity, integrated");
+    if (velocity_only) s.result.diagnostics.push_back(velocity_only_note);
     return s;
 }
 
@@ -527,57 +551,133 @@ std::size_t read_lines(std::istream& in, std::size_t rows, std::string& text) {
     return n;
 }
 
-Trace parse_block(const std::string& text, const std::filesystem::path& path, const ImportOptions& import) {
+Trace parse_block(const std::string& text, const std::filesystem::path& path, const ImportOptions& import,
+                  std::size_t rows_before) {
     CsvOptions csv;
     csv.skip_rows = import.skip_rows;
+    csv.first_index = rows_before;  // a pandas index counts on through the blocks
     for (const auto& [role, name] : import.channels) csv.numeric_columns.push_back(name);
     Trace trace = parse_csv(text, path.string(), csv);
     trace.source_path = path.string();
     trace.format = "csv";
     prepare_trace(trace, import);
-    if (!trace.has(Role::position))
-        throw InputError(fmt::format("{}: scan needs a position channel (--channel position=NAME)", path.string()));
-    require_consistent_units(trace);  // block by block: a unit mix-up shows in any block that moves
+    if (!trace.has(Role::position) && !trace.has(Role::velocity))
+        throw InputError(fmt::format(
+            "{}: scan needs a position or a logged velocity (--channel position=NAME or --channel velocity=NAME)",
+            path.string()));
+    // block by block: a unit mix-up (or a position that jumps) shows in any block that moves
+    if (trace.has(Role::position)) require_consistent_units(trace);
     return trace;
 }
 
-// One pass of the identifiers over a CSV file read in blocks (scan_csv_stream).
-ScanResult scan_csv_pass(const std::filesystem::path& path, const ImportOptions& import, const DriveConstants& drive,
-                         std::span<const GateCondition> gates, const OnlineOptions& options, std::size_t block_rows,
-                         std::vector<std::string>& findings, bool systematic) {
+/// A time channel made from --sample-time starts at 0 in every block: moved on by the rows before the block.
+void continue_sample_time(Trace& block, const ImportOptions& import, std::size_t rows_before) {
+    if (!import.sample_time_s || rows_before == 0) return;
+    const bool made = std::any_of(block.findings.begin(), block.findings.end(), [](const std::string& finding) {
+        return finding.starts_with("no time column: channel '");
+    });
+    if (!made) return;
+    auto& time = block.find(Role::time)->values;  // as the whole file's: (row) * dt, not a sum that rounds otherwise
+    for (std::size_t k = 0; k < time.size(); ++k) time[k] = static_cast<double>(rows_before + k) * *import.sample_time_s;
+}
+
+/// The CSV file read in blocks, each block as scan_csv_pass parses it (the same values as the whole file's), `each`
+/// called with every block in order. Returns the first block's import findings.
+template <typename Each>
+std::vector<std::string> for_each_block(const std::filesystem::path& path, const ImportOptions& import,
+                                        std::size_t block_rows, Each&& each) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(fmt::format("{}: cannot open the file", path.string()));
     std::string text;
     const std::size_t first_lines = read_lines(in, block_rows, text);
-    Trace first = parse_block(text, path, import);
-    findings = first.findings;
+    Trace block = parse_block(text, path, import, 0);
+    const std::vector<std::string> findings = block.findings;
     // the lines before the first data row: the header (and comments, constants, skipped rows) of every block
-    if (first.samples() > first_lines) throw InputError(fmt::format("{}: unexpected CSV layout", path.string()));
+    if (block.samples() > first_lines) throw InputError(fmt::format("{}: unexpected CSV layout", path.string()));
     std::size_t preamble_end = 0;
-    for (std::size_t line = 0; line < first_lines - first.samples(); ++line)
+    for (std::size_t line = 0; line < first_lines - block.samples(); ++line)
         preamble_end = text.find('\n', preamble_end) + 1;
     const std::string preamble = text.substr(0, preamble_end);
-    const bool rotary = first.rotary;
-    OnlineOptions axis_options = options;
-    axis_options.rotary = rotary;
-    Identifiers identifiers(axis_options, systematic);
-    TraceSummary summary{path.string(), "csv", 0, 0.0, 0.0};
-    const TimeBase base = first.samples() >= 2 ? first.time_base() : TimeBase{};
-    summary.sample_time_s = base.sample_time_s;
-    const double start = first.samples() > 0 ? first.column(Role::time).front() : 0.0;
-    double end = start;
-    for (Trace block = std::move(first);;) {
-        const std::vector<double> force = drive_force(block, drive);
-        const std::vector<char> use = gate_samples(block, gates);
-        push_trace(identifiers, block, force, use, 65536);
-        summary.samples += block.samples();
-        if (block.samples() > 0) end = block.column(Role::time).back();
+    for (std::size_t rows = 0;;) {
+        const std::size_t samples = block.samples();
+        if (!each(block)) break;
+        rows += samples;
         text = preamble;
         if (read_lines(in, block_rows, text) == 0) break;
-        block = parse_block(text, path, import);
+        block = parse_block(text, path, import, rows);
+        continue_sample_time(block, import, rows);
     }
+    return findings;
+}
+
+// One pass of the identifiers over a CSV file read in blocks (scan_csv_stream). Without a position, the logged
+// velocity integrated from block to block is the motion, as scan() integrates it over the whole trace.
+ScanResult scan_csv_pass(const std::filesystem::path& path, const ImportOptions& import, const DriveConstants& drive,
+                         std::span<const GateCondition> gates, const OnlineOptions& options, std::size_t block_rows,
+                         std::vector<std::string>& findings, bool systematic) {
+    std::optional<Identifiers> identifiers;
+    OnlineOptions axis_options = options;
+    TraceSummary summary{path.string(), "csv", 0, 0.0, 0.0};
+    double start = 0.0, end = 0.0;
+    bool velocity_only = false;
+    IntegratedPosition integral;
+    findings = for_each_block(path, import, block_rows, [&](const Trace& block) {
+        if (!identifiers) {
+            axis_options.rotary = block.rotary;
+            identifiers.emplace(axis_options, systematic);
+            summary.sample_time_s = block.samples() >= 2 ? block.time_base().sample_time_s : 0.0;
+            start = end = block.samples() > 0 ? block.column(Role::time).front() : 0.0;
+            velocity_only = !block.has(Role::position);
+        }
+        const std::vector<double> force = drive_force(block, drive);
+        const std::vector<char> use = gate_samples(block, gates);
+        push_trace(*identifiers, velocity_only ? with_integrated_position(block, integral) : block, force, use, 65536);
+        summary.samples += block.samples();
+        if (block.samples() > 0) end = block.column(Role::time).back();
+        return true;
+    });
     summary.duration_s = end - start;
-    return finish(identifiers, summary, axis_options, rotary);
+    ScanResult s = finish(*identifiers, summary, axis_options, axis_options.rotary);
+    if (velocity_only) s.result.diagnostics.push_back(velocity_only_note);
+    return s;
+}
+
+/// A coarse log's first block says so (identify's rule, as scan() judges the whole trace): the whole file is then
+/// read, its blocks joined (a log of 10 Hz holds a week in 256 MB), and scanned as scan() scans a file read whole, so
+/// that both give the same result. Empty where the first block is not coarse.
+std::optional<ScanResult> scan_coarse_log(const std::filesystem::path& path, const ImportOptions& import,
+                                          const DriveConstants& drive, std::span<const GateCondition> gates,
+                                          const OnlineOptions& options, std::size_t block_rows,
+                                          std::vector<std::string>& findings, bool systematic) {
+    std::optional<Trace> whole;
+    findings = for_each_block(path, import, block_rows, [&](const Trace& block) {
+        if (!whole) {
+            const std::vector<double> force = drive_force(block, drive);
+            OnlineOptions axis_options = options;
+            axis_options.rotary = block.rotary;
+            if (!too_coarse(block, force, gate_samples(block, gates), axis_options)) return false;
+            whole = block;
+            return true;
+        }
+        for (std::size_t c = 0; c < whole->channels.size(); ++c) {
+            auto& values = whole->channels[c].values;
+            values.insert(values.end(), block.channels[c].values.begin(), block.channels[c].values.end());
+        }
+        return true;
+    });
+    if (!whole) return std::nullopt;
+    // the native intervals (and the holds detected) of the whole file, not of its first block: identify's low-pass
+    // and edges follow them
+    std::erase_if(findings, [](const std::string& finding) {
+        return finding.starts_with("channel '") && finding.find("changes only every") != std::string::npos;
+    });
+    whole->findings = findings;
+    for (Channel& channel : whole->channels)
+        if (channel.interval_source != IntervalSource::format) channel.native_interval_s.reset();
+    resolve_native_intervals(*whole);
+    findings = whole->findings;
+    const std::vector<double> force = drive_force(*whole, drive);
+    return scan(*whole, force, gate_samples(*whole, gates), options, 65536, systematic);
 }
 
 }  // namespace
@@ -586,11 +686,11 @@ ScanResult scan_csv_stream(const std::filesystem::path& path, const ImportOption
                            std::span<const GateCondition> gates, const OnlineOptions& options, std::size_t block_rows,
                            std::vector<std::string>& findings, bool systematic) {
     if (const auto problem = options.validate(); !problem.empty()) throw InputError("scan: " + problem);
-    if (import.join || !import.tare.empty() || !import.invert.empty() || import.sample_time_s)
-        throw InputError(
-            fmt::format("{}: --join, --tare, --invert and --sample-time need the whole file; it is read "
-                        "in blocks",
-                        path.string()));
+    if (import.join || !import.tare.empty() || !import.invert.empty())
+        throw InputError(fmt::format("{}: --join, --tare and --invert need the whole file; it is read in blocks",
+                                     path.string()));
+    if (auto coarse = scan_coarse_log(path, import, drive, gates, options, block_rows, findings, systematic))
+        return std::move(*coarse);
     // no timing search: every pass reads and parses the whole file again (20 CPU s for 8 hours at 1 kHz, and the
     // search takes up to 11 passes); the pool's delay is corrected to first order where significant, as watch does,
     // and its uncertainty carried into every parameter

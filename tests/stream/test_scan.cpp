@@ -299,6 +299,20 @@ TEST(Scan, TheLoggedVelocityAloneIsScannedByWindows) {
     near(Term::viscous, truth.friction.forward.viscous, 0.10);
     near(Term::coulomb, truth.friction.forward.coulomb, 0.03);
     EXPECT_GT(s.online.windows.qualified(), 10U);
+    // read in blocks, the logged velocity is integrated from block to block: the same estimate and windows as the file
+    // read whole (before, a file read in blocks needed a position)
+    const auto file = testing::temp_dir() / "velocity-only.csv";
+    testing::write_text(file, write_csv(trace));
+    const std::string arguments = file.string() + " --channel position=none --channel velocity=v --delay none";
+    const nlohmann::json whole = scan_json(arguments);
+    const nlohmann::json blocks = scan_json(arguments + " --block-rows 10007");
+    std::filesystem::remove(file);
+    for (const char* key : {"mass_kg", "viscous_Ns_per_m", "coulomb_N"}) {
+        ASSERT_FALSE(whole["parameters"][key]["value"].is_null()) << key;
+        EXPECT_NEAR(value(blocks, key), value(whole, key), 1e-9 * std::abs(value(whole, key))) << key;
+    }
+    EXPECT_EQ(whole["windows"], blocks["windows"]);
+    EXPECT_EQ(whole["diagnostics"], blocks["diagnostics"]);
 }
 
 }  // namespace

@@ -307,3 +307,28 @@ TEST(UmichMill, ScanAndIdentifyAgreeOnTheCoarseLogWithinTheirUncertainties) {
         }
     }
 }
+
+// A file read in blocks (--block-rows; any CSV above 256 MB) applies the coarse-log rule and the velocity-only mode as
+// the whole file does: the first block judged, the coarse log then read whole and given the same result, also with
+// its time from --sample-time and without its position.
+TEST(UmichMill, ReadInBlocksTheCoarseLogGivesTheWholeFilesResult) {
+    FEEDID_REQUIRE_SHARED("umich-cnc-mill/experiment_01.csv");
+    const auto file = quoted(shared_data() / "umich-cnc-mill" / "experiment_01.csv");
+    const std::string options =
+        " --sample-time 0.1 --unit position=mm --unit velocity=mm/s --unit reference_position=mm "
+        "--unit velocity_command=mm/s --force-constant 1 --json -";
+    for (const std::string axis : {"X1", "Y1"}) {
+        for (const std::string extra : {"", " --channel position=none"}) {
+            const auto whole = run_cli("scan " + file + " --axis " + axis + options + extra);
+            const auto blocks = run_cli("scan " + file + " --axis " + axis + options + extra + " --block-rows 1000");
+            ASSERT_EQ(whole.exit_code, 0) << axis << extra << ": " << whole.err;
+            ASSERT_EQ(blocks.exit_code, 0) << axis << extra << ": " << blocks.err;
+            const Json a = Json::parse(whole.out), b = Json::parse(blocks.out);
+            ASSERT_TRUE(b.contains("friction_only")) << axis << extra;
+            EXPECT_EQ(a.at("friction_only"), b.at("friction_only")) << axis << extra;
+            EXPECT_EQ(a.at("parameters"), b.at("parameters")) << axis << extra;
+            EXPECT_EQ(a.at("trace").at("samples"), b.at("trace").at("samples")) << axis << extra;
+            EXPECT_TRUE(b.at("parameters").at("mass_kg").at("value").is_null()) << axis << extra;
+        }
+    }
+}

@@ -42,6 +42,15 @@ struct FrictionOnlyOptions {
     /// Standard errors count residuals as correlated over this many correlation lengths of the low-pass (as
     /// Step1Options::correlation_blocks).
     double correlation_blocks{2.0};
+    /// Robust weighting against loads the model has no term for (a cutting force on a feed stroke): Tukey's biweight
+    /// by IRLS, as scan's windows are fitted, from least squares and from the fastest third of the steady samples
+    /// (rapids do not cut), keeping the fit of smallest robust scale (1.4826 MAD). false: least squares.
+    bool robust{true};
+    double tukey_c{4.685};  ///< Tukey's tuning constant, in robust scales (95 % efficiency on Gaussian noise)
+    int irls_iterations{30};
+    /// More of the steady samples rejected than this (weight 0): they do not follow one friction law, and the fit
+    /// fails saying so (the estimator's breakdown point: beyond it the loaded samples are the majority).
+    double maximum_rejected_fraction{0.5};
 };
 
 /// What the data resolves, in figures.
@@ -76,14 +85,19 @@ Resolution assess_trace_resolution(const Trace& trace, std::span<const double> f
 struct FrictionOnlyFit {
     std::vector<RegressorColumn> columns;  ///< the friction columns of the step-1 model (no mass)
     LeastSquaresResult batch;
-    std::size_t samples{0};            ///< steady samples used
+    std::size_t samples{0};            ///< steady samples used (rejected ones included)
+    std::size_t rejected{0};           ///< steady samples the robust weights rejected (weight 0)
+    double robust_scale{0.0};          ///< 1.4826 MAD of the residuals of the robust fit [N]; 0 without
     double largest_acceleration{0.0};  ///< [m/s^2] among the moving samples
     /// The smallest mass whose inertial force at the largest acceleration stands above the friction scatter [kg].
     double smallest_detectable_mass{0.0};
     /// The standard errors count each steady pass's own level once (account_for_pass_levels in the source): the
-    /// passes, the scatter of their levels beyond their noise [N], and the batch means' block [samples].
+    /// passes, the scatter of their levels beyond their noise [N] (raised for the drift's mean level), and the batch
+    /// means' block [samples].
     std::size_t passes{0};
     double pass_level_std{0.0};
+    /// The pass levels' correlation from one pass to the next in the friction's sense (a drift: AR(1), 0 without).
+    double level_correlation{0.0};
     std::size_t correlation_block{1};
     std::string failure;  ///< why the steady samples cannot determine B and F_C ("" when they can)
     [[nodiscard]] bool failed() const { return !failure.empty(); }

@@ -146,6 +146,7 @@ struct FrictionOnlyReport {
     std::size_t samples_used{0};
     double relative_error_pct{0.0};
     double residual_std{0.0};  ///< the friction scatter [N or N*m]
+    std::size_t rejected_samples{0};  ///< of samples_used, those the robust weights rejected (a cutting load)
 };
 
 struct IdentifyResult {

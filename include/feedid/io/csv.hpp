@@ -25,6 +25,9 @@ struct CsvOptions {
     /// Columns that must hold numbers (the channels given with --channel): one of them holding text is an error
     /// naming it, not a column left out.
     std::vector<std::string> numeric_columns;
+    /// What an unnamed first column (the index pandas writes) holds in the first data row: 0 for a whole file, the
+    /// rows before it for a block of a file read in blocks.
+    std::size_t first_index{0};
 };
 
 /// Parses CSV text into raw channels (values in the source units, roles unassigned). Comment lines before the header
