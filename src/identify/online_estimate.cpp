@@ -120,7 +120,7 @@ std::optional<double> State::offset_statistic(const PooledFit& full) const {
     return std::abs(full.theta(3)) / std::sqrt(variance);
 }
 
-OnlineEstimate State::estimate() const {
+OnlineEstimate State::estimate(bool select_offset) const {
     OnlineEstimate e;
     e.windows = counts_;
     e.changes = changes_;
@@ -134,7 +134,7 @@ OnlineEstimate State::estimate() const {
         return e;
     }
     e.residual_std = std::sqrt(sum_scale_sq_ / forgotten_windows_);
-    describe_offset(e);
+    describe_offset(e, select_offset);
     const std::size_t columns = e.offset_in_model ? max_p : 3;
     const auto p = static_cast<Eigen::Index>(columns);
     const PooledFit fit = pooled_fit(columns);
@@ -162,13 +162,13 @@ OnlineEstimate State::estimate() const {
             "not from the scatter between windows ({} or more)",
             counts_.qualified(), columns + 2);
     estimate_stribeck(theta, se, e);
-    judge_plausibility(e);
+    judge_plausibility(e, select_offset);
     return e;
 }
 
 // Evidence before numbers: too few rows for a value, a value the physics forbids, or a Coulomb friction the windows
 // cannot tell from a constant force (a weight): null with the reason, never printed.
-void State::judge_plausibility(OnlineEstimate& e) const {
+void State::judge_plausibility(OnlineEstimate& e, bool select_offset) const {
     const ParameterNaming naming{options_.rotary};
     const auto refuse = [&](Estimate& value, std::string& reason, const std::string& why) {
         value = Estimate{};
@@ -183,7 +183,7 @@ void State::judge_plausibility(OnlineEstimate& e) const {
         e.mass_reason = e.friction_reason = e.stribeck_reason = why;
         return;
     }
-    if (!e.offset_in_model && options_.select_offset && !e.offset_statistic) {
+    if (!e.offset_in_model && select_offset && !e.offset_statistic) {
         e.aliased_reason = fmt::format(
             "{} not determined: the qualified windows move in one direction only, where a constant force (the weight "
             "a vertical axis carries, a sensor's zero) and the Coulomb friction are one number; windows that move both "
@@ -252,10 +252,10 @@ ModelChoice model_choice_of(const OnlineEstimate& e) {
 }
 
 // Which model the estimate is of, and why: forced, or the offset's Wald test on the pool of all columns.
-void State::describe_offset(OnlineEstimate& e) const {
+void State::describe_offset(OnlineEstimate& e, bool select_offset) const {
     e.offset_threshold = normal_quantile(options_.offset_test_level);
     e.offset_in_model = p_ == max_p;
-    e.offset_selected = options_.select_offset && !options_.offset;
+    e.offset_selected = select_offset && !options_.offset;
     if (options_.offset) {
         e.offset_verdict = "forced (--offset)";
         return;
@@ -266,10 +266,10 @@ void State::describe_offset(OnlineEstimate& e) const {
         e.offset_estimate = full.theta(3);
         e.offset_standard_error = std::sqrt(std::max(0.0, full.covariance(3, 3)));
     }
-    e.offset_in_model = options_.select_offset && e.offset_statistic && *e.offset_statistic > e.offset_threshold;
+    e.offset_in_model = select_offset && e.offset_statistic && *e.offset_statistic > e.offset_threshold;
     e.offset_judged = options_.judge_with_offset;
     const char* judged = options_.judge_with_offset ? " (windows judged by the model with the offset)" : "";
-    if (!options_.select_offset) {
+    if (!select_offset) {
         e.offset_verdict = "not tested (--no-offset)";
     } else if (e.offset_in_model) {
         e.offset_verdict =

@@ -72,7 +72,7 @@ OnlineEstimate direct_estimate(const fs::path& csv, double force_constant) {
     drive.force_constant = force_constant;
     const auto force = drive_force(trace, drive);
     const auto t = trace.column(Role::time), x = trace.column(Role::position);
-    OnlineIdentifier online({});
+    SelectingIdentifier online({});
     for (std::size_t k = 0; k < t.size(); ++k) online.push(t[k], x[k], force[k]);
     online.flush();
     return online.estimate();
