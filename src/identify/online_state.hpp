@@ -133,6 +133,8 @@ struct OnlineIdentifier::State {
         bool separable{true};  ///< the pool informs every one of the p directions
     };
     [[nodiscard]] PooledFit pooled_fit(std::size_t p) const;
+    /// sum_w H_w H^-1 H_w over the pooled windows, of the leading `columns` columns (from the moment sums)
+    [[nodiscard]] Mat clusters_leverage(const Mat& h_inverse, std::size_t columns) const;
     /// The Wald test of the offset on the pool of all max_p columns (model_selection.hpp's rule, at
     /// options_.offset_test_level): its statistic, or none where the pool cannot separate F_0 from F_C.
     [[nodiscard]] std::optional<double> offset_statistic(const PooledFit& full) const;
