@@ -38,8 +38,14 @@ std::vector<std::string> payloads(std::size_t axes, std::size_t batches, std::si
     return out;
 }
 
+// range(0): binary (1) or JSON (0); range(1): the windows judged twice, without and with the offset (1, watch's
+// default: two identifiers an axis), or once (0: the offset not selected, [online] offset = true's cost)
 void BM_WatchIngest(benchmark::State& state) {
     const bool binary = state.range(0) != 0;
+    const bool twice = state.range(1) != 0;
+    feedid::watch::WatchOptions options;
+    options.online.select_offset = twice;
+    options.axes_bytes = std::size_t{2} << 30;  // every axis admitted (the default 128 MB holds about 130 at 1 kHz)
     const std::size_t axes = 1000, batches = 20, samples = 100;
     const auto messages = payloads(axes, batches, samples, binary);
     std::vector<std::string> topics;
@@ -47,16 +53,23 @@ void BM_WatchIngest(benchmark::State& state) {
     std::size_t total = 0;
     for (auto _ : state) {
         state.PauseTiming();
-        feedid::watch::Watcher watcher({});
+        feedid::watch::Watcher watcher(options);
         state.ResumeTiming();
         for (std::size_t m = 0; m < messages.size(); ++m)
             benchmark::DoNotOptimize(watcher.ingest(topics[m % axes], std::as_bytes(std::span(messages[m]))));
         total += messages.size() * samples;
     }
     state.SetItemsProcessed(static_cast<std::int64_t>(total));
-    state.SetLabel(binary ? "binary, 1000 axes x 100-sample batches" : "JSON, 1000 axes x 100-sample batches");
+    state.SetLabel(fmt::format("{}, 1000 axes x 100-sample batches, windows judged {}", binary ? "binary" : "JSON",
+                               twice ? "twice" : "once"));
 }
-BENCHMARK(BM_WatchIngest)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK(BM_WatchIngest)
+    ->Args({1, 1})
+    ->Args({1, 0})
+    ->Args({0, 1})
+    ->Args({0, 0})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(3);
 
 }  // namespace
 

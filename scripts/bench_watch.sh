@@ -25,9 +25,10 @@ pids+=($!)
 sleep 0.5
 # the demo drive's synthetic test trace, replayed in a loop (each pass a later recording)
 "$feedid" synth --out "$dir/trace.csv" > /dev/null 2>&1
-# the service's memory bounds raised for AXES axes (0.35 MB of identifier each at 1 kHz), the queue as before
+# the service's memory bounds raised for AXES axes (0.95 MB of identifiers each at 1 kHz: the windows judged without
+# and with the offset), the queue as before
 printf '[service]\nestimate_interval_s = 5\nqueue_mb = 256\nmax_axes = %s\naxes_mb = %s\n' "$axes" \
-  $(( axes * 2 / 5 + 16 )) > "$dir/watch.toml"
+  $(( axes + 16 )) > "$dir/watch.toml"
 taskset -c "$core" "$feedid" watch --broker "mqtt://127.0.0.1:$port" --config "$dir/watch.toml" --topic 'bench/+/+/axis/#' --quiet \
   > "$dir/watch.out" 2> "$dir/watch.err" &
 watch=$!

@@ -83,7 +83,11 @@ void OnlineIdentifier::flush() {
 }
 
 OnlineEstimate OnlineIdentifier::estimate() const {
-    return state_->estimate();
+    return state_->estimate(state_->options_.select_offset);
+}
+
+OnlineEstimate OnlineIdentifier::estimate_without_offset() const {
+    return state_->estimate(false);
 }
 
 std::optional<WindowRecord> OnlineIdentifier::last_window() const {

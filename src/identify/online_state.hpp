@@ -133,15 +133,18 @@ struct OnlineIdentifier::State {
         bool separable{true};  ///< the pool informs every one of the p directions
     };
     [[nodiscard]] PooledFit pooled_fit(std::size_t p) const;
+    /// sum_w H_w H^-1 H_w over the pooled windows, of the leading `columns` columns (from the moment sums)
+    [[nodiscard]] Mat clusters_leverage(const Mat& h_inverse, std::size_t columns) const;
     /// The Wald test of the offset on the pool of all max_p columns (model_selection.hpp's rule, at
     /// options_.offset_test_level): its statistic, or none where the pool cannot separate F_0 from F_C.
     [[nodiscard]] std::optional<double> offset_statistic(const PooledFit& full) const;
-    void describe_offset(OnlineEstimate& e) const;
+    /// `select_offset`: the options' (estimate()), or false for the model without the offset, untested.
+    void describe_offset(OnlineEstimate& e, bool select_offset) const;
 
-    void judge_plausibility(OnlineEstimate& e) const;
+    void judge_plausibility(OnlineEstimate& e, bool select_offset) const;
     /// Why the pool gives no value ("" when it does): no window, one window, or windows that disagree.
     [[nodiscard]] std::string no_value_reason() const;
-    [[nodiscard]] OnlineEstimate estimate() const;
+    [[nodiscard]] OnlineEstimate estimate(bool select_offset) const;
     // F_B and v_s (online_stribeck.cpp)
     void bin_slow_samples(std::size_t first, std::size_t last);
     void estimate_stribeck(const Vec& theta, const Vec& standard_error, OnlineEstimate& e) const;

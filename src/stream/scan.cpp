@@ -13,6 +13,7 @@
 #include "feedid/io/csv.hpp"
 #include "feedid/core/parameters.hpp"
 #include "feedid/identify/friction_only.hpp"
+#include "feedid/identify/online_selection.hpp"
 #include "feedid/identify/result_document.hpp"
 #include "feedid/core/version.hpp"
 
@@ -184,30 +185,20 @@ ScanResult finish(Identifiers& identifiers, const TraceSummary& summary, const O
 template <typename Pass>
 ScanResult select_and_scan(const OnlineOptions& options, Pass&& pass) {
     ScanResult first = pass(options);
-    if (!options.select_offset || options.offset || options.judge_with_offset) return first;
-    // a first pass without a value (its windows disagree, or none qualified) stays refused: judged by a model with
-    // one more parameter, the few windows that agree would be pooled (the EMPS recording, whose friction differs by
-    // direction: 2 of its 13 windows, B 156 +- 1.3 N*s/m against the 203.5 published)
-    if (!first.online.mass.determined()) return first;
-    if (!first.online.offset_in_model && first.online.offset_statistic) return first;
+    if (!SelectingIdentifier::judges_twice(options) || !offset_needs_judging(first.online)) return first;
     OnlineOptions with_offset = options;
     with_offset.judge_with_offset = true;
     ScanResult judged = pass(with_offset);
-    if (judged.online.offset_in_model) return judged;
-    if (!first.online.offset_in_model) return first;
+    switch (offset_judgement(first.online, judged.online)) {
+        case OffsetJudgement::first: return first;
+        case OffsetJudgement::with_offset: return judged;
+        case OffsetJudgement::without_offset: break;
+    }
     OnlineOptions without = options;
     without.select_offset = false;
     ScanResult third = pass(without);
-    OnlineEstimate& e = third.online;
-    const OnlineEstimate& tested = judged.online;
-    e.offset_selected = true;
-    e.offset_judged = true;
-    e.offset_statistic = tested.offset_statistic;
-    e.offset_estimate = tested.offset_estimate;
-    e.offset_standard_error = tested.offset_standard_error;
-    e.offset_threshold = tested.offset_threshold;
-    e.offset_verdict = tested.offset_verdict;
-    third.result.model_choice = model_choice_of(e);
+    take_offset_test(third.online, judged.online);
+    third.result.model_choice = model_choice_of(third.online);
     return third;
 }
 

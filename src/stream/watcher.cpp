@@ -74,7 +74,7 @@ std::string Watcher::names_of(std::string_view topic, std::string& machine, std:
 std::string Watcher::admit(const std::string& machine, const std::string& axis, double dt) {
     const std::string name = terminal_text(machine + "/" + axis);
     const std::size_t samples = OnlineIdentifier::buffer_samples(options_.online, dt);
-    const std::size_t memory = OnlineIdentifier::memory_bytes(options_.online, dt) + sizeof(Axis) + 2 * name.size();
+    const std::size_t memory = SelectingIdentifier::memory_bytes(options_.online, dt) + sizeof(Axis) + 2 * name.size();
     std::string why;
     if (axes_.size() >= options_.max_axes)
         why = fmt::format("more than max_axes = {} axes", options_.max_axes);
@@ -92,7 +92,7 @@ std::string Watcher::admit(const std::string& machine, const std::string& axis, 
     auto state = std::make_unique<Axis>();
     state->machine = machine;
     state->axis = axis;
-    state->online = std::make_unique<OnlineIdentifier>(options_.online);
+    state->online = std::make_unique<SelectingIdentifier>(options_.online);
     state->memory = memory;
     axes_bytes_ += memory;
     axes_.emplace(machine + "/" + axis, std::move(state));
@@ -320,7 +320,7 @@ void Watcher::complete_run(Axis& axis) {
     run.samples = axis.run_samples;
     run.sequence = ++axis.counters.runs;
     completed_.push_back(std::move(run));
-    axis.online = std::make_unique<OnlineIdentifier>(options_.online);
+    axis.online = std::make_unique<SelectingIdentifier>(options_.online);
     axis.run_samples = 0;
     axis.checked_windows = 0;
 }

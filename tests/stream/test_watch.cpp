@@ -193,7 +193,7 @@ AxisColumns axis_columns(std::uint64_t seed, double duration_s = 60.0) {
 /// The axis's samples pushed straight into an identifier, with the time stamps the watcher makes of batches of
 /// `per_message` samples (t0 of the batch + i dt).
 OnlineEstimate direct(const AxisColumns& c, std::size_t per_message) {
-    OnlineIdentifier online({});
+    SelectingIdentifier online({});
     const double dt = c.t[1] - c.t[0];
     std::vector<double> force(c.current.size()), t(c.t.size());
     for (std::size_t k = 0; k < force.size(); ++k) {
@@ -346,7 +346,7 @@ TEST(WatchRouting, AHoleNotFilledInTimeIsCountedMissingAndEndsTheWindow) {
     send_in_order(watcher, c, per_message, order);
     watcher.flush();
     // the identifier on the samples before the hole, ended there, then on those after it
-    OnlineIdentifier online({});
+    SelectingIdentifier online({});
     const double dt = c.t[1] - c.t[0];
     for (std::size_t k = 0; k < c.t.size(); ++k) {
         if (k == 104 * per_message) online.flush();
@@ -479,15 +479,16 @@ TEST(WatchHostile, SampleTimesWindowsAndAxesAreBounded) {
     EXPECT_NE(error.find("more than max_window_samples"), std::string::npos) << error;
     EXPECT_EQ(window.axes(), 0u);
     EXPECT_EQ(window.refused_axes(), 1u);
-    // 2,000 axes at 1 kHz: the identifiers' memory stays within axes_bytes, the rest refused and counted
+    // 2,000 axes at 1 kHz: the identifiers' memory stays within axes_bytes, the rest refused and counted (two
+    // identifiers an axis, its windows judged without and with the offset: about 1 MB)
     WatchOptions options;
     options.max_axes = 100'000;
-    options.axes_bytes = 64u << 20;
+    options.axes_bytes = 128u << 20;
     Watcher many(options);
     const std::string payload = encode_binary(sine_batch(0.0, 1e-3, 200));
     std::size_t refused = 0;
     for (int m = 0; m < 2000; ++m) refused += !many.ingest(fmt::format("plant/F{}/X/axis", m), bytes(payload)).empty();
-    const std::size_t per_axis = OnlineIdentifier::memory_bytes({}, 1e-3);
+    const std::size_t per_axis = SelectingIdentifier::memory_bytes({}, 1e-3);
     std::cout << fmt::format("{} axes admitted ({:.2f} MB each), {} refused; {:.1f} MB budgeted\n", many.axes(),
                              static_cast<double>(per_axis) / (1 << 20), refused,
                              static_cast<double>(many.axes_bytes()) / (1 << 20));

@@ -19,6 +19,7 @@
 #include "feedid/io/csv.hpp"
 #include "feedid/io/import.hpp"
 #include "feedid/identify/online_identifier.hpp"
+#include "feedid/identify/online_selection.hpp"
 #include "feedid/sim/synth.hpp"
 #include "feedid/stream/payload.hpp"
 #include "mqtt_testing.hpp"
@@ -64,15 +65,15 @@ double write_production_csv(const fs::path& path, std::uint64_t seed, double dur
     return spec.force_constant_N_per_A();
 }
 
-/// What a clean, uninterrupted stream of the axis gives: the CSV read as publish reads it, straight into an
-/// identifier.
+/// What a clean, uninterrupted stream of the axis gives: the CSV read as publish reads it, straight into the
+/// watch's identifiers (the windows judged without and with the offset).
 OnlineEstimate direct_estimate(const fs::path& csv, double force_constant) {
     const Trace trace = read_trace(csv);
     DriveConstants drive;
     drive.force_constant = force_constant;
     const auto force = drive_force(trace, drive);
     const auto t = trace.column(Role::time), x = trace.column(Role::position);
-    OnlineIdentifier online({});
+    SelectingIdentifier online({});
     for (std::size_t k = 0; k < t.size(); ++k) online.push(t[k], x[k], force[k]);
     online.flush();
     return online.estimate();

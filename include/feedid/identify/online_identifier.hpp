@@ -243,6 +243,10 @@ public:
     void flush();
     /// The current estimates (cheap: fixed-size algebra).
     [[nodiscard]] OnlineEstimate estimate() const;
+    /// The estimate of the model without the offset, the offset not tested (as with OnlineOptions::select_offset
+    /// false; the windows are the same, judged by p = 3 columns): what scan's rule takes where the windows judged by
+    /// the model with the offset do not take it (online_selection.hpp).
+    [[nodiscard]] OnlineEstimate estimate_without_offset() const;
     /// The window processed last (none before the first).
     [[nodiscard]] std::optional<WindowRecord> last_window() const;
     [[nodiscard]] const OnlineOptions& options() const;

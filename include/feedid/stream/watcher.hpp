@@ -37,6 +37,7 @@
 #include <nlohmann/json.hpp>
 
 #include "feedid/identify/online_identifier.hpp"
+#include "feedid/identify/online_selection.hpp"
 #include "feedid/stream/payload.hpp"
 
 namespace feedid::watch {
@@ -50,8 +51,8 @@ struct WatchOptions {
     /// machine and axis win over the topic's (a broker whose access control does not follow the topics)
     bool trust_payload_names{false};
     std::size_t max_axes{1'000};  ///< more (machine, axis) pairs than this are refused (a runaway publisher)
-    /// The identifiers of all axes take at most this much memory [bytes] (OnlineIdentifier::memory_bytes); an axis
-    /// beyond is refused. The default holds about 360 axes at 1 kHz with 2 s windows.
+    /// The identifiers of all axes take at most this much memory [bytes] (SelectingIdentifier::memory_bytes); an axis
+    /// beyond is refused. The default holds about 130 axes at 1 kHz with 2 s windows (two identifiers an axis).
     std::size_t axes_bytes{128u << 20};
     /// An axis whose window (and its filter margins) would hold more samples than this is refused (a window of 2 s
     /// at 100 kHz and its margins hold 205,000).
@@ -135,7 +136,7 @@ private:
     };
     struct Axis {
         std::string machine, axis;
-        std::unique_ptr<OnlineIdentifier> online;
+        std::unique_ptr<SelectingIdentifier> online;  ///< the windows judged without and with the offset
         std::size_t memory{0};  ///< budgeted for it in axes_bytes_ [bytes]
         double dt{0.0};
         bool started{false};                           ///< false: its first batches are held (see above)
