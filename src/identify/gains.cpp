@@ -14,6 +14,7 @@
 // least-squares residuals.
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <functional>
@@ -102,6 +103,50 @@ struct NormalSolution {
 
 // The least-squares fit on the selected rows (normal equations on normalised columns: fast enough for the structure
 // search; the final estimate uses QR and RLS): its coefficients and residual sum of squares.
+/// Phi'Phi (lower triangle) and Phi'y of the used rows, the columns scaled, for Q columns.
+template <std::size_t Q>
+void accumulate_normal_of(const Problem& problem, const Eigen::VectorXd& scale, Eigen::MatrixXd& normal,
+                          Eigen::VectorXd& right) {
+    std::array<double, Q * Q> lower{};
+    std::array<double, Q> sums{}, phi{}, factor{};
+    std::array<const double*, Q> column{};
+    for (std::size_t j = 0; j < Q; ++j) {
+        column[j] = problem.columns[j].data();
+        factor[j] = scale(static_cast<Eigen::Index>(j));
+    }
+    const auto& use = *problem.use;
+    const auto& y = problem.y;
+    for (std::size_t k = 0; k < y.size(); ++k) {
+        if (!use[k]) continue;
+        for (std::size_t j = 0; j < Q; ++j) phi[j] = column[j][k] * factor[j];
+        for (std::size_t c = 0; c < Q; ++c) {
+            for (std::size_t r = c; r < Q; ++r) lower[r * Q + c] += phi[c] * phi[r];
+            sums[c] += phi[c] * y[k];
+        }
+    }
+    for (std::size_t r = 0; r < Q; ++r) {
+        right(static_cast<Eigen::Index>(r)) = sums[r];
+        for (std::size_t c = 0; c <= r; ++c)
+            normal(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = lower[r * Q + c];
+    }
+}
+
+/// accumulate_normal_of for the problem's column count; false above 8 columns.
+bool accumulate_normal(const Problem& problem, const Eigen::VectorXd& scale, Eigen::MatrixXd& normal,
+                       Eigen::VectorXd& right) {
+    switch (problem.columns.size()) {
+        case 1: accumulate_normal_of<1>(problem, scale, normal, right); return true;
+        case 2: accumulate_normal_of<2>(problem, scale, normal, right); return true;
+        case 3: accumulate_normal_of<3>(problem, scale, normal, right); return true;
+        case 4: accumulate_normal_of<4>(problem, scale, normal, right); return true;
+        case 5: accumulate_normal_of<5>(problem, scale, normal, right); return true;
+        case 6: accumulate_normal_of<6>(problem, scale, normal, right); return true;
+        case 7: accumulate_normal_of<7>(problem, scale, normal, right); return true;
+        case 8: accumulate_normal_of<8>(problem, scale, normal, right); return true;
+        default: return false;
+    }
+}
+
 NormalSolution normal_solution(const Problem& problem) {
     const auto p = static_cast<Eigen::Index>(problem.columns.size());
     const auto& y = problem.y;
@@ -117,14 +162,19 @@ NormalSolution normal_solution(const Problem& problem) {
         }
         scale(j) = sum > 0.0 ? 1.0 / std::sqrt(sum) : 1.0;
     }
+    // the lower triangle of Phi'Phi and Phi'y, row by row: each sum in the order of the rows, as a rank update
+    // would add them (without its per-row dispatch, the column count known to the compiler: the structure search
+    // solves this hundreds of times)
     Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(p, p);
     Eigen::VectorXd right = Eigen::VectorXd::Zero(p);
-    Eigen::VectorXd phi(p);
-    for (std::size_t k = 0; k < n; ++k) {
-        if (!use[k]) continue;
-        for (Eigen::Index j = 0; j < p; ++j) phi(j) = problem.columns[static_cast<std::size_t>(j)][k] * scale(j);
-        normal.selfadjointView<Eigen::Lower>().rankUpdate(phi);
-        right += phi * y[k];
+    if (!accumulate_normal(problem, scale, normal, right)) {
+        Eigen::VectorXd phi(p);
+        for (std::size_t k = 0; k < n; ++k) {
+            if (!use[k]) continue;
+            for (Eigen::Index j = 0; j < p; ++j) phi(j) = problem.columns[static_cast<std::size_t>(j)][k] * scale(j);
+            normal.selfadjointView<Eigen::Lower>().rankUpdate(phi);
+            right += phi * y[k];
+        }
     }
     normal = normal.selfadjointView<Eigen::Lower>();
     const Eigen::VectorXd theta = normal.ldlt().solve(right);
