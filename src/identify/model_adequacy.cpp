@@ -935,16 +935,19 @@ double integrated_autocorrelation(const std::vector<std::size_t>& rows, const st
     // blocks of b = 2^shift samples: the block of a row by a shift, not a division. The first levels from the rows;
     // from the last of them on, each level's block sums are the sums of the level below's (one pass over fewer
     // blocks per level instead of one over every row: the same sums to rounding)
-    constexpr unsigned direct_levels = 3;
+    constexpr unsigned direct_levels = 5;
     // (block, sum of its values) at the current level; at most one block per row and per 2^direct_levels samples
-    const bool ascending = std::is_sorted(rows.begin(), rows.end());
-    std::vector<std::pair<std::size_t, double>> blocks(
-        ascending ? std::min(rows.size(), (span >> direct_levels) + 2) : rows.size());
+    // (half a byte per sample at most)
+    std::vector<std::pair<std::size_t, double>> blocks;
     std::size_t kept = 0;
     for (unsigned shift = 1; span >> shift >= 50; ++shift) {
         double sum_of_squares = 0.0;
         if (shift <= direct_levels) {
             const bool keep = shift == direct_levels;
+            if (keep) {
+                const bool ascending = std::is_sorted(rows.begin(), rows.end());
+                blocks.resize(ascending ? std::min(rows.size(), (span >> direct_levels) + 2) : rows.size());
+            }
             double block_sum = 0.0;
             std::size_t current = rows.front() >> shift;
             for (std::size_t i = 0; i < rows.size(); ++i) {
