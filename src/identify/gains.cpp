@@ -14,6 +14,7 @@
 // least-squares residuals.
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <functional>
@@ -90,9 +91,22 @@ struct Structure {
 
 struct Problem {
     std::vector<Column> columns;  // regressors, filtered
-    Column y;                     // what the regressors explain
     std::size_t row_step{1};      // the samples between rows that follow each other (a held position's factor)
     const std::vector<char>* use{nullptr};
+
+    /// What the regressors explain: a signal of the trace's, viewed (the structure search forms a problem per
+    /// candidate: a copy of the force each time), or the problem's own once changed.
+    [[nodiscard]] const Column& y() const { return shared_y_ != nullptr ? *shared_y_ : own_y_; }
+    void share_y(const Column& signal) { shared_y_ = &signal; }
+    Column& own_y() {
+        if (shared_y_ != nullptr) own_y_ = *shared_y_;
+        shared_y_ = nullptr;
+        return own_y_;
+    }
+
+private:
+    const Column* shared_y_{nullptr};  // outlives the problem (the GainSignals')
+    Column own_y_;
 };
 
 struct NormalSolution {
@@ -102,9 +116,53 @@ struct NormalSolution {
 
 // The least-squares fit on the selected rows (normal equations on normalised columns: fast enough for the structure
 // search; the final estimate uses QR and RLS): its coefficients and residual sum of squares.
+/// Phi'Phi (lower triangle) and Phi'y of the used rows, the columns scaled, for Q columns.
+template <std::size_t Q>
+void accumulate_normal_of(const Problem& problem, const Eigen::VectorXd& scale, Eigen::MatrixXd& normal,
+                          Eigen::VectorXd& right) {
+    std::array<double, Q * Q> lower{};
+    std::array<double, Q> sums{}, phi{}, factor{};
+    std::array<const double*, Q> column{};
+    for (std::size_t j = 0; j < Q; ++j) {
+        column[j] = problem.columns[j].data();
+        factor[j] = scale(static_cast<Eigen::Index>(j));
+    }
+    const auto& use = *problem.use;
+    const auto& y = problem.y();
+    for (std::size_t k = 0; k < y.size(); ++k) {
+        if (!use[k]) continue;
+        for (std::size_t j = 0; j < Q; ++j) phi[j] = column[j][k] * factor[j];
+        for (std::size_t c = 0; c < Q; ++c) {
+            for (std::size_t r = c; r < Q; ++r) lower[r * Q + c] += phi[c] * phi[r];
+            sums[c] += phi[c] * y[k];
+        }
+    }
+    for (std::size_t r = 0; r < Q; ++r) {
+        right(static_cast<Eigen::Index>(r)) = sums[r];
+        for (std::size_t c = 0; c <= r; ++c)
+            normal(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = lower[r * Q + c];
+    }
+}
+
+/// accumulate_normal_of for the problem's column count; false above 8 columns.
+bool accumulate_normal(const Problem& problem, const Eigen::VectorXd& scale, Eigen::MatrixXd& normal,
+                       Eigen::VectorXd& right) {
+    switch (problem.columns.size()) {
+        case 1: accumulate_normal_of<1>(problem, scale, normal, right); return true;
+        case 2: accumulate_normal_of<2>(problem, scale, normal, right); return true;
+        case 3: accumulate_normal_of<3>(problem, scale, normal, right); return true;
+        case 4: accumulate_normal_of<4>(problem, scale, normal, right); return true;
+        case 5: accumulate_normal_of<5>(problem, scale, normal, right); return true;
+        case 6: accumulate_normal_of<6>(problem, scale, normal, right); return true;
+        case 7: accumulate_normal_of<7>(problem, scale, normal, right); return true;
+        case 8: accumulate_normal_of<8>(problem, scale, normal, right); return true;
+        default: return false;
+    }
+}
+
 NormalSolution normal_solution(const Problem& problem) {
     const auto p = static_cast<Eigen::Index>(problem.columns.size());
-    const auto& y = problem.y;
+    const auto& y = problem.y();
     const auto& use = *problem.use;
     const std::size_t n = y.size();
     Eigen::VectorXd scale(p);
@@ -117,14 +175,19 @@ NormalSolution normal_solution(const Problem& problem) {
         }
         scale(j) = sum > 0.0 ? 1.0 / std::sqrt(sum) : 1.0;
     }
+    // the lower triangle of Phi'Phi and Phi'y, row by row: each sum in the order of the rows, as a rank update
+    // would add them (without its per-row dispatch, the column count known to the compiler: the structure search
+    // solves this hundreds of times)
     Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(p, p);
     Eigen::VectorXd right = Eigen::VectorXd::Zero(p);
-    Eigen::VectorXd phi(p);
-    for (std::size_t k = 0; k < n; ++k) {
-        if (!use[k]) continue;
-        for (Eigen::Index j = 0; j < p; ++j) phi(j) = problem.columns[static_cast<std::size_t>(j)][k] * scale(j);
-        normal.selfadjointView<Eigen::Lower>().rankUpdate(phi);
-        right += phi * y[k];
+    if (!accumulate_normal(problem, scale, normal, right)) {
+        Eigen::VectorXd phi(p);
+        for (std::size_t k = 0; k < n; ++k) {
+            if (!use[k]) continue;
+            for (Eigen::Index j = 0; j < p; ++j) phi(j) = problem.columns[static_cast<std::size_t>(j)][k] * scale(j);
+            normal.selfadjointView<Eigen::Lower>().rankUpdate(phi);
+            right += phi * y[k];
+        }
     }
     normal = normal.selfadjointView<Eigen::Lower>();
     const Eigen::VectorXd theta = normal.ldlt().solve(right);
@@ -186,7 +249,7 @@ Eigen::VectorXd run_rls(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y, co
 // RLS (the paper) and batch QR on normalised columns; returns both in the original scaling.
 Fit fit(const Problem& problem, const RlsOptions& options) {
     const auto p = static_cast<Eigen::Index>(problem.columns.size());
-    const auto& y = problem.y;
+    const auto& y = problem.y();
     const auto& use = *problem.use;
     const auto rows = static_cast<Eigen::Index>(std::count(use.begin(), use.end(), char{1}));
     Eigen::MatrixXd phi(rows, p);
@@ -536,7 +599,7 @@ PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, 
     const auto problem_at = [&](double delay) {
         Problem problem;
         problem.columns = position_loop_columns(signals, delay, feedforward);
-        problem.y = signals.velocity_command;
+        problem.share_y(signals.velocity_command);
         problem.use = &use;
         return problem;
     };
@@ -837,7 +900,7 @@ struct VelocityLoopRegression {
                                                  : structure_columns(signals, v, s.reference_delay, integral);
         const double a = lag_coefficient(s.lag_s, signals.dt);
         for (auto& column : problem.columns) apply_drive_filter(column, a, s.mu);
-        problem.y = signals.force;
+        problem.share_y(signals.force);
         if (!signals.injection.empty()) {
             Column injected = signals.injection;
             apply_drive_filter(injected, a, s.mu);
@@ -871,14 +934,15 @@ struct VelocityLoopRegression {
             problem.columns.push_back(std::move(injected));
             return;
         }
-        for (std::size_t k = 0; k < problem.y.size(); ++k) problem.y[k] -= injected[k];
+        Column& y = problem.own_y();
+        for (std::size_t k = 0; k < y.size(); ++k) y[k] -= injected[k];
     }
 };
 
 Problem VelocityLoopRegression::bank_problem(const ServoFilterBank& bank) const {
     Problem problem;
     problem.columns = bank.columns;
-    problem.y = signals.force;
+    problem.share_y(signals.force);
     if (!signals.injection.empty()) add_injection(problem, bank.injection);
     problem.use = &use;
     problem.row_step = static_cast<std::size_t>(signals.hold_factor);
@@ -958,7 +1022,7 @@ VelocityLoopRegression::ServoFilterBank VelocityLoopRegression::servo_columns(co
 Problem problem_at_feedforward(const VelocityLoopRegression& regression,
                                const VelocityLoopRegression::ServoFilterBank& bank, bool integral, double k) {
     Problem problem = regression.bank_problem(bank);
-    for (std::size_t i = 0; i < problem.y.size(); ++i) {
+    for (std::size_t i = 0; i < problem.y().size(); ++i) {
         problem.columns[1][i] += k * bank.feedforward[0][i];
         if (integral) problem.columns[3][i] += k * bank.feedforward[1][i];
     }
@@ -973,7 +1037,7 @@ Problem feedforward_problem(const VelocityLoopRegression& regression,
     Problem problem = problem_at_feedforward(regression, bank, integral, k);
     const NormalSolution at = normal_solution(problem);
     const double th2 = at.theta(1), th4 = integral ? at.theta(3) : 0.0;
-    Column derivative(problem.y.size());
+    Column derivative(problem.y().size());
     for (std::size_t i = 0; i < derivative.size(); ++i)
         derivative[i] = th2 * bank.feedforward[0][i] + th4 * bank.feedforward[1][i];
     problem.columns.insert(problem.columns.begin() + (integral ? 5 : 2), std::move(derivative));

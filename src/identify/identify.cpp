@@ -628,6 +628,13 @@ struct Preprocessed {
     Regressors regressors;
 };
 
+/// What the model-adequacy stage needs to know of the drive signal beyond the Derivatives: whether its zero was
+/// removed at import (--tare), and its level at rest before the move.
+struct DriveSignalFacts {
+    bool tared{false};
+    std::optional<RestLevel> rest;
+};
+
 /// Standard errors over blocks long enough for step 1's residual: where the residual stays correlated beyond the
 /// low-pass's reach (a force the model misses that varies slowly), the blocks of both steps lengthen to
 /// autocorrelation_blocks integrated autocorrelation times, and the result records it.
@@ -641,13 +648,6 @@ void widen_correlation_block(const Derivatives& d, const Regressors& regressors,
     options.step1.correlation_blocks = needed / static_cast<double>(d.correlation_samples);
     if (choice) choice->correlation_block_samples = static_cast<std::size_t>(std::ceil(needed));
 }
-
-/// What the model-adequacy stage needs to know of the drive signal beyond the Derivatives: whether its zero was
-/// removed at import (--tare), and its level at rest before the move.
-struct DriveSignalFacts {
-    bool tared{false};
-    std::optional<RestLevel> rest;
-};
 
 bool drive_tared(const Trace& trace) {
     const Channel* drive = trace.has(Role::force) ? trace.find(Role::force) : trace.find(Role::current);
@@ -726,10 +726,13 @@ IdentifyResult run_stages_on(IdentifyResult result, Preprocessed& p, const Ident
 /// share them) when the stages got that far. The drive force is formed from `drive` for the first stage alone and
 /// released after it: the later stages read the filtered force in the Derivatives, and every run forms its own
 /// (the same values) rather than all of them holding one for the whole of identify.
+/// `facts`, when given, are the drive signal's (the same force in every run of one identify: found once).
 IdentifyResult run_stages(const Trace& trace, const DriveConstants& drive, const IdentifyOptions& options,
-                          std::optional<Preprocessed>* keep = nullptr) {
+                          std::optional<Preprocessed>* keep = nullptr, DriveSignalFacts* facts_found = nullptr,
+                          const DriveSignalFacts* facts_given = nullptr) {
     std::vector<double> force = drive_force(trace, drive);  // throws without a constant
-    const DriveSignalFacts facts = drive_signal_facts(trace, force);
+    const DriveSignalFacts facts = facts_given != nullptr ? *facts_given : drive_signal_facts(trace, force);
+    if (facts_found != nullptr) *facts_found = facts;
     IdentifyResult result = start_result(trace, options);
     Preprocessed p{preprocess(trace, force, options.preprocess), {}};
     std::vector<double>().swap(force);
@@ -762,7 +765,8 @@ constexpr double budget_bytes_per_sample = 100.0;
 /// member the trace cannot take (InputError) is empty. Members with the nominal preprocessing (the split variant)
 /// are not run here.
 std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, const IdentifyOptions& base,
-                                                      const std::vector<PreprocessingVariant>& family) {
+                                                      const std::vector<PreprocessingVariant>& family,
+                                                      const DriveSignalFacts& facts) {
     std::vector<std::optional<IdentifyResult>> runs(family.size());
     std::vector<std::exception_ptr> errors(family.size());
     std::vector<std::size_t> todo;
@@ -774,7 +778,7 @@ std::vector<std::optional<IdentifyResult>> run_family(const Trace& trace, const 
         for (std::size_t i = next++; i < todo.size(); i = next++) {
             const std::size_t v = todo[i];
             try {
-                runs[v] = run_stages(trace, base.drive, member_options(base, family[v]));
+                runs[v] = run_stages(trace, base.drive, member_options(base, family[v]), nullptr, nullptr, &facts);
             } catch (const InputError&) {
                 runs[v].reset();
             } catch (...) {
@@ -822,7 +826,7 @@ void add_selection_sensitivity(const IdentifyResult& result, std::vector<std::op
 }
 
 void assess_systematic(const Trace& trace, const IdentifyOptions& options, std::optional<Preprocessed>& nominal,
-                       IdentifyResult& result) {
+                       const DriveSignalFacts& facts, IdentifyResult& result) {
     const bool from_velocity = result.preprocessing->velocity_source == "velocity";
     const double interval = native_interval_of(trace, from_velocity ? Role::velocity : Role::position);
     // every member fits the nominal run's model: the family measures the preprocessing, not the model choice
@@ -862,7 +866,7 @@ void assess_systematic(const Trace& trace, const IdentifyOptions& options, std::
                                                                            : std::nullopt});
     }
     nominal.reset();
-    auto runs = run_family(trace, variant_options, family);
+    auto runs = run_family(trace, variant_options, family, facts);
     for (std::size_t v = 0; v < family.size(); ++v) {
         if (family[v].split_velocity) runs[v] = std::move(shared[v]);
     }
@@ -931,9 +935,11 @@ IdentifyResult identify(const Trace& trace, const IdentifyOptions& options) {
         }
     }
     std::optional<Preprocessed> nominal;
-    IdentifyResult result = run_stages(trace, options.drive, options, options.systematic ? &nominal : nullptr);
+    DriveSignalFacts facts;
+    IdentifyResult result =
+        run_stages(trace, options.drive, options, options.systematic ? &nominal : nullptr, &facts);
     if (options.systematic && result.status != Status::failed && result.preprocessing)
-        assess_systematic(trace, options, nominal, result);
+        assess_systematic(trace, options, nominal, facts, result);
     // Drive constants outside what feed drives have: the figures are right for the constants given, which may not be.
     for (auto& warning : options.drive.warnings()) result.diagnostics.push_back(std::move(warning));
     return result;

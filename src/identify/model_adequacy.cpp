@@ -7,6 +7,7 @@
 #include <cmath>
 #include <iterator>
 #include <limits>
+#include <optional>
 #include <span>
 #include <thread>
 
@@ -611,15 +612,16 @@ double block_standard_error(const Derivatives& d, const RowRegressors& largest, 
 
 /// The delay: the profile's minimum in the largest model the data can take, tested against its standard error,
 /// applied where significant; or the known one applied.
+void apply_known_delay(Derivatives& d, double delay_s, ModelChoice& choice) {
+    shift_drive_force(d, delay_s);
+    choice.delay_s = delay_s;
+    choice.delay_applied = true;
+    choice.delay_source = "given";
+}
+
 void choose_delay(Derivatives& d, bool one_way, const ModelSelectionOptions& options, double threshold,
                   std::size_t block, RowColumns& columns, ModelChoice& choice) {
-    if (options.known_delay_s) {
-        shift_drive_force(d, *options.known_delay_s);
-        choice.delay_s = *options.known_delay_s;
-        choice.delay_applied = true;
-        choice.delay_source = "given";
-        return;
-    }
+    if (options.known_delay_s) return apply_known_delay(d, *options.known_delay_s, choice);
     if (options.delay == ModelSelectionOptions::Delay::none) return;
     const bool apply = options.automatic || options.delay == ModelSelectionOptions::Delay::estimate;
     const RowRegressors largest =
@@ -930,19 +932,47 @@ double integrated_autocorrelation(const std::vector<std::size_t>& rows, const st
     if (rows.size() < 100 || !(squares > 0.0)) return 1.0;
     const std::size_t span = rows.back() - rows.front() + 1;
     double largest = 1.0;
-    // blocks of b = 2^shift samples: the block of a row by a shift, not a division
+    // blocks of b = 2^shift samples: the block of a row by a shift, not a division. The first levels from the rows;
+    // from the last of them on, each level's block sums are the sums of the level below's (one pass over fewer
+    // blocks per level instead of one over every row: the same sums to rounding)
+    constexpr unsigned direct_levels = 5;
+    // (block, sum of its values) at the current level; at most one block per row and per 2^direct_levels samples
+    // (half a byte per sample at most)
+    std::vector<std::pair<std::size_t, double>> blocks;
+    std::size_t kept = 0;
     for (unsigned shift = 1; span >> shift >= 50; ++shift) {
-        double sum_of_squares = 0.0, block_sum = 0.0;
-        std::size_t current = rows.front() >> shift;
-        for (std::size_t i = 0; i < rows.size(); ++i) {
-            if (rows[i] >> shift != current) {
-                sum_of_squares += block_sum * block_sum;
-                block_sum = 0.0;
-                current = rows[i] >> shift;
+        double sum_of_squares = 0.0;
+        if (shift <= direct_levels) {
+            const bool keep = shift == direct_levels;
+            if (keep) {
+                const bool ascending = std::is_sorted(rows.begin(), rows.end());
+                blocks.resize(ascending ? std::min(rows.size(), (span >> direct_levels) + 2) : rows.size());
             }
-            block_sum += values[i];
+            double block_sum = 0.0;
+            std::size_t current = rows.front() >> shift;
+            for (std::size_t i = 0; i < rows.size(); ++i) {
+                if (rows[i] >> shift != current) {
+                    sum_of_squares += block_sum * block_sum;
+                    if (keep) blocks[kept++] = {current, block_sum};
+                    block_sum = 0.0;
+                    current = rows[i] >> shift;
+                }
+                block_sum += values[i];
+            }
+            sum_of_squares += block_sum * block_sum;
+            if (keep) blocks[kept++] = {current, block_sum};
+        } else {
+            std::size_t merged = 0;
+            for (std::size_t i = 0; i < kept; ++i) {
+                const std::size_t parent = blocks[i].first >> 1;
+                if (merged > 0 && blocks[merged - 1].first == parent)
+                    blocks[merged - 1].second += blocks[i].second;
+                else
+                    blocks[merged++] = {parent, blocks[i].second};
+            }
+            kept = merged;
+            for (std::size_t i = 0; i < kept; ++i) sum_of_squares += blocks[i].second * blocks[i].second;
         }
-        sum_of_squares += block_sum * block_sum;
         largest = std::max(largest, sum_of_squares / squares);
     }
     return 0.5 * largest;
@@ -1318,15 +1348,22 @@ ModelChoice choose_model(Derivatives& d, const Selection& selection, FrictionMod
     if (rows.size() < 50) return choice;  // step 1 will say why it cannot fit
     const std::size_t block = correlation_block(d, correlation_blocks);
     const double threshold = normal_quantile(options.test_level);
-    // the models' columns on step 1's rows and their neighbours only, released with the stage
-    const RowSupport support(d, rows, true);
-    RowColumns columns(d, support, cache);
+    // the models' columns on step 1's rows and their neighbours only, released with the stage; formed when a test
+    // needs them (a rerun with the model, offset and delay given needs none)
+    std::optional<RowSupport> support;
+    std::optional<RowColumns> held;
+    const auto columns = [&]() -> RowColumns& {
+        if (!held) held.emplace(d, support.emplace(d, rows, true), cache);
+        return *held;
+    };
     if (options.automatic || options.test_forced) {
-        detect_process_forces(d, selection, choice.one_way, options, columns, choice);
+        detect_process_forces(d, selection, choice.one_way, options, columns(), choice);
         if (!choice.process_forces.empty()) return choice;
     }
-
-    choose_delay(d, choice.one_way, options, threshold, block, columns, choice);
+    if (options.known_delay_s)
+        apply_known_delay(d, *options.known_delay_s, choice);
+    else if (options.delay != ModelSelectionOptions::Delay::none)
+        choose_delay(d, choice.one_way, options, threshold, block, columns(), choice);
     if (choice.one_way) {
         if (options.automatic) {
             choice.model = FrictionModelKind::symmetric;
@@ -1340,13 +1377,14 @@ ModelChoice choose_model(Derivatives& d, const Selection& selection, FrictionMod
         choice.candidates.push_back(offset);
         judge_one_way(d, selection, choice.offset, drive_tared, rest, options, choice);
     } else if (options.automatic || options.test_forced) {
-        choose_friction_model(d, selection, forced_model, forced_offset, options, threshold, block, columns, cache,
+        choose_friction_model(d, selection, forced_model, forced_offset, options, threshold, block, columns(), cache,
                               choice);
     }
     // applied, or too uncertain to apply: the delay is known only to its standard error, and the parameters move
-    // with it (a significant one a forced model leaves out is said in a finding instead)
-    if (choice.delay_applied || choice.delay_uncertain)
-        choice.delay_sensitivity = delay_sensitivity(choice, block, columns);
+    // with it (a significant one a forced model leaves out is said in a finding instead); a delay given has no
+    // standard error, and its sensitivities would widen nothing (apply_model_choice)
+    if ((choice.delay_applied || choice.delay_uncertain) && choice.delay_standard_error)
+        choice.delay_sensitivity = delay_sensitivity(choice, block, columns());
     return choice;
 }
 
