@@ -205,10 +205,7 @@ TEST(Gains, ASetpointDelayOfServoCyclesIsFittedWithItsStandardError) {
                 EXPECT_NEAR(*result.velocity_feedforward.value, feedforward, 0.01 * feedforward) << what;
             }
             // From the structure alone (no velocity command) at the servo rate: the feed-forward detected and
-            // fitted in the structure, K_v's standard error over the models P and P+FF. Not at 4 kHz, where the
-            // simulation steps twice per servo cycle: there the structure alone finds the setpoint a cycle late and
-            // K_v 0.85 % high without a feed-forward, and with one a velocity over three cycles and K_v 7.8 % high.
-            if (rate < 8000.0) continue;
+            // fitted in the structure, K_v's standard error over the models P and P+FF.
             feedid::GainOptions at_rate;
             at_rate.servo_rate_hz = rate;
             const auto structure = gains_of(without_velocity_command(trace), at_rate);
