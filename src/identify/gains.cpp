@@ -109,6 +109,9 @@ struct Structure {
 
 struct Problem {
     std::vector<Column> columns;  // regressors, filtered
+    /// Each column's sum of squares over the used rows in the order of the rows, where whoever formed the columns
+    /// summed them on the way; empty: normal_solution() sums them.
+    std::vector<double> column_squares;
     std::size_t row_step{1};      // the samples between rows that follow each other (a held position's factor)
     const std::vector<char>* use{nullptr};
 
@@ -220,44 +223,51 @@ void with_column_count(std::size_t count, Pass&& pass) {
     }
 }
 
-/// filter_into() for each of Q columns, side by side in one pass (each column's recursion waits on its last output).
+/// filter_into() for each of Q columns, side by side in one pass (each column's recursion waits on its last output),
+/// and each filtered column's sum of squares over the used rows.
 template <std::size_t Q>
-void filter_columns_of(const std::vector<Column>& in, double a, double mu, std::vector<Column>& out) {
+void filter_columns_of(const std::vector<Column>& in, double a, double mu, const std::vector<char>& use,
+                       Problem& out) {
     const std::size_t n = in.front().size();
+    const bool unchanged = a == 0.0 && mu == 0.0;  // no lag, no delay: L is the identity
     std::array<const double*, Q> from{};
     std::array<double*, Q> to{};
-    std::array<double, Q> previous_in{}, previous_out{};
+    std::array<double, Q> previous_in{}, previous_out{}, squares{};
     for (std::size_t j = 0; j < Q; ++j) {
-        out[j].resize(n);
+        out.columns[j].resize(n);
         from[j] = in[j].data();
-        to[j] = out[j].data();
+        to[j] = out.columns[j].data();
         previous_in[j] = previous_out[j] = in[j].front();
     }
     for (std::size_t k = 0; k < n; ++k) {
         for (std::size_t j = 0; j < Q; ++j) {
             const double value = from[j][k];
-            const double filtered = a * previous_out[j] + (1.0 - a) * ((1.0 - mu) * value + mu * previous_in[j]);
+            const double filtered =
+                unchanged ? value : a * previous_out[j] + (1.0 - a) * ((1.0 - mu) * value + mu * previous_in[j]);
             previous_in[j] = value;
             previous_out[j] = filtered;
             to[j][k] = filtered;
+            if (use[k]) squares[j] += filtered * filtered;
         }
     }
+    out.column_squares.assign(squares.begin(), squares.end());
 }
 
-/// L of the columns `in` into the first in.size() of `out` (their storage reused).
-void filter_columns(const std::vector<Column>& in, double a, double mu, std::vector<Column>& out) {
-    if (in.front().empty() || (a == 0.0 && mu == 0.0)) {
-        for (std::size_t j = 0; j < in.size(); ++j) out[j].assign(in[j].begin(), in[j].end());
-        return;
-    }
-    with_column_count(in.size(), [&](auto q) { filter_columns_of<q()>(in, a, mu, out); });
+/// L of the columns `in` into the first in.size() columns of `out` (their storage reused), with their sums of squares
+/// over the used rows (`use`, the same length) where they are all of `out`'s columns.
+void filter_columns(const std::vector<Column>& in, double a, double mu, const std::vector<char>& use, Problem& out) {
+    with_column_count(in.size(), [&](auto q) { filter_columns_of<q()>(in, a, mu, use, out); });
+    if (out.column_squares.size() != out.columns.size()) out.column_squares.clear();
 }
 
 NormalSolution normal_solution(const Problem& problem) {
     const auto p = static_cast<Eigen::Index>(problem.columns.size());
     Eigen::VectorXd scale(p);
     const std::size_t count = problem.columns.size();
-    with_column_count(count, [&](auto q) { column_squares_of<q()>(problem, scale); });
+    if (problem.column_squares.size() == count)
+        scale = Eigen::Map<const Eigen::VectorXd>(problem.column_squares.data(), p);
+    else
+        with_column_count(count, [&](auto q) { column_squares_of<q()>(problem, scale); });
     for (Eigen::Index j = 0; j < p; ++j) scale(j) = scale(j) > 0.0 ? 1.0 / std::sqrt(scale(j)) : 1.0;
     Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(p, p);
     Eigen::VectorXd right = Eigen::VectorXd::Zero(p);
@@ -619,28 +629,38 @@ double reference_at(std::span<const double> reference, double at) {
 // feed-forward, the setpoint's velocity there, the slope of the interpolated reference just before k - d (its
 // backward difference for a whole d). A held position (a slower position loop) keeps whole samples and differences
 // over its own cycle.
-std::vector<Column> position_loop_columns(const GainSignals& signals, double delay, bool feedforward) {
-    std::vector<Column> columns;
+// Into `problem` (its columns' storage reused), with their sums of squares over the rows `use`.
+void position_loop_columns(const GainSignals& signals, double delay, bool feedforward, const std::vector<char>& use,
+                           Problem& problem) {
+    auto& columns = problem.columns;
     if (signals.hold_factor > 1) {
         const auto d = static_cast<int>(std::lround(delay));
+        columns.clear();
         columns.push_back(following_error(signals.reference, signals.position, d));
         if (feedforward)
             columns.push_back(delayed(difference_velocity(signals.reference, signals.hold_factor, signals.dt), d));
-        return columns;
+        problem.column_squares.clear();
+        return;
     }
-    Column error(signals.samples), velocity(feedforward ? signals.samples : 0);
+    columns.resize(feedforward ? 2 : 1);
+    Column& error = columns[0];
+    error.resize(signals.samples);
+    if (feedforward) columns[1].resize(signals.samples);
+    double error_squares = 0.0, velocity_squares = 0.0;
     const std::size_t last = signals.samples - 1;
     for (std::size_t k = 0; k < signals.samples; ++k) {
         const double at = static_cast<double>(k) - delay;
         error[k] = reference_at(signals.reference, at) - signals.position[k];
+        if (use[k]) error_squares += error[k] * error[k];
         if (!feedforward) continue;
         const double upper = std::ceil(at);
         const std::size_t i = upper < 1.0 ? 0 : std::min(static_cast<std::size_t>(upper), last);
-        velocity[k] = i == 0 ? 0.0 : (signals.reference[i] - signals.reference[i - 1]) / signals.dt;
+        const double velocity = i == 0 ? 0.0 : (signals.reference[i] - signals.reference[i - 1]) / signals.dt;
+        columns[1][k] = velocity;
+        if (use[k]) velocity_squares += velocity * velocity;
     }
-    columns.push_back(std::move(error));
-    if (feedforward) columns.push_back(std::move(velocity));
-    return columns;
+    problem.column_squares.assign({error_squares});
+    if (feedforward) problem.column_squares.push_back(velocity_squares);
 }
 
 // The standard error of a delay fitted by the smallest residual sum of squares S(d) beside p linear parameters on N
@@ -663,14 +683,17 @@ constexpr int delay_steps_per_sample = 16;
 PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, const RlsOptions& rls) {
     std::vector<char> use = rows_past_start_up(signals.samples);
     keep_fresh_rows(signals, use);
-    const auto problem_at = [&](double delay) {
-        Problem problem;
-        problem.columns = position_loop_columns(signals, delay, feedforward);
-        problem.share_y(signals.velocity_command);
-        problem.use = &use;
-        return problem;
+    Problem problem;  // refilled for each delay
+    problem.share_y(signals.velocity_command);
+    problem.use = &use;
+    std::vector<std::pair<double, double>> fitted;  // each delay fitted and its residual sum of squares
+    const auto rss = [&](double delay) {
+        const auto found = std::find_if(fitted.begin(), fitted.end(), [&](const auto& f) { return f.first == delay; });
+        if (found != fitted.end()) return found->second;
+        position_loop_columns(signals, delay, feedforward, use, problem);
+        fitted.emplace_back(delay, residual_sum_of_squares(problem));
+        return fitted.back().second;
     };
-    const auto rss = [&](double delay) { return residual_sum_of_squares(problem_at(delay)); };
     // with a feed-forward a fraction of a sample is k_ff's doing here (setpoint_fraction())
     const bool whole = signals.hold_factor > 1 || feedforward;
     const int steps = whole ? 1 : delay_steps_per_sample;
@@ -700,7 +723,8 @@ PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, 
             result.delay = refined;
         }
     }
-    result.fit = fit(problem_at(result.delay), rls);
+    position_loop_columns(signals, result.delay, feedforward, use, problem);
+    result.fit = fit(problem, rls);
     result.delay_standard_error = delay_standard_error(rss, result.delay, whole ? 1.0 : 1.0 / (4.0 * steps),
                                                        result.fit.samples, feedforward ? 2 : 1);
     return result;
@@ -1006,7 +1030,7 @@ struct VelocityLoopRegression {
         const double a = lag_coefficient(s.lag_s, signals.dt);
         const bool injection_column = !signals.injection.empty() && !injection_gain_known;
         problem.columns.resize(unfiltered.size() + (injection_column ? 1 : 0));
-        filter_columns(unfiltered, a, s.mu, problem.columns);
+        filter_columns(unfiltered, a, s.mu, use, problem);
         problem.share_y(signals.force);
         if (injection_column) {
             filter_into(signals.injection, a, s.mu, problem.columns.back());
