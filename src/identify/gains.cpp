@@ -17,6 +17,7 @@
 #include <array>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <map>
@@ -619,9 +620,12 @@ struct PositionLoopFit {
 // the last after the end.
 double reference_at(std::span<const double> reference, double at) {
     if (!(at > 0.0)) return reference.front();
-    const auto i = static_cast<std::size_t>(at);
+    if (!(at < static_cast<double>(reference.size()))) return reference.back();
+    // a signed whole part: the same number as an unsigned one here, in one instruction instead of a branch
+    const auto whole = static_cast<std::int64_t>(at);
+    const auto i = static_cast<std::size_t>(whole);
     if (i + 1 >= reference.size()) return reference.back();
-    const double f = at - static_cast<double>(i);
+    const double f = at - static_cast<double>(whole);
     return reference[i] + f * (reference[i + 1] - reference[i]);
 }
 
