@@ -23,8 +23,8 @@
 #include <map>
 #include <numeric>
 #include <stdexcept>
-#include <type_traits>
 #include <tuple>
+#include <type_traits>
 
 #include <fmt/core.h>
 #include <Eigen/Dense>
@@ -113,11 +113,11 @@ struct Problem {
     /// Each column's sum of squares over the used rows in the order of the rows, where whoever formed the columns
     /// summed them on the way; empty: normal_solution() sums them.
     std::vector<double> column_squares;
-    std::size_t row_step{1};      // the samples between rows that follow each other (a held position's factor)
+    std::size_t row_step{1};  // the samples between rows that follow each other (a held position's factor)
     const std::vector<char>* use{nullptr};
 
-    /// What the regressors explain: a signal of the trace's, viewed (the structure search forms a problem per
-    /// candidate: a copy of the force each time), or the problem's own once changed.
+    /// What the regressors explain: a signal of the trace's, viewed (not copied for each candidate structure of a
+    /// search), or the problem's own once changed.
     [[nodiscard]] const Column& y() const { return shared_y_ != nullptr ? *shared_y_ : own_y_; }
     void share_y(const Column& signal) { shared_y_ = &signal; }
     Column& own_y() {
@@ -227,8 +227,7 @@ void with_column_count(std::size_t count, Pass&& pass) {
 /// filter_into() for each of Q columns, side by side in one pass (each column's recursion waits on its last output),
 /// and each filtered column's sum of squares over the used rows.
 template <std::size_t Q>
-void filter_columns_of(const std::vector<Column>& in, double a, double mu, const std::vector<char>& use,
-                       Problem& out) {
+void filter_columns_of(const std::vector<Column>& in, double a, double mu, const std::vector<char>& use, Problem& out) {
     const std::size_t n = in.front().size();
     const bool unchanged = a == 0.0 && mu == 0.0;  // no lag, no delay: L is the identity
     std::array<const double*, Q> from{};
