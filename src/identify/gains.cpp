@@ -1398,8 +1398,8 @@ public:
             if (found == profiled_.end()) found = profiled_.emplace(key, regression_.structure_residual(s, integral_)).first;
             rss = found->second.rss;
             fitted.mu = found->second.mu;
-        } else if (const auto found = std::find_if(tried_.begin(), tried_.end(),
-                                                   [&](const auto& t) { return t.first == s; });
+        } else if (const auto found =
+                       std::find_if(tried_.begin(), tried_.end(), [&](const auto& t) { return t.first == s; });
                    found != tried_.end()) {
             rss = found->second;
         } else {
