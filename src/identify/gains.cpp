@@ -17,11 +17,14 @@
 #include <array>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <map>
 #include <numeric>
+#include <stdexcept>
 #include <tuple>
+#include <type_traits>
 
 #include <fmt/core.h>
 #include <Eigen/Dense>
@@ -69,17 +72,23 @@ namespace {
 
 using Column = std::vector<double>;
 
-// The lag-and-delay filter L above, applied in place; starts in steady state at the column's first value.
-void apply_drive_filter(Column& column, double a, double mu) {
-    if (column.empty() || (a == 0.0 && mu == 0.0)) return;
-    double previous_in = column.front();
-    double previous_out = column.front();
-    for (double& value : column) {
-        const double in = value;
-        const double out = a * previous_out + (1.0 - a) * ((1.0 - mu) * in + mu * previous_in);
-        previous_in = in;
-        previous_out = out;
-        value = out;
+// The lag-and-delay filter L above of `in` into `out` (its storage reused; `out` may be `in`); starts in steady state
+// at the column's first value.
+void filter_into(const Column& in, double a, double mu, Column& out) {
+    out.resize(in.size());
+    if (in.empty()) return;
+    if (a == 0.0 && mu == 0.0) {
+        if (&out != &in) std::copy(in.begin(), in.end(), out.begin());
+        return;
+    }
+    double previous_in = in.front();
+    double previous_out = in.front();
+    for (std::size_t k = 0; k < in.size(); ++k) {
+        const double value = in[k];
+        const double filtered = a * previous_out + (1.0 - a) * ((1.0 - mu) * value + mu * previous_in);
+        previous_in = value;
+        previous_out = filtered;
+        out[k] = filtered;
     }
 }
 
@@ -95,15 +104,20 @@ struct Structure {
     double lag_s{0.0};       // tau
     double mu{0.0};
     int servo_delay_cycles{-1};  // on a servo grid: the delay in its cycles (-1: d of them per sample)
+
+    bool operator==(const Structure&) const = default;
 };
 
 struct Problem {
     std::vector<Column> columns;  // regressors, filtered
-    std::size_t row_step{1};      // the samples between rows that follow each other (a held position's factor)
+    /// Each column's sum of squares over the used rows in the order of the rows, where whoever formed the columns
+    /// summed them on the way; empty: normal_solution() sums them.
+    std::vector<double> column_squares;
+    std::size_t row_step{1};  // the samples between rows that follow each other (a held position's factor)
     const std::vector<char>* use{nullptr};
 
-    /// What the regressors explain: a signal of the trace's, viewed (the structure search forms a problem per
-    /// candidate: a copy of the force each time), or the problem's own once changed.
+    /// What the regressors explain: a signal of the trace's, viewed (not copied for each candidate structure of a
+    /// search), or the problem's own once changed.
     [[nodiscard]] const Column& y() const { return shared_y_ != nullptr ? *shared_y_ : own_y_; }
     void share_y(const Column& signal) { shared_y_ = &signal; }
     Column& own_y() {
@@ -123,18 +137,38 @@ struct NormalSolution {
 };
 
 // The least-squares fit on the selected rows (normal equations on normalised columns: fast enough for the structure
-// search; the final estimate uses QR and RLS): its coefficients and residual sum of squares.
-/// Phi'Phi (lower triangle) and Phi'y of the used rows, the columns scaled, for Q columns.
+// search; the final estimate uses QR and RLS): its coefficients and residual sum of squares. Each pass over the rows
+// has the column count Q known to the compiler (the structure search solves this hundreds of times) and keeps every
+// sum in the order of the rows.
+template <std::size_t Q>
+std::array<const double*, Q> column_pointers(const Problem& problem) {
+    std::array<const double*, Q> column{};
+    for (std::size_t j = 0; j < Q; ++j) column[j] = problem.columns[j].data();
+    return column;
+}
+
+/// The sum of squares of each column over the used rows (the Q sums side by side in one pass).
+template <std::size_t Q>
+void column_squares_of(const Problem& problem, Eigen::VectorXd& squares) {
+    std::array<double, Q> sums{};
+    const auto column = column_pointers<Q>(problem);
+    const auto& use = *problem.use;
+    const std::size_t n = problem.y().size();
+    for (std::size_t k = 0; k < n; ++k) {
+        if (!use[k]) continue;
+        for (std::size_t j = 0; j < Q; ++j) sums[j] += column[j][k] * column[j][k];
+    }
+    for (std::size_t j = 0; j < Q; ++j) squares(static_cast<Eigen::Index>(j)) = sums[j];
+}
+
+/// Phi'Phi (lower triangle) and Phi'y of the used rows, the columns scaled, as a rank update per row would add them.
 template <std::size_t Q>
 void accumulate_normal_of(const Problem& problem, const Eigen::VectorXd& scale, Eigen::MatrixXd& normal,
                           Eigen::VectorXd& right) {
     std::array<double, Q * Q> lower{};
     std::array<double, Q> sums{}, phi{}, factor{};
-    std::array<const double*, Q> column{};
-    for (std::size_t j = 0; j < Q; ++j) {
-        column[j] = problem.columns[j].data();
-        factor[j] = scale(static_cast<Eigen::Index>(j));
-    }
+    const auto column = column_pointers<Q>(problem);
+    for (std::size_t j = 0; j < Q; ++j) factor[j] = scale(static_cast<Eigen::Index>(j));
     const auto& use = *problem.use;
     const auto& y = problem.y();
     for (std::size_t k = 0; k < y.size(); ++k) {
@@ -152,61 +186,96 @@ void accumulate_normal_of(const Problem& problem, const Eigen::VectorXd& scale, 
     }
 }
 
-/// accumulate_normal_of for the problem's column count; false above 8 columns.
-bool accumulate_normal(const Problem& problem, const Eigen::VectorXd& scale, Eigen::MatrixXd& normal,
-                       Eigen::VectorXd& right) {
-    switch (problem.columns.size()) {
-        case 1: accumulate_normal_of<1>(problem, scale, normal, right); return true;
-        case 2: accumulate_normal_of<2>(problem, scale, normal, right); return true;
-        case 3: accumulate_normal_of<3>(problem, scale, normal, right); return true;
-        case 4: accumulate_normal_of<4>(problem, scale, normal, right); return true;
-        case 5: accumulate_normal_of<5>(problem, scale, normal, right); return true;
-        case 6: accumulate_normal_of<6>(problem, scale, normal, right); return true;
-        case 7: accumulate_normal_of<7>(problem, scale, normal, right); return true;
-        case 8: accumulate_normal_of<8>(problem, scale, normal, right); return true;
-        default: return false;
+/// sum (y - Phi*diag(scale)*theta)^2 over the used rows.
+template <std::size_t Q>
+double residual_squares_of(const Problem& problem, const Eigen::VectorXd& scale, const Eigen::VectorXd& theta) {
+    std::array<double, Q> factor{}, coefficient{};
+    const auto column = column_pointers<Q>(problem);
+    for (std::size_t j = 0; j < Q; ++j) {
+        factor[j] = scale(static_cast<Eigen::Index>(j));
+        coefficient[j] = theta(static_cast<Eigen::Index>(j));
     }
+    const auto& use = *problem.use;
+    const auto& y = problem.y();
+    double rss = 0.0;
+    for (std::size_t k = 0; k < y.size(); ++k) {
+        if (!use[k]) continue;
+        double fitted = 0.0;
+        for (std::size_t j = 0; j < Q; ++j) fitted += column[j][k] * factor[j] * coefficient[j];
+        rss += (y[k] - fitted) * (y[k] - fitted);
+    }
+    return rss;
+}
+
+/// Calls pass(std::integral_constant<std::size_t, Q>{}) for Q = count, 1 to 8 (the velocity loop
+/// has at most 7: the structure's 5, a feed-forward's step, an injection's gain).
+template <typename Pass>
+void with_column_count(std::size_t count, Pass&& pass) {
+    switch (count) {
+        case 1: pass(std::integral_constant<std::size_t, 1>{}); return;
+        case 2: pass(std::integral_constant<std::size_t, 2>{}); return;
+        case 3: pass(std::integral_constant<std::size_t, 3>{}); return;
+        case 4: pass(std::integral_constant<std::size_t, 4>{}); return;
+        case 5: pass(std::integral_constant<std::size_t, 5>{}); return;
+        case 6: pass(std::integral_constant<std::size_t, 6>{}); return;
+        case 7: pass(std::integral_constant<std::size_t, 7>{}); return;
+        case 8: pass(std::integral_constant<std::size_t, 8>{}); return;
+        default: throw std::logic_error(fmt::format("{} regressor columns: at most 8", count));
+    }
+}
+
+/// filter_into() for each of Q columns, side by side in one pass (each column's recursion waits on its last output),
+/// and each filtered column's sum of squares over the used rows.
+template <std::size_t Q>
+void filter_columns_of(const std::vector<Column>& in, double a, double mu, const std::vector<char>& use, Problem& out) {
+    const std::size_t n = in.front().size();
+    const bool unchanged = a == 0.0 && mu == 0.0;  // no lag, no delay: L is the identity
+    std::array<const double*, Q> from{};
+    std::array<double*, Q> to{};
+    std::array<double, Q> previous_in{}, previous_out{}, squares{};
+    for (std::size_t j = 0; j < Q; ++j) {
+        out.columns[j].resize(n);
+        from[j] = in[j].data();
+        to[j] = out.columns[j].data();
+        previous_in[j] = previous_out[j] = in[j].front();
+    }
+    for (std::size_t k = 0; k < n; ++k) {
+        for (std::size_t j = 0; j < Q; ++j) {
+            const double value = from[j][k];
+            const double filtered =
+                unchanged ? value : a * previous_out[j] + (1.0 - a) * ((1.0 - mu) * value + mu * previous_in[j]);
+            previous_in[j] = value;
+            previous_out[j] = filtered;
+            to[j][k] = filtered;
+            if (use[k]) squares[j] += filtered * filtered;
+        }
+    }
+    out.column_squares.assign(squares.begin(), squares.end());
+}
+
+/// L of the columns `in` into the first in.size() columns of `out` (their storage reused), with their sums of squares
+/// over the used rows (`use`, the same length) where they are all of `out`'s columns.
+void filter_columns(const std::vector<Column>& in, double a, double mu, const std::vector<char>& use, Problem& out) {
+    with_column_count(in.size(), [&](auto q) { filter_columns_of<q()>(in, a, mu, use, out); });
+    if (out.column_squares.size() != out.columns.size()) out.column_squares.clear();
 }
 
 NormalSolution normal_solution(const Problem& problem) {
     const auto p = static_cast<Eigen::Index>(problem.columns.size());
-    const auto& y = problem.y();
-    const auto& use = *problem.use;
-    const std::size_t n = y.size();
     Eigen::VectorXd scale(p);
-    for (Eigen::Index j = 0; j < p; ++j) {
-        double sum = 0.0;
-        for (std::size_t k = 0; k < n; ++k) {
-            if (use[k])
-                sum +=
-                    problem.columns[static_cast<std::size_t>(j)][k] * problem.columns[static_cast<std::size_t>(j)][k];
-        }
-        scale(j) = sum > 0.0 ? 1.0 / std::sqrt(sum) : 1.0;
-    }
-    // the lower triangle of Phi'Phi and Phi'y, row by row: each sum in the order of the rows, as a rank update
-    // would add them (without its per-row dispatch, the column count known to the compiler: the structure search
-    // solves this hundreds of times)
+    const std::size_t count = problem.columns.size();
+    if (problem.column_squares.size() == count)
+        scale = Eigen::Map<const Eigen::VectorXd>(problem.column_squares.data(), p);
+    else
+        with_column_count(count, [&](auto q) { column_squares_of<q()>(problem, scale); });
+    for (Eigen::Index j = 0; j < p; ++j) scale(j) = scale(j) > 0.0 ? 1.0 / std::sqrt(scale(j)) : 1.0;
     Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(p, p);
     Eigen::VectorXd right = Eigen::VectorXd::Zero(p);
-    if (!accumulate_normal(problem, scale, normal, right)) {
-        Eigen::VectorXd phi(p);
-        for (std::size_t k = 0; k < n; ++k) {
-            if (!use[k]) continue;
-            for (Eigen::Index j = 0; j < p; ++j) phi(j) = problem.columns[static_cast<std::size_t>(j)][k] * scale(j);
-            normal.selfadjointView<Eigen::Lower>().rankUpdate(phi);
-            right += phi * y[k];
-        }
-    }
+    with_column_count(count, [&](auto q) { accumulate_normal_of<q()>(problem, scale, normal, right); });
     normal = normal.selfadjointView<Eigen::Lower>();
     const Eigen::VectorXd theta = normal.ldlt().solve(right);
     double rss = 0.0;
-    for (std::size_t k = 0; k < n; ++k) {
-        if (!use[k]) continue;
-        double fitted = 0.0;
-        for (Eigen::Index j = 0; j < p; ++j)
-            fitted += problem.columns[static_cast<std::size_t>(j)][k] * scale(j) * theta(j);
-        rss += (y[k] - fitted) * (y[k] - fitted);
-    }
+    with_column_count(count, [&](auto q) { rss = residual_squares_of<q()>(problem, scale, theta); });
     return {theta.cwiseProduct(scale), std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity()};
 }
 
@@ -550,9 +619,12 @@ struct PositionLoopFit {
 // the last after the end.
 double reference_at(std::span<const double> reference, double at) {
     if (!(at > 0.0)) return reference.front();
-    const auto i = static_cast<std::size_t>(at);
+    if (!(at < static_cast<double>(reference.size()))) return reference.back();
+    // a signed whole part: the same number as an unsigned one here, in one instruction instead of a branch
+    const auto whole = static_cast<std::int64_t>(at);
+    const auto i = static_cast<std::size_t>(whole);
     if (i + 1 >= reference.size()) return reference.back();
-    const double f = at - static_cast<double>(i);
+    const double f = at - static_cast<double>(whole);
     return reference[i] + f * (reference[i + 1] - reference[i]);
 }
 
@@ -560,28 +632,38 @@ double reference_at(std::span<const double> reference, double at) {
 // feed-forward, the setpoint's velocity there, the slope of the interpolated reference just before k - d (its
 // backward difference for a whole d). A held position (a slower position loop) keeps whole samples and differences
 // over its own cycle.
-std::vector<Column> position_loop_columns(const GainSignals& signals, double delay, bool feedforward) {
-    std::vector<Column> columns;
+// Into `problem` (its columns' storage reused), with their sums of squares over the rows `use`.
+void position_loop_columns(const GainSignals& signals, double delay, bool feedforward, const std::vector<char>& use,
+                           Problem& problem) {
+    auto& columns = problem.columns;
     if (signals.hold_factor > 1) {
         const auto d = static_cast<int>(std::lround(delay));
+        columns.clear();
         columns.push_back(following_error(signals.reference, signals.position, d));
         if (feedforward)
             columns.push_back(delayed(difference_velocity(signals.reference, signals.hold_factor, signals.dt), d));
-        return columns;
+        problem.column_squares.clear();
+        return;
     }
-    Column error(signals.samples), velocity(feedforward ? signals.samples : 0);
+    columns.resize(feedforward ? 2 : 1);
+    Column& error = columns[0];
+    error.resize(signals.samples);
+    if (feedforward) columns[1].resize(signals.samples);
+    double error_squares = 0.0, velocity_squares = 0.0;
     const std::size_t last = signals.samples - 1;
     for (std::size_t k = 0; k < signals.samples; ++k) {
         const double at = static_cast<double>(k) - delay;
         error[k] = reference_at(signals.reference, at) - signals.position[k];
+        if (use[k]) error_squares += error[k] * error[k];
         if (!feedforward) continue;
         const double upper = std::ceil(at);
         const std::size_t i = upper < 1.0 ? 0 : std::min(static_cast<std::size_t>(upper), last);
-        velocity[k] = i == 0 ? 0.0 : (signals.reference[i] - signals.reference[i - 1]) / signals.dt;
+        const double velocity = i == 0 ? 0.0 : (signals.reference[i] - signals.reference[i - 1]) / signals.dt;
+        columns[1][k] = velocity;
+        if (use[k]) velocity_squares += velocity * velocity;
     }
-    columns.push_back(std::move(error));
-    if (feedforward) columns.push_back(std::move(velocity));
-    return columns;
+    problem.column_squares.assign({error_squares});
+    if (feedforward) problem.column_squares.push_back(velocity_squares);
 }
 
 // The standard error of a delay fitted by the smallest residual sum of squares S(d) beside p linear parameters on N
@@ -604,14 +686,17 @@ constexpr int delay_steps_per_sample = 16;
 PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, const RlsOptions& rls) {
     std::vector<char> use = rows_past_start_up(signals.samples);
     keep_fresh_rows(signals, use);
-    const auto problem_at = [&](double delay) {
-        Problem problem;
-        problem.columns = position_loop_columns(signals, delay, feedforward);
-        problem.share_y(signals.velocity_command);
-        problem.use = &use;
-        return problem;
+    Problem problem;  // refilled for each delay
+    problem.share_y(signals.velocity_command);
+    problem.use = &use;
+    std::vector<std::pair<double, double>> fitted;  // each delay fitted and its residual sum of squares
+    const auto rss = [&](double delay) {
+        const auto found = std::find_if(fitted.begin(), fitted.end(), [&](const auto& f) { return f.first == delay; });
+        if (found != fitted.end()) return found->second;
+        position_loop_columns(signals, delay, feedforward, use, problem);
+        fitted.emplace_back(delay, residual_sum_of_squares(problem));
+        return fitted.back().second;
     };
-    const auto rss = [&](double delay) { return residual_sum_of_squares(problem_at(delay)); };
     // with a feed-forward a fraction of a sample is k_ff's doing here (setpoint_fraction())
     const bool whole = signals.hold_factor > 1 || feedforward;
     const int steps = whole ? 1 : delay_steps_per_sample;
@@ -641,7 +726,8 @@ PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, 
             result.delay = refined;
         }
     }
-    result.fit = fit(problem_at(result.delay), rls);
+    position_loop_columns(signals, result.delay, feedforward, use, problem);
+    result.fit = fit(problem, rls);
     result.delay_standard_error = delay_standard_error(rss, result.delay, whole ? 1.0 : 1.0 / (4.0 * steps),
                                                        result.fit.samples, feedforward ? 2 : 1);
     return result;
@@ -885,6 +971,24 @@ struct ServoRow {
     double reference_velocity{0.0};  // from the structure alone: the delayed setpoint's, over the servo cycle before
 };
 
+// The drive signal less L[u_inj], an injection that enters it with gain 1.
+void subtract_injection(Problem& problem, const Column& injected) {
+    Column& y = problem.own_y();
+    for (std::size_t k = 0; k < y.size(); ++k) y[k] -= injected[k];
+}
+
+// What a search keeps from one structure to the next at the log rate: the unfiltered columns of the last velocity
+// measurement and reference delay (a lag and a fractional delay only filter them), and a problem whose columns are
+// refilled in place: no allocation per structure.
+struct ProblemWorkspace {
+    int difference{-1};
+    int reference_delay{-1};
+    bool integral{false};
+    std::vector<Column> unfiltered;
+    Column injected;  // L[u_inj], where it is taken out of the drive signal
+    Problem problem;
+};
+
 // The velocity loop's regression on its rows: one problem per structure, every column through the drive filter L.
 // An injected signal u_inj is added to the controller's output before the drive, so the logged force is
 // F = L[F_cmd + u_inj] = L[F_cmd] + L[u_inj]: the controller explains F - L[u_inj].
@@ -901,22 +1005,44 @@ struct VelocityLoopRegression {
     bool feedforward_profiled{false};  // k_ff the best for each structure (profiled_feedforward())
 
     [[nodiscard]] Problem problem(const Structure& s, bool integral) const {
-        if (grid != nullptr) return servo_rate_problem(s, integral);
-        Problem problem;
-        const Column v = measured_velocity(signals, s.difference);
-        problem.columns = signals.logged_command ? command_columns(signals, v, integral)
-                                                 : structure_columns(signals, v, s.reference_delay, integral);
+        ProblemWorkspace workspace;
+        fill_problem(s, integral, workspace);
+        return std::move(workspace.problem);
+    }
+
+    // problem() into `workspace`: at the log rate its columns refilled in place from the unfiltered ones, which are
+    // formed again only when the velocity measurement, the reference delay or the integral changes; on the servo
+    // grid a new problem.
+    void fill_problem(const Structure& s, bool integral, ProblemWorkspace& workspace) const {
+        if (grid != nullptr) {
+            workspace.problem = servo_rate_problem(s, integral);
+            return;
+        }
+        auto& unfiltered = workspace.unfiltered;
+        if (unfiltered.empty() || workspace.difference != s.difference ||
+            workspace.reference_delay != s.reference_delay || workspace.integral != integral) {
+            unfiltered.clear();  // released before the next are formed
+            const Column v = measured_velocity(signals, s.difference);
+            unfiltered = signals.logged_command ? command_columns(signals, v, integral)
+                                                : structure_columns(signals, v, s.reference_delay, integral);
+            workspace.difference = s.difference;
+            workspace.reference_delay = s.reference_delay;
+            workspace.integral = integral;
+        }
+        Problem& problem = workspace.problem;
         const double a = lag_coefficient(s.lag_s, signals.dt);
-        for (auto& column : problem.columns) apply_drive_filter(column, a, s.mu);
+        const bool injection_column = !signals.injection.empty() && !injection_gain_known;
+        problem.columns.resize(unfiltered.size() + (injection_column ? 1 : 0));
+        filter_columns(unfiltered, a, s.mu, use, problem);
         problem.share_y(signals.force);
-        if (!signals.injection.empty()) {
-            Column injected = signals.injection;
-            apply_drive_filter(injected, a, s.mu);
-            add_injection(problem, std::move(injected));
+        if (injection_column) {
+            filter_into(signals.injection, a, s.mu, problem.columns.back());
+        } else if (!signals.injection.empty()) {
+            filter_into(signals.injection, a, s.mu, workspace.injected);
+            subtract_injection(problem, workspace.injected);
         }
         problem.use = &use;
         problem.row_step = static_cast<std::size_t>(signals.hold_factor);
-        return problem;
     }
 
     // The same on the servo grid (ServoGrid): the columns and the injection (held over its logged sample) through
@@ -954,8 +1080,7 @@ struct VelocityLoopRegression {
             problem.columns.push_back(std::move(injected));
             return;
         }
-        Column& y = problem.own_y();
-        for (std::size_t k = 0; k < y.size(); ++k) y[k] -= injected[k];
+        subtract_injection(problem, injected);
     }
 };
 
@@ -1261,7 +1386,8 @@ public:
     StructureSearch(const VelocityLoopRegression& regression, bool integral)
         : regression_(regression), integral_(integral) {}
 
-    // Fits `s` (at the mu that fits best where the regression profiles it); true when it is the best so far.
+    // Fits `s` (at the mu that fits best where the regression profiles it; once: the stages and the refinement come
+    // back to structures already fitted); true when it is the best so far.
     bool consider(const Structure& s) {
         Structure fitted = s;
         double rss = 0.0;
@@ -1272,8 +1398,14 @@ public:
             if (found == profiled_.end()) found = profiled_.emplace(key, regression_.structure_residual(s, integral_)).first;
             rss = found->second.rss;
             fitted.mu = found->second.mu;
+        } else if (const auto found =
+                       std::find_if(tried_.begin(), tried_.end(), [&](const auto& t) { return t.first == s; });
+                   found != tried_.end()) {
+            rss = found->second;
         } else {
-            rss = regression_.structure_residual(s, integral_).rss;
+            regression_.fill_problem(s, integral_, workspace_);
+            rss = residual_sum_of_squares(workspace_.problem);
+            tried_.emplace_back(s, rss);
         }
         if (!(rss < best_rss_)) return false;
         best_rss_ = rss;
@@ -1293,6 +1425,8 @@ public:
 private:
     const VelocityLoopRegression& regression_;
     bool integral_;
+    ProblemWorkspace workspace_;
+    std::vector<std::pair<Structure, double>> tried_;  // each structure fitted and its residual sum of squares
     Structure best_;
     double best_rss_{std::numeric_limits<double>::infinity()};
     std::map<std::tuple<int, int, int, double>, StructureResidual> profiled_;  // by all but mu
