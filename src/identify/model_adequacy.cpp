@@ -932,48 +932,56 @@ double integrated_autocorrelation(const std::vector<std::size_t>& rows, const st
     if (rows.size() < 100 || !(squares > 0.0)) return 1.0;
     const std::size_t span = rows.back() - rows.front() + 1;
     double largest = 1.0;
-    // blocks of b = 2^shift samples: the block of a row by a shift, not a division. The first levels from the rows;
-    // from the last of them on, each level's block sums are the sums of the level below's (one pass over fewer
-    // blocks per level instead of one over every row: the same sums to rounding)
+    // blocks of b = 2^shift samples: the block of a row by a shift, not a division. The first levels from the rows,
+    // all in one pass (each level's block sums in its own accumulator, in row order: the sums of a pass per level);
+    // from the last of them on, each level's block sums are the sums of the level below's (one pass over fewer blocks
+    // per level instead of one over every row: the same sums to rounding)
     constexpr unsigned direct_levels = 5;
+    unsigned direct = 0;  // the first levels that have at least 50 blocks
+    while (direct < direct_levels && span >> (direct + 1) >= 50) ++direct;
+    if (direct == 0) return 0.5 * largest;
     // (block, sum of its values) at the current level; at most one block per row and per 2^direct_levels samples
     // (half a byte per sample at most)
     std::vector<std::pair<std::size_t, double>> blocks;
     std::size_t kept = 0;
-    for (unsigned shift = 1; span >> shift >= 50; ++shift) {
-        double sum_of_squares = 0.0;
-        if (shift <= direct_levels) {
-            const bool keep = shift == direct_levels;
-            if (keep) {
-                const bool ascending = std::is_sorted(rows.begin(), rows.end());
-                blocks.resize(ascending ? std::min(rows.size(), (span >> direct_levels) + 2) : rows.size());
+    const bool keep = direct == direct_levels;
+    if (keep) {
+        const bool ascending = std::is_sorted(rows.begin(), rows.end());
+        blocks.resize(ascending ? std::min(rows.size(), (span >> direct_levels) + 2) : rows.size());
+    }
+    std::array<double, direct_levels> block_sum{}, sum_of_squares{};
+    std::array<std::size_t, direct_levels> current{};
+    for (unsigned level = 0; level < direct_levels; ++level) current[level] = rows.front() >> (level + 1);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        for (unsigned level = 0; level < direct_levels; ++level) {
+            const std::size_t block = rows[i] >> (level + 1);
+            if (block != current[level]) {
+                sum_of_squares[level] += block_sum[level] * block_sum[level];
+                if (keep && level + 1 == direct_levels) blocks[kept++] = {current[level], block_sum[level]};
+                block_sum[level] = 0.0;
+                current[level] = block;
             }
-            double block_sum = 0.0;
-            std::size_t current = rows.front() >> shift;
-            for (std::size_t i = 0; i < rows.size(); ++i) {
-                if (rows[i] >> shift != current) {
-                    sum_of_squares += block_sum * block_sum;
-                    if (keep) blocks[kept++] = {current, block_sum};
-                    block_sum = 0.0;
-                    current = rows[i] >> shift;
-                }
-                block_sum += values[i];
-            }
-            sum_of_squares += block_sum * block_sum;
-            if (keep) blocks[kept++] = {current, block_sum};
-        } else {
-            std::size_t merged = 0;
-            for (std::size_t i = 0; i < kept; ++i) {
-                const std::size_t parent = blocks[i].first >> 1;
-                if (merged > 0 && blocks[merged - 1].first == parent)
-                    blocks[merged - 1].second += blocks[i].second;
-                else
-                    blocks[merged++] = {parent, blocks[i].second};
-            }
-            kept = merged;
-            for (std::size_t i = 0; i < kept; ++i) sum_of_squares += blocks[i].second * blocks[i].second;
+            block_sum[level] += values[i];
         }
-        largest = std::max(largest, sum_of_squares / squares);
+    }
+    for (unsigned level = 0; level < direct; ++level) {
+        sum_of_squares[level] += block_sum[level] * block_sum[level];
+        largest = std::max(largest, sum_of_squares[level] / squares);
+    }
+    if (keep) blocks[kept++] = {current[direct_levels - 1], block_sum[direct_levels - 1]};
+    for (unsigned shift = direct_levels + 1; keep && span >> shift >= 50; ++shift) {
+        std::size_t merged = 0;
+        for (std::size_t i = 0; i < kept; ++i) {
+            const std::size_t parent = blocks[i].first >> 1;
+            if (merged > 0 && blocks[merged - 1].first == parent)
+                blocks[merged - 1].second += blocks[i].second;
+            else
+                blocks[merged++] = {parent, blocks[i].second};
+        }
+        kept = merged;
+        double squares_here = 0.0;
+        for (std::size_t i = 0; i < kept; ++i) squares_here += blocks[i].second * blocks[i].second;
+        largest = std::max(largest, squares_here / squares);
     }
     return 0.5 * largest;
 }
@@ -992,6 +1000,35 @@ struct GroupMean {
     double variance_of_mean{0.0};
 };
 
+/// totals[g] += term(i) over the i in order whose group[i] == g (< groups), and counts[g] the number of them: each
+/// group's total held in a register while consecutive i stay in that group (the same sums, in the same order, as adding
+/// into the array at every i, without storing and reloading it at every i).
+template <class Term>
+void add_by_group(const std::vector<std::size_t>& group, std::size_t groups, std::vector<double>& totals,
+                  std::vector<std::size_t>& counts, Term term) {
+    std::size_t open = groups, run = 0;
+    double total = 0.0;
+    for (std::size_t i = 0; i < group.size(); ++i) {
+        const std::size_t g = group[i];
+        if (g >= groups) continue;
+        if (g != open) {
+            if (open < groups) {
+                totals[open] = total;
+                counts[open] += run;
+            }
+            open = g;
+            total = totals[g];
+            run = 0;
+        }
+        total += term(i);
+        ++run;
+    }
+    if (open < groups) {
+        totals[open] = total;
+        counts[open] += run;
+    }
+}
+
 /// Means of `residual` over groups (group[i] that of rows[i]; groups or more: in none), with variances that count
 /// correlated neighbours once: each group's variance over its effective number of samples, its count over twice the
 /// integrated autocorrelation time of the residual's deviations from the group means (on a slow pass the residual
@@ -1000,19 +1037,17 @@ std::vector<GroupMean> group_means(const std::vector<std::size_t>& rows, const s
                                    const std::vector<std::size_t>& group, std::size_t groups) {
     std::vector<GroupMean> means(groups);
     std::vector<double> sums(groups, 0.0), squares(groups, 0.0);
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-        if (group[i] >= groups) continue;
-        ++means[group[i]].count;
-        sums[group[i]] += residual[i];
-    }
-    for (std::size_t g = 0; g < groups; ++g)
+    std::vector<std::size_t> counts(groups, 0), unused(groups, 0);
+    add_by_group(group, groups, sums, counts, [&](std::size_t i) { return residual[i]; });
+    for (std::size_t g = 0; g < groups; ++g) {
+        means[g].count = counts[g];
         if (means[g].count > 0) means[g].mean = sums[g] / static_cast<double>(means[g].count);
-    std::vector<double> deviation(rows.size(), 0.0);
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-        if (group[i] >= groups) continue;
-        deviation[i] = residual[i] - means[group[i]].mean;
-        squares[group[i]] += deviation[i] * deviation[i];
     }
+    std::vector<double> deviation(rows.size(), 0.0);
+    add_by_group(group, groups, squares, unused, [&](std::size_t i) {
+        deviation[i] = residual[i] - means[group[i]].mean;
+        return deviation[i] * deviation[i];
+    });
     const double inflation = std::max(1.0, 2.0 * integrated_autocorrelation(rows, deviation));
     for (std::size_t g = 0; g < groups; ++g) {
         const double n = static_cast<double>(means[g].count);

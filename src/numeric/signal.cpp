@@ -4,7 +4,6 @@
 #include <array>
 #include <cmath>
 #include <complex>
-#include <deque>
 #include <functional>
 #include <numbers>
 #include <stdexcept>
@@ -386,16 +385,24 @@ template <class Compare>
 std::vector<double> running_extreme(std::span<const double> x, std::size_t half, Compare better) {
     const std::size_t n = x.size();
     std::vector<double> out(n);
-    std::deque<std::size_t> queue;
+    if (n == 0) return out;
+    // the monotonic queue of candidates' indices in a ring of the window's length (no more can wait in it): the same
+    // extremes as a deque, without its block allocations and indirections
+    const std::size_t capacity = std::min(n, 2 * half + 2) + 1;
+    std::vector<std::size_t> ring(capacity);
+    std::size_t head = 0, tail = 0;  // queue = ring[head, tail) modulo capacity, tail != head when not empty
+    const auto before = [capacity](std::size_t i) { return i == 0 ? capacity - 1 : i - 1; };
+    const auto after = [capacity](std::size_t i) { return i + 1 == capacity ? 0 : i + 1; };
     std::size_t next = 0;  // the next index to enter the window
     for (std::size_t k = 0; k < n; ++k) {
         const std::size_t last = std::min(n - 1, k + half);
         for (; next <= last; ++next) {
-            while (!queue.empty() && !better(x[queue.back()], x[next])) queue.pop_back();
-            queue.push_back(next);
+            while (tail != head && !better(x[ring[before(tail)]], x[next])) tail = before(tail);
+            ring[tail] = next;
+            tail = after(tail);
         }
-        while (queue.front() + half < k) queue.pop_front();
-        out[k] = x[queue.front()];
+        while (ring[head] + half < k) head = after(head);
+        out[k] = x[ring[head]];
     }
     return out;
 }
