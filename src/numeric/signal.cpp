@@ -399,13 +399,15 @@ std::optional<double> select_bracketed(std::span<double> values, std::size_t ran
     std::size_t below = 0, inside = 0;
     bool nan = false;
     for (std::size_t i = 0; i < n; ++i) {
-        const double v = values[i];
+        // without branches (a column in time order crosses the bracket's ends unpredictably): a value inside swaps
+        // with the first one not yet known to be inside; one outside stores both back unchanged
+        const double v = values[i], first = values[inside];
+        const bool in = v >= low && v <= high;
         nan |= std::isnan(v);
-        if (v < low) {
-            ++below;
-        } else if (v <= high) {
-            std::swap(values[inside++], values[i]);
-        }
+        below += v < low ? 1 : 0;
+        values[i] = in ? first : v;
+        values[inside] = in ? v : first;
+        inside += in ? 1 : 0;
     }
     if (nan || rank < below || rank >= below + inside) return std::nullopt;
     const auto nth = values.begin() + static_cast<std::ptrdiff_t>(rank - below);
