@@ -386,20 +386,35 @@ public:
     [[nodiscard]] bool valid() const { return valid_; }
 
     double residual(double delay) const {
+        double out = 0.0;
+        residuals(std::span<const double>(&delay, 1), std::span<double>(&out, 1));
+        return out;
+    }
+
+    /// The profile at several delays (at most max_delays) in one pass over the rows: each row's regressors read once
+    /// for all of them, each delay's sums formed in the same order as on its own.
+    static constexpr std::size_t max_delays = 8;
+    void residuals(std::span<const double> delays, std::span<double> out) const {
         const auto p = static_cast<Eigen::Index>(regressors_.parameters());
-        Vector cross = Vector::Zero(p), phi(p);
-        double squares = 0.0;
+        const std::size_t m = delays.size();
+        std::array<Vector, max_delays> cross;
+        std::array<double, max_delays> squares{}, offset{};
+        for (std::size_t j = 0; j < m; ++j) cross[j] = Vector::Zero(p);
+        Vector phi(p);
         for (const RowRun& run : runs_) {
-            const double offset = delay / run.step;  // in samples, for every row of the stretch
+            for (std::size_t j = 0; j < m; ++j) offset[j] = delays[j] / run.step;  // in samples, for the stretch
             for (std::size_t i = run.first; i < run.last; ++i) {
                 const std::size_t k = rows_[i];
-                const double y = force_at(d_.force, static_cast<double>(k) + offset, run.begin, run.end);
                 regressors_.row(first_ + i, phi.data());
-                cross += phi * y;
-                squares += y * y;
+                for (std::size_t j = 0; j < m; ++j) {
+                    const double y = force_at(d_.force, static_cast<double>(k) + offset[j], run.begin, run.end);
+                    cross[j] += phi * y;
+                    squares[j] += y * y;
+                }
             }
         }
-        return squares - cross.dot(solver_.solve(Eigen::VectorXd(cross)));
+        for (std::size_t j = 0; j < m; ++j)
+            out[j] = squares[j] - cross[j].dot(solver_.solve(Eigen::VectorXd(cross[j])));
     }
 
 private:
@@ -415,12 +430,21 @@ private:
 /// The profile at whole-sample shifts m * sample_time, evaluated on every core (independent passes over the rows).
 std::vector<double> profile_at(const DelayProfile& profile, const std::vector<long>& shifts, double sample_time) {
     std::vector<double> values(shifts.size());
+    std::vector<double> delays(shifts.size());
+    for (std::size_t i = 0; i < shifts.size(); ++i) delays[i] = static_cast<double>(shifts[i]) * sample_time;
+    const std::size_t cores = std::min<std::size_t>(std::max(1u, std::thread::hardware_concurrency()), 4);
+    // batches of delays, one pass over the rows each, as many batches as cores at least
+    const std::size_t batch = std::clamp<std::size_t>((shifts.size() + cores - 1) / cores, 1, DelayProfile::max_delays);
+    const std::size_t batches = (shifts.size() + batch - 1) / batch;
     std::atomic<std::size_t> next{0};
     const auto work = [&] {
-        for (std::size_t i = next++; i < shifts.size(); i = next++)
-            values[i] = profile.residual(static_cast<double>(shifts[i]) * sample_time);
+        for (std::size_t b = next++; b < batches; b = next++) {
+            const std::size_t from = b * batch, count = std::min(batch, shifts.size() - from);
+            profile.residuals(std::span<const double>(delays).subspan(from, count),
+                              std::span<double>(values).subspan(from, count));
+        }
     };
-    std::vector<std::thread> helpers(std::min<std::size_t>(std::max(1u, std::thread::hardware_concurrency()), 4) - 1);
+    std::vector<std::thread> helpers(std::min(cores, batches) - 1);
     for (auto& helper : helpers) helper = std::thread(work);
     work();
     for (auto& helper : helpers) helper.join();
