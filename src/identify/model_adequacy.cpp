@@ -1332,6 +1332,37 @@ std::size_t group_of(double value, const std::vector<double>& edges) {
     return static_cast<std::size_t>(std::upper_bound(edges.begin(), edges.end(), value) - edges.begin());
 }
 
+/// The speed group of check_fit, clamp(int(bins * ln(|v| / low) / span), 0, bins - 1), without a logarithm per row:
+/// |v| / low against the groups' edges exp(span * b / bins), and the logarithm itself only within a hair (1e-9
+/// relative) of an edge, where rounding could decide (so the same group as the formula's for every speed).
+class LogSpeedGroups {
+public:
+    static constexpr int max_bins = 16;
+    LogSpeedGroups(double low, double span, int bins) : low_(low), span_(span), bins_(std::min(bins, max_bins)) {
+        for (int b = 1; b < bins_; ++b) {
+            const double edge = std::exp(span * b / bins_);
+            below_[static_cast<std::size_t>(b)] = edge * (1.0 - 1e-9);
+            above_[static_cast<std::size_t>(b)] = edge * (1.0 + 1e-9);
+        }
+    }
+    [[nodiscard]] std::size_t operator()(double speed) const {
+        const double ratio = speed / low_;
+        int group = 0;
+        bool near = false;
+        for (std::size_t b = 1; b < static_cast<std::size_t>(bins_); ++b) {
+            group += ratio > above_[b] ? 1 : 0;
+            near |= ratio >= below_[b] && ratio <= above_[b];
+        }
+        if (near || !(ratio >= 1.0)) group = std::clamp(static_cast<int>(bins_ * std::log(ratio) / span_), 0, bins_ - 1);
+        return static_cast<std::size_t>(group);
+    }
+
+private:
+    double low_, span_;
+    int bins_;
+    std::array<double, max_bins> below_{}, above_{};
+};
+
 }  // namespace
 
 std::vector<FitCheck> check_fit(const Derivatives& d, const Selection& selection, const AxisModel& axis,
@@ -1349,14 +1380,13 @@ std::vector<FitCheck> check_fit(const Derivatives& d, const Selection& selection
     const std::vector<double> accelerations = quantile_edges(d.acceleration, rows, acceleration_bins);
     std::vector<double> residual(rows.size());
     std::vector<std::size_t> by_speed(rows.size()), by_acceleration(rows.size()), by_time(rows.size());
+    const LogSpeedGroups speed_group(low, span, speed_bins);
     for (std::size_t i = 0; i < rows.size(); ++i) {
         const std::size_t k = rows[i];
         const double v = d.velocity[k];
         residual[i] = d.force[k] - axis.mass * d.acceleration[k] - axis.friction.force(v) - axis.offset;
         const std::size_t direction = v > 0.0 ? 0 : 1;
-        const auto s = static_cast<std::size_t>(
-            std::clamp(static_cast<int>(speed_bins * std::log(std::abs(v) / low) / span), 0, speed_bins - 1));
-        by_speed[i] = direction * speed_bins + s;
+        by_speed[i] = direction * speed_bins + speed_group(std::abs(v));
         by_acceleration[i] = direction * acceleration_bins + group_of(d.acceleration[k], accelerations);
         by_time[i] = i * time_bins / rows.size();
     }

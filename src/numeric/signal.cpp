@@ -134,6 +134,27 @@ void cascade_passes(const SecondOrderSections& filter, std::span<double> y, std:
     for (std::size_t k = kept.size(); k-- > 0;) kept[k] = backward(kept[k]);
 }
 
+// cascade_passes over two padded signals of one length at once: each sample of the one and of the other through its
+// own cascade (the same arithmetic as alone), the two recursions overlapping in the pipeline.
+template <std::size_t S>
+void cascade_pair_passes(const SecondOrderSections& filter, std::span<double> y, std::span<double> z,
+                         std::size_t pad) {
+    Cascade<S> forward_y(filter, y.front()), forward_z(filter, z.front());
+    for (std::size_t k = 0; k < y.size(); ++k) {
+        const double out_y = forward_y(y[k]), out_z = forward_z(z[k]);
+        if (k >= pad) {
+            y[k - pad] = out_y;
+            z[k - pad] = out_z;
+        }
+    }
+    const auto kept_y = y.first(y.size() - pad), kept_z = z.first(z.size() - pad);
+    Cascade<S> backward_y(filter, kept_y.back()), backward_z(filter, kept_z.back());
+    for (std::size_t k = kept_y.size(); k-- > 0;) {
+        kept_y[k] = backward_y(kept_y[k]);
+        kept_z[k] = backward_z(kept_z[k]);
+    }
+}
+
 // filtfilt's two passes over the padded signal y (pad samples before and after the n of the signal), without
 // reversing it twice and without moving it: the forward pass writes its last section's output `pad` samples earlier,
 // dropping the front padding's outputs, which the backward pass would only have carried into outputs that are cut
@@ -175,6 +196,23 @@ std::size_t filter_order(const SecondOrderSections& filter) {
     return std::max(numerator, denominator);
 }
 
+// filtfilt's padding of a signal of n samples: max(1, 3 * (filter order)), at most n - 1.
+std::size_t filtfilt_padding(const SecondOrderSections& filter, std::size_t n) {
+    return std::min(std::max<std::size_t>(1, 3 * filter_order(filter)), n - 1);
+}
+
+// x with its odd reflections about the end points, `pad` samples each (as MATLAB's filtfilt, which refuses a signal of
+// no more samples than that; here the padding is cut to n - 1), at the front of `workspace` (grown when too short).
+std::span<double> padded(std::span<const double> x, std::size_t pad, std::vector<double>& workspace) {
+    const std::size_t n = x.size();
+    if (workspace.size() < n + 2 * pad) workspace.resize(n + 2 * pad);
+    const std::span<double> y(workspace.data(), n + 2 * pad);
+    for (std::size_t k = pad; k >= 1; --k) y[pad - k] = 2.0 * x[0] - x[k];
+    std::copy(x.begin(), x.end(), y.begin() + static_cast<std::ptrdiff_t>(pad));
+    for (std::size_t k = 1; k <= pad; ++k) y[pad + n - 1 + k] = 2.0 * x[n - 1] - x[n - 1 - k];
+    return y;
+}
+
 }  // namespace
 
 SecondOrderSections butterworth_lowpass(int order, double cutoff_hz, double sample_rate_hz) {
@@ -206,8 +244,7 @@ std::vector<double> filtfilt(const SecondOrderSections& filter, std::span<const 
     std::vector<double> workspace;
     if (x.size() < 2) return std::vector<double>(x.begin(), x.end());
     // the padded signal filtered in its own buffer, then the padding cut off in place: one column, not two
-    const std::size_t pad = std::min(std::max<std::size_t>(1, 3 * filter_order(filter)), x.size() - 1);
-    workspace.reserve(x.size() + 2 * pad);
+    workspace.reserve(x.size() + 2 * filtfilt_padding(filter, x.size()));
     filtfilt(filter, x, std::span<double>(), workspace);
     workspace.resize(x.size());  // the signal is at the front (filtfilt_passes)
     return workspace;
@@ -223,12 +260,8 @@ void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std:
     }
     // odd reflection about the end points, max(1, 3 * (filter order)) samples, as MATLAB's filtfilt (which refuses a
     // signal of no more samples than that; here the padding is cut to n - 1)
-    const std::size_t pad = std::min(std::max<std::size_t>(1, 3 * filter_order(filter)), n - 1);
-    if (workspace.size() < n + 2 * pad) workspace.resize(n + 2 * pad);
-    const std::span<double> y(workspace.data(), n + 2 * pad);
-    for (std::size_t k = pad; k >= 1; --k) y[pad - k] = 2.0 * x[0] - x[k];
-    std::copy(x.begin(), x.end(), y.begin() + static_cast<std::ptrdiff_t>(pad));
-    for (std::size_t k = 1; k <= pad; ++k) y[pad + n - 1 + k] = 2.0 * x[n - 1] - x[n - 1 - k];
+    const std::size_t pad = filtfilt_padding(filter, n);
+    const std::span<double> y = padded(x, pad, workspace);
     if (filter.sections.empty()) {
         std::copy(y.begin() + static_cast<std::ptrdiff_t>(pad), y.begin() + static_cast<std::ptrdiff_t>(pad + n),
                   y.begin());
@@ -237,6 +270,26 @@ void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std:
     }
     if (out.empty()) return;  // the caller takes the filtered signal from the front of the workspace
     std::copy(y.begin(), y.begin() + static_cast<std::ptrdiff_t>(n), out.begin());
+}
+
+std::array<std::vector<double>, 2> filtfilt_pair(const SecondOrderSections& filter, std::span<const double> a,
+                                                 std::span<const double> b) {
+    const std::size_t n = a.size(), sections = filter.sections.size();
+    if (b.size() != n || n < 2 || sections < 1 || sections > 4) return {filtfilt(filter, a), filtfilt(filter, b)};
+    const std::size_t pad = filtfilt_padding(filter, n);
+    std::array<std::vector<double>, 2> out;
+    out[0].reserve(n + 2 * pad);
+    out[1].reserve(n + 2 * pad);
+    const std::span<double> y = padded(a, pad, out[0]), z = padded(b, pad, out[1]);
+    switch (sections) {
+        case 1: cascade_pair_passes<1>(filter, y, z, pad); break;
+        case 2: cascade_pair_passes<2>(filter, y, z, pad); break;
+        case 3: cascade_pair_passes<3>(filter, y, z, pad); break;
+        default: cascade_pair_passes<4>(filter, y, z, pad); break;
+    }
+    out[0].resize(n);  // the signals are at the front (filtfilt_passes)
+    out[1].resize(n);
+    return out;
 }
 
 std::vector<double> central_difference(std::span<const double> x, double dt) {
