@@ -5,8 +5,6 @@
 #include <cmath>
 #include <complex>
 #include <functional>
-#include <limits>
-#include <optional>
 #include <numbers>
 #include <stdexcept>
 
@@ -427,57 +425,10 @@ double percentile(std::vector<double> values, double fraction) {
     return percentile_in_place(values, fraction);
 }
 
-namespace {
-
-/// The element of rank `rank` of a long column, exactly, by bracketing it first: the ranks around it in an evenly
-/// spread sample of the values give a range [low, high] that holds it with near certainty; one pass counts the values
-/// below the range and swaps those inside it to the front, and a selection among those few finds it (Floyd and
-/// Rivest's idea). Empty when the range missed the rank or a value is NaN: the caller selects among all values then.
-std::optional<double> select_bracketed(std::span<double> values, std::size_t rank) {
-    constexpr std::size_t sampled = 4096;
-    const std::size_t n = values.size(), stride = n / sampled;
-    std::array<double, sampled> sample{};
-    for (std::size_t i = 0; i < sampled; ++i) sample[i] = values[i * stride];
-    if (std::any_of(sample.begin(), sample.end(), [](double v) { return std::isnan(v); })) return std::nullopt;
-    std::sort(sample.begin(), sample.end());
-    const double p = static_cast<double>(rank) / static_cast<double>(n - 1);
-    // six binomial standard deviations of the sample's rank and a few more: a column correlated in time spreads more
-    const auto margin = static_cast<std::ptrdiff_t>(6.0 * std::sqrt(sampled * p * (1.0 - p)) + 16.0);
-    const auto at = static_cast<std::ptrdiff_t>(p * static_cast<double>(sampled - 1));
-    const double low = at - margin <= 0 ? -std::numeric_limits<double>::infinity()
-                                        : sample[static_cast<std::size_t>(at - margin)];
-    const double high = at + margin >= static_cast<std::ptrdiff_t>(sampled) - 1
-                            ? std::numeric_limits<double>::infinity()
-                            : sample[static_cast<std::size_t>(at + margin)];
-    std::size_t below = 0, inside = 0;
-    bool nan = false;
-    for (std::size_t i = 0; i < n; ++i) {
-        // without branches (a column in time order crosses the bracket's ends unpredictably): a value inside swaps
-        // with the first one not yet known to be inside; one outside stores both back unchanged
-        const double v = values[i], first = values[inside];
-        const bool in = v >= low && v <= high;
-        nan |= std::isnan(v);
-        below += v < low ? 1 : 0;
-        values[i] = in ? first : v;
-        values[inside] = in ? v : first;
-        inside += in ? 1 : 0;
-    }
-    if (nan || rank < below || rank >= below + inside) return std::nullopt;
-    const auto nth = values.begin() + static_cast<std::ptrdiff_t>(rank - below);
-    std::nth_element(values.begin(), nth, values.begin() + static_cast<std::ptrdiff_t>(inside));
-    return *nth;
-}
-
-}  // namespace
-
 double percentile_in_place(std::span<double> values, double fraction) {
     if (values.empty()) return 0.0;
     const auto index =
         static_cast<std::size_t>(std::clamp(fraction, 0.0, 1.0) * static_cast<double>(values.size() - 1));
-    // the same element: nth_element reorders a long column several times over, the bracket reads it once
-    if (values.size() >= std::size_t{1} << 16) {
-        if (const auto found = select_bracketed(values, index)) return *found;
-    }
     std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(index), values.end());
     return values[index];
 }

@@ -207,9 +207,8 @@ TEST(SignalReference, NoiseFloorIsTheScaledMedianAbsoluteDeviationOfTheDifferenc
     EXPECT_NEAR(floor, reference::noise_floor, 2e-6 * reference::noise_floor);
 }
 
-// Long columns take their percentiles from a bracket found in a sample (signal.cpp): the same element as a full
-// selection, for every rank tried, on a random column, on one ordered in time (ramps and plateaus), with ties, and
-// with a few outliers at the end that an evenly spread sample misses.
+// The element of the rank, for every rank tried, on a random column, on one ordered in time (ramps and plateaus), with
+// ties, and with a few outliers at the end; the buffer reordered, not changed.
 TEST(Percentile, LongColumnsGiveTheElementOfTheRankExactly) {
     const std::size_t n = 300'001;
     std::vector<std::vector<double>> columns(4, std::vector<double>(n));
