@@ -1067,11 +1067,11 @@ std::vector<GroupMean> group_means(const std::vector<std::size_t>& rows, const s
         means[g].count = counts[g];
         if (means[g].count > 0) means[g].mean = sums[g] / static_cast<double>(means[g].count);
     }
-    std::vector<double> deviation(rows.size(), 0.0);
-    add_by_group(group, groups, squares, unused, [&](std::size_t i) {
-        deviation[i] = residual[i] - means[group[i]].mean;
-        return deviation[i] * deviation[i];
-    });
+    std::vector<double> deviation;
+    deviation.reserve(rows.size());
+    for (std::size_t i = 0; i < rows.size(); ++i)
+        deviation.push_back(group[i] < groups ? residual[i] - means[group[i]].mean : 0.0);
+    add_by_group(group, groups, squares, unused, [&](std::size_t i) { return deviation[i] * deviation[i]; });
     const double inflation = std::max(1.0, 2.0 * integrated_autocorrelation(rows, deviation));
     for (std::size_t g = 0; g < groups; ++g) {
         const double n = static_cast<double>(means[g].count);

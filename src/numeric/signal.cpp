@@ -203,7 +203,15 @@ std::size_t filtfilt_padding(const SecondOrderSections& filter, std::size_t n) {
 // no more samples than that; here the padding is cut to n - 1), at the front of `workspace` (grown when too short).
 std::span<double> padded(std::span<const double> x, std::size_t pad, std::vector<double>& workspace) {
     const std::size_t n = x.size();
-    if (workspace.size() < n + 2 * pad) workspace.resize(n + 2 * pad);
+    if (workspace.size() < n + 2 * pad) {
+        // appended, not resized and overwritten: a fresh column is written once, not zeroed first
+        workspace.clear();
+        workspace.reserve(n + 2 * pad);
+        for (std::size_t k = pad; k >= 1; --k) workspace.push_back(2.0 * x[0] - x[k]);
+        workspace.insert(workspace.end(), x.begin(), x.end());
+        for (std::size_t k = 1; k <= pad; ++k) workspace.push_back(2.0 * x[n - 1] - x[n - 1 - k]);
+        return {workspace.data(), n + 2 * pad};
+    }
     const std::span<double> y(workspace.data(), n + 2 * pad);
     for (std::size_t k = pad; k >= 1; --k) y[pad - k] = 2.0 * x[0] - x[k];
     std::copy(x.begin(), x.end(), y.begin() + static_cast<std::ptrdiff_t>(pad));
@@ -292,11 +300,13 @@ std::array<std::vector<double>, 2> filtfilt_pair(const SecondOrderSections& filt
 
 std::vector<double> central_difference(std::span<const double> x, double dt) {
     const std::size_t n = x.size();
-    std::vector<double> d(n, 0.0);
-    if (n < 2) return d;
-    for (std::size_t k = 1; k + 1 < n; ++k) d[k] = (x[k + 1] - x[k - 1]) / (2.0 * dt);
-    d[0] = (x[1] - x[0]) / dt;
-    d[n - 1] = (x[n - 1] - x[n - 2]) / dt;
+    if (n < 2) return std::vector<double>(n, 0.0);
+    // appended in order, not zeroed and overwritten: a million-sample column is written once
+    std::vector<double> d;
+    d.reserve(n);
+    d.push_back((x[1] - x[0]) / dt);
+    for (std::size_t k = 1; k + 1 < n; ++k) d.push_back((x[k + 1] - x[k - 1]) / (2.0 * dt));
+    d.push_back((x[n - 1] - x[n - 2]) / dt);
     return d;
 }
 
@@ -437,8 +447,9 @@ namespace {
 template <class Compare>
 std::vector<double> running_extreme(std::span<const double> x, std::size_t half, Compare better) {
     const std::size_t n = x.size();
-    std::vector<double> out(n);
+    std::vector<double> out;
     if (n == 0) return out;
+    out.reserve(n);  // appended: written once, not zeroed first
     // the monotonic queue of candidates' indices in a ring of the window's length (no more can wait in it): the same
     // extremes as a deque, without its block allocations and indirections
     const std::size_t capacity = std::min(n, 2 * half + 2) + 1;
@@ -455,7 +466,7 @@ std::vector<double> running_extreme(std::span<const double> x, std::size_t half,
             tail = after(tail);
         }
         while (ring[head] + half < k) head = after(head);
-        out[k] = x[ring[head]];
+        out.push_back(x[ring[head]]);
     }
     return out;
 }
