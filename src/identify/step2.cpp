@@ -318,7 +318,7 @@ FrictionFit fit_friction_curve(const Derivatives& derivatives, const Selection& 
                                const FrictionFitOptions& options) {
     FrictionFit out;
     const Step2Data data = make_data(derivatives, selection, step1, options);
-    fit_log_linear_per_direction(data, out);
+    if (options.log_linear) fit_log_linear_per_direction(data, out);
     fit_nonlinear(data, out);
     const std::size_t slow = data.slow_count[0] + data.slow_count[1];
     if (!out.accepted() && slow < options.minimum_slow_samples) {
