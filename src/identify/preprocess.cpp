@@ -61,11 +61,8 @@ int savitzky_golay_window(const PreprocessOptions& options, double fs) {
 }
 
 /// x' and x'' of the window's position by the chosen method, and the edge trim that method needs.
-/// With the Butterworth, `force` goes through its low-pass with x, in one interleaved pass, into `lowpassed_force`
-/// (left empty otherwise).
 Differentiated differentiate(std::span<const double> x, double dt, const PreprocessOptions& options,
-                             PreprocessReport& used, std::span<const double> force,
-                             std::vector<double>& lowpassed_force) {
+                             PreprocessReport& used) {
     const double fs = 1.0 / dt;
     Differentiated out;
     switch (options.differentiation) {
@@ -77,9 +74,7 @@ Differentiated differentiate(std::span<const double> x, double dt, const Preproc
         case Differentiation::butterworth: {
             used.differentiation = "butterworth";
             require_cutoff_below_nyquist(used.cutoff_hz, fs);
-            auto [filtered, force_filtered] =
-                filtfilt_pair(butterworth_lowpass(options.filter_order, used.cutoff_hz, fs), x, force);
-            lowpassed_force = std::move(force_filtered);
+            const auto filtered = filtfilt(butterworth_lowpass(options.filter_order, used.cutoff_hz, fs), x);
             out.velocity = central_difference(filtered, dt);
             out.acceleration = central_difference(out.velocity, dt);
             out.default_edge = butterworth_edge(options, used.cutoff_hz, fs);
@@ -170,8 +165,6 @@ PositionHold position_hold(const Trace& trace, std::span<const double> position)
     return {factor, hold_phase(position, factor)};
 }
 
-std::vector<double> through_difference_kernel(std::vector<double> filtered, const PreprocessReport& used);
-
 /// The drive force through the low-pass the position (or the logged velocity) went through before it was
 /// differentiated: zero-phase, the same cut-off, or the same Savitzky-Golay window (IDIM's parallel filtering of y and
 /// phi). A force with content above the band that the filtered acceleration cannot have biases M: on a stick-slip
@@ -186,11 +179,6 @@ std::vector<double> filter_like_position(std::span<const double> force, const Pr
         filtered = savitzky_golay(force, used.savitzky_golay_window, used.savitzky_golay_order, 0, dt);
     else
         filtered.assign(force.begin(), force.end());
-    return through_difference_kernel(std::move(filtered), used);
-}
-
-/// The force after the position's low-pass (filter_like_position) through the central differences' own low-pass.
-std::vector<double> through_difference_kernel(std::vector<double> filtered, const PreprocessReport& used) {
     // Central differences are low-passes too: x'' = D_c(D_c(x)) has the response -w^2 * sinc^2(w*dt) of the true
     // second derivative, x'' = D_c(v) of a logged velocity iw * sinc(w*dt). The three-tap kernels [1 1 1]/3 and
     // [1 4 1]/6 match sinc^2 and sinc to second order (at a tenth of the sample rate sinc^2 is 0.87: the force
@@ -368,18 +356,14 @@ void append_segment(std::span<const double> x, std::span<const double> force, st
                     Derivatives& d, std::vector<std::size_t>& window_index, bool need_index) {
     const std::size_t length = segment.last - segment.first;
     const auto part = x.subspan(segment.first, length);
-    const auto part_force = force.subspan(segment.first, length);
-    std::vector<double> lowpassed_force;  // with x through the Butterworth (one pass for both)
-    Differentiated derivatives =
-        d.velocity_from_position()
-            ? differentiate(part, d.sample_time_s, options, d.used, part_force, lowpassed_force)
-            : differentiate_velocity(part, d.sample_time_s, options, d.used);
+    Differentiated derivatives = d.velocity_from_position()
+                                     ? differentiate(part, d.sample_time_s, options, d.used)
+                                     : differentiate_velocity(part, d.sample_time_s, options, d.used);
     const std::size_t edge = options.edge_samples.value_or(derivatives.default_edge);
     d.used.edge_samples = edge;
     if (derivatives.velocity.empty() || length <= 2 * edge + options.minimum_samples) return;
-    std::vector<double> filtered_force = lowpassed_force.empty()
-                                             ? filter_like_position(part_force, d.used, d.sample_time_s)
-                                             : through_difference_kernel(std::move(lowpassed_force), d.used);
+    std::vector<double> filtered_force =
+        filter_like_position(force.subspan(segment.first, length), d.used, d.sample_time_s);
     std::vector<double> commanded =
         reference.values.empty() ? std::vector<double>{} : reference_velocity(reference, segment, d, options);
     if (need_index) {

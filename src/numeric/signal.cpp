@@ -132,27 +132,6 @@ void cascade_passes(const SecondOrderSections& filter, std::span<double> y, std:
     for (std::size_t k = kept.size(); k-- > 0;) kept[k] = backward(kept[k]);
 }
 
-// cascade_passes over two padded signals of one length at once: each sample of the one and of the other through its
-// own cascade (the same arithmetic as alone), the two recursions overlapping in the pipeline.
-template <std::size_t S>
-void cascade_pair_passes(const SecondOrderSections& filter, std::span<double> y, std::span<double> z,
-                         std::size_t pad) {
-    Cascade<S> forward_y(filter, y.front()), forward_z(filter, z.front());
-    for (std::size_t k = 0; k < y.size(); ++k) {
-        const double out_y = forward_y(y[k]), out_z = forward_z(z[k]);
-        if (k >= pad) {
-            y[k - pad] = out_y;
-            z[k - pad] = out_z;
-        }
-    }
-    const auto kept_y = y.first(y.size() - pad), kept_z = z.first(z.size() - pad);
-    Cascade<S> backward_y(filter, kept_y.back()), backward_z(filter, kept_z.back());
-    for (std::size_t k = kept_y.size(); k-- > 0;) {
-        kept_y[k] = backward_y(kept_y[k]);
-        kept_z[k] = backward_z(kept_z[k]);
-    }
-}
-
 // filtfilt's two passes over the padded signal y (pad samples before and after the n of the signal), without
 // reversing it twice and without moving it: the forward pass writes its last section's output `pad` samples earlier,
 // dropping the front padding's outputs, which the backward pass would only have carried into outputs that are cut
@@ -276,26 +255,6 @@ void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std:
     }
     if (out.empty()) return;  // the caller takes the filtered signal from the front of the workspace
     std::copy(y.begin(), y.begin() + static_cast<std::ptrdiff_t>(n), out.begin());
-}
-
-std::array<std::vector<double>, 2> filtfilt_pair(const SecondOrderSections& filter, std::span<const double> a,
-                                                 std::span<const double> b) {
-    const std::size_t n = a.size(), sections = filter.sections.size();
-    if (b.size() != n || n < 2 || sections < 1 || sections > 4) return {filtfilt(filter, a), filtfilt(filter, b)};
-    const std::size_t pad = filtfilt_padding(filter, n);
-    std::array<std::vector<double>, 2> out;
-    out[0].reserve(n + 2 * pad);
-    out[1].reserve(n + 2 * pad);
-    const std::span<double> y = padded(a, pad, out[0]), z = padded(b, pad, out[1]);
-    switch (sections) {
-        case 1: cascade_pair_passes<1>(filter, y, z, pad); break;
-        case 2: cascade_pair_passes<2>(filter, y, z, pad); break;
-        case 3: cascade_pair_passes<3>(filter, y, z, pad); break;
-        default: cascade_pair_passes<4>(filter, y, z, pad); break;
-    }
-    out[0].resize(n);  // the signals are at the front (filtfilt_passes)
-    out[1].resize(n);
-    return out;
 }
 
 std::vector<double> central_difference(std::span<const double> x, double dt) {

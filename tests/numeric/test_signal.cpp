@@ -125,22 +125,6 @@ TEST(SignalReference, FiltfiltWithFeedidsDesignIsSosfiltfilt) {
     }
 }
 
-// Two signals through one filter in one interleaved pass: bit for bit the values of two filtfilt calls, for every
-// design of the reference cases (one to four sections, and more: the pass alone then) and every length.
-TEST(SignalReference, FiltfiltPairIsTwoFiltfilts) {
-    const std::span<const double> signal(reference::signal);
-    std::vector<double> other(signal.size());
-    for (std::size_t k = 0; k < other.size(); ++k) other[k] = signal[signal.size() - 1 - k] * 0.5 + 1.0;
-    for (const auto& c : reference::filtfilt_cases) {
-        SCOPED_TRACE(fmt::format("{} on {} samples", describe(c.design), c.samples));
-        const feedid::SecondOrderSections filter = design_with_feedid(c.design);
-        const auto a = signal.first(c.samples), b = std::span<const double>(other).first(c.samples);
-        const auto pair = feedid::filtfilt_pair(filter, a, b);
-        EXPECT_EQ(pair[0], feedid::filtfilt(filter, a));
-        EXPECT_EQ(pair[1], feedid::filtfilt(filter, b));
-    }
-}
-
 // ---- Derivatives ---------------------------------------------------------------------------------------------------
 
 TEST(SignalReference, CentralDifferenceIsNumpyGradient) {

@@ -29,11 +29,6 @@ std::vector<double> filtfilt(const SecondOrderSections& filter, std::span<const 
 void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std::span<double> out,
               std::vector<double>& workspace);
 
-/// filtfilt of two signals of one length through one filter in one interleaved pass (the two recursions overlap in
-/// the pipeline): the same values as two calls of filtfilt.
-std::array<std::vector<double>, 2> filtfilt_pair(const SecondOrderSections& filter, std::span<const double> a,
-                                                 std::span<const double> b);
-
 /// Central differences: d[k] = (x[k+1] - x[k-1]) / (2*dt); one-sided at the ends.
 std::vector<double> central_difference(std::span<const double> x, double dt);
 
