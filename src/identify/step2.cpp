@@ -290,11 +290,13 @@ void fit_nonlinear(const Step2Data& data, FrictionFit& out) {
         if (data.s.steady(k)) quasi_static.push_back(k);
     }
     const bool separable = curve_separable(data, quasi_static);
+    std::optional<detail::FitSamples> samples;  // the same for every attempt: formed once
     for (int attempt = 0; attempt < o.max_attempts; ++attempt) {
         if (!model.stribeck_forward && !model.stribeck_reverse) break;
-        const detail::FitSamples samples = curve_samples(data);
-        const CurveResult curve = separable ? fit_separated(data, samples, quasi_static, model, bounds.low, bounds.high)
-                                            : fit_joint(samples, model, bounds.low, bounds.high);
+        if (!samples) samples = curve_samples(data);
+        const CurveResult curve = separable
+                                      ? fit_separated(data, *samples, quasi_static, model, bounds.low, bounds.high)
+                                      : fit_joint(*samples, model, bounds.low, bounds.high);
         detail::CurveModel fitted = model;
         fitted.mass = !separable;
         const detail::CurveLayout layout(fitted);
