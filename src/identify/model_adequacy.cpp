@@ -1353,7 +1353,8 @@ public:
             group += ratio > above_[b] ? 1 : 0;
             near |= ratio >= below_[b] && ratio <= above_[b];
         }
-        if (near || !(ratio >= 1.0)) group = std::clamp(static_cast<int>(bins_ * std::log(ratio) / span_), 0, bins_ - 1);
+        if (near || !(ratio >= 1.0))
+            group = std::clamp(static_cast<int>(bins_ * std::log(ratio) / span_), 0, bins_ - 1);
         return static_cast<std::size_t>(group);
     }
 
