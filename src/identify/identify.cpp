@@ -601,6 +601,7 @@ IdentifyResult fit_steps(IdentifyResult result, const Derivatives& derivatives, 
         FrictionFitOptions friction_options = options.friction;
         friction_options.minimum_slow_samples = options.selection.minimum_slow_samples;
         friction_options.correlation_blocks = options.step1.correlation_blocks;
+        friction_options.log_linear = friction_options.log_linear && !options.estimates_only;
         apply_step2(fit_friction_curve(derivatives, selection, step1, friction_options), result);
     } else {
         result.stribeck = StribeckReport{};

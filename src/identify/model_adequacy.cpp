@@ -386,20 +386,35 @@ public:
     [[nodiscard]] bool valid() const { return valid_; }
 
     double residual(double delay) const {
+        double out = 0.0;
+        residuals(std::span<const double>(&delay, 1), std::span<double>(&out, 1));
+        return out;
+    }
+
+    /// The profile at several delays (at most max_delays) in one pass over the rows: each row's regressors read once
+    /// for all of them, each delay's sums formed in the same order as on its own.
+    static constexpr std::size_t max_delays = 8;
+    void residuals(std::span<const double> delays, std::span<double> out) const {
         const auto p = static_cast<Eigen::Index>(regressors_.parameters());
-        Vector cross = Vector::Zero(p), phi(p);
-        double squares = 0.0;
+        const std::size_t m = delays.size();
+        std::array<Vector, max_delays> cross;
+        std::array<double, max_delays> squares{}, offset{};
+        for (std::size_t j = 0; j < m; ++j) cross[j] = Vector::Zero(p);
+        Vector phi(p);
         for (const RowRun& run : runs_) {
-            const double offset = delay / run.step;  // in samples, for every row of the stretch
+            for (std::size_t j = 0; j < m; ++j) offset[j] = delays[j] / run.step;  // in samples, for the stretch
             for (std::size_t i = run.first; i < run.last; ++i) {
                 const std::size_t k = rows_[i];
-                const double y = force_at(d_.force, static_cast<double>(k) + offset, run.begin, run.end);
                 regressors_.row(first_ + i, phi.data());
-                cross += phi * y;
-                squares += y * y;
+                for (std::size_t j = 0; j < m; ++j) {
+                    const double y = force_at(d_.force, static_cast<double>(k) + offset[j], run.begin, run.end);
+                    cross[j] += phi * y;
+                    squares[j] += y * y;
+                }
             }
         }
-        return squares - cross.dot(solver_.solve(Eigen::VectorXd(cross)));
+        for (std::size_t j = 0; j < m; ++j)
+            out[j] = squares[j] - cross[j].dot(solver_.solve(Eigen::VectorXd(cross[j])));
     }
 
 private:
@@ -415,12 +430,21 @@ private:
 /// The profile at whole-sample shifts m * sample_time, evaluated on every core (independent passes over the rows).
 std::vector<double> profile_at(const DelayProfile& profile, const std::vector<long>& shifts, double sample_time) {
     std::vector<double> values(shifts.size());
+    std::vector<double> delays(shifts.size());
+    for (std::size_t i = 0; i < shifts.size(); ++i) delays[i] = static_cast<double>(shifts[i]) * sample_time;
+    const std::size_t cores = std::min<std::size_t>(std::max(1u, std::thread::hardware_concurrency()), 4);
+    // batches of delays, one pass over the rows each, as many batches as cores at least
+    const std::size_t batch = std::clamp<std::size_t>((shifts.size() + cores - 1) / cores, 1, DelayProfile::max_delays);
+    const std::size_t batches = (shifts.size() + batch - 1) / batch;
     std::atomic<std::size_t> next{0};
     const auto work = [&] {
-        for (std::size_t i = next++; i < shifts.size(); i = next++)
-            values[i] = profile.residual(static_cast<double>(shifts[i]) * sample_time);
+        for (std::size_t b = next++; b < batches; b = next++) {
+            const std::size_t from = b * batch, count = std::min(batch, shifts.size() - from);
+            profile.residuals(std::span<const double>(delays).subspan(from, count),
+                              std::span<double>(values).subspan(from, count));
+        }
     };
-    std::vector<std::thread> helpers(std::min<std::size_t>(std::max(1u, std::thread::hardware_concurrency()), 4) - 1);
+    std::vector<std::thread> helpers(std::min(cores, batches) - 1);
     for (auto& helper : helpers) helper = std::thread(work);
     work();
     for (auto& helper : helpers) helper.join();
@@ -932,48 +956,56 @@ double integrated_autocorrelation(const std::vector<std::size_t>& rows, const st
     if (rows.size() < 100 || !(squares > 0.0)) return 1.0;
     const std::size_t span = rows.back() - rows.front() + 1;
     double largest = 1.0;
-    // blocks of b = 2^shift samples: the block of a row by a shift, not a division. The first levels from the rows;
-    // from the last of them on, each level's block sums are the sums of the level below's (one pass over fewer
-    // blocks per level instead of one over every row: the same sums to rounding)
+    // blocks of b = 2^shift samples: the block of a row by a shift, not a division. The first levels from the rows,
+    // all in one pass (each level's block sums in its own accumulator, in row order: the sums of a pass per level);
+    // from the last of them on, each level's block sums are the sums of the level below's (one pass over fewer blocks
+    // per level instead of one over every row: the same sums to rounding)
     constexpr unsigned direct_levels = 5;
+    unsigned direct = 0;  // the first levels that have at least 50 blocks
+    while (direct < direct_levels && span >> (direct + 1) >= 50) ++direct;
+    if (direct == 0) return 0.5 * largest;
     // (block, sum of its values) at the current level; at most one block per row and per 2^direct_levels samples
     // (half a byte per sample at most)
     std::vector<std::pair<std::size_t, double>> blocks;
     std::size_t kept = 0;
-    for (unsigned shift = 1; span >> shift >= 50; ++shift) {
-        double sum_of_squares = 0.0;
-        if (shift <= direct_levels) {
-            const bool keep = shift == direct_levels;
-            if (keep) {
-                const bool ascending = std::is_sorted(rows.begin(), rows.end());
-                blocks.resize(ascending ? std::min(rows.size(), (span >> direct_levels) + 2) : rows.size());
+    const bool keep = direct == direct_levels;
+    if (keep) {
+        const bool ascending = std::is_sorted(rows.begin(), rows.end());
+        blocks.resize(ascending ? std::min(rows.size(), (span >> direct_levels) + 2) : rows.size());
+    }
+    std::array<double, direct_levels> block_sum{}, sum_of_squares{};
+    std::array<std::size_t, direct_levels> current{};
+    for (unsigned level = 0; level < direct_levels; ++level) current[level] = rows.front() >> (level + 1);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+        for (unsigned level = 0; level < direct_levels; ++level) {
+            const std::size_t block = rows[i] >> (level + 1);
+            if (block != current[level]) {
+                sum_of_squares[level] += block_sum[level] * block_sum[level];
+                if (keep && level + 1 == direct_levels) blocks[kept++] = {current[level], block_sum[level]};
+                block_sum[level] = 0.0;
+                current[level] = block;
             }
-            double block_sum = 0.0;
-            std::size_t current = rows.front() >> shift;
-            for (std::size_t i = 0; i < rows.size(); ++i) {
-                if (rows[i] >> shift != current) {
-                    sum_of_squares += block_sum * block_sum;
-                    if (keep) blocks[kept++] = {current, block_sum};
-                    block_sum = 0.0;
-                    current = rows[i] >> shift;
-                }
-                block_sum += values[i];
-            }
-            sum_of_squares += block_sum * block_sum;
-            if (keep) blocks[kept++] = {current, block_sum};
-        } else {
-            std::size_t merged = 0;
-            for (std::size_t i = 0; i < kept; ++i) {
-                const std::size_t parent = blocks[i].first >> 1;
-                if (merged > 0 && blocks[merged - 1].first == parent)
-                    blocks[merged - 1].second += blocks[i].second;
-                else
-                    blocks[merged++] = {parent, blocks[i].second};
-            }
-            kept = merged;
-            for (std::size_t i = 0; i < kept; ++i) sum_of_squares += blocks[i].second * blocks[i].second;
+            block_sum[level] += values[i];
         }
-        largest = std::max(largest, sum_of_squares / squares);
+    }
+    for (unsigned level = 0; level < direct; ++level) {
+        sum_of_squares[level] += block_sum[level] * block_sum[level];
+        largest = std::max(largest, sum_of_squares[level] / squares);
+    }
+    if (keep) blocks[kept++] = {current[direct_levels - 1], block_sum[direct_levels - 1]};
+    for (unsigned shift = direct_levels + 1; keep && span >> shift >= 50; ++shift) {
+        std::size_t merged = 0;
+        for (std::size_t i = 0; i < kept; ++i) {
+            const std::size_t parent = blocks[i].first >> 1;
+            if (merged > 0 && blocks[merged - 1].first == parent)
+                blocks[merged - 1].second += blocks[i].second;
+            else
+                blocks[merged++] = {parent, blocks[i].second};
+        }
+        kept = merged;
+        double squares_here = 0.0;
+        for (std::size_t i = 0; i < kept; ++i) squares_here += blocks[i].second * blocks[i].second;
+        largest = std::max(largest, squares_here / squares);
     }
     return 0.5 * largest;
 }
@@ -992,6 +1024,35 @@ struct GroupMean {
     double variance_of_mean{0.0};
 };
 
+/// totals[g] += term(i) over the i in order whose group[i] == g (< groups), and counts[g] the number of them: each
+/// group's total held in a register while consecutive i stay in that group (the same sums, in the same order, as adding
+/// into the array at every i, without storing and reloading it at every i).
+template <class Term>
+void add_by_group(const std::vector<std::size_t>& group, std::size_t groups, std::vector<double>& totals,
+                  std::vector<std::size_t>& counts, Term term) {
+    std::size_t open = groups, run = 0;
+    double total = 0.0;
+    for (std::size_t i = 0; i < group.size(); ++i) {
+        const std::size_t g = group[i];
+        if (g >= groups) continue;
+        if (g != open) {
+            if (open < groups) {
+                totals[open] = total;
+                counts[open] += run;
+            }
+            open = g;
+            total = totals[g];
+            run = 0;
+        }
+        total += term(i);
+        ++run;
+    }
+    if (open < groups) {
+        totals[open] = total;
+        counts[open] += run;
+    }
+}
+
 /// Means of `residual` over groups (group[i] that of rows[i]; groups or more: in none), with variances that count
 /// correlated neighbours once: each group's variance over its effective number of samples, its count over twice the
 /// integrated autocorrelation time of the residual's deviations from the group means (on a slow pass the residual
@@ -1000,19 +1061,17 @@ std::vector<GroupMean> group_means(const std::vector<std::size_t>& rows, const s
                                    const std::vector<std::size_t>& group, std::size_t groups) {
     std::vector<GroupMean> means(groups);
     std::vector<double> sums(groups, 0.0), squares(groups, 0.0);
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-        if (group[i] >= groups) continue;
-        ++means[group[i]].count;
-        sums[group[i]] += residual[i];
-    }
-    for (std::size_t g = 0; g < groups; ++g)
+    std::vector<std::size_t> counts(groups, 0), unused(groups, 0);
+    add_by_group(group, groups, sums, counts, [&](std::size_t i) { return residual[i]; });
+    for (std::size_t g = 0; g < groups; ++g) {
+        means[g].count = counts[g];
         if (means[g].count > 0) means[g].mean = sums[g] / static_cast<double>(means[g].count);
-    std::vector<double> deviation(rows.size(), 0.0);
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-        if (group[i] >= groups) continue;
-        deviation[i] = residual[i] - means[group[i]].mean;
-        squares[group[i]] += deviation[i] * deviation[i];
     }
+    std::vector<double> deviation;
+    deviation.reserve(rows.size());
+    for (std::size_t i = 0; i < rows.size(); ++i)
+        deviation.push_back(group[i] < groups ? residual[i] - means[group[i]].mean : 0.0);
+    add_by_group(group, groups, squares, unused, [&](std::size_t i) { return deviation[i] * deviation[i]; });
     const double inflation = std::max(1.0, 2.0 * integrated_autocorrelation(rows, deviation));
     for (std::size_t g = 0; g < groups; ++g) {
         const double n = static_cast<double>(means[g].count);
@@ -1273,6 +1332,38 @@ std::size_t group_of(double value, const std::vector<double>& edges) {
     return static_cast<std::size_t>(std::upper_bound(edges.begin(), edges.end(), value) - edges.begin());
 }
 
+/// The speed group of check_fit, clamp(int(bins * ln(|v| / low) / span), 0, bins - 1), without a logarithm per row:
+/// |v| / low against the groups' edges exp(span * b / bins), and the logarithm itself only within a hair (1e-9
+/// relative) of an edge, where rounding could decide (so the same group as the formula's for every speed).
+class LogSpeedGroups {
+public:
+    static constexpr int max_bins = 16;
+    LogSpeedGroups(double low, double span, int bins) : low_(low), span_(span), bins_(std::min(bins, max_bins)) {
+        for (int b = 1; b < bins_; ++b) {
+            const double edge = std::exp(span * b / bins_);
+            below_[static_cast<std::size_t>(b)] = edge * (1.0 - 1e-9);
+            above_[static_cast<std::size_t>(b)] = edge * (1.0 + 1e-9);
+        }
+    }
+    [[nodiscard]] std::size_t operator()(double speed) const {
+        const double ratio = speed / low_;
+        int group = 0;
+        bool near = false;
+        for (std::size_t b = 1; b < static_cast<std::size_t>(bins_); ++b) {
+            group += ratio > above_[b] ? 1 : 0;
+            near |= ratio >= below_[b] && ratio <= above_[b];
+        }
+        if (near || !(ratio >= 1.0))
+            group = std::clamp(static_cast<int>(bins_ * std::log(ratio) / span_), 0, bins_ - 1);
+        return static_cast<std::size_t>(group);
+    }
+
+private:
+    double low_, span_;
+    int bins_;
+    std::array<double, max_bins> below_{}, above_{};
+};
+
 }  // namespace
 
 std::vector<FitCheck> check_fit(const Derivatives& d, const Selection& selection, const AxisModel& axis,
@@ -1290,14 +1381,13 @@ std::vector<FitCheck> check_fit(const Derivatives& d, const Selection& selection
     const std::vector<double> accelerations = quantile_edges(d.acceleration, rows, acceleration_bins);
     std::vector<double> residual(rows.size());
     std::vector<std::size_t> by_speed(rows.size()), by_acceleration(rows.size()), by_time(rows.size());
+    const LogSpeedGroups speed_group(low, span, speed_bins);
     for (std::size_t i = 0; i < rows.size(); ++i) {
         const std::size_t k = rows[i];
         const double v = d.velocity[k];
         residual[i] = d.force[k] - axis.mass * d.acceleration[k] - axis.friction.force(v) - axis.offset;
         const std::size_t direction = v > 0.0 ? 0 : 1;
-        const auto s = static_cast<std::size_t>(
-            std::clamp(static_cast<int>(speed_bins * std::log(std::abs(v) / low) / span), 0, speed_bins - 1));
-        by_speed[i] = direction * speed_bins + s;
+        by_speed[i] = direction * speed_bins + speed_group(std::abs(v));
         by_acceleration[i] = direction * acceleration_bins + group_of(d.acceleration[k], accelerations);
         by_time[i] = i * time_bins / rows.size();
     }

@@ -290,11 +290,13 @@ void fit_nonlinear(const Step2Data& data, FrictionFit& out) {
         if (data.s.steady(k)) quasi_static.push_back(k);
     }
     const bool separable = curve_separable(data, quasi_static);
+    std::optional<detail::FitSamples> samples;  // the same for every attempt: formed once
     for (int attempt = 0; attempt < o.max_attempts; ++attempt) {
         if (!model.stribeck_forward && !model.stribeck_reverse) break;
-        const detail::FitSamples samples = curve_samples(data);
-        const CurveResult curve = separable ? fit_separated(data, samples, quasi_static, model, bounds.low, bounds.high)
-                                            : fit_joint(samples, model, bounds.low, bounds.high);
+        if (!samples) samples = curve_samples(data);
+        const CurveResult curve = separable
+                                      ? fit_separated(data, *samples, quasi_static, model, bounds.low, bounds.high)
+                                      : fit_joint(*samples, model, bounds.low, bounds.high);
         detail::CurveModel fitted = model;
         fitted.mass = !separable;
         const detail::CurveLayout layout(fitted);
@@ -318,7 +320,7 @@ FrictionFit fit_friction_curve(const Derivatives& derivatives, const Selection& 
                                const FrictionFitOptions& options) {
     FrictionFit out;
     const Step2Data data = make_data(derivatives, selection, step1, options);
-    fit_log_linear_per_direction(data, out);
+    if (options.log_linear) fit_log_linear_per_direction(data, out);
     fit_nonlinear(data, out);
     const std::size_t slow = data.slow_count[0] + data.slow_count[1];
     if (!out.accepted() && slow < options.minimum_slow_samples) {

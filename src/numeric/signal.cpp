@@ -4,7 +4,6 @@
 #include <array>
 #include <cmath>
 #include <complex>
-#include <deque>
 #include <functional>
 #include <numbers>
 #include <stdexcept>
@@ -174,6 +173,31 @@ std::size_t filter_order(const SecondOrderSections& filter) {
     return std::max(numerator, denominator);
 }
 
+// filtfilt's padding of a signal of n samples: max(1, 3 * (filter order)), at most n - 1.
+std::size_t filtfilt_padding(const SecondOrderSections& filter, std::size_t n) {
+    return std::min(std::max<std::size_t>(1, 3 * filter_order(filter)), n - 1);
+}
+
+// x with its odd reflections about the end points, `pad` samples each (as MATLAB's filtfilt, which refuses a signal of
+// no more samples than that; here the padding is cut to n - 1), at the front of `workspace` (grown when too short).
+std::span<double> padded(std::span<const double> x, std::size_t pad, std::vector<double>& workspace) {
+    const std::size_t n = x.size();
+    if (workspace.size() < n + 2 * pad) {
+        // appended, not resized and overwritten: a fresh column is written once, not zeroed first
+        workspace.clear();
+        workspace.reserve(n + 2 * pad);
+        for (std::size_t k = pad; k >= 1; --k) workspace.push_back(2.0 * x[0] - x[k]);
+        workspace.insert(workspace.end(), x.begin(), x.end());
+        for (std::size_t k = 1; k <= pad; ++k) workspace.push_back(2.0 * x[n - 1] - x[n - 1 - k]);
+        return {workspace.data(), n + 2 * pad};
+    }
+    const std::span<double> y(workspace.data(), n + 2 * pad);
+    for (std::size_t k = pad; k >= 1; --k) y[pad - k] = 2.0 * x[0] - x[k];
+    std::copy(x.begin(), x.end(), y.begin() + static_cast<std::ptrdiff_t>(pad));
+    for (std::size_t k = 1; k <= pad; ++k) y[pad + n - 1 + k] = 2.0 * x[n - 1] - x[n - 1 - k];
+    return y;
+}
+
 }  // namespace
 
 SecondOrderSections butterworth_lowpass(int order, double cutoff_hz, double sample_rate_hz) {
@@ -205,8 +229,7 @@ std::vector<double> filtfilt(const SecondOrderSections& filter, std::span<const 
     std::vector<double> workspace;
     if (x.size() < 2) return std::vector<double>(x.begin(), x.end());
     // the padded signal filtered in its own buffer, then the padding cut off in place: one column, not two
-    const std::size_t pad = std::min(std::max<std::size_t>(1, 3 * filter_order(filter)), x.size() - 1);
-    workspace.reserve(x.size() + 2 * pad);
+    workspace.reserve(x.size() + 2 * filtfilt_padding(filter, x.size()));
     filtfilt(filter, x, std::span<double>(), workspace);
     workspace.resize(x.size());  // the signal is at the front (filtfilt_passes)
     return workspace;
@@ -222,12 +245,8 @@ void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std:
     }
     // odd reflection about the end points, max(1, 3 * (filter order)) samples, as MATLAB's filtfilt (which refuses a
     // signal of no more samples than that; here the padding is cut to n - 1)
-    const std::size_t pad = std::min(std::max<std::size_t>(1, 3 * filter_order(filter)), n - 1);
-    if (workspace.size() < n + 2 * pad) workspace.resize(n + 2 * pad);
-    const std::span<double> y(workspace.data(), n + 2 * pad);
-    for (std::size_t k = pad; k >= 1; --k) y[pad - k] = 2.0 * x[0] - x[k];
-    std::copy(x.begin(), x.end(), y.begin() + static_cast<std::ptrdiff_t>(pad));
-    for (std::size_t k = 1; k <= pad; ++k) y[pad + n - 1 + k] = 2.0 * x[n - 1] - x[n - 1 - k];
+    const std::size_t pad = filtfilt_padding(filter, n);
+    const std::span<double> y = padded(x, pad, workspace);
     if (filter.sections.empty()) {
         std::copy(y.begin() + static_cast<std::ptrdiff_t>(pad), y.begin() + static_cast<std::ptrdiff_t>(pad + n),
                   y.begin());
@@ -240,11 +259,13 @@ void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std:
 
 std::vector<double> central_difference(std::span<const double> x, double dt) {
     const std::size_t n = x.size();
-    std::vector<double> d(n, 0.0);
-    if (n < 2) return d;
-    for (std::size_t k = 1; k + 1 < n; ++k) d[k] = (x[k + 1] - x[k - 1]) / (2.0 * dt);
-    d[0] = (x[1] - x[0]) / dt;
-    d[n - 1] = (x[n - 1] - x[n - 2]) / dt;
+    if (n < 2) return std::vector<double>(n, 0.0);
+    // appended in order, not zeroed and overwritten: a million-sample column is written once
+    std::vector<double> d;
+    d.reserve(n);
+    d.push_back((x[1] - x[0]) / dt);
+    for (std::size_t k = 1; k + 1 < n; ++k) d.push_back((x[k + 1] - x[k - 1]) / (2.0 * dt));
+    d.push_back((x[n - 1] - x[n - 2]) / dt);
     return d;
 }
 
@@ -385,17 +406,26 @@ namespace {
 template <class Compare>
 std::vector<double> running_extreme(std::span<const double> x, std::size_t half, Compare better) {
     const std::size_t n = x.size();
-    std::vector<double> out(n);
-    std::deque<std::size_t> queue;
+    std::vector<double> out;
+    if (n == 0) return out;
+    out.reserve(n);  // appended: written once, not zeroed first
+    // the monotonic queue of candidates' indices in a ring of the window's length (no more can wait in it): the same
+    // extremes as a deque, without its block allocations and indirections
+    const std::size_t capacity = std::min(n, 2 * half + 2) + 1;
+    std::vector<std::size_t> ring(capacity);
+    std::size_t head = 0, tail = 0;  // queue = ring[head, tail) modulo capacity, tail != head when not empty
+    const auto before = [capacity](std::size_t i) { return i == 0 ? capacity - 1 : i - 1; };
+    const auto after = [capacity](std::size_t i) { return i + 1 == capacity ? 0 : i + 1; };
     std::size_t next = 0;  // the next index to enter the window
     for (std::size_t k = 0; k < n; ++k) {
         const std::size_t last = std::min(n - 1, k + half);
         for (; next <= last; ++next) {
-            while (!queue.empty() && !better(x[queue.back()], x[next])) queue.pop_back();
-            queue.push_back(next);
+            while (tail != head && !better(x[ring[before(tail)]], x[next])) tail = before(tail);
+            ring[tail] = next;
+            tail = after(tail);
         }
-        while (queue.front() + half < k) queue.pop_front();
-        out[k] = x[queue.front()];
+        while (ring[head] + half < k) head = after(head);
+        out.push_back(x[ring[head]]);
     }
     return out;
 }

@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <limits>
 #include <span>
 #include <string>
@@ -188,4 +189,52 @@ TEST(SignalReference, NoiseFloorIsTheScaledMedianAbsoluteDeviationOfTheDifferenc
     const double floor = feedid::noise_floor(reference::signal);
     EXPECT_NEAR(floor, reference::noise_floor_rounded_constant, 1e-13 * reference::noise_floor_rounded_constant);
     EXPECT_NEAR(floor, reference::noise_floor, 2e-6 * reference::noise_floor);
+}
+
+// The element of the rank, for every rank tried, on a random column, on one ordered in time (ramps and plateaus), with
+// ties, and with a few outliers at the end; the buffer reordered, not changed.
+TEST(Percentile, LongColumnsGiveTheElementOfTheRankExactly) {
+    const std::size_t n = 300'001;
+    std::vector<std::vector<double>> columns(4, std::vector<double>(n));
+    std::uint64_t state = 12345;
+    const auto uniform = [&state] {
+        state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+        return static_cast<double>(state >> 11) * 0x1.0p-53;
+    };
+    for (std::size_t k = 0; k < n; ++k) {
+        columns[0][k] = uniform() - 0.5;
+        columns[1][k] = std::min(1.0, static_cast<double>(k % 50'000) / 20'000.0) + 1e-3 * uniform();
+        columns[2][k] = std::floor(8.0 * uniform());
+        columns[3][k] = k < n - 100 ? 1.0 : 2.0 + static_cast<double>(k);
+    }
+    for (const auto& column : columns) {
+        for (const double fraction : {0.0, 0.01, 0.1, 0.5, 0.9, 0.95, 0.99, 0.9999, 1.0}) {
+            std::vector<double> sorted = column;
+            std::sort(sorted.begin(), sorted.end());
+            const auto rank = static_cast<std::size_t>(fraction * static_cast<double>(n - 1));
+            std::vector<double> buffer = column;
+            EXPECT_EQ(feedid::percentile_in_place(buffer, fraction), sorted[rank]) << fraction;
+            std::sort(buffer.begin(), buffer.end());
+            EXPECT_EQ(buffer, sorted);  // reordered, not changed: the next percentile of the buffer is right too
+        }
+    }
+}
+
+TEST(RunningExtremes, AreTheWindowsMinimumAndMaximum) {
+    std::vector<double> x(2'000);
+    std::uint64_t state = 99;
+    for (auto& v : x) {
+        state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+        v = static_cast<double>(state >> 40);
+    }
+    for (const std::size_t half : std::array<std::size_t, 5>{0, 1, 7, 1'000, 5'000}) {
+        const auto low = feedid::running_minimum(x, half), high = feedid::running_maximum(x, half);
+        for (std::size_t k = 0; k < x.size(); ++k) {
+            const std::size_t from = k > half ? k - half : 0, to = std::min(x.size(), k + half + 1);
+            const auto [lo, hi] = std::minmax_element(x.begin() + static_cast<std::ptrdiff_t>(from),
+                                                      x.begin() + static_cast<std::ptrdiff_t>(to));
+            ASSERT_EQ(low[k], *lo) << half << " " << k;
+            ASSERT_EQ(high[k], *hi) << half << " " << k;
+        }
+    }
 }

@@ -55,6 +55,9 @@ struct FrictionFitOptions {
     /// Standard errors count residuals as correlated over this many correlation lengths of the preprocessing's
     /// low-pass, as step 1's do (Step1Options::correlation_blocks; identify() sets it from there).
     double correlation_blocks{2.0};
+    /// The paper's log-linear fit per direction (FrictionFit::log_linear), which is reported, not used by the
+    /// estimates: off where only the estimates count (the preprocessing family's reruns).
+    bool log_linear{true};
 };
 
 /// The paper's log-linear estimate for one direction (eq. 13-14).
