@@ -3,7 +3,8 @@ run (docs/performance.md, "End to end against pandas": the figures and the machi
 
 The file is bench_identify's million-sample trace (t, x, i and the force constant as a '# force_constant = 450'
 comment; about 42 MB), written by this script with `feedid` itself if it is not there yet. Timed, wall clock, each
-job in a fresh process, the jobs interleaved round by round, medians of --rounds:
+job in a fresh process, the jobs interleaved round by round (each round's order rotated by one, so that no job always
+follows the same one), medians of --rounds:
 
 - pandas.read_csv alone, and `feedid info` (read, map, convert, validate);
 - the pandas + numpy/scipy pipeline: read_csv, sosfiltfilt (4th-order Butterworth at 100 Hz), numpy.gradient twice,
@@ -84,15 +85,20 @@ def main():
     walls = {name: [] for name in jobs}
     cpus = {name: [] for name in jobs}
     load_before = os.getloadavg()
-    for _ in range(args.rounds):
-        for name, command in jobs.items():
-            elapsed, cpu = measure(command)
+    # Each round starts one job later than the round before: a job run right after the pandas pipeline pays more
+    # (0.1-0.25 CPU s measured, the caches and pages the pipeline left), so no job keeps that place.
+    names = list(jobs)
+    for round_index in range(args.rounds):
+        start = round_index % len(names)
+        for name in names[start:] + names[:start]:
+            elapsed, cpu = measure(jobs[name])
             walls[name].append(elapsed)
             cpus[name].append(cpu)
     os.unlink(script.name)
     load = os.getloadavg()
     print(f"{os.cpu_count()} cores, load average {load_before[0]:.1f} before, {load[0]:.1f} after; medians of "
-          f"{args.rounds} runs, interleaved round by round; CPU = user + system of the process and its threads")
+          f"{args.rounds} runs, interleaved round by round, each round's order rotated; CPU = user + system of the "
+          f"process and its threads")
     print(f"{'job':40s} {'CPU s':>7s} {'ratio':>6s}  {'wall s':>7s} {'ratio':>6s}  against")
     for name in jobs:
         cpu, elapsed = statistics.median(cpus[name]), statistics.median(walls[name])
