@@ -129,8 +129,9 @@ TEST_F(RotarySinumerikTrace, IdentifyGivesFrictionWithinTwoPercent) {
 // test waits for its fix. Measured since (drive files with the preset's axis and cycles, seed 1): the speed loop at
 // the trace's 2 ms gives 2.0009; at 8 kHz 1.946, and 1.79 when synth integrates 64 steps per sample instead of 16
 // (its drive signal is recorded one integration step after the sample's controller update, so nearer the update);
-// the position logged every 2 ms instead of held 4 ms: 1.943. A replica of step 1 (scipy, 25 Hz Butterworth) with an inertia for the
-// samples at each phase of the 4 ms position cycle gives the two alike (1.9573 and 1.9583 +- 0.0008). Likely: the
+// the position logged every 2 ms instead of held 4 ms: 1.943. A replica of step 1 (scipy, 25 Hz Butterworth) with an
+// inertia for the samples at each phase of the 4 ms position cycle gives the two alike (1.9573 and 1.9583 +- 0.0008).
+// Likely: the
 // velocity command steps every 4 ms, the 8 kHz loop answers each step with a force transient within the cycle, and
 // samples at fixed phases of it average to other than the force that moved the axis, by an amount that grows with
 // the acceleration. Not shown: how large that is on a real drive (which may interpolate its speed setpoint).
