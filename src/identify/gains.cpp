@@ -1235,9 +1235,10 @@ public:
     }
 
     /// A starting k_ff: with x_ref' over one servo cycle, sum(T_s*x_ref') = e + sum(T_s*v) + const, so
-    /// F = L[(K_p*K_v + K_i*k_ff)*e + K_p*(-v) + K_p*k_ff*x_ref' + K_i*K_v*sum(T_s*e) + K_i*(1 - k_ff)*(-sum(T_s*v)) + c]
-    /// is linear in its coefficients (exactly for a velocity over one cycle, nearly over n): k_ff is that of L[x_ref']
-    /// over that of -L[v].
+    ///   F = L[(K_p*K_v + K_i*k_ff)*e + K_p*(-v) + K_p*k_ff*x_ref' + K_i*K_v*sum(T_s*e)
+    ///         + K_i*(1 - k_ff)*(-sum(T_s*v)) + c]
+    /// is linear in its coefficients (exactly for a velocity over one cycle, nearly over n): k_ff is that of
+    /// L[x_ref'] over that of -L[v].
     [[nodiscard]] double starting_feedforward(double mu) const {
         Eigen::VectorXd column = Eigen::VectorXd::Zero(vectors());
         add(column, feedforward_at(), 1.0, mu);
@@ -1350,7 +1351,8 @@ double profiled_mu(const BankGram& gram) {
         const double rss = residual_at(gram, static_cast<double>(i) / grid);
         if (rss < best_rss) best_rss = rss, best = i;
     }
-    double lo = std::max(0, best - 1) / static_cast<double>(grid), hi = std::min(grid, best + 1) / static_cast<double>(grid);
+    double lo = std::max(0, best - 1) / static_cast<double>(grid),
+           hi = std::min(grid, best + 1) / static_cast<double>(grid);
     const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
     double x1 = hi - ratio * (hi - lo), x2 = lo + ratio * (hi - lo);
     double f1 = residual_at(gram, x1), f2 = residual_at(gram, x2);
@@ -1395,7 +1397,8 @@ public:
             // mu is not the search's: a structure that differs only in it was fitted already
             const auto key = std::tuple{s.difference, s.reference_delay, s.servo_delay_cycles, s.lag_s};
             auto found = profiled_.find(key);
-            if (found == profiled_.end()) found = profiled_.emplace(key, regression_.structure_residual(s, integral_)).first;
+            if (found == profiled_.end())
+                found = profiled_.emplace(key, regression_.structure_residual(s, integral_)).first;
             rss = found->second.rss;
             fitted.mu = found->second.mu;
         } else if (const auto found =
@@ -1707,11 +1710,13 @@ void add_rate_choice(const VelocityLoopFit& loop, GainResult& result) {
         double band = 0.0;
         for (std::size_t r = 0; r < rates.size(); ++r) {
             const Estimate& other = rates[r].*of;
-            const double se = other.standard_error.value_or(0.0), apart = other.value.value_or(*gain.value) - *gain.value;
+            const double se = other.standard_error.value_or(0.0),
+                         apart = other.value.value_or(*gain.value) - *gain.value;
             band += weights[r] / total * std::sqrt(se * se + apart * apart);
         }
         if (!(std::isfinite(band) && band > *gain.standard_error)) return;
-        if (band > 2.0 * *gain.standard_error) widened.push_back(fmt::format("{} ({:.3g} -> {:.3g})", name, *gain.standard_error, band));
+        if (band > 2.0 * *gain.standard_error)
+            widened.push_back(fmt::format("{} ({:.3g} -> {:.3g})", name, *gain.standard_error, band));
         gain.standard_error = band;
     };
     widen(result.position_gain_per_s, &RateAlternative::position_gain, "K_v");

@@ -75,7 +75,8 @@ TEST(GramLeastSquares, CombinationsOfBaseVectorsSolveAsQrDoes) {
     const Eigen::VectorXd y = combined(base, c_y);
     const auto qr = feedid::solve_least_squares(phi, y);
     const double rss = (y - phi * qr.estimate).squaredNorm();
-    for (Eigen::Index j = 0; j < 3; ++j) EXPECT_NEAR(solution.theta(j), qr.estimate(j), 1e-9 * std::abs(qr.estimate(j)));
+    for (Eigen::Index j = 0; j < 3; ++j)
+        EXPECT_NEAR(solution.theta(j), qr.estimate(j), 1e-9 * std::abs(qr.estimate(j)));
     EXPECT_NEAR(solution.rss, rss, 1e-9 * rss);
     EXPECT_GT(rss, 0.0);
 }
