@@ -1474,30 +1474,24 @@ void refine_lag_and_delay(StructureSearch& search, const GainOptions& options, d
     }
 }
 
-// The same by a pattern search along the diagonals too, until the steps have shrunk by 2^-12: on the servo grid a
-// longer lag and a smaller share mu of the previous cycle's command delay the drive signal alike, so the residual's
-// valley runs across both axes, and steps along the axes stall in it (an 8 kHz loop's lag 0.27 ms for a true 0.3,
-// K_v 0.1 % off, where the true structure leaves less).
-void refine_lag_and_delay_jointly(StructureSearch& search, const GainOptions& options, double dt) {
-    double lag_step = options.current_lag_s ? 0.0 : 0.1 * dt;
-    double mu_step = 0.1;
+// The lag alone, where the search profiles mu (VelocityLoopRegression::mu_profiled(): each lag fitted at its best mu):
+// a step either way while one leaves less, halved where neither does, until it has shrunk by 2^-12.
+void refine_lag(StructureSearch& search, const GainOptions& options, double dt) {
+    if (options.current_lag_s) return;
+    double step = 0.1 * dt;
     constexpr int max_evaluations = 400;
     int evaluations = 0;
     for (int halvings = 0; halvings < 12 && evaluations < max_evaluations;) {
         bool improved = false;
-        for (const double dl : {-1.0, 0.0, 1.0}) {
-            for (const double dm : {-1.0, 0.0, 1.0}) {
-                Structure s = search.best();
-                s.lag_s = std::max(0.0, s.lag_s + dl * lag_step);
-                s.mu = std::clamp(s.mu + dm * mu_step, 0.0, 1.0);
-                if (s.lag_s == search.best().lag_s && s.mu == search.best().mu) continue;
-                ++evaluations;
-                if (search.consider(s)) improved = true;
-            }
+        for (const double direction : {-1.0, 1.0}) {
+            Structure s = search.best();
+            s.lag_s = std::max(0.0, s.lag_s + direction * step);
+            if (s.lag_s == search.best().lag_s) continue;
+            ++evaluations;
+            if (search.consider(s)) improved = true;
         }
         if (!improved) {
-            lag_step *= 0.5;
-            mu_step *= 0.5;
+            step *= 0.5;
             ++halvings;
         }
     }
@@ -1533,7 +1527,7 @@ void search_servo_structure(StructureSearch& search, const VelocityLoopRegressio
         local.consider(s);
         for (int round = 0; round < 2; ++round) {
             search_servo_delay(local, regression);
-            refine_lag_and_delay_jointly(local, options, regression.signals.dt);
+            refine_lag(local, options, regression.signals.dt);
         }
         search.adopt(local);
     }
