@@ -360,6 +360,16 @@ double force_at(const std::vector<double>& force, double position, std::size_t b
     return p1 + 0.5 * f * (p2 - p0 + f * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3 + f * (3.0 * (p1 - p2) + p3 - p0)));
 }
 
+/// A shift of `offset` samples that is a whole number of them up to the rounding of the stretch's mean interval
+/// (the delay profile's grid: m sample times over a stretch whose time stamps end a few ulps off m intervals), as
+/// that number; else no_whole_shift. Read at the sample itself, such a shift is exact where the spline of force_at
+/// would interpolate a fraction of 1e-9 of a sample that the time stamps' rounding made.
+constexpr std::ptrdiff_t no_whole_shift = std::numeric_limits<std::ptrdiff_t>::min();
+std::ptrdiff_t whole_shift(double offset) {
+    const double nearest = std::round(offset);
+    return std::abs(offset - nearest) < 1e-6 ? static_cast<std::ptrdiff_t>(nearest) : no_whole_shift;
+}
+
 /// The profile of the residual over the delay: min over theta of ||F_log(t + tau) - Phi theta||^2 on step 1's rows,
 /// from the normal equations of Phi (fixed) and one pass over the rows per tau.
 class DelayProfile {
@@ -399,15 +409,24 @@ public:
         const std::size_t m = delays.size();
         std::array<Vector, max_delays> cross;
         std::array<double, max_delays> squares{}, offset{};
+        std::array<std::ptrdiff_t, max_delays> whole{};  // the shift in samples where it is one, else -1
         for (std::size_t j = 0; j < m; ++j) cross[j] = Vector::Zero(p);
         Vector phi(p);
         for (const RowRun& run : runs_) {
-            for (std::size_t j = 0; j < m; ++j) offset[j] = delays[j] / run.step;  // in samples, for the stretch
+            for (std::size_t j = 0; j < m; ++j) {
+                offset[j] = delays[j] / run.step;  // in samples, for the stretch
+                whole[j] = whole_shift(offset[j]);
+            }
+            const auto first = static_cast<std::ptrdiff_t>(run.begin), last = static_cast<std::ptrdiff_t>(run.end) - 1;
             for (std::size_t i = run.first; i < run.last; ++i) {
                 const std::size_t k = rows_[i];
                 regressors_.row(first_ + i, phi.data());
                 for (std::size_t j = 0; j < m; ++j) {
-                    const double y = force_at(d_.force, static_cast<double>(k) + offset[j], run.begin, run.end);
+                    const double y =
+                        whole[j] != no_whole_shift
+                            ? d_.force[static_cast<std::size_t>(
+                                  std::clamp(static_cast<std::ptrdiff_t>(k) + whole[j], first, last))]
+                            : force_at(d_.force, static_cast<double>(k) + offset[j], run.begin, run.end);
                     cross[j] += phi * y;
                     squares[j] += y * y;
                 }
