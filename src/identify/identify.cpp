@@ -420,8 +420,8 @@ void null_inseparable_friction(IdentifyResult& result, const Derivatives& d, con
             if (s.steady(k) && (!asymmetric || (d.velocity[k] > 0.0) == (g == 0)))
                 speeds.push_back(std::abs(d.velocity[k]));
         }
-        const double low = percentile_in_place(speeds, 0.1), high = percentile_in_place(speeds, 0.9);
-        if (speeds.empty() || high >= options.separable_speed_ratio * low) continue;
+        const double low = percentile_in_place(speeds, 0.1);
+        if (speeds.empty() || percentile_at_least(speeds, 0.9, options.separable_speed_ratio * low)) continue;
         // B rests on the ramps: trusted where they are most of step 1's samples (a single long move), not where a
         // few ramp samples decide it against many at the one speed
         std::size_t in_group = 0, steady = 0;
@@ -436,7 +436,7 @@ void null_inseparable_friction(IdentifyResult& result, const Derivatives& d, con
         Estimate& viscous = parameter(result, Term::viscous, direction).estimate;
         Estimate& coulomb = parameter(result, Term::coulomb, direction).estimate;
         if (!viscous.value || !coulomb.value) continue;
-        const double speed = percentile_in_place(speeds, 0.5);
+        const double high = percentile_in_place(speeds, 0.9), speed = percentile_in_place(speeds, 0.5);
         result.diagnostics.push_back(fmt::format(
             "{} and {}: the constant-speed samples all run at about {:.4g} {} (10th to 90th percentile {:.4g} to "
             "{:.4g}): one speed determines only the friction there, {:.5g} {}, not how it splits into viscous and "

@@ -109,7 +109,7 @@ bool curve_separable(const Step2Data& data, const std::vector<std::size_t>& quas
             if (data.in_group(k, g)) speeds.push_back(std::abs(data.d.velocity[k]));
         }
         if (speeds.size() < o.separable_sample_multiple * o.minimum_slow_samples ||
-            !(percentile_in_place(speeds, 0.9) >= o.separable_speed_ratio * percentile_in_place(speeds, 0.1))) {
+            !percentile_at_least(speeds, 0.9, o.separable_speed_ratio * percentile_in_place(speeds, 0.1))) {
             return false;
         }
     }
@@ -212,7 +212,7 @@ bool stribeck_determined(const Step2Data& data, const detail::CurveFit& fit, con
         if (data.in_group(k, g) && speed < o.determining_speed_multiple * vs) below.push_back(speed);
     }
     const bool spread = !below.empty() &&
-                        percentile_in_place(below, 0.9) >= o.determining_speed_ratio * percentile_in_place(below, 0.1);
+                        percentile_at_least(below, 0.9, o.determining_speed_ratio * percentile_in_place(below, 0.1));
     const bool ok = fit.converged && std::isfinite(vs) && vs > bounds.low * o.bound_margin_low &&
                     vs < bounds.high * o.bound_margin_high && delta > o.rise_significance * delta_se &&
                     vs_se < o.max_stribeck_velocity_relative_error * vs && below.size() >= o.minimum_slow_samples &&

@@ -402,6 +402,15 @@ double percentile_in_place(std::span<double> values, double fraction) {
     return values[index];
 }
 
+bool percentile_at_least(std::span<const double> values, double fraction, double threshold) {
+    if (values.empty()) return false;
+    const auto index =
+        static_cast<std::size_t>(std::clamp(fraction, 0.0, 1.0) * static_cast<double>(values.size() - 1));
+    std::size_t below = 0;
+    for (const double v : values) below += v < threshold ? 1 : 0;
+    return below <= index;
+}
+
 namespace {
 template <class Compare>
 std::vector<double> running_extreme(std::span<const double> x, std::size_t half, Compare better) {

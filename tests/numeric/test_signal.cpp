@@ -220,6 +220,29 @@ TEST(Percentile, LongColumnsGiveTheElementOfTheRankExactly) {
     }
 }
 
+// The counted test agrees with the element of the rank at thresholds just below, at and just above it (ties too),
+// and says no for no values.
+TEST(Percentile, AtLeastAgreesWithTheElementOfTheRank) {
+    const std::size_t n = 10'001;
+    std::uint64_t state = 7;
+    std::vector<double> random(n), ties(n);
+    for (std::size_t k = 0; k < n; ++k) {
+        state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+        random[k] = static_cast<double>(state >> 11) * 0x1.0p-53;
+        ties[k] = std::floor(4.0 * random[k]);
+    }
+    for (const auto& column : {random, ties}) {
+        for (const double fraction : {0.0, 0.1, 0.5, 0.9, 1.0}) {
+            const double element = feedid::percentile(column, fraction);
+            for (const double threshold : {std::nextafter(element, -1e9), element, std::nextafter(element, 1e9)}) {
+                EXPECT_EQ(feedid::percentile_at_least(column, fraction, threshold), element >= threshold)
+                    << fraction << " " << threshold;
+            }
+        }
+    }
+    EXPECT_FALSE(feedid::percentile_at_least(std::vector<double>{}, 0.5, 0.0));
+}
+
 TEST(RunningExtremes, AreTheWindowsMinimumAndMaximum) {
     std::vector<double> x(2'000);
     std::uint64_t state = 99;

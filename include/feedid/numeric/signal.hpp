@@ -70,6 +70,9 @@ double noise_floor(std::span<const double> x);
 double percentile(std::vector<double> values, double fraction);
 /// The same in place: reorders `values` (no copy), so that several percentiles of one buffer cost no memory.
 double percentile_in_place(std::span<double> values, double fraction);
+/// Whether percentile(values, fraction) >= threshold, by counting in one pass (no selection, no reordering): the
+/// element of rank r is at least `threshold` exactly when at most r values lie below it. False for no values.
+bool percentile_at_least(std::span<const double> values, double fraction, double threshold);
 
 /// The minimum (maximum) of x over [k - half, k + half], for every k, in O(n) (a monotonic queue of indices).
 std::vector<double> running_minimum(std::span<const double> x, std::size_t half);
