@@ -868,18 +868,16 @@ void detect_process_forces(const Derivatives& d, const Selection& selection, boo
         largest.values.push_back(std::make_shared<const std::vector<double>>(std::move(timing)));
         largest.columns.push_back(RegressorColumn{Term::offset, Direction::both});
     }
-    const std::vector<double> force = at_rows(d.force, rows);
-    const Eigen::VectorXd theta = robust_fit(largest, force, options.tukey_constant);
+    // the force at step 1's rows becomes the fit's residual in place, and is released before the steady passes'
+    // levels are formed: one column of step 1's length at a time besides the robust scale's copy (identify's peak)
+    std::vector<double> fast = at_rows(d.force, rows);
+    const Eigen::VectorXd theta = robust_fit(largest, fast, options.tukey_constant);
     const double mass = theta(0);
     Eigen::VectorXd phi(static_cast<Eigen::Index>(largest.parameters()));
-    std::vector<double> fast(rows.size());
     for (std::size_t i = 0; i < rows.size(); ++i) {
         largest.row(i, phi.data());
-        fast[i] = force[i] - phi.dot(theta);
+        fast[i] -= phi.dot(theta);
     }
-    std::vector<std::size_t> slow_index;
-    std::vector<double> slow;
-    steady_pass_levels(d, selection, mass, slow_index, slow);
     const std::size_t correlation = std::max<std::size_t>(1, d.correlation_samples);
     const auto minimum = static_cast<std::size_t>(std::max(
         options.burst_correlation_lengths * static_cast<double>(correlation), options.burst_min_s / d.sample_time_s));
@@ -898,6 +896,10 @@ void detect_process_forces(const Derivatives& d, const Selection& selection, boo
     if (fast_scale > 0.0)
         find_bursts(d, rows, fast, std::max(options.burst_deviations * fast_scale, floor), minimum, correlation,
                     bursts);
+    std::vector<double>().swap(fast);
+    std::vector<std::size_t> slow_index;
+    std::vector<double> slow;
+    steady_pass_levels(d, selection, mass, slow_index, slow);
     const double slow_scale = robust_deviation(slow);
     if (slow_scale > 0.0)
         find_bursts(d, slow_index, slow, std::max(options.burst_deviations * slow_scale, floor), minimum, correlation,
@@ -1160,11 +1162,14 @@ ModelCandidate low_speed_asymmetry(const Derivatives& d, const Selection& select
     low = std::max(low, 1e-12);
     const double span = std::log(std::max(high / low, 1.0 + 1e-9));
     // the symmetric model with an offset on the whole trace: the slow rows are about half of it, and its x'', x'
-    // and sgn(x') columns are views of columns held anyway
+    // and sgn(x') columns are views of columns held anyway; the offset's column, the last, is 1 on every sample
+    // unless decimating (the anti-alias filter scales it), and is then not formed (a whole column at identify's peak)
     Regressors regressors;
     regressors.columns = linear_columns(FrictionModelKind::symmetric, true);
     regressors.output = d.force;
+    const bool constant_offset = d.used.decimation <= 1;
     for (const auto& column : regressors.columns) {
+        if (constant_offset && column.term == Term::offset) continue;
         RegressorValues formed = regressor_values(d, column, cache);
         regressors.values.push_back(formed.values);
         if (formed.owned) regressors.owned.push_back(std::move(formed.owned));
@@ -1172,6 +1177,7 @@ ModelCandidate low_speed_asymmetry(const Derivatives& d, const Selection& select
     std::vector<double> residual(rows.size());
     std::vector<std::size_t> group(rows.size());
     Eigen::VectorXd phi(static_cast<Eigen::Index>(regressors.parameters()));
+    if (constant_offset) phi(phi.size() - 1) = 1.0;  // row() fills the formed columns before it
     for (std::size_t i = 0; i < rows.size(); ++i) {
         const std::size_t k = rows[i];
         residual[i] = regressors.row(k, phi.data()) - phi.dot(fit.estimate);
