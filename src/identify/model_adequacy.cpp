@@ -1045,11 +1045,15 @@ struct GroupMean {
     double variance_of_mean{0.0};
 };
 
+/// A residual's group: a byte (the groupings below have at most 16 groups; a value of `groups` or more is in none),
+/// so that three groupings of the checked rows hold 3 bytes per row, not 24.
+using GroupIndex = std::uint8_t;
+
 /// totals[g] += term(i) over the i in order whose group[i] == g (< groups), and counts[g] the number of them: each
 /// group's total held in a register while consecutive i stay in that group (the same sums, in the same order, as adding
 /// into the array at every i, without storing and reloading it at every i).
 template <class Term>
-void add_by_group(const std::vector<std::size_t>& group, std::size_t groups, std::vector<double>& totals,
+void add_by_group(const std::vector<GroupIndex>& group, std::size_t groups, std::vector<double>& totals,
                   std::vector<std::size_t>& counts, Term term) {
     std::size_t open = groups, run = 0;
     double total = 0.0;
@@ -1079,7 +1083,7 @@ void add_by_group(const std::vector<std::size_t>& group, std::size_t groups, std
 /// integrated autocorrelation time of the residual's deviations from the group means (on a slow pass the residual
 /// wanders together for seconds), at least one.
 std::vector<GroupMean> group_means(const std::vector<std::size_t>& rows, const std::vector<double>& residual,
-                                   const std::vector<std::size_t>& group, std::size_t groups) {
+                                   const std::vector<GroupIndex>& group, std::size_t groups) {
     std::vector<GroupMean> means(groups);
     std::vector<double> sums(groups, 0.0), squares(groups, 0.0);
     std::vector<std::size_t> counts(groups, 0), unused(groups, 0);
@@ -1175,14 +1179,14 @@ ModelCandidate low_speed_asymmetry(const Derivatives& d, const Selection& select
         if (formed.owned) regressors.owned.push_back(std::move(formed.owned));
     }
     std::vector<double> residual(rows.size());
-    std::vector<std::size_t> group(rows.size());
+    std::vector<GroupIndex> group(rows.size());
     Eigen::VectorXd phi(static_cast<Eigen::Index>(regressors.parameters()));
     if (constant_offset) phi(phi.size() - 1) = 1.0;  // row() fills the formed columns before it
     for (std::size_t i = 0; i < rows.size(); ++i) {
         const std::size_t k = rows[i];
         residual[i] = regressors.row(k, phi.data()) - phi.dot(fit.estimate);
         const int b = std::clamp(static_cast<int>(bins * std::log(std::abs(d.velocity[k]) / low) / span), 0, bins - 1);
-        group[i] = 2 * static_cast<std::size_t>(b) + (d.velocity[k] > 0.0 ? 0 : 1);
+        group[i] = static_cast<GroupIndex>(2 * b + (d.velocity[k] > 0.0 ? 0 : 1));
     }
     const std::vector<GroupMean> cells = group_means(rows, residual, group, 2 * bins);
     double chi_square = 0.0;
@@ -1405,16 +1409,17 @@ std::vector<FitCheck> check_fit(const Derivatives& d, const Selection& selection
     const double span = std::log(std::max(high / low, 1.0 + 1e-9));
     const std::vector<double> accelerations = quantile_edges(d.acceleration, rows, acceleration_bins);
     std::vector<double> residual(rows.size());
-    std::vector<std::size_t> by_speed(rows.size()), by_acceleration(rows.size()), by_time(rows.size());
+    std::vector<GroupIndex> by_speed(rows.size()), by_acceleration(rows.size()), by_time(rows.size());
     const LogSpeedGroups speed_group(low, span, speed_bins);
     for (std::size_t i = 0; i < rows.size(); ++i) {
         const std::size_t k = rows[i];
         const double v = d.velocity[k];
         residual[i] = d.force[k] - axis.mass * d.acceleration[k] - axis.friction.force(v) - axis.offset;
         const std::size_t direction = v > 0.0 ? 0 : 1;
-        by_speed[i] = direction * speed_bins + speed_group(std::abs(v));
-        by_acceleration[i] = direction * acceleration_bins + group_of(d.acceleration[k], accelerations);
-        by_time[i] = i * time_bins / rows.size();
+        by_speed[i] = static_cast<GroupIndex>(direction * speed_bins + speed_group(std::abs(v)));
+        by_acceleration[i] =
+            static_cast<GroupIndex>(direction * acceleration_bins + group_of(d.acceleration[k], accelerations));
+        by_time[i] = static_cast<GroupIndex>(i * time_bins / rows.size());
     }
     Groups speed{group_means(rows, residual, by_speed, 2 * speed_bins), {}};
     Groups acceleration{group_means(rows, residual, by_acceleration, 2 * acceleration_bins), {}};
