@@ -618,15 +618,19 @@ IdentifyResult fit_steps(IdentifyResult result, const Derivatives& derivatives, 
     }
     const bool any_null = std::any_of(result.parameters.begin(), result.parameters.end(),
                                       [](const Parameter& p) { return !p.estimate.value; });
-    const bool fits = check_model_fit(result, derivatives, selection, options);
+    // the family's reruns report their estimates alone: the fit checks would only scale standard errors nobody reads
+    const bool fits = options.estimates_only || check_model_fit(result, derivatives, selection, options);
     result.status = any_null || !fits ? Status::partial : Status::ok;
     return result;
 }
 
-/// The first stage's output and the regressors that view it: what runs with the same preprocessing share.
+/// The first stage's output and the regressors that view it: what runs with the same preprocessing share. With it,
+/// the part of the selection that no split speed and no model changes (the moving samples, the quasi-static flags,
+/// the stick-slip passes), kept by a run for the next one on these samples (the family's split variant).
 struct Preprocessed {
     Derivatives derivatives;
     Regressors regressors;
+    std::optional<MovingSamples> moving{};
 };
 
 /// What the model-adequacy stage needs to know of the drive signal beyond the Derivatives: whether its zero was
@@ -661,14 +665,17 @@ DriveSignalFacts drive_signal_facts(const Trace& trace, std::span<const double> 
 
 /// Stages 2 to 4 (selection, resolution check, model adequacy, steps 1 and 2) on preprocessed samples. The
 /// model-adequacy stage may read the drive force later (a delay) and choose another model than the regressors were
-/// built for: the force in `p` is then shifted and the regressors rebuilt.
+/// built for: the force in `p` is then shifted and the regressors rebuilt. The selection starts from the moving
+/// samples `p` holds, when an earlier run kept them; with `keep_moving`, this run's go back into `p`.
 IdentifyResult run_stages_on(IdentifyResult result, Preprocessed& p, const IdentifyOptions& options,
-                             const DriveSignalFacts& drive) {
+                             const DriveSignalFacts& drive, bool keep_moving = false) {
     Derivatives& derivatives = p.derivatives;
     SelectionOptions selection_options = options.selection;
     selection_options.stribeck = options.stribeck;
     selection_options.minimum_step1_samples_per_parameter = options.step1.minimum_samples_per_parameter;
-    Selection selection = select_samples(derivatives, p.regressors, selection_options);
+    MovingSamples moving = p.moving ? std::move(*p.moving) : select_moving_samples(derivatives, selection_options);
+    p.moving.reset();
+    Selection selection = select_samples(derivatives, p.regressors, selection_options, std::move(moving));
     result.preprocessing = derivatives.used;
     result.selection = selection.report;
     // what was left out because the data there is not the model's, said where every reader looks
@@ -704,8 +711,9 @@ IdentifyResult run_stages_on(IdentifyResult result, Preprocessed& p, const Ident
         if (choice.model == FrictionModelKind::asymmetric) columns.reset();
         p.regressors = build_regressors(derivatives, choice.model, choice.offset, columns.get());
         columns.reset();
+        MovingSamples again = release_moving_samples(std::move(selection));  // no model changes them
         selection = Selection{};
-        selection = select_samples(derivatives, p.regressors, selection_options);
+        selection = select_samples(derivatives, p.regressors, selection_options, std::move(again));
         result.selection = selection.report;
     }
     if (result.model != choice.model || result.offset != choice.offset) {
@@ -718,7 +726,9 @@ IdentifyResult run_stages_on(IdentifyResult result, Preprocessed& p, const Ident
     result.model_choice = choice;
     widen_correlation_block(derivatives, p.regressors, selection, chosen, result.model_choice);
     const ModelChoice final_choice = *result.model_choice;  // result moves into fit_steps
-    return fit_steps(std::move(result), derivatives, p.regressors, selection, chosen, final_choice);
+    result = fit_steps(std::move(result), derivatives, p.regressors, selection, chosen, final_choice);
+    if (keep_moving) p.moving = release_moving_samples(std::move(selection));
+    return result;
 }
 
 /// The four stages on a drive force (N, or the drive signal's own unit when no constant is known). A trace too
@@ -740,7 +750,7 @@ IdentifyResult run_stages(const Trace& trace, const DriveConstants& drive, const
     result.diagnostics.insert(result.diagnostics.end(), p.derivatives.notes.begin(), p.derivatives.notes.end());
     if (p.derivatives.failed()) return failed(std::move(result), p.derivatives.failure);
     p.regressors = build_regressors(p.derivatives, options.model, options.offset);
-    result = run_stages_on(std::move(result), p, options, facts);
+    result = run_stages_on(std::move(result), p, options, facts, keep != nullptr);
     if (keep != nullptr) keep->emplace(std::move(p));
     return result;
 }
@@ -855,16 +865,15 @@ void assess_systematic(const Trace& trace, const IdentifyOptions& options, std::
         result.selection ? std::max(result.selection->split_velocity, result.selection->initial_split) : 0.0;
     const auto family = preprocessing_family(options.preprocess, *result.preprocessing, interval, split,
                                              naming.display_velocity_scale(), naming.display_velocity_unit());
-    // the members with the nominal preprocessing first, on the nominal run's samples, which are then released
+    // the members with the nominal preprocessing first, on the nominal run's samples and moving samples (no split
+    // changes those), which are then released
     std::vector<std::optional<IdentifyResult>> shared(family.size());
+    const DriveSignalFacts aligned{drive_tared(trace), result.model_choice ? result.model_choice->rest : std::nullopt};
     for (std::size_t v = 0; v < family.size(); ++v) {
         if (!family[v].split_velocity || !nominal) continue;
         IdentifyResult start = start_result(trace, shared_options);
         start.diagnostics = nominal->derivatives.notes;  // as the stages would have noted them again
-        shared[v] = run_stages_on(std::move(start), *nominal, member_options(shared_options, family[v]),
-                                  DriveSignalFacts{drive_tared(trace), result.model_choice
-                                                                           ? result.model_choice->rest
-                                                                           : std::nullopt});
+        shared[v] = run_stages_on(std::move(start), *nominal, member_options(shared_options, family[v]), aligned, true);
     }
     nominal.reset();
     auto runs = run_family(trace, variant_options, family, facts);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 
 #include <fmt/core.h>
 
@@ -240,14 +241,48 @@ double default_split(const Derivatives& d, const SelectionOptions& options, doub
 
 }  // namespace
 
-Selection select_samples(const Derivatives& d, const Regressors& r, const SelectionOptions& options) {
-    const Units units{ParameterNaming{d.rotary}};
+MovingSamples select_moving_samples(const Derivatives& d, const SelectionOptions& options) {
     Selection s;
     s.report.total = d.total;
     s.report.window = d.window;
+    select_moving(d, options, max_speed(d), s);
+    return MovingSamples{std::move(s.report), std::move(s.moving), quasi_static_flags(d, options),
+                         std::move(s.stick_slip)};
+}
+
+MovingSamples release_moving_samples(Selection&& selection) {
+    MovingSamples moving;
+    moving.report.total = selection.report.total;
+    moving.report.window = selection.report.window;
+    moving.report.moving = selection.report.moving;
+    moving.report.passes = selection.report.passes;
+    moving.report.stick_slip_passes = selection.report.stick_slip_passes;
+    moving.report.stick_slip_samples = selection.report.stick_slip_samples;
+    moving.report.clipped = selection.report.clipped;
+    moving.report.moving_threshold = selection.report.moving_threshold;
+    auto& notes = selection.report.notes;
+    const auto kept = static_cast<std::ptrdiff_t>(std::min(selection.moving_notes, notes.size()));
+    moving.report.notes.assign(std::make_move_iterator(notes.begin()), std::make_move_iterator(notes.begin() + kept));
+    moving.moving = std::move(selection.moving);
+    moving.quasi_static = std::move(selection.quasi_static);
+    moving.stick_slip = std::move(selection.stick_slip);
+    return moving;
+}
+
+Selection select_samples(const Derivatives& d, const Regressors& r, const SelectionOptions& options) {
+    return select_samples(d, r, options, select_moving_samples(d, options));
+}
+
+Selection select_samples(const Derivatives& d, const Regressors& r, const SelectionOptions& options,
+                         MovingSamples moving) {
+    const Units units{ParameterNaming{d.rotary}};
+    Selection s;
+    s.report = std::move(moving.report);
+    s.moving_notes = s.report.notes.size();
+    s.moving = std::move(moving.moving);
+    s.quasi_static = std::move(moving.quasi_static);
+    s.stick_slip = std::move(moving.stick_slip);
     const double fastest = max_speed(d);
-    select_moving(d, options, fastest, s);
-    s.quasi_static = quasi_static_flags(d, options);
     const double threshold = s.report.moving_threshold;
     double split =
         std::max(options.split_velocity ? *options.split_velocity : default_split(d, options, fastest, s), threshold);

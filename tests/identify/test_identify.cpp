@@ -242,6 +242,28 @@ TEST(IdentifySynthetic, PerDirectionFrictionWithSlowPasses) {
     }
 }
 
+TEST(IdentifyFamily, EstimatesOnlyRerunsGiveTheEstimatesWithoutTheFitChecks) {
+    // the preprocessing family's reruns (estimates_only) skip the lack-of-fit checks: those scale standard errors and
+    // may set the status partial, they never move an estimate
+    const auto trace = synthetic_trace(asymmetric_drive, slow_and_fast, 7);
+    auto options = options_for(feedid::FrictionModelKind::asymmetric);
+    options.systematic = false;
+    const auto full = feedid::identify(trace, options);
+    options.estimates_only = true;
+    const auto rerun = feedid::identify(trace, options);
+    ASSERT_NE(full.status, feedid::Status::failed) << document_of(full).dump(1);
+    ASSERT_TRUE(full.model_choice && rerun.model_choice);
+    EXPECT_FALSE(full.model_choice->fit_checks.empty());
+    EXPECT_TRUE(rerun.model_choice->fit_checks.empty());
+    ASSERT_EQ(full.parameters.size(), rerun.parameters.size());
+    for (std::size_t i = 0; i < full.parameters.size(); ++i) {
+        SCOPED_TRACE(full.parameters[i].key);
+        ASSERT_TRUE(full.parameters[i].estimate.value && rerun.parameters[i].estimate.value);
+        EXPECT_NEAR(*rerun.parameters[i].estimate.value, *full.parameters[i].estimate.value,
+                    1e-12 * std::abs(*full.parameters[i].estimate.value));
+    }
+}
+
 TEST(IdentifySynthetic, SymmetricDriveWithAnOffset) {
     const Drive drive{120.0, {60.0, 300.0, 380.0, 0.003}, {60.0, 300.0, 380.0, 0.003}, 150.0};
     const auto trace = synthetic_trace(drive, slow_and_fast, 11);

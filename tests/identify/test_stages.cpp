@@ -157,6 +157,48 @@ TEST(Selection, CountsEverySampleByReason) {
     EXPECT_EQ(s.step2[250], 1425u);
 }
 
+/// Everything a selection holds, for comparing two.
+void expect_same_selection(const feedid::Selection& a, const feedid::Selection& b) {
+    EXPECT_EQ(a.moving, b.moving);
+    EXPECT_EQ(a.step1, b.step1);
+    EXPECT_EQ(a.step2, b.step2);
+    EXPECT_EQ(a.quasi_static, b.quasi_static);
+    EXPECT_EQ(a.resting_reach, b.resting_reach);
+    EXPECT_EQ(a.stick_slip.flags, b.stick_slip.flags);
+    EXPECT_EQ(a.stick_slip.passes.size(), b.stick_slip.passes.size());
+    EXPECT_EQ(a.report.notes, b.report.notes);
+    EXPECT_EQ(a.moving_notes, b.moving_notes);
+    EXPECT_EQ(a.report.moving, b.report.moving);
+    EXPECT_EQ(a.report.step1, b.report.step1);
+    EXPECT_EQ(a.report.step2, b.report.step2);
+    EXPECT_EQ(a.report.near_rest, b.report.near_rest);
+    EXPECT_EQ(a.report.passes, b.report.passes);
+    EXPECT_DOUBLE_EQ(a.report.moving_threshold, b.report.moving_threshold);
+    EXPECT_DOUBLE_EQ(a.report.split_velocity, b.report.split_velocity);
+    EXPECT_DOUBLE_EQ(a.report.initial_split, b.report.initial_split);
+    EXPECT_DOUBLE_EQ(a.stribeck_band, b.stribeck_band);
+}
+
+TEST(Selection, AnotherSplitFromTheMovingSamplesOfOneSelectionIsTheSameAsSelectingAgain) {
+    // the preprocessing family's split variant takes the nominal run's moving samples, quasi-static flags and
+    // stick-slip passes: its selection must be the one select_samples() makes at that split
+    const Derivatives d = piecewise_constant_motion();
+    const auto regressors = feedid::build_regressors(d, feedid::FrictionModelKind::symmetric, false);
+    feedid::SelectionOptions nominal;
+    nominal.moving_threshold = 1e-4;  // the split from the data (default, Stribeck checks)
+    for (const double split : {0.0015, 0.003, 0.01, 0.05}) {
+        feedid::Selection first = feedid::select_samples(d, regressors, nominal);
+        feedid::SelectionOptions at_split = nominal;
+        at_split.split_velocity = split;
+        const feedid::Selection again = feedid::select_samples(d, regressors, at_split);
+        const feedid::Selection shared =
+            feedid::select_samples(d, regressors, at_split, feedid::release_moving_samples(std::move(first)));
+        SCOPED_TRACE(split);
+        ASSERT_FALSE(again.step1.empty());
+        expect_same_selection(again, shared);
+    }
+}
+
 TEST(Selection, WithoutStribeckEveryMovingSampleIsStep1) {
     const Derivatives d = piecewise_constant_motion();
     const auto regressors = feedid::build_regressors(d, feedid::FrictionModelKind::symmetric, false);

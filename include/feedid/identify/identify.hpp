@@ -52,8 +52,9 @@ struct IdentifyOptions {
     /// the calling thread (a batch that runs one identify per core already). Reruns go in parallel only while their
     /// buffers fit identify's memory budget (100 bytes per sample with the trace): with today's stages, one at a time.
     unsigned threads{0};
-    /// The parameters and the status alone: no RLS run, no log-linear Stribeck fit and no friction-curve points
-    /// (what the preprocessing family's reruns need).
+    /// The parameters and the status alone: no RLS run, no log-linear Stribeck fit, no friction-curve points and no
+    /// lack-of-fit checks (what the preprocessing family's reruns need; their status is then partial only where a
+    /// parameter is null, never for a failed fit check, which would only have scaled their standard errors).
     bool estimates_only{false};
     /// A systematic part above this multiple of the standard error is said in a finding.
     double systematic_finding_multiple{2.0};

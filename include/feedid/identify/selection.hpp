@@ -70,8 +70,20 @@ struct SelectionReport {
     std::vector<std::string> notes;  ///< why samples were dropped, in words
 };
 
+/// The part of a selection that depends neither on the split speed nor on the regressors: the moving threshold, the
+/// moving samples, the quasi-static flags and the stick-slip passes. Selections of one Derivatives at another split
+/// (the preprocessing family's split variant) or for another model (after the model-adequacy stage) share it.
+struct MovingSamples {
+    SelectionReport report;  ///< the counts and notes of this part (total, window, moving, passes, clipped, threshold)
+    std::vector<std::size_t> moving;  ///< indices into Derivatives, ascending
+    std::vector<char> quasi_static;   ///< per sample of Derivatives
+    StickSlip stick_slip;
+};
+
 struct Selection {
     SelectionReport report;
+    /// The first this many of report.notes are the moving samples' (MovingSamples).
+    std::size_t moving_notes{0};
     std::vector<std::size_t> moving;  ///< indices into Derivatives, ascending
     std::vector<std::size_t> step1;   ///< ascending
     std::vector<std::size_t> step2;   ///< ascending
@@ -93,5 +105,18 @@ struct Selection {
 /// Selects the samples of each step. The Stribeck checks (is the band above the split still Stribeck? may the slow
 /// ramp samples join step 1?) fit the step-1 model, hence the regressors.
 Selection select_samples(const Derivatives& derivatives, const Regressors& regressors, const SelectionOptions& options);
+
+/// The moving samples, the quasi-static flags and the stick-slip passes (the first part of select_samples()).
+MovingSamples select_moving_samples(const Derivatives& derivatives, const SelectionOptions& options);
+
+/// select_samples() with its first part done already: `moving` must come from select_moving_samples() on the same
+/// Derivatives with the same moving threshold, stick-slip and quasi-static options (the split, the Stribeck checks
+/// and the regressors may differ). The selection holds the moved-in samples; the result is select_samples()'s.
+Selection select_samples(const Derivatives& derivatives, const Regressors& regressors, const SelectionOptions& options,
+                         MovingSamples moving);
+
+/// The first part back out of a selection, for another selection of the same Derivatives (`selection` is left
+/// without its moving samples, quasi-static flags and stick-slip passes).
+MovingSamples release_moving_samples(Selection&& selection);
 
 }  // namespace feedid
