@@ -260,6 +260,63 @@ void filter_columns(const std::vector<Column>& in, double a, double mu, const st
     if (out.column_squares.size() != out.columns.size()) out.column_squares.clear();
 }
 
+// The drive filter at any mu from its response at mu = 0: L is linear in its input and starts in steady state, so
+//   L_(a,mu)[u](k) = (1 - mu)*L_(a,0)[u](k) + mu*L_(a,0)[u](k - 1)
+// (L_(a,0)[u](-1) = u(0)). The normal equations of every mu at one lag are therefore combinations of the Gram matrix
+// of z = L_(a,0)[u] of each column, z(k - 1) and the drive signal y: (z_1..z_Q, z_1(k-1)..z_Q(k-1), y), summed over
+// the used rows in one pass that filters on the way, a block of rows at a time as GramMatrix sums them.
+template <std::size_t Q>
+GramMatrix lag_gram_of(const std::vector<Column>& in, double a, const std::vector<char>& use, const Column& y) {
+    constexpr std::size_t width = 2 * Q + 1;
+    constexpr std::size_t block_rows = 4096;
+    std::array<const double*, Q> from{};
+    std::array<double, width> value{};  // z(k), z(k - 1), y(k)
+    std::array<double, width * width> lower{};
+    for (std::size_t j = 0; j < Q; ++j) {
+        from[j] = in[j].data();
+        value[j] = in[j].front();
+    }
+    Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(width, width);
+    for (std::size_t start = 0; start < y.size(); start += block_rows) {
+        lower.fill(0.0);
+        const std::size_t end = std::min(y.size(), start + block_rows);
+        for (std::size_t k = start; k < end; ++k) {
+            for (std::size_t j = 0; j < Q; ++j) {
+                value[Q + j] = value[j];
+                value[j] = a * value[j] + (1.0 - a) * from[j][k];
+            }
+            if (!use[k]) continue;
+            value[2 * Q] = y[k];
+            for (std::size_t r = 0; r < width; ++r) {
+                for (std::size_t c = 0; c <= r; ++c) lower[r * width + c] += value[r] * value[c];
+            }
+        }
+        for (std::size_t r = 0; r < width; ++r) {
+            for (std::size_t c = 0; c <= r; ++c)
+                gram(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) += lower[r * width + c];
+        }
+    }
+    Eigen::MatrixXd full = gram.selfadjointView<Eigen::Lower>();
+    return GramMatrix(std::move(full));
+}
+
+// The residual sum of squares at each of `mus` from lag_gram_of()'s matrix of Q columns (GramMatrix::solve(): to about
+// 1e-12 of y'y, enough to rank fits that leave the drive signal's noise).
+std::vector<double> residuals_at_each_mu(const GramMatrix& gram, std::size_t q, std::span<const double> mus) {
+    const auto columns = static_cast<Eigen::Index>(q);
+    const Eigen::VectorXd right = Eigen::VectorXd::Unit(2 * columns + 1, 2 * columns);
+    std::vector<double> residuals;
+    for (const double mu : mus) {
+        Eigen::MatrixXd combination = Eigen::MatrixXd::Zero(2 * columns + 1, columns);
+        for (Eigen::Index j = 0; j < columns; ++j) {
+            combination(j, j) = 1.0 - mu;
+            combination(columns + j, j) = mu;
+        }
+        residuals.push_back(gram.solve(combination, right).rss);
+    }
+    return residuals;
+}
+
 NormalSolution normal_solution(const Problem& problem) {
     const auto p = static_cast<Eigen::Index>(problem.columns.size());
     Eigen::VectorXd scale(p);
@@ -1018,17 +1075,7 @@ struct VelocityLoopRegression {
             workspace.problem = servo_rate_problem(s, integral);
             return;
         }
-        auto& unfiltered = workspace.unfiltered;
-        if (unfiltered.empty() || workspace.difference != s.difference ||
-            workspace.reference_delay != s.reference_delay || workspace.integral != integral) {
-            unfiltered.clear();  // released before the next are formed
-            const Column v = measured_velocity(signals, s.difference);
-            unfiltered = signals.logged_command ? command_columns(signals, v, integral)
-                                                : structure_columns(signals, v, s.reference_delay, integral);
-            workspace.difference = s.difference;
-            workspace.reference_delay = s.reference_delay;
-            workspace.integral = integral;
-        }
+        const auto& unfiltered = unfiltered_columns(s, integral, workspace);
         Problem& problem = workspace.problem;
         const double a = lag_coefficient(s.lag_s, signals.dt);
         const bool injection_column = !signals.injection.empty() && !injection_gain_known;
@@ -1043,6 +1090,40 @@ struct VelocityLoopRegression {
         }
         problem.use = &use;
         problem.row_step = static_cast<std::size_t>(signals.hold_factor);
+    }
+
+    // The columns of `s` before the drive filter, kept in `workspace` and formed again only when the velocity
+    // measurement, the reference delay or the integral changes (at the log rate).
+    const std::vector<Column>& unfiltered_columns(const Structure& s, bool integral, ProblemWorkspace& workspace) const {
+        auto& unfiltered = workspace.unfiltered;
+        if (unfiltered.empty() || workspace.difference != s.difference ||
+            workspace.reference_delay != s.reference_delay || workspace.integral != integral) {
+            unfiltered.clear();  // released before the next are formed
+            const Column v = measured_velocity(signals, s.difference);
+            unfiltered = signals.logged_command ? command_columns(signals, v, integral)
+                                                : structure_columns(signals, v, s.reference_delay, integral);
+            workspace.difference = s.difference;
+            workspace.reference_delay = s.reference_delay;
+            workspace.integral = integral;
+        }
+        return unfiltered;
+    }
+
+    /// Whether residuals_over_mu() serves: on the logged samples (no servo grid) without an injection, whose drive
+    /// signal does not change with mu.
+    [[nodiscard]] bool mu_from_shared_sums() const { return grid == nullptr && signals.injection.empty(); }
+
+    /// The residual sums of squares of the structure `s` (its mu aside) at each of `mus`, from one pass over the rows
+    /// for all of them (lag_gram_of()); for ranking structures, not for their final fit.
+    std::vector<double> residuals_over_mu(const Structure& s, bool integral, std::span<const double> mus,
+                                          ProblemWorkspace& workspace) const {
+        const auto& unfiltered = unfiltered_columns(s, integral, workspace);
+        const double a = lag_coefficient(s.lag_s, signals.dt);
+        std::vector<double> residuals;
+        with_column_count(unfiltered.size(), [&](auto q) {
+            residuals = residuals_at_each_mu(lag_gram_of<q()>(unfiltered, a, use, signals.force), q(), mus);
+        });
+        return residuals;
     }
 
     // The same on the servo grid (ServoGrid): the columns and the injection (held over its logged sample) through
@@ -1417,6 +1498,34 @@ public:
     }
     [[nodiscard]] const Structure& best() const { return best_; }
 
+    // The best of `group` (runs of structures that differ only in mu, one run per lag), fitted: where the regression
+    // takes a lag's mus from shared sums (residuals_over_mu()), the group ranked by those residuals and the best of it
+    // fitted alone (consider()), one pass per run instead of three per structure; else each fitted. What a stage
+    // finds next is compared with fitted residuals only.
+    void consider_best_of(const std::vector<Structure>& group) {
+        if (!regression_.mu_from_shared_sums()) {
+            for (const auto& s : group) consider(s);
+            return;
+        }
+        const Structure* best = nullptr;
+        double best_rss = std::numeric_limits<double>::infinity();
+        for (std::size_t first = 0; first < group.size();) {
+            std::size_t last = first + 1;
+            std::vector<double> mus{group[first].mu};
+            for (; last < group.size() && same_but_mu(group[last], group[first]); ++last) mus.push_back(group[last].mu);
+            const auto residuals = regression_.residuals_over_mu(group[first], integral_, mus, workspace_);
+            for (std::size_t i = 0; i < residuals.size(); ++i) {
+                if (residuals[i] < best_rss) best_rss = residuals[i], best = &group[first + i];
+            }
+            first = last;
+        }
+        if (best == nullptr) {  // no fit from the shared sums (dependent columns): each fitted
+            for (const auto& s : group) consider(s);
+            return;
+        }
+        consider(*best);
+    }
+
     // Takes the best of another search over the same regression when it left less; true when it did.
     bool adopt(const StructureSearch& other) {
         if (!(other.best_rss_ < best_rss_)) return false;
@@ -1426,6 +1535,11 @@ public:
     }
 
 private:
+    static bool same_but_mu(const Structure& a, const Structure& b) {
+        return a.difference == b.difference && a.reference_delay == b.reference_delay && a.lag_s == b.lag_s &&
+               a.servo_delay_cycles == b.servo_delay_cycles;
+    }
+
     const VelocityLoopRegression& regression_;
     bool integral_;
     ProblemWorkspace workspace_;
@@ -1439,14 +1553,18 @@ private:
 // fractional delay for them, then the first stage again with the lag found.
 void search_grid(StructureSearch& search, const SearchSpace& space, const GainOptions& options) {
     const double first_lag = options.current_lag_s.value_or(0.0);
+    std::vector<Structure> group;
     for (int difference : space.differences) {
         for (int d : space.reference_delays) {
-            for (double mu : {0.0, 0.5, 1.0}) search.consider({difference, d, first_lag, mu});
+            for (double mu : {0.0, 0.5, 1.0}) group.push_back({difference, d, first_lag, mu});
         }
     }
+    search.consider_best_of(group);
+    group.clear();
     for (double lag : space.lags) {
-        for (double mu : mu_grid) search.consider({search.best().difference, search.best().reference_delay, lag, mu});
+        for (double mu : mu_grid) group.push_back({search.best().difference, search.best().reference_delay, lag, mu});
     }
+    search.consider_best_of(group);
     const Structure lagged = search.best();
     for (int difference : space.differences) {
         for (int d : space.reference_delays) search.consider({difference, d, lagged.lag_s, lagged.mu});

@@ -4,6 +4,7 @@
 // equations. A structure search that tries hundreds of problems reads the rows once per set of base vectors.
 
 #include <span>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -15,6 +16,9 @@ public:
     /// G = V'V of the base vectors (equal lengths) over the rows k where `use` is non-zero (every row when `use` is
     /// empty), summed row by row.
     GramMatrix(std::span<const std::span<const double>> vectors, std::span<const char> use);
+
+    /// A Gram matrix V'V summed elsewhere (square and symmetric), for a pass that forms its base vectors on the way.
+    explicit GramMatrix(Eigen::MatrixXd gram) : gram_(std::move(gram)) {}
 
     struct Solution {
         Eigen::VectorXd theta;  ///< minimises ||V*c_y - V*C*theta||
