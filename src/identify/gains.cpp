@@ -767,16 +767,25 @@ PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, 
         }
     }
     if (!whole) {
-        // golden section within a step either side; kept only where it fits better than the grid
+        // golden section within a step either side, 24 brackets, each keeping the inner point that stays inner (25
+        // delays fitted); kept only where it fits better than the grid
         double low = std::max(0.0, result.delay - 1.0 / steps), high = result.delay + 1.0 / steps;
         const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
-        for (int round = 0; round < 24; ++round) {
-            const double a = high - ratio * (high - low), b = low + ratio * (high - low);
-            if (rss(a) < rss(b))
-                high = b;
-            else
-                low = a;
+        double inner_low = high - ratio * (high - low), inner_high = low + ratio * (high - low);
+        double rss_low = rss(inner_low), rss_high = rss(inner_high);
+        for (int round = 1; round < 24; ++round) {
+            if (rss_low < rss_high) {
+                high = inner_high, inner_high = inner_low, rss_high = rss_low;
+                inner_low = high - ratio * (high - low), rss_low = rss(inner_low);
+            } else {
+                low = inner_low, inner_low = inner_high, rss_low = rss_high;
+                inner_high = low + ratio * (high - low), rss_high = rss(inner_high);
+            }
         }
+        if (rss_low < rss_high)
+            high = inner_high;
+        else
+            low = inner_low;
         const double refined = 0.5 * (low + high);
         if (const double r = rss(refined); r < best_rss) {
             best_rss = r;
