@@ -264,36 +264,51 @@ void filter_columns(const std::vector<Column>& in, double a, double mu, const st
 //   L_(a,mu)[u](k) = (1 - mu)*L_(a,0)[u](k) + mu*L_(a,0)[u](k - 1)
 // (L_(a,0)[u](-1) = u(0)). The normal equations of every mu at one lag are therefore combinations of the Gram matrix
 // of z = L_(a,0)[u] of each column, z(k - 1) and the drive signal y: (z_1..z_Q, z_1(k-1)..z_Q(k-1), y), summed over
-// the used rows in one pass that filters on the way, a block of rows at a time as GramMatrix sums them.
+// the used rows in one pass that filters on the way, a block of rows at a time as GramMatrix sums them. The sums serve
+// to rank structures, not to fit them, so their order is free: four rows at a time, in two partial sums per entry
+// (which the compiler keeps in vector registers), the filters' recursions running row by row beside them.
 template <std::size_t Q>
 GramMatrix lag_gram_of(const std::vector<Column>& in, double a, const std::vector<char>& use, const Column& y) {
-    constexpr std::size_t width = 2 * Q + 1;
-    constexpr std::size_t block_rows = 4096;
+    constexpr std::size_t width = 2 * Q + 1, entries = width * (width + 1) / 2;
+    constexpr std::size_t lanes = 4, block_rows = 4096;
     std::array<const double*, Q> from{};
-    std::array<double, width> value{};  // z(k), z(k - 1), y(k)
-    std::array<double, width * width> lower{};
+    std::array<double, Q> filtered{};  // z(k)
+    alignas(16) std::array<double, lanes * width> value{};    // z(k), z(k - 1), y(k) of four rows, 0 where unused
+    alignas(16) std::array<double, 2 * entries> partial{};   // the lower triangle's entries, two partial sums each
     for (std::size_t j = 0; j < Q; ++j) {
         from[j] = in[j].data();
-        value[j] = in[j].front();
+        filtered[j] = in[j].front();
     }
     Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(width, width);
-    for (std::size_t start = 0; start < y.size(); start += block_rows) {
-        lower.fill(0.0);
-        const std::size_t end = std::min(y.size(), start + block_rows);
-        for (std::size_t k = start; k < end; ++k) {
-            for (std::size_t j = 0; j < Q; ++j) {
-                value[Q + j] = value[j];
-                value[j] = a * value[j] + (1.0 - a) * from[j][k];
+    const std::size_t n = y.size();
+    for (std::size_t start = 0; start < n; start += block_rows) {
+        partial.fill(0.0);
+        const std::size_t end = std::min(n, start + block_rows);
+        for (std::size_t k = start; k < end; k += lanes) {
+            for (std::size_t lane = 0; lane < lanes; ++lane) {
+                const std::size_t row = k + lane;
+                const bool used = row < end && use[row] != 0;
+                for (std::size_t j = 0; j < Q; ++j) {
+                    const double previous = filtered[j];
+                    if (row < end) filtered[j] = a * filtered[j] + (1.0 - a) * from[j][row];
+                    value[lanes * j + lane] = used ? filtered[j] : 0.0;
+                    value[lanes * (Q + j) + lane] = used ? previous : 0.0;
+                }
+                value[lanes * 2 * Q + lane] = used ? y[row] : 0.0;
             }
-            if (!use[k]) continue;
-            value[2 * Q] = y[k];
+            std::size_t entry = 0;
             for (std::size_t r = 0; r < width; ++r) {
-                for (std::size_t c = 0; c <= r; ++c) lower[r * width + c] += value[r] * value[c];
+                for (std::size_t c = 0; c <= r; ++c, ++entry) {
+                    const double* u = &value[lanes * r];
+                    const double* v = &value[lanes * c];
+                    partial[2 * entry] += u[0] * v[0] + u[2] * v[2];
+                    partial[2 * entry + 1] += u[1] * v[1] + u[3] * v[3];
+                }
             }
         }
-        for (std::size_t r = 0; r < width; ++r) {
-            for (std::size_t c = 0; c <= r; ++c)
-                gram(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) += lower[r * width + c];
+        std::size_t entry = 0;
+        for (Eigen::Index r = 0; r < static_cast<Eigen::Index>(width); ++r) {
+            for (Eigen::Index c = 0; c <= r; ++c, ++entry) gram(r, c) += partial[2 * entry] + partial[2 * entry + 1];
         }
     }
     Eigen::MatrixXd full = gram.selfadjointView<Eigen::Lower>();
