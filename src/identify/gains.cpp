@@ -35,6 +35,7 @@
 #include "feedid/numeric/least_squares.hpp"
 #include "feedid/numeric/native_interval.hpp"
 #include "feedid/core/parameters.hpp"
+#include "feedid/core/trace.hpp"
 
 namespace feedid {
 
@@ -2400,6 +2401,7 @@ std::string unmapped_injection_message(const InjectionLike& found) {
 GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options,
                           std::span<const double> injection) {
     if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
+    const TimeBaseMemo time_base(trace);  // one pass over the time column for the sample time and the native rate
     const GainSignals signals = gain_signals(trace, drive_force, injection);
     require_following_error(signals);
     GainResult result;
