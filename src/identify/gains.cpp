@@ -165,9 +165,10 @@ void column_squares_of(const Problem& problem, Eigen::VectorXd& squares) {
 /// Phi'Phi (lower triangle) and Phi'y of the used rows, the columns scaled, as a rank update per row would add them.
 template <std::size_t Q>
 void accumulate_normal_of(const Problem& problem, const Eigen::VectorXd& scale, Eigen::MatrixXd& normal,
-                          Eigen::VectorXd& right) {
+                          Eigen::VectorXd& right, double& y_squares) {
     std::array<double, Q * Q> lower{};
     std::array<double, Q> sums{}, phi{}, factor{};
+    double yy = 0.0;
     const auto column = column_pointers<Q>(problem);
     for (std::size_t j = 0; j < Q; ++j) factor[j] = scale(static_cast<Eigen::Index>(j));
     const auto& use = *problem.use;
@@ -179,7 +180,9 @@ void accumulate_normal_of(const Problem& problem, const Eigen::VectorXd& scale, 
             for (std::size_t r = c; r < Q; ++r) lower[r * Q + c] += phi[c] * phi[r];
             sums[c] += phi[c] * y[k];
         }
+        yy += y[k] * y[k];
     }
+    y_squares = yy;
     for (std::size_t r = 0; r < Q; ++r) {
         right(static_cast<Eigen::Index>(r)) = sums[r];
         for (std::size_t c = 0; c <= r; ++c)
@@ -333,9 +336,22 @@ std::vector<double> residuals_at_each_mu(const GramMatrix& gram, std::size_t q, 
     return residuals;
 }
 
-NormalSolution normal_solution(const Problem& problem) {
+// The normal equations of a problem on normalised columns and their solution: the first two passes of
+// normal_solution(), the residual's pass left to residual_squares().
+struct NormalEquations {
+    Eigen::VectorXd scale;   // 1/||column|| (1 for a column of zeros)
+    Eigen::MatrixXd normal;  // Phi'Phi of the scaled columns
+    Eigen::VectorXd right;   // Phi'y
+    Eigen::VectorXd theta;   // the solution, on the scaled columns
+    double y_squares{0.0};   // y'y
+    std::size_t rows{0};     // the rows summed over (at most)
+};
+
+NormalEquations normal_equations(const Problem& problem) {
     const auto p = static_cast<Eigen::Index>(problem.columns.size());
-    Eigen::VectorXd scale(p);
+    NormalEquations equations;
+    Eigen::VectorXd& scale = equations.scale;
+    scale.resize(p);
     const std::size_t count = problem.columns.size();
     if (problem.column_squares.size() == count)
         scale = Eigen::Map<const Eigen::VectorXd>(problem.column_squares.data(), p);
@@ -343,13 +359,55 @@ NormalSolution normal_solution(const Problem& problem) {
         with_column_count(count, [&](auto q) { column_squares_of<q()>(problem, scale); });
     for (Eigen::Index j = 0; j < p; ++j) scale(j) = scale(j) > 0.0 ? 1.0 / std::sqrt(scale(j)) : 1.0;
     Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(p, p);
-    Eigen::VectorXd right = Eigen::VectorXd::Zero(p);
-    with_column_count(count, [&](auto q) { accumulate_normal_of<q()>(problem, scale, normal, right); });
-    normal = normal.selfadjointView<Eigen::Lower>();
-    const Eigen::VectorXd theta = normal.ldlt().solve(right);
+    equations.right = Eigen::VectorXd::Zero(p);
+    with_column_count(count, [&](auto q) {
+        accumulate_normal_of<q()>(problem, scale, normal, equations.right, equations.y_squares);
+    });
+    equations.normal = normal.selfadjointView<Eigen::Lower>();
+    equations.theta = equations.normal.ldlt().solve(equations.right);
+    equations.rows = problem.y().size();
+    return equations;
+}
+
+// sum (y - Phi*theta)^2 over the used rows, the residual's pass (infinity where it is not a finite number).
+double residual_squares(const Problem& problem, const NormalEquations& equations) {
     double rss = 0.0;
-    with_column_count(count, [&](auto q) { rss = residual_squares_of<q()>(problem, scale, theta); });
-    return {theta.cwiseProduct(scale), std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity()};
+    with_column_count(problem.columns.size(),
+                      [&](auto q) { rss = residual_squares_of<q()>(problem, equations.scale, equations.theta); });
+    return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
+}
+
+// A number that residual_squares() is never below, from the normal equations alone (-infinity where they give
+// none). For the theta solved, sum (y - Phi*theta)^2 = y'y - 2*theta'Phi'y + theta'Phi'Phi*theta exactly. The sums
+// of n products and the residual's pass each round by at most gamma_n = n*u/(1 - n*u) of the sum of their terms'
+// magnitudes (u the unit roundoff; Higham, Accuracy and Stability of Numerical Algorithms, 2nd ed. 2002, eq. 3.5),
+// which Cauchy-Schwarz and Minkowski bound by M^2, M = ||y|| + sum_j |theta_j|*||phi_j||; the residual's rows round
+// by gamma_(p+2)*(|y_k| + sum_j |phi_kj*theta_j|), whose norm is at most gamma_(p+2)*M. Taken twice over.
+double residual_lower_bound(const NormalEquations& equations) {
+    const Eigen::VectorXd& theta = equations.theta;
+    if (!theta.allFinite() || !std::isfinite(equations.y_squares)) return -std::numeric_limits<double>::infinity();
+    const double unit = 0.5 * std::numeric_limits<double>::epsilon();
+    const auto gamma = [&](double n) { return n * unit < 0.01 ? n * unit / (1.0 - n * unit) : 1.0; };
+    const auto p = static_cast<double>(theta.size());
+    const double sums = gamma(static_cast<double>(equations.rows) + 1.0), rows = gamma(p + 2.0);
+    double magnitude = std::sqrt(equations.y_squares);
+    for (Eigen::Index j = 0; j < theta.size(); ++j)
+        magnitude += std::abs(theta(j)) * std::sqrt(std::abs(equations.normal(j, j)));
+    magnitude *= 1.01;  // ||phi_j||^2 itself a rounded sum
+    const double m2 = magnitude * magnitude;
+    const double form = equations.y_squares - 2.0 * equations.right.dot(theta) + theta.dot(equations.normal * theta);
+    const double form_error = sums * m2 + gamma(2.0 * p + 3.0) * 2.0 * m2;
+    const double exact_at_most = std::max(form, 0.0) + form_error;
+    const double pass_error = 2.0 * rows * magnitude * std::sqrt(exact_at_most) + rows * rows * m2 +
+                              sums * (std::sqrt(exact_at_most) + rows * magnitude) *
+                                  (std::sqrt(exact_at_most) + rows * magnitude);
+    const double bound = form - 2.0 * (form_error + pass_error);
+    return std::isfinite(bound) ? bound : -std::numeric_limits<double>::infinity();
+}
+
+NormalSolution normal_solution(const Problem& problem) {
+    const NormalEquations equations = normal_equations(problem);
+    return {equations.theta.cwiseProduct(equations.scale), residual_squares(problem, equations)};
 }
 
 double residual_sum_of_squares(const Problem& problem) { return normal_solution(problem).rss; }
@@ -762,14 +820,29 @@ PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, 
     Problem problem;  // refilled for each delay
     problem.share_y(signals.velocity_command);
     problem.use = &use;
-    std::vector<std::pair<double, double>> fitted;  // each delay fitted and its residual sum of squares
-    const auto rss = [&](double delay) {
-        const auto found = std::find_if(fitted.begin(), fitted.end(), [&](const auto& f) { return f.first == delay; });
-        if (found != fitted.end()) return found->second;
-        position_loop_columns(signals, delay, feedforward, use, problem);
-        fitted.emplace_back(delay, residual_sum_of_squares(problem));
-        return fitted.back().second;
+    struct Fitted {
+        double delay;
+        double rss;  // or, where not exact, a bound it is not below (residual_lower_bound())
+        bool exact;
     };
+    std::vector<Fitted> fitted;  // each delay fitted
+    // The residual sum of squares at a delay where it may be below `below`, else a bound at least `below` (the
+    // residual's pass left out); each delay fitted once.
+    const auto rss_below = [&](double delay, double below) {
+        auto found = std::find_if(fitted.begin(), fitted.end(), [&](const auto& f) { return f.delay == delay; });
+        if (found != fitted.end() && (found->exact || found->rss >= below)) return found->rss;
+        position_loop_columns(signals, delay, feedforward, use, problem);
+        const NormalEquations equations = normal_equations(problem);
+        const double at_least = residual_lower_bound(equations);
+        const Fitted now = at_least >= below ? Fitted{delay, at_least, false}
+                                             : Fitted{delay, residual_squares(problem, equations), true};
+        if (found != fitted.end())
+            *found = now;
+        else
+            fitted.push_back(now);
+        return now.rss;
+    };
+    const auto rss = [&](double delay) { return rss_below(delay, std::numeric_limits<double>::infinity()); };
     // with a feed-forward a fraction of a sample is k_ff's doing here (setpoint_fraction())
     const bool whole = signals.hold_factor > 1 || feedforward;
     const int steps = whole ? 1 : delay_steps_per_sample;
@@ -777,7 +850,7 @@ PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, 
     PositionLoopFit result;
     for (int j = 0; j <= 2 * steps; ++j) {
         const double delay = static_cast<double>(j) / steps;
-        if (const double r = rss(delay); r < best_rss) {
+        if (const double r = rss_below(delay, best_rss); r < best_rss) {
             best_rss = r;
             result.delay = delay;
         }
@@ -803,7 +876,7 @@ PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, 
         else
             low = inner_low;
         const double refined = 0.5 * (low + high);
-        if (const double r = rss(refined); r < best_rss) {
+        if (const double r = rss_below(refined, best_rss); r < best_rss) {
             best_rss = r;
             result.delay = refined;
         }
@@ -1513,7 +1586,11 @@ public:
             rss = found->second;
         } else {
             regression_.fill_problem(s, integral_, workspace_);
-            rss = residual_sum_of_squares(workspace_.problem);
+            const NormalEquations equations = normal_equations(workspace_.problem);
+            // a structure that cannot leave less than the best is told by its bound, without the residual's pass
+            // (the bound stands for it here, and when a stage comes back to it: the best only gets smaller)
+            const double at_least = residual_lower_bound(equations);
+            rss = at_least >= best_rss_ ? at_least : residual_squares(workspace_.problem, equations);
             tried_.emplace_back(s, rss);
         }
         if (!(rss < best_rss_)) return false;
