@@ -377,32 +377,10 @@ double residual_squares(const Problem& problem, const NormalEquations& equations
     return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
 }
 
-// A number that residual_squares() is never below, from the normal equations alone (-infinity where they give
-// none). For the theta solved, sum (y - Phi*theta)^2 = y'y - 2*theta'Phi'y + theta'Phi'Phi*theta exactly. The sums
-// of n products and the residual's pass each round by at most gamma_n = n*u/(1 - n*u) of the sum of their terms'
-// magnitudes (u the unit roundoff; Higham, Accuracy and Stability of Numerical Algorithms, 2nd ed. 2002, eq. 3.5),
-// which Cauchy-Schwarz and Minkowski bound by M^2, M = ||y|| + sum_j |theta_j|*||phi_j||; the residual's rows round
-// by gamma_(p+2)*(|y_k| + sum_j |phi_kj*theta_j|), whose norm is at most gamma_(p+2)*M. Taken twice over.
+// A number that residual_squares() is never below, from the normal equations alone (residual_lower_bound()).
 double residual_lower_bound(const NormalEquations& equations) {
-    const Eigen::VectorXd& theta = equations.theta;
-    if (!theta.allFinite() || !std::isfinite(equations.y_squares)) return -std::numeric_limits<double>::infinity();
-    const double unit = 0.5 * std::numeric_limits<double>::epsilon();
-    const auto gamma = [&](double n) { return n * unit < 0.01 ? n * unit / (1.0 - n * unit) : 1.0; };
-    const auto p = static_cast<double>(theta.size());
-    const double sums = gamma(static_cast<double>(equations.rows) + 1.0), rows = gamma(p + 2.0);
-    double magnitude = std::sqrt(equations.y_squares);
-    for (Eigen::Index j = 0; j < theta.size(); ++j)
-        magnitude += std::abs(theta(j)) * std::sqrt(std::abs(equations.normal(j, j)));
-    magnitude *= 1.01;  // ||phi_j||^2 itself a rounded sum
-    const double m2 = magnitude * magnitude;
-    const double form = equations.y_squares - 2.0 * equations.right.dot(theta) + theta.dot(equations.normal * theta);
-    const double form_error = sums * m2 + gamma(2.0 * p + 3.0) * 2.0 * m2;
-    const double exact_at_most = std::max(form, 0.0) + form_error;
-    const double pass_error = 2.0 * rows * magnitude * std::sqrt(exact_at_most) + rows * rows * m2 +
-                              sums * (std::sqrt(exact_at_most) + rows * magnitude) *
-                                  (std::sqrt(exact_at_most) + rows * magnitude);
-    const double bound = form - 2.0 * (form_error + pass_error);
-    return std::isfinite(bound) ? bound : -std::numeric_limits<double>::infinity();
+    return feedid::residual_lower_bound(equations.normal, equations.right, equations.y_squares, equations.theta,
+                                        equations.rows);
 }
 
 NormalSolution normal_solution(const Problem& problem) {
