@@ -457,17 +457,19 @@ Fit fit(const Problem& problem, const RlsOptions& options) {
     }
     const double y_scale =
         std::max(target.norm() / std::sqrt(static_cast<double>(std::max<Eigen::Index>(rows, 1))), 1e-300);
-    const LeastSquaresResult batch = solve_least_squares(phi, target / y_scale);
+    const double target_norm = target.norm() / y_scale;
+    target /= y_scale;  // the scaled target, formed once for the batch fit, its residual and RLS
+    const Eigen::VectorXd& scaled_target = target;
+    const LeastSquaresResult batch = solve_least_squares(phi, scaled_target);
     Fit result;
     result.samples = static_cast<std::size_t>(rows);
     result.rank_deficient = batch.rank_deficient;
     result.relative_error_pct = batch.relative_error_pct;
     if (!batch.rank_deficient) {
-        const Eigen::VectorXd residual = target / y_scale - phi * batch.estimate;
-        result.systematic_error_pct = systematic_error_pct(residual, sample_of_row, target.norm() / y_scale, problem.row_step);
+        const Eigen::VectorXd residual = scaled_target - phi * batch.estimate;
+        result.systematic_error_pct = systematic_error_pct(residual, sample_of_row, target_norm, problem.row_step);
     }
     Eigen::VectorXd rls;
-    const Eigen::VectorXd scaled_target = target / y_scale;
     switch (p) {
         case 1: rls = run_rls<1>(phi, scaled_target, options); break;
         case 2: rls = run_rls<2>(phi, scaled_target, options); break;
