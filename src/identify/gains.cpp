@@ -276,9 +276,9 @@ GramMatrix lag_gram_of(const std::vector<Column>& in, double a, const std::vecto
     constexpr std::size_t width = 2 * Q + 1, entries = width * (width + 1) / 2;
     constexpr std::size_t lanes = 4, block_rows = 4096;
     std::array<const double*, Q> from{};
-    std::array<double, Q> filtered{};  // z(k)
-    alignas(16) std::array<double, lanes * width> value{};    // z(k), z(k - 1), y(k) of four rows, 0 where unused
-    alignas(16) std::array<double, 2 * entries> partial{};   // the lower triangle's entries, two partial sums each
+    std::array<double, Q> filtered{};                       // z(k)
+    alignas(16) std::array<double, lanes * width> value{};  // z(k), z(k - 1), y(k) of four rows, 0 where unused
+    alignas(16) std::array<double, 2 * entries> partial{};  // the lower triangle's entries, two partial sums each
     for (std::size_t j = 0; j < Q; ++j) {
         from[j] = in[j].data();
         filtered[j] = in[j].front();
@@ -1172,7 +1172,8 @@ struct VelocityLoopRegression {
 
     // The columns of `s` before the drive filter, kept in `workspace` and formed again only when the velocity
     // measurement, the reference delay or the integral changes (at the log rate).
-    const std::vector<Column>& unfiltered_columns(const Structure& s, bool integral, ProblemWorkspace& workspace) const {
+    const std::vector<Column>& unfiltered_columns(const Structure& s, bool integral,
+                                                  ProblemWorkspace& workspace) const {
         auto& unfiltered = workspace.unfiltered;
         if (unfiltered.empty() || workspace.difference != s.difference ||
             workspace.reference_delay != s.reference_delay || workspace.integral != integral) {

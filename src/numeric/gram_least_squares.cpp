@@ -65,7 +65,7 @@ GramMatrix::Solution GramMatrix::solve(const Eigen::MatrixXd& C, const Eigen::Ve
 // rounds by at most gamma_(p+2)*(|y_k| + sum_j |phi_kj*theta_j|), whose norm over the rows is at most gamma_(p+2)*M.
 // The bound is the quadratic form less twice all of these.
 double residual_lower_bound(const Eigen::MatrixXd& normal, const Eigen::VectorXd& right, double y_squares,
-                           const Eigen::VectorXd& theta, std::size_t rows) {
+                            const Eigen::VectorXd& theta, std::size_t rows) {
     constexpr double none = -std::numeric_limits<double>::infinity();
     if (!theta.allFinite() || !right.allFinite() || !normal.allFinite() || !std::isfinite(y_squares)) return none;
     const double unit = 0.5 * std::numeric_limits<double>::epsilon();
