@@ -739,6 +739,38 @@ double reference_at(std::span<const double> reference, double at) {
     return reference[i] + f * (reference[i + 1] - reference[i]);
 }
 
+// Whether k - d is exact at every row of a trace of `samples` rows: d a whole number of 1/1024 samples (every delay of
+// the search's grid and of the curvature's steps), k below 2^40.
+bool exact_row_shift(double delay, std::size_t samples) {
+    return delay >= 0.0 && delay < 1e6 && delay * 1024.0 == std::floor(delay * 1024.0) &&
+           samples < (std::size_t{1} << 40);
+}
+
+// e(k) = x_ref(k - d) - x(k) as reference_at() gives it, for a delay with exact_row_shift(): every row between the
+// ends then reads x_ref the same fraction f = ceil(d) - d past the sample k - ceil(d) (reference_at()'s whole part
+// and fraction of the exact k - d), so those rows take the same numbers from contiguous samples without its checks;
+// the ends ask reference_at(). Returns sum e^2 over the rows `use`, in their order.
+double following_error_at_exact_delay(std::span<const double> reference, std::span<const double> position,
+                                      double delay, const std::vector<char>& use, Column& error) {
+    const std::size_t n = position.size();
+    const double upper = std::ceil(delay);
+    const auto shift = static_cast<std::size_t>(upper);
+    const double fraction = upper - delay;
+    std::size_t k = 0;
+    for (; k < n && !(static_cast<double>(k) - delay > 0.0); ++k)
+        error[k] = reference_at(reference, static_cast<double>(k) - delay) - position[k];
+    for (const std::size_t stop = std::min(n, n - 1 + shift); k < stop; ++k) {
+        const std::size_t i = k - shift;
+        error[k] = reference[i] + fraction * (reference[i + 1] - reference[i]) - position[k];
+    }
+    for (; k < n; ++k) error[k] = reference_at(reference, static_cast<double>(k) - delay) - position[k];
+    double squares = 0.0;
+    for (k = 0; k < n; ++k) {
+        if (use[k]) squares += error[k] * error[k];
+    }
+    return squares;
+}
+
 // The position loop's columns for a setpoint delay of `delay` samples: e(k) = x_ref(k - d) - x(k) and, with the
 // feed-forward, the setpoint's velocity there, the slope of the interpolated reference just before k - d (its
 // backward difference for a whole d). A held position (a slower position loop) keeps whole samples and differences
@@ -759,6 +791,11 @@ void position_loop_columns(const GainSignals& signals, double delay, bool feedfo
     columns.resize(feedforward ? 2 : 1);
     Column& error = columns[0];
     error.resize(signals.samples);
+    if (!feedforward && exact_row_shift(delay, signals.samples)) {
+        problem.column_squares.assign(
+            {following_error_at_exact_delay(signals.reference, signals.position, delay, use, error)});
+        return;
+    }
     if (feedforward) columns[1].resize(signals.samples);
     double error_squares = 0.0, velocity_squares = 0.0;
     const std::size_t last = signals.samples - 1;
