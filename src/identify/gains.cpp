@@ -35,6 +35,7 @@
 #include "feedid/numeric/least_squares.hpp"
 #include "feedid/numeric/native_interval.hpp"
 #include "feedid/core/parameters.hpp"
+#include "feedid/core/trace.hpp"
 
 namespace feedid {
 
@@ -164,9 +165,10 @@ void column_squares_of(const Problem& problem, Eigen::VectorXd& squares) {
 /// Phi'Phi (lower triangle) and Phi'y of the used rows, the columns scaled, as a rank update per row would add them.
 template <std::size_t Q>
 void accumulate_normal_of(const Problem& problem, const Eigen::VectorXd& scale, Eigen::MatrixXd& normal,
-                          Eigen::VectorXd& right) {
+                          Eigen::VectorXd& right, double& y_squares) {
     std::array<double, Q * Q> lower{};
     std::array<double, Q> sums{}, phi{}, factor{};
+    double yy = 0.0;
     const auto column = column_pointers<Q>(problem);
     for (std::size_t j = 0; j < Q; ++j) factor[j] = scale(static_cast<Eigen::Index>(j));
     const auto& use = *problem.use;
@@ -178,7 +180,9 @@ void accumulate_normal_of(const Problem& problem, const Eigen::VectorXd& scale, 
             for (std::size_t r = c; r < Q; ++r) lower[r * Q + c] += phi[c] * phi[r];
             sums[c] += phi[c] * y[k];
         }
+        yy += y[k] * y[k];
     }
+    y_squares = yy;
     for (std::size_t r = 0; r < Q; ++r) {
         right(static_cast<Eigen::Index>(r)) = sums[r];
         for (std::size_t c = 0; c <= r; ++c)
@@ -260,9 +264,94 @@ void filter_columns(const std::vector<Column>& in, double a, double mu, const st
     if (out.column_squares.size() != out.columns.size()) out.column_squares.clear();
 }
 
-NormalSolution normal_solution(const Problem& problem) {
+// The drive filter at any mu from its response at mu = 0: L is linear in its input and starts in steady state, so
+//   L_(a,mu)[u](k) = (1 - mu)*L_(a,0)[u](k) + mu*L_(a,0)[u](k - 1)
+// (L_(a,0)[u](-1) = u(0)). The normal equations of every mu at one lag are therefore combinations of the Gram matrix
+// of z = L_(a,0)[u] of each column, z(k - 1) and the drive signal y: (z_1..z_Q, z_1(k-1)..z_Q(k-1), y), summed over
+// the used rows in one pass that filters on the way, a block of rows at a time as GramMatrix sums them. The sums serve
+// to rank structures, not to fit them, so their order is free: four rows at a time, in two partial sums per entry
+// (which the compiler keeps in vector registers), the filters' recursions running row by row beside them.
+template <std::size_t Q>
+GramMatrix lag_gram_of(const std::vector<Column>& in, double a, const std::vector<char>& use, const Column& y) {
+    constexpr std::size_t width = 2 * Q + 1, entries = width * (width + 1) / 2;
+    constexpr std::size_t lanes = 4, block_rows = 4096;
+    std::array<const double*, Q> from{};
+    std::array<double, Q> filtered{};                       // z(k)
+    alignas(16) std::array<double, lanes * width> value{};  // z(k), z(k - 1), y(k) of four rows, 0 where unused
+    alignas(16) std::array<double, 2 * entries> partial{};  // the lower triangle's entries, two partial sums each
+    for (std::size_t j = 0; j < Q; ++j) {
+        from[j] = in[j].data();
+        filtered[j] = in[j].front();
+    }
+    Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(width, width);
+    const std::size_t n = y.size();
+    for (std::size_t start = 0; start < n; start += block_rows) {
+        partial.fill(0.0);
+        const std::size_t end = std::min(n, start + block_rows);
+        for (std::size_t k = start; k < end; k += lanes) {
+            for (std::size_t lane = 0; lane < lanes; ++lane) {
+                const std::size_t row = k + lane;
+                const bool used = row < end && use[row] != 0;
+                for (std::size_t j = 0; j < Q; ++j) {
+                    const double previous = filtered[j];
+                    if (row < end) filtered[j] = a * filtered[j] + (1.0 - a) * from[j][row];
+                    value[lanes * j + lane] = used ? filtered[j] : 0.0;
+                    value[lanes * (Q + j) + lane] = used ? previous : 0.0;
+                }
+                value[lanes * 2 * Q + lane] = used ? y[row] : 0.0;
+            }
+            std::size_t entry = 0;
+            for (std::size_t r = 0; r < width; ++r) {
+                for (std::size_t c = 0; c <= r; ++c, ++entry) {
+                    const double* u = &value[lanes * r];
+                    const double* v = &value[lanes * c];
+                    partial[2 * entry] += u[0] * v[0] + u[2] * v[2];
+                    partial[2 * entry + 1] += u[1] * v[1] + u[3] * v[3];
+                }
+            }
+        }
+        std::size_t entry = 0;
+        for (Eigen::Index r = 0; r < static_cast<Eigen::Index>(width); ++r) {
+            for (Eigen::Index c = 0; c <= r; ++c, ++entry) gram(r, c) += partial[2 * entry] + partial[2 * entry + 1];
+        }
+    }
+    Eigen::MatrixXd full = gram.selfadjointView<Eigen::Lower>();
+    return GramMatrix(std::move(full));
+}
+
+// The residual sum of squares at each of `mus` from lag_gram_of()'s matrix of Q columns (GramMatrix::solve(): to about
+// 1e-12 of y'y, enough to rank fits that leave the drive signal's noise).
+std::vector<double> residuals_at_each_mu(const GramMatrix& gram, std::size_t q, std::span<const double> mus) {
+    const auto columns = static_cast<Eigen::Index>(q);
+    const Eigen::VectorXd right = Eigen::VectorXd::Unit(2 * columns + 1, 2 * columns);
+    std::vector<double> residuals;
+    for (const double mu : mus) {
+        Eigen::MatrixXd combination = Eigen::MatrixXd::Zero(2 * columns + 1, columns);
+        for (Eigen::Index j = 0; j < columns; ++j) {
+            combination(j, j) = 1.0 - mu;
+            combination(columns + j, j) = mu;
+        }
+        residuals.push_back(gram.solve(combination, right).rss);
+    }
+    return residuals;
+}
+
+// The normal equations of a problem on normalised columns and their solution: the first two passes of
+// normal_solution(), the residual's pass left to residual_squares().
+struct NormalEquations {
+    Eigen::VectorXd scale;   // 1/||column|| (1 for a column of zeros)
+    Eigen::MatrixXd normal;  // Phi'Phi of the scaled columns
+    Eigen::VectorXd right;   // Phi'y
+    Eigen::VectorXd theta;   // the solution, on the scaled columns
+    double y_squares{0.0};   // y'y
+    std::size_t rows{0};     // the rows summed over (at most)
+};
+
+NormalEquations normal_equations(const Problem& problem) {
     const auto p = static_cast<Eigen::Index>(problem.columns.size());
-    Eigen::VectorXd scale(p);
+    NormalEquations equations;
+    Eigen::VectorXd& scale = equations.scale;
+    scale.resize(p);
     const std::size_t count = problem.columns.size();
     if (problem.column_squares.size() == count)
         scale = Eigen::Map<const Eigen::VectorXd>(problem.column_squares.data(), p);
@@ -270,13 +359,33 @@ NormalSolution normal_solution(const Problem& problem) {
         with_column_count(count, [&](auto q) { column_squares_of<q()>(problem, scale); });
     for (Eigen::Index j = 0; j < p; ++j) scale(j) = scale(j) > 0.0 ? 1.0 / std::sqrt(scale(j)) : 1.0;
     Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(p, p);
-    Eigen::VectorXd right = Eigen::VectorXd::Zero(p);
-    with_column_count(count, [&](auto q) { accumulate_normal_of<q()>(problem, scale, normal, right); });
-    normal = normal.selfadjointView<Eigen::Lower>();
-    const Eigen::VectorXd theta = normal.ldlt().solve(right);
+    equations.right = Eigen::VectorXd::Zero(p);
+    with_column_count(count, [&](auto q) {
+        accumulate_normal_of<q()>(problem, scale, normal, equations.right, equations.y_squares);
+    });
+    equations.normal = normal.selfadjointView<Eigen::Lower>();
+    equations.theta = equations.normal.ldlt().solve(equations.right);
+    equations.rows = problem.y().size();
+    return equations;
+}
+
+// sum (y - Phi*theta)^2 over the used rows, the residual's pass (infinity where it is not a finite number).
+double residual_squares(const Problem& problem, const NormalEquations& equations) {
     double rss = 0.0;
-    with_column_count(count, [&](auto q) { rss = residual_squares_of<q()>(problem, scale, theta); });
-    return {theta.cwiseProduct(scale), std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity()};
+    with_column_count(problem.columns.size(),
+                      [&](auto q) { rss = residual_squares_of<q()>(problem, equations.scale, equations.theta); });
+    return std::isfinite(rss) ? rss : std::numeric_limits<double>::infinity();
+}
+
+// A number that residual_squares() is never below, from the normal equations alone (residual_lower_bound()).
+double residual_lower_bound(const NormalEquations& equations) {
+    return feedid::residual_lower_bound(equations.normal, equations.right, equations.y_squares, equations.theta,
+                                        equations.rows);
+}
+
+NormalSolution normal_solution(const Problem& problem) {
+    const NormalEquations equations = normal_equations(problem);
+    return {equations.theta.cwiseProduct(equations.scale), residual_squares(problem, equations)};
 }
 
 double residual_sum_of_squares(const Problem& problem) { return normal_solution(problem).rss; }
@@ -348,17 +457,19 @@ Fit fit(const Problem& problem, const RlsOptions& options) {
     }
     const double y_scale =
         std::max(target.norm() / std::sqrt(static_cast<double>(std::max<Eigen::Index>(rows, 1))), 1e-300);
-    const LeastSquaresResult batch = solve_least_squares(phi, target / y_scale);
+    const double target_norm = target.norm() / y_scale;
+    target /= y_scale;  // the scaled target, formed once for the batch fit, its residual and RLS
+    const Eigen::VectorXd& scaled_target = target;
+    const LeastSquaresResult batch = solve_least_squares(phi, scaled_target);
     Fit result;
     result.samples = static_cast<std::size_t>(rows);
     result.rank_deficient = batch.rank_deficient;
     result.relative_error_pct = batch.relative_error_pct;
     if (!batch.rank_deficient) {
-        const Eigen::VectorXd residual = target / y_scale - phi * batch.estimate;
-        result.systematic_error_pct = systematic_error_pct(residual, sample_of_row, target.norm() / y_scale, problem.row_step);
+        const Eigen::VectorXd residual = scaled_target - phi * batch.estimate;
+        result.systematic_error_pct = systematic_error_pct(residual, sample_of_row, target_norm, problem.row_step);
     }
     Eigen::VectorXd rls;
-    const Eigen::VectorXd scaled_target = target / y_scale;
     switch (p) {
         case 1: rls = run_rls<1>(phi, scaled_target, options); break;
         case 2: rls = run_rls<2>(phi, scaled_target, options); break;
@@ -628,6 +739,38 @@ double reference_at(std::span<const double> reference, double at) {
     return reference[i] + f * (reference[i + 1] - reference[i]);
 }
 
+// Whether k - d is exact at every row of a trace of `samples` rows: d a whole number of 1/1024 samples (every delay of
+// the search's grid and of the curvature's steps), k below 2^40.
+bool exact_row_shift(double delay, std::size_t samples) {
+    return delay >= 0.0 && delay < 1e6 && delay * 1024.0 == std::floor(delay * 1024.0) &&
+           samples < (std::size_t{1} << 40);
+}
+
+// e(k) = x_ref(k - d) - x(k) as reference_at() gives it, for a delay with exact_row_shift(): every row between the
+// ends then reads x_ref the same fraction f = ceil(d) - d past the sample k - ceil(d) (reference_at()'s whole part
+// and fraction of the exact k - d), so those rows take the same numbers from contiguous samples without its checks;
+// the ends ask reference_at(). Returns sum e^2 over the rows `use`, in their order.
+double following_error_at_exact_delay(std::span<const double> reference, std::span<const double> position,
+                                      double delay, const std::vector<char>& use, Column& error) {
+    const std::size_t n = position.size();
+    const double upper = std::ceil(delay);
+    const auto shift = static_cast<std::size_t>(upper);
+    const double fraction = upper - delay;
+    std::size_t k = 0;
+    for (; k < n && !(static_cast<double>(k) - delay > 0.0); ++k)
+        error[k] = reference_at(reference, static_cast<double>(k) - delay) - position[k];
+    for (const std::size_t stop = std::min(n, n - 1 + shift); k < stop; ++k) {
+        const std::size_t i = k - shift;
+        error[k] = reference[i] + fraction * (reference[i + 1] - reference[i]) - position[k];
+    }
+    for (; k < n; ++k) error[k] = reference_at(reference, static_cast<double>(k) - delay) - position[k];
+    double squares = 0.0;
+    for (k = 0; k < n; ++k) {
+        if (use[k]) squares += error[k] * error[k];
+    }
+    return squares;
+}
+
 // The position loop's columns for a setpoint delay of `delay` samples: e(k) = x_ref(k - d) - x(k) and, with the
 // feed-forward, the setpoint's velocity there, the slope of the interpolated reference just before k - d (its
 // backward difference for a whole d). A held position (a slower position loop) keeps whole samples and differences
@@ -648,6 +791,11 @@ void position_loop_columns(const GainSignals& signals, double delay, bool feedfo
     columns.resize(feedforward ? 2 : 1);
     Column& error = columns[0];
     error.resize(signals.samples);
+    if (!feedforward && exact_row_shift(delay, signals.samples)) {
+        problem.column_squares.assign(
+            {following_error_at_exact_delay(signals.reference, signals.position, delay, use, error)});
+        return;
+    }
     if (feedforward) columns[1].resize(signals.samples);
     double error_squares = 0.0, velocity_squares = 0.0;
     const std::size_t last = signals.samples - 1;
@@ -689,14 +837,29 @@ PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, 
     Problem problem;  // refilled for each delay
     problem.share_y(signals.velocity_command);
     problem.use = &use;
-    std::vector<std::pair<double, double>> fitted;  // each delay fitted and its residual sum of squares
-    const auto rss = [&](double delay) {
-        const auto found = std::find_if(fitted.begin(), fitted.end(), [&](const auto& f) { return f.first == delay; });
-        if (found != fitted.end()) return found->second;
-        position_loop_columns(signals, delay, feedforward, use, problem);
-        fitted.emplace_back(delay, residual_sum_of_squares(problem));
-        return fitted.back().second;
+    struct Fitted {
+        double delay;
+        double rss;  // or, where not exact, a bound it is not below (residual_lower_bound())
+        bool exact;
     };
+    std::vector<Fitted> fitted;  // each delay fitted
+    // The residual sum of squares at a delay where it may be below `below`, else a bound at least `below` (the
+    // residual's pass left out); each delay fitted once.
+    const auto rss_below = [&](double delay, double below) {
+        auto found = std::find_if(fitted.begin(), fitted.end(), [&](const auto& f) { return f.delay == delay; });
+        if (found != fitted.end() && (found->exact || found->rss >= below)) return found->rss;
+        position_loop_columns(signals, delay, feedforward, use, problem);
+        const NormalEquations equations = normal_equations(problem);
+        const double at_least = residual_lower_bound(equations);
+        const Fitted now = at_least >= below ? Fitted{delay, at_least, false}
+                                             : Fitted{delay, residual_squares(problem, equations), true};
+        if (found != fitted.end())
+            *found = now;
+        else
+            fitted.push_back(now);
+        return now.rss;
+    };
+    const auto rss = [&](double delay) { return rss_below(delay, std::numeric_limits<double>::infinity()); };
     // with a feed-forward a fraction of a sample is k_ff's doing here (setpoint_fraction())
     const bool whole = signals.hold_factor > 1 || feedforward;
     const int steps = whole ? 1 : delay_steps_per_sample;
@@ -704,24 +867,33 @@ PositionLoopFit fit_position_loop(const GainSignals& signals, bool feedforward, 
     PositionLoopFit result;
     for (int j = 0; j <= 2 * steps; ++j) {
         const double delay = static_cast<double>(j) / steps;
-        if (const double r = rss(delay); r < best_rss) {
+        if (const double r = rss_below(delay, best_rss); r < best_rss) {
             best_rss = r;
             result.delay = delay;
         }
     }
     if (!whole) {
-        // golden section within a step either side; kept only where it fits better than the grid
+        // golden section within a step either side, 24 brackets, each keeping the inner point that stays inner (25
+        // delays fitted); kept only where it fits better than the grid
         double low = std::max(0.0, result.delay - 1.0 / steps), high = result.delay + 1.0 / steps;
         const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
-        for (int round = 0; round < 24; ++round) {
-            const double a = high - ratio * (high - low), b = low + ratio * (high - low);
-            if (rss(a) < rss(b))
-                high = b;
-            else
-                low = a;
+        double inner_low = high - ratio * (high - low), inner_high = low + ratio * (high - low);
+        double rss_low = rss(inner_low), rss_high = rss(inner_high);
+        for (int round = 1; round < 24; ++round) {
+            if (rss_low < rss_high) {
+                high = inner_high, inner_high = inner_low, rss_high = rss_low;
+                inner_low = high - ratio * (high - low), rss_low = rss(inner_low);
+            } else {
+                low = inner_low, inner_low = inner_high, rss_low = rss_high;
+                inner_high = low + ratio * (high - low), rss_high = rss(inner_high);
+            }
         }
+        if (rss_low < rss_high)
+            high = inner_high;
+        else
+            low = inner_low;
         const double refined = 0.5 * (low + high);
-        if (const double r = rss(refined); r < best_rss) {
+        if (const double r = rss_below(refined, best_rss); r < best_rss) {
             best_rss = r;
             result.delay = refined;
         }
@@ -1018,17 +1190,7 @@ struct VelocityLoopRegression {
             workspace.problem = servo_rate_problem(s, integral);
             return;
         }
-        auto& unfiltered = workspace.unfiltered;
-        if (unfiltered.empty() || workspace.difference != s.difference ||
-            workspace.reference_delay != s.reference_delay || workspace.integral != integral) {
-            unfiltered.clear();  // released before the next are formed
-            const Column v = measured_velocity(signals, s.difference);
-            unfiltered = signals.logged_command ? command_columns(signals, v, integral)
-                                                : structure_columns(signals, v, s.reference_delay, integral);
-            workspace.difference = s.difference;
-            workspace.reference_delay = s.reference_delay;
-            workspace.integral = integral;
-        }
+        const auto& unfiltered = unfiltered_columns(s, integral, workspace);
         Problem& problem = workspace.problem;
         const double a = lag_coefficient(s.lag_s, signals.dt);
         const bool injection_column = !signals.injection.empty() && !injection_gain_known;
@@ -1043,6 +1205,41 @@ struct VelocityLoopRegression {
         }
         problem.use = &use;
         problem.row_step = static_cast<std::size_t>(signals.hold_factor);
+    }
+
+    // The columns of `s` before the drive filter, kept in `workspace` and formed again only when the velocity
+    // measurement, the reference delay or the integral changes (at the log rate).
+    const std::vector<Column>& unfiltered_columns(const Structure& s, bool integral,
+                                                  ProblemWorkspace& workspace) const {
+        auto& unfiltered = workspace.unfiltered;
+        if (unfiltered.empty() || workspace.difference != s.difference ||
+            workspace.reference_delay != s.reference_delay || workspace.integral != integral) {
+            unfiltered.clear();  // released before the next are formed
+            const Column v = measured_velocity(signals, s.difference);
+            unfiltered = signals.logged_command ? command_columns(signals, v, integral)
+                                                : structure_columns(signals, v, s.reference_delay, integral);
+            workspace.difference = s.difference;
+            workspace.reference_delay = s.reference_delay;
+            workspace.integral = integral;
+        }
+        return unfiltered;
+    }
+
+    /// Whether residuals_over_mu() serves: on the logged samples (no servo grid) without an injection, whose drive
+    /// signal does not change with mu.
+    [[nodiscard]] bool mu_from_shared_sums() const { return grid == nullptr && signals.injection.empty(); }
+
+    /// The residual sums of squares of the structure `s` (its mu aside) at each of `mus`, from one pass over the rows
+    /// for all of them (lag_gram_of()); for ranking structures, not for their final fit.
+    std::vector<double> residuals_over_mu(const Structure& s, bool integral, std::span<const double> mus,
+                                          ProblemWorkspace& workspace) const {
+        const auto& unfiltered = unfiltered_columns(s, integral, workspace);
+        const double a = lag_coefficient(s.lag_s, signals.dt);
+        std::vector<double> residuals;
+        with_column_count(unfiltered.size(), [&](auto q) {
+            residuals = residuals_at_each_mu(lag_gram_of<q()>(unfiltered, a, use, signals.force), q(), mus);
+        });
+        return residuals;
     }
 
     // The same on the servo grid (ServoGrid): the columns and the injection (held over its logged sample) through
@@ -1407,7 +1604,11 @@ public:
             rss = found->second;
         } else {
             regression_.fill_problem(s, integral_, workspace_);
-            rss = residual_sum_of_squares(workspace_.problem);
+            const NormalEquations equations = normal_equations(workspace_.problem);
+            // a structure that cannot leave less than the best is told by its bound, without the residual's pass
+            // (the bound stands for it here, and when a stage comes back to it: the best only gets smaller)
+            const double at_least = residual_lower_bound(equations);
+            rss = at_least >= best_rss_ ? at_least : residual_squares(workspace_.problem, equations);
             tried_.emplace_back(s, rss);
         }
         if (!(rss < best_rss_)) return false;
@@ -1416,6 +1617,34 @@ public:
         return true;
     }
     [[nodiscard]] const Structure& best() const { return best_; }
+
+    // The best of `group` (runs of structures that differ only in mu, one run per lag), fitted: where the regression
+    // takes a lag's mus from shared sums (residuals_over_mu()), the group ranked by those residuals and the best of it
+    // fitted alone (consider()), one pass per run instead of three per structure; else each fitted. What a stage
+    // finds next is compared with fitted residuals only.
+    void consider_best_of(const std::vector<Structure>& group) {
+        if (!regression_.mu_from_shared_sums()) {
+            for (const auto& s : group) consider(s);
+            return;
+        }
+        const Structure* best = nullptr;
+        double best_rss = std::numeric_limits<double>::infinity();
+        for (std::size_t first = 0; first < group.size();) {
+            std::size_t last = first + 1;
+            std::vector<double> mus{group[first].mu};
+            for (; last < group.size() && same_but_mu(group[last], group[first]); ++last) mus.push_back(group[last].mu);
+            const auto residuals = regression_.residuals_over_mu(group[first], integral_, mus, workspace_);
+            for (std::size_t i = 0; i < residuals.size(); ++i) {
+                if (residuals[i] < best_rss) best_rss = residuals[i], best = &group[first + i];
+            }
+            first = last;
+        }
+        if (best == nullptr) {  // no fit from the shared sums (dependent columns): each fitted
+            for (const auto& s : group) consider(s);
+            return;
+        }
+        consider(*best);
+    }
 
     // Takes the best of another search over the same regression when it left less; true when it did.
     bool adopt(const StructureSearch& other) {
@@ -1426,6 +1655,11 @@ public:
     }
 
 private:
+    static bool same_but_mu(const Structure& a, const Structure& b) {
+        return a.difference == b.difference && a.reference_delay == b.reference_delay && a.lag_s == b.lag_s &&
+               a.servo_delay_cycles == b.servo_delay_cycles;
+    }
+
     const VelocityLoopRegression& regression_;
     bool integral_;
     ProblemWorkspace workspace_;
@@ -1439,14 +1673,18 @@ private:
 // fractional delay for them, then the first stage again with the lag found.
 void search_grid(StructureSearch& search, const SearchSpace& space, const GainOptions& options) {
     const double first_lag = options.current_lag_s.value_or(0.0);
+    std::vector<Structure> group;
     for (int difference : space.differences) {
         for (int d : space.reference_delays) {
-            for (double mu : {0.0, 0.5, 1.0}) search.consider({difference, d, first_lag, mu});
+            for (double mu : {0.0, 0.5, 1.0}) group.push_back({difference, d, first_lag, mu});
         }
     }
+    search.consider_best_of(group);
+    group.clear();
     for (double lag : space.lags) {
-        for (double mu : mu_grid) search.consider({search.best().difference, search.best().reference_delay, lag, mu});
+        for (double mu : mu_grid) group.push_back({search.best().difference, search.best().reference_delay, lag, mu});
     }
+    search.consider_best_of(group);
     const Structure lagged = search.best();
     for (int difference : space.differences) {
         for (int d : space.reference_delays) search.consider({difference, d, lagged.lag_s, lagged.mu});
@@ -2258,6 +2496,7 @@ std::string unmapped_injection_message(const InjectionLike& found) {
 GainResult identify_gains(const Trace& trace, std::span<const double> drive_force, const GainOptions& options,
                           std::span<const double> injection) {
     if (const auto problem = options.validate(); !problem.empty()) throw InputError(problem);
+    const TimeBaseMemo time_base(trace);  // one pass over the time column for the sample time and the native rate
     const GainSignals signals = gain_signals(trace, drive_force, injection);
     require_following_error(signals);
     GainResult result;

@@ -58,4 +58,30 @@ GramMatrix::Solution GramMatrix::solve(const Eigen::MatrixXd& C, const Eigen::Ve
     return solution;
 }
 
+// For the theta given, sum (y - Phi*theta)^2 = y'y - 2*theta'Phi'y + theta'Phi'Phi*theta exactly. The sums of n
+// products and the residual's sum each round by at most gamma_n = n*u/(1 - n*u) of the sum of their terms'
+// magnitudes (u the unit roundoff; Higham, Accuracy and Stability of Numerical Algorithms, 2nd ed. 2002, eq. 3.5),
+// which Cauchy-Schwarz and Minkowski bound by M^2, M = ||y|| + sum_j |theta_j|*||phi_j||; each row's residual
+// rounds by at most gamma_(p+2)*(|y_k| + sum_j |phi_kj*theta_j|), whose norm over the rows is at most gamma_(p+2)*M.
+// The bound is the quadratic form less twice all of these.
+double residual_lower_bound(const Eigen::MatrixXd& normal, const Eigen::VectorXd& right, double y_squares,
+                            const Eigen::VectorXd& theta, std::size_t rows) {
+    constexpr double none = -std::numeric_limits<double>::infinity();
+    if (!theta.allFinite() || !right.allFinite() || !normal.allFinite() || !std::isfinite(y_squares)) return none;
+    const double unit = 0.5 * std::numeric_limits<double>::epsilon();
+    const auto gamma = [&](double n) { return n * unit < 0.01 ? n * unit / (1.0 - n * unit) : 1.0; };
+    const auto p = static_cast<double>(theta.size());
+    const double sums = gamma(static_cast<double>(rows) + 1.0), row = gamma(p + 2.0);
+    double magnitude = std::sqrt(std::abs(y_squares));
+    for (Eigen::Index j = 0; j < theta.size(); ++j) magnitude += std::abs(theta(j)) * std::sqrt(std::abs(normal(j, j)));
+    magnitude *= 1.01;  // the norms themselves from rounded sums
+    const double m2 = magnitude * magnitude;
+    const double form = y_squares - 2.0 * right.dot(theta) + theta.dot(normal * theta);
+    const double form_error = sums * m2 + gamma(2.0 * p + 3.0) * 2.0 * m2;  // the sums, and the form's own rounding
+    const double root = std::sqrt(std::max(form, 0.0) + form_error) + row * magnitude;  // >= the residual pass's norm
+    const double pass_error = 2.0 * row * magnitude * root + row * row * m2 + sums * root * root;
+    const double bound = form - 2.0 * (form_error + pass_error);
+    return std::isfinite(bound) ? bound : none;
+}
+
 }  // namespace feedid

@@ -6,7 +6,7 @@
 #include <random>
 #include <vector>
 
-#include <Eigen/Core>
+#include <Eigen/Dense>
 
 #include "feedid/numeric/gram_least_squares.hpp"
 #include "feedid/numeric/least_squares.hpp"
@@ -104,6 +104,68 @@ TEST(GramLeastSquares, DependentColumnsLeaveNoResidual) {
     C(0, 1) = 2.0;  // the same column twice
     const auto solution = gram.solve(C, Eigen::VectorXd::Unit(4, 3));
     EXPECT_FALSE(std::isfinite(solution.rss));
+}
+
+TEST(GramLeastSquares, AGramMatrixSummedElsewhereSolvesAsTheOneSummedHere) {
+    const auto base = random_base(5, 5000, 5);
+    const feedid::GramMatrix summed(spans(base), base.use);
+    const feedid::GramMatrix given(Eigen::MatrixXd(summed.matrix()));
+    const Eigen::MatrixXd C = Eigen::MatrixXd::Identity(5, 4);
+    const Eigen::VectorXd c_y = Eigen::VectorXd::Unit(5, 4);
+    EXPECT_EQ(given.solve(C, c_y).theta, summed.solve(C, c_y).theta);
+    EXPECT_EQ(given.solve(C, c_y).rss, summed.solve(C, c_y).rss);
+}
+
+// The normal equations and the residual of theta summed row by row over the used rows, as a search sums them.
+struct RowSums {
+    Eigen::MatrixXd normal;
+    Eigen::VectorXd right;
+    double y_squares{0.0};
+    double residual{0.0};
+};
+
+RowSums row_sums(const BaseVectors& base, int columns, const Eigen::VectorXd& theta) {
+    RowSums sums{Eigen::MatrixXd::Zero(columns, columns), Eigen::VectorXd::Zero(columns)};
+    const auto& y = base.columns.back();
+    for (std::size_t k = 0; k < y.size(); ++k) {
+        if (base.use[k] == 0) continue;
+        double fitted = 0.0;
+        for (int r = 0; r < columns; ++r) {
+            const double phi = base.columns[static_cast<std::size_t>(r)][k];
+            for (int c = 0; c < columns; ++c) sums.normal(r, c) += phi * base.columns[static_cast<std::size_t>(c)][k];
+            sums.right(r) += phi * y[k];
+            fitted += phi * theta(r);
+        }
+        sums.y_squares += y[k] * y[k];
+        sums.residual += (y[k] - fitted) * (y[k] - fitted);
+    }
+    return sums;
+}
+
+TEST(GramLeastSquares, TheResidualBoundIsNeverAboveTheResidualAndCloseBelowANoisyFit) {
+    // y = sum_c (0.5 + c)*x_c + noise*N(0, 1); the residual at the least-squares theta (from the normal equations, as
+    // a search solves them) and at a theta off it
+    for (const double noise : {1e-2, 1e-9, 1e-14, 0.0}) {
+        auto base = random_base(4, 200000, 13);
+        std::mt19937 generator(17);
+        std::normal_distribution<double> normal(0.0, 1.0);
+        for (std::size_t k = 0; k < base.use.size(); ++k) {
+            double y = noise * normal(generator);
+            for (int c = 0; c < 3; ++c) y += (0.5 + c) * base.columns[static_cast<std::size_t>(c)][k];
+            base.columns.back()[k] = y;
+        }
+        const RowSums sums = row_sums(base, 3, Eigen::VectorXd::Zero(3));
+        const Eigen::VectorXd solved = sums.normal.ldlt().solve(sums.right);
+        for (const Eigen::VectorXd& theta : {solved, Eigen::VectorXd(solved * (1.0 + 1e-7))}) {
+            const RowSums at = row_sums(base, 3, theta);
+            const double bound =
+                feedid::residual_lower_bound(at.normal, at.right, at.y_squares, theta, base.use.size());
+            EXPECT_LE(bound, at.residual) << "noise " << noise;
+            if (noise == 1e-2 && theta == solved) {
+                EXPECT_GT(bound, at.residual - 1e-6 * at.y_squares);
+            }
+        }
+    }
 }
 
 }  // namespace

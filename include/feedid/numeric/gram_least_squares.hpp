@@ -3,7 +3,9 @@
 // linear combinations of a fixed set of base vectors, the base vectors' Gram matrix holds every problem's normal
 // equations. A structure search that tries hundreds of problems reads the rows once per set of base vectors.
 
+#include <cstddef>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -15,6 +17,9 @@ public:
     /// G = V'V of the base vectors (equal lengths) over the rows k where `use` is non-zero (every row when `use` is
     /// empty), summed row by row.
     GramMatrix(std::span<const std::span<const double>> vectors, std::span<const char> use);
+
+    /// A Gram matrix V'V summed elsewhere (square and symmetric), for a pass that forms its base vectors on the way.
+    explicit GramMatrix(Eigen::MatrixXd gram) : gram_(std::move(gram)) {}
 
     struct Solution {
         Eigen::VectorXd theta;  ///< minimises ||V*c_y - V*C*theta||
@@ -31,5 +36,13 @@ public:
 private:
     Eigen::MatrixXd gram_;
 };
+
+/// A number that the residual sum of squares sum_k (y_k - phi_k'theta)^2 of a theta, summed in double precision row
+/// by row over at most `rows` rows, is never below, from the normal equations alone: `normal` = Phi'Phi and `right` =
+/// Phi'y and `y_squares` = y'y, each summed row by row over the same rows. For a search that needs a candidate's
+/// residual only where it may beat the best so far: the residual's pass is left out where this is not below the best.
+/// -infinity where theta or the sums are not finite numbers.
+[[nodiscard]] double residual_lower_bound(const Eigen::MatrixXd& normal, const Eigen::VectorXd& right, double y_squares,
+                                          const Eigen::VectorXd& theta, std::size_t rows);
 
 }  // namespace feedid
