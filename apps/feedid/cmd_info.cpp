@@ -1,7 +1,9 @@
 // feedid info FILE: what a trace holds (channels, roles, units, sample time, findings).
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
@@ -15,8 +17,9 @@
 namespace feedid::cli {
 
 namespace {
-// Smallest and largest finite value (a channel no analysis uses may hold NaN for missing cells).
-std::optional<std::pair<double, double>> finite_range(const std::vector<double>& values) {
+// Smallest and largest finite value (a channel no analysis uses may hold NaN for missing cells), sample by sample:
+// of equal values the first is kept, which tells 0 from -0.
+std::optional<std::pair<double, double>> finite_range_in_order(const std::vector<double>& values) {
     std::optional<std::pair<double, double>> range;
     for (const double value : values) {
         if (!std::isfinite(value)) continue;
@@ -25,6 +28,32 @@ std::optional<std::pair<double, double>> finite_range(const std::vector<double>&
         range->second = std::max(range->second, value);
     }
     return range;
+}
+
+// The same, a few times faster: four running extremes over interleaved samples, held in registers (the pass above
+// keeps its extremes in memory, a store and a load per sample). They agree with it unless an extreme is a zero, where
+// only the pass in order knows which sign came first.
+std::optional<std::pair<double, double>> finite_range(const std::vector<double>& values) {
+    constexpr std::size_t lanes = 4;
+    constexpr double infinity = std::numeric_limits<double>::infinity();
+    std::array<double, lanes> low{infinity, infinity, infinity, infinity};
+    std::array<double, lanes> high{-infinity, -infinity, -infinity, -infinity};
+    const auto take = [&](std::size_t lane, double value) {
+        const bool finite = std::isfinite(value);
+        low[lane] = finite && value < low[lane] ? value : low[lane];
+        high[lane] = finite && value > high[lane] ? value : high[lane];
+    };
+    const std::size_t n = values.size();
+    std::size_t k = 0;
+    for (; k + lanes <= n; k += lanes) {
+        for (std::size_t lane = 0; lane < lanes; ++lane) take(lane, values[k + lane]);
+    }
+    for (; k < n; ++k) take(k % lanes, values[k]);
+    const double smallest = *std::min_element(low.begin(), low.end());
+    const double largest = *std::max_element(high.begin(), high.end());
+    if (smallest > largest) return std::nullopt;  // no finite value
+    if (smallest == 0.0 || largest == 0.0) return finite_range_in_order(values);
+    return std::pair{smallest, largest};
 }
 
 // "4 ms (format)", "4 ms (detected)", "2 ms (time base)"; "-" when unknown.

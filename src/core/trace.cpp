@@ -117,24 +117,35 @@ Channel& Trace::set(std::string name, Role role, std::string unit, std::vector<d
 namespace {
 
 /// The time bases remembered by live TimeBaseMemos: the trace, its time column's storage (a replaced column is not
-/// the remembered one) and how many memos hold it.
+/// the remembered one), the statistics once the first request computed them, and how many memos hold it.
 struct RememberedTimeBase {
     const Trace* trace;
     const double* data;
     std::size_t size;
-    TimeBase base;
+    std::optional<TimeBase> base;
     int holders;
 };
 
 std::mutex remembered_mutex;
 std::vector<RememberedTimeBase> remembered;
 
+RememberedTimeBase* find_remembered(const Trace* trace, std::span<const double> time) {
+    for (auto& r : remembered) {
+        if (r.trace == trace && r.data == time.data() && r.size == time.size()) return &r;
+    }
+    return nullptr;
+}
+
 std::optional<TimeBase> remembered_time_base(const Trace* trace, std::span<const double> time) {
     const std::lock_guard lock(remembered_mutex);
-    for (const auto& r : remembered) {
-        if (r.trace == trace && r.data == time.data() && r.size == time.size()) return r.base;
-    }
-    return std::nullopt;
+    const auto* r = find_remembered(trace, time);
+    return r != nullptr ? r->base : std::nullopt;
+}
+
+// Keeps what the first request computed, where a memo holds this time column.
+void remember_time_base(const Trace* trace, std::span<const double> time, const TimeBase& base) {
+    const std::lock_guard lock(remembered_mutex);
+    if (auto* r = find_remembered(trace, time); r != nullptr && !r->base) r->base = base;
 }
 
 }  // namespace
@@ -143,18 +154,12 @@ TimeBaseMemo::TimeBaseMemo(const Trace& trace) {
     const Channel* time = trace.find(Role::time);
     if (time == nullptr || time->values.size() < 2) return;
     trace_ = &trace;
-    {
-        const std::lock_guard lock(remembered_mutex);
-        for (auto& r : remembered) {
-            if (r.trace == trace_ && r.data == time->values.data() && r.size == time->values.size()) {
-                ++r.holders;
-                return;
-            }
-        }
-    }
-    const TimeBase base = trace.time_base();
     const std::lock_guard lock(remembered_mutex);
-    remembered.push_back({trace_, time->values.data(), time->values.size(), base, 1});
+    if (auto* r = find_remembered(trace_, time->values); r != nullptr) {
+        ++r->holders;
+        return;
+    }
+    remembered.push_back({trace_, time->values.data(), time->values.size(), std::nullopt, 1});
 }
 
 TimeBaseMemo::~TimeBaseMemo() {
@@ -198,6 +203,7 @@ TimeBase Trace::time_base() const {
     }
     base.duration_s = time.back() - time.front();
     base.jittery = base.max_deviation_s > 0.01 * base.sample_time_s;
+    remember_time_base(this, time, base);
     return base;
 }
 

@@ -533,6 +533,7 @@ void prepare_trace(Trace& trace, const ImportOptions& options) {
     add_time_from_sample_time(trace, options);
     convert_units(trace, options);
     if (options.describe && !trace.has(Role::time)) return;  // described without a time base (a finding says so)
+    const TimeBaseMemo time_base(trace);                     // validate and the native intervals: one pass
     trace.validate();
     resolve_native_intervals(trace);
 }

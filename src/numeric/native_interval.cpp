@@ -30,9 +30,25 @@ void for_each_change(std::span<const double> values, Change&& change) {
     }
 }
 
-std::size_t count_changes(std::span<const double> values) {
-    std::size_t count = 0;
-    for_each_change(values, [&](std::size_t, double) { ++count; });
+// The value changes, and the disjoint pairs of changes at neighbouring indices (a run of r changes in a row holds
+// r / 2 of them). Of two neighbouring indices at most one lies on a hold grid of k >= 2 samples, so the pairs bound
+// the changes off any hold grid from below: a signal that changes at every sample is ruled out in this one pass.
+struct ChangeCount {
+    std::size_t changes{0};
+    std::size_t neighbouring_pairs{0};
+};
+
+ChangeCount count_changes(std::span<const double> values) {
+    ChangeCount count;
+    std::size_t previous = 0;
+    bool paired = true;  // whether the previous change is taken by a pair (true before any: nothing to pair with)
+    for_each_change(values, [&](std::size_t index, double) {
+        const bool pairs = !paired && index == previous + 1;
+        count.neighbouring_pairs += static_cast<std::size_t>(pairs);
+        paired = pairs;
+        previous = index;
+        ++count.changes;
+    });
     return count;
 }
 
@@ -90,8 +106,11 @@ std::vector<std::size_t> changes_on_residue(std::span<const double> values, std:
 
 std::optional<SampleAndHold> detect_sample_and_hold(std::span<const double> values,
                                                     const HoldDetectionOptions& options) {
-    const std::size_t changes = count_changes(values);
+    const auto [changes, neighbouring_pairs] = count_changes(values);
     if (changes < options.minimum_moving_changes + 1) return std::nullopt;
+    // at least this many changes are off any grid: more than the exceptions allowed is no hold, whatever the factor
+    if (static_cast<double>(neighbouring_pairs) > options.exception_fraction * static_cast<double>(changes))
+        return std::nullopt;
     const auto [gap, moving] = moving_gap(values, changes);
     if (moving < options.minimum_moving_changes || gap < 2 || gap > static_cast<std::size_t>(options.max_factor))
         return std::nullopt;

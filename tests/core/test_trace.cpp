@@ -114,3 +114,20 @@ TEST(Trace, SampleTimeIgnoresAGapButTheGapIsReported) {
     ASSERT_EQ(trace.findings.size(), 1u);
     EXPECT_NE(trace.findings[0].find("0.001"), std::string::npos) << trace.findings[0];
 }
+
+// A memo computes nothing when it is made (import makes one before the time column is checked): the first request
+// computes the time base and the later ones, while the memo lives, return that one. Changing the column in place
+// shows which pass was taken.
+TEST(Trace, TimeBaseMemoKeepsWhatTheFirstRequestComputed) {
+    Trace trace = make_trace({0.0, 0.001, 0.002, 0.003, 0.004}, {0, 1, 2, 3, 4});
+    auto& time = trace.find(Role::time)->values;
+    {
+        const TimeBaseMemo memo(trace);
+        time[2] = 0.0025;  // after the memo was made, before any request
+        const double first = trace.time_base().max_deviation_s;
+        EXPECT_NEAR(first, 0.0005, 1e-12) << "the column as it is at the first request";
+        time[2] = 0.002;
+        EXPECT_EQ(trace.time_base().max_deviation_s, first) << "remembered while the memo lives";
+    }
+    EXPECT_NEAR(trace.time_base().max_deviation_s, 0.0, 1e-15) << "computed again once it is gone";
+}

@@ -427,6 +427,35 @@ TEST(CsvCli, InfoReportsSiConversions) {
     EXPECT_EQ(guesses, 5u);  // time, x_ref, x, v_set and i
 }
 
+// info's min and max: the finite values only (an empty cell, inf), each extreme wherever it lies among the rows, of
+// equal values the first (-0 before 0 is -0), and none for a column without a finite value.
+TEST(CsvCli, InfoRangesAreTheExtremesOfTheFiniteValues) {
+    const auto dir = feedid::testing::temp_dir();
+    const auto path = dir / "ranges.csv";
+    write_text(path,
+               "t [s],x [mm],y,z,w\n"
+               "0,1,1,,\n"
+               "1,2,-0,inf,\n"
+               "2,3,2,5,\n"
+               "3,-7,3,,\n"
+               "4,5,0,-inf,\n"
+               "5,6,4,-2,\n"
+               "6,9,,3,\n");
+    const auto result = run_cli("info '" + path.string() + "' --json -");
+    ASSERT_EQ(result.exit_code, 0) << result.err;
+    const auto channels = nlohmann::json::parse(result.out).at("channels");
+    ASSERT_EQ(channels.size(), 5u);
+    EXPECT_DOUBLE_EQ(channels[1].at("min").get<double>(), -0.007);
+    EXPECT_DOUBLE_EQ(channels[1].at("max").get<double>(), 0.009);
+    EXPECT_EQ(channels[2].at("min").get<double>(), 0.0);
+    EXPECT_TRUE(std::signbit(channels[2].at("min").get<double>())) << "-0 came before 0";
+    EXPECT_EQ(channels[2].at("max").get<double>(), 4.0);
+    EXPECT_EQ(channels[3].at("min").get<double>(), -2.0);
+    EXPECT_EQ(channels[3].at("max").get<double>(), 5.0);
+    EXPECT_TRUE(channels[4].at("min").is_null());
+    EXPECT_TRUE(channels[4].at("max").is_null());
+}
+
 TEST(CsvCli, InfoValuesAreConvertedOnImport) {
     // the same file through the library: every value, not only min and max
     const auto dir = feedid::testing::temp_dir();

@@ -96,6 +96,41 @@ TEST(SampleAndHold, StandstillsAndAFewExceptionsDoNotHideAHold) {
     EXPECT_FALSE(detect_sample_and_hold(h));
 }
 
+// Changes at neighbouring samples rule a hold out before its factor is looked for (at most one of two neighbours lies
+// on a grid of k >= 2): that shortcut must refuse exactly what the factor's own count of exceptions refuses. Each
+// exception here is a change one sample after a grid change, the most the allowance admits, then one more; held by
+// 2, each makes a run of three changes in a row (one off the grid), held by 4 a pair.
+TEST(SampleAndHold, NeighbouringChangesRefuseExactlyWhatTheAllowanceRefuses) {
+    for (const std::size_t factor : {2u, 4u}) {
+        const auto h = held(strokes(8000, 1e-8), static_cast<int>(factor), 0);
+        std::size_t on_grid = 0;
+        std::vector<std::size_t> grid_changes;  // those followed by another change a whole hold later
+        for (std::size_t j = 1; j < h.size(); ++j) {
+            if (h[j] == h[j - 1]) continue;
+            ++on_grid;
+            if (j + factor < h.size() && h[j + factor] != h[j]) grid_changes.push_back(j);
+        }
+        std::size_t allowed = 0;  // the largest count of exceptions e with e <= 2 % of all changes
+        while (static_cast<double>(allowed + 1) <= 0.02 * static_cast<double>(on_grid + allowed + 1)) ++allowed;
+        ASSERT_GT(allowed, 10u);
+        const auto with_exceptions = [&](std::size_t count) {
+            auto out = h;
+            for (std::size_t e = 0; e < count; ++e) {
+                const std::size_t j = grid_changes[e * grid_changes.size() / count];
+                for (std::size_t i = 1; i < factor; ++i) out[j + i] = h[j] + 3e-9;  // a change at j + 1, held
+            }
+            return out;
+        };
+        const auto hold = detect_sample_and_hold(with_exceptions(allowed));
+        ASSERT_TRUE(hold) << "held by " << factor << ": " << allowed << " exceptions in " << on_grid + allowed;
+        EXPECT_EQ(hold->factor, static_cast<int>(factor));
+        EXPECT_EQ(hold->phase, 0);
+        EXPECT_EQ(hold->off_grid, allowed);
+        EXPECT_EQ(hold->changes, on_grid + allowed);
+        EXPECT_FALSE(detect_sample_and_hold(with_exceptions(allowed + 1))) << "held by " << factor;
+    }
+}
+
 TEST(SampleAndHold, TooLittleMotionSaysNothing) {
     std::vector<double> flat(3000, 1.5);
     EXPECT_FALSE(detect_sample_and_hold(flat));

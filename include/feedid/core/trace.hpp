@@ -103,9 +103,10 @@ public:
     [[nodiscard]] Trace slice(std::size_t first, std::size_t last) const;
 };
 
-/// While alive, `trace.time_base()` returns the statistics computed when it was made, without a pass over the time
-/// column (each pass copies the steps for their median): identify asks for them in every stage of every run. The
-/// trace must not change meanwhile. Nestable, and visible from every thread.
+/// While alive, `trace.time_base()` returns the statistics its first call computed, without another pass over the
+/// time column (each pass copies the steps for their median): identify asks for them in every stage of every run,
+/// import once to validate and once for the native intervals. Making one computes nothing, so it may be made before
+/// the time column is checked. The trace must not change meanwhile. Nestable, and visible from every thread.
 class TimeBaseMemo {
 public:
     explicit TimeBaseMemo(const Trace& trace);
