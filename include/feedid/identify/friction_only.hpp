@@ -58,7 +58,9 @@ struct Resolution {
     double sample_rate_hz{0.0};
     double position_quantum{0.0};    ///< [m]; 0 without a position
     double typical_speed{0.0};       ///< 95th percentile of |x'| [m/s]
-    double largest_speed_step{0.0};  ///< 99th percentile of |x'(k+1) - x'(k)| [m/s]
+    /// 99th percentile of |x'(k+1) - x'(k)| [m/s] where the accelerations are unresolved (0 otherwise: the test
+    /// against the typical speed counts the steps below the limit instead of selecting the percentile)
+    double largest_speed_step{0.0};
     bool position_too_coarse{false};
     bool accelerations_unresolved{false};
     [[nodiscard]] bool coarse() const { return position_too_coarse || accelerations_unresolved; }
