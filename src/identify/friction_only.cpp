@@ -444,6 +444,7 @@ Resolution assess_resolution(const Derivatives& d, const FrictionOnlyOptions& op
     r.typical_speed = percentile(std::move(buffer), 0.95);
     // whether the steps' 99th percentile exceeds the limit, by counting the steps at or below it (the element of
     // rank i exceeds it exactly when at most i steps do not); the percentile itself, for the description, only then
+    constexpr double step_fraction = 0.99;  // Resolution::largest_speed_step's percentile
     const double limit = options.unresolved_speed_step_fraction * r.typical_speed;
     std::size_t steps = 0, within = 0;
     for (std::size_t k = 1; k < v.size(); ++k) {
@@ -454,13 +455,13 @@ Resolution assess_resolution(const Derivatives& d, const FrictionOnlyOptions& op
     if (steps == 0) return r;
     const double travel = r.typical_speed * dt;
     r.position_too_coarse = r.position_quantum > options.coarse_position_fraction * travel;
-    r.accelerations_unresolved = within <= static_cast<std::size_t>(0.99 * static_cast<double>(steps - 1));
+    r.accelerations_unresolved = within <= percentile_rank(steps, step_fraction);
     if (r.accelerations_unresolved) {
         std::vector<double> step_sizes;
         step_sizes.reserve(steps);
         for (std::size_t k = 1; k < v.size(); ++k)
             if (moving(k) || moving(k - 1)) step_sizes.push_back(std::abs(v[k] - v[k - 1]));
-        r.largest_speed_step = percentile(std::move(step_sizes), 0.99);
+        r.largest_speed_step = percentile(std::move(step_sizes), step_fraction);
     }
     const Display display{d.rotary};
     r.description = fmt::format("{:.4g} Hz sampling", r.sample_rate_hz);

@@ -394,18 +394,20 @@ double percentile(std::vector<double> values, double fraction) {
     return percentile_in_place(values, fraction);
 }
 
+std::size_t percentile_rank(std::size_t count, double fraction) {
+    return static_cast<std::size_t>(std::clamp(fraction, 0.0, 1.0) * static_cast<double>(count - 1));
+}
+
 double percentile_in_place(std::span<double> values, double fraction) {
     if (values.empty()) return 0.0;
-    const auto index =
-        static_cast<std::size_t>(std::clamp(fraction, 0.0, 1.0) * static_cast<double>(values.size() - 1));
+    const std::size_t index = percentile_rank(values.size(), fraction);
     std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(index), values.end());
     return values[index];
 }
 
 bool percentile_at_least(std::span<const double> values, double fraction, double threshold) {
     if (values.empty()) return false;
-    const auto index =
-        static_cast<std::size_t>(std::clamp(fraction, 0.0, 1.0) * static_cast<double>(values.size() - 1));
+    const std::size_t index = percentile_rank(values.size(), fraction);
     std::size_t below = 0;
     for (const double v : values) below += v < threshold ? 1 : 0;
     return below <= index;

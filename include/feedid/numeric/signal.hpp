@@ -65,6 +65,9 @@ inline std::size_t robust_sample_stride(std::size_t n) {
 /// sample of them (0.5 % relative standard error).
 double noise_floor(std::span<const double> x);
 
+/// The rank percentile() selects among `count` values (count > 0): floor(fraction * (count - 1)), the fraction
+/// clamped to 0..1. A test that counts values instead of selecting one decides by the same rank.
+std::size_t percentile_rank(std::size_t count, double fraction);
 /// The value below which `fraction` (0..1) of the values lie: the element of rank floor(fraction * (n - 1)), no
 /// interpolation; 0 for no values.
 double percentile(std::vector<double> values, double fraction);
