@@ -342,13 +342,17 @@ void check_version4_headers(const std::filesystem::path& path, const std::string
         in.clear();
         in.seekg(static_cast<std::streamoff>(position));
         if (!in.read(reinterpret_cast<char*>(raw.data()), raw.size())) return;
+        // The type (MOPT digits, at most 4052) is read as libmatio reads it: swapped when it is no type as it
+        // stands. The other four words are in the byte order its M digit states (0 little-endian, 1 big-endian),
+        // whichever order the type word itself was in: fuzzing found a type word in big-endian order with M = 0,
+        // whose name length libmatio then read little-endian as 1.3 GB.
+        std::uint32_t type = word_at(raw.data(), false);
+        if (type > 4052) type = __builtin_bswap32(type);
+        const bool v4 = type <= 1052 && (type / 100) % 10 == 0 && (type / 10) % 10 <= 5 && type % 10 <= 2;
+        if (!v4) return;  // no v4 header (or VAX, Cray): libmatio stops or refuses here too
+        const bool swap = type / 1000 == 1;
         std::array<std::uint32_t, 5> fields{};  // type, rows, columns, imaginary part, name length
-        bool swap = false;
-        auto word = [&](std::size_t k) { return word_at(raw.data() + 4 * k, swap); };
-        if (word(0) > 4052) swap = true;  // the type is at most 4052 (MOPT digits) in the file's own byte order
-        for (std::size_t k = 0; k < fields.size(); ++k) fields[k] = word(k);
-        const std::uint32_t type = fields[0];
-        if (type > 4052 || (type / 100) % 10 != 0 || (type / 10) % 10 > 5) return;  // not v4: libmatio's to refuse
+        for (std::size_t k = 1; k < fields.size(); ++k) fields[k] = word_at(raw.data() + 4 * k, swap);
         constexpr std::array<std::uint64_t, 6> element_bytes{8, 4, 4, 2, 2, 1};
         const std::uint64_t rest = size - position - 20;
         std::uint64_t data = 0;
