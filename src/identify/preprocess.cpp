@@ -585,6 +585,11 @@ std::vector<double> decimate_segments(std::span<const double> values, std::span<
         const auto part = decimate(values.subspan(begin, end - begin), factor);
         out.insert(out.end(), part.begin(), part.end());
     }
+    // the anti-alias filter's gain at 0 Hz taken out: step 1's columns scale alike either way, but step 2 fits the
+    // force as a function of the speed (both would come out 1.1 % small: F_C and F_B 46 standard errors low on the
+    // demo trace decimated by 2)
+    const double gain = decimation_dc_gain(factor);
+    for (double& value : out) value /= gain;
     return out;
 }
 

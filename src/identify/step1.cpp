@@ -168,8 +168,8 @@ RegressorValues regressor_values(const Derivatives& derivatives, const Regressor
         // low-pass, then decimated like every column
         values = filter_like_force(values, derivatives);
     } else if (decimated) {
-        // every column through the same anti-alias filter, the constant one too: the filter passes a constant scaled
-        // by its DC gain squared (-0.1 dB for the order-8 Chebyshev, forwards and backwards), as it scales the force
+        // every column through the same anti-alias filter, the constant one too (IDIM practice): whatever the
+        // filter does to a constant, it does to the force alike
         values = decimate_segments(values, derivatives.full_rate_segment_starts, factor);
     }
     auto formed = std::make_shared<const std::vector<double>>(std::move(values));

@@ -329,9 +329,22 @@ std::vector<std::size_t> decimation_indices(std::size_t n, int factor) {
     return indices;
 }
 
+namespace {
+
+SecondOrderSections decimation_filter(int factor) { return chebyshev1_lowpass(8, 0.05, 0.8 * 0.5 / factor, 1.0); }
+
+}  // namespace
+
+double decimation_dc_gain(int factor) {
+    if (factor <= 1) return 1.0;
+    double gain = 1.0;
+    for (const auto& s : decimation_filter(factor).sections) gain *= (s[0] + s[1] + s[2]) / (s[3] + s[4] + s[5]);
+    return gain * gain;
+}
+
 std::vector<double> decimate(std::span<const double> x, int factor) {
     if (factor <= 1) return {x.begin(), x.end()};
-    const auto filter = chebyshev1_lowpass(8, 0.05, 0.8 * 0.5 / factor, 1.0);
+    const auto filter = decimation_filter(factor);
     const auto filtered = filtfilt(filter, x);
     std::vector<double> y;
     for (const auto k : decimation_indices(x.size(), factor)) y.push_back(filtered[k]);

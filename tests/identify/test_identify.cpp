@@ -10,6 +10,7 @@
 #include <random>
 #include <string>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "feedid/core/error.hpp"
@@ -357,6 +358,40 @@ TEST(IdentifyClosedLoop, TheTransientsDoNotBiasTheFrictionCurve) {
     EXPECT_WITHIN_PCT(estimate(r, "stribeck_velocity_m_per_s"), truth.stribeck_velocity, 15.0);
     EXPECT_EQ(document_of(r).at("stribeck").at("nonlinear").at("method"),
               "quasi-static curve, mass from the transients");
+}
+
+TEST(IdentifyClosedLoop, DecimatingLeavesTheFrictionCurveWhereItWas) {
+    // Step 2 fits the decimated force as a function of the decimated speed: the anti-alias filter's gain at 0 Hz
+    // (0.9886 forwards and backwards) once put F_C and F_B 1.1 % low on this trace decimated by 2, 46 and 26 of their
+    // standard errors. Decimated, the curve stays within 3 of its standard errors of the undecimated one and of the
+    // truth (or 0.05 % of it: the undecimated fit's own bias is about that).
+    const feedid::SynthSpec spec = feedid::demo_spec();
+    const auto trace = synthesize(spec);
+    const auto truth = truth_of(spec);
+    const auto run = [&](int factor) {
+        feedid::IdentifyOptions options;
+        options.drive.force_constant_name = "force_constant_N_per_A";
+        options.systematic = false;
+        options.preprocess.decimation = factor;
+        return feedid::identify(trace, options);
+    };
+    const auto full = run(1);
+    ASSERT_EQ(full.status, feedid::Status::ok) << document_of(full).dump(1);
+    for (const int factor : {2, 4}) {
+        SCOPED_TRACE(fmt::format("decimated by {}", factor));
+        const auto decimated = run(factor);
+        ASSERT_NE(decimated.status, feedid::Status::failed) << document_of(decimated).dump(1);
+        for (const auto& [key, true_value] : {std::pair{std::string("coulomb_N"), truth.coulomb},
+                                              std::pair{std::string("breakaway_N"), truth.breakaway},
+                                              std::pair{std::string("viscous_Ns_per_m"), truth.viscous}}) {
+            SCOPED_TRACE(key);
+            const auto* p = decimated.find(key);
+            ASSERT_TRUE(p && p->estimate.value && p->estimate.standard_error);
+            const double se = *p->estimate.standard_error;
+            EXPECT_NEAR(*p->estimate.value, estimate(full, key), 3.0 * se);
+            EXPECT_NEAR(*p->estimate.value, true_value, 3.0 * se + 5e-4 * true_value);
+        }
+    }
 }
 
 TEST(IdentifyClosedLoop, StandardErrorsMatchTheScatterOverRepeatedRuns) {

@@ -81,9 +81,11 @@ TEST(Preprocess, DecimationKeepsEveryNthSampleOfEveryColumn) {
     EXPECT_EQ(d.size(), feedid::decimation_indices(d.window, 4).size());
     EXPECT_EQ(d.full_rate_velocity.size(), d.window);
     EXPECT_EQ(d.time.size(), d.size());
-    // A constant comes out scaled by the Chebyshev filter's DC gain, applied twice (forwards and backwards): an even
-    // order's DC gain is the pass-band ripple floor, -0.05 dB, as MATLAB's decimate.
-    EXPECT_NEAR(d.force[d.size() / 2], 2.0 * std::pow(10.0, -2.0 * 0.05 / 20.0), 1e-9);
+    // decimate() (MATLAB's) passes a constant scaled by the Chebyshev filter's DC gain, applied twice (forwards and
+    // backwards): an even order's DC gain is the pass-band ripple floor, -0.05 dB. The preprocessing takes it out, so
+    // that a force stays the force it was (step 2 fits it against the speed).
+    EXPECT_NEAR(feedid::decimation_dc_gain(4), std::pow(10.0, -2.0 * 0.05 / 20.0), 1e-12);
+    EXPECT_NEAR(d.force[d.size() / 2], 2.0, 1e-9);
 }
 
 TEST(Preprocess, SaysWhyATraceIsUnusable) {

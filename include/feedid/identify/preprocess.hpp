@@ -138,7 +138,8 @@ Derivatives preprocess(const Trace& trace, std::span<const double> force, const 
 /// filters every column of the regressor, not only the force).
 std::vector<double> filter_like_force(std::span<const double> full_rate, const Derivatives& d);
 
-/// decimate() stretch by stretch: `starts` are where the stretches begin in `values` (the first 0).
+/// decimate() stretch by stretch, divided by the filter's gain at 0 Hz (decimation_dc_gain: a constant stays what it
+/// was): `starts` are where the stretches begin in `values` (the first 0).
 std::vector<double> decimate_segments(std::span<const double> values, std::span<const std::size_t> starts, int factor);
 
 /// Smallest step the position signal takes (its quantisation), ignoring round-off: the 1st percentile of the nonzero

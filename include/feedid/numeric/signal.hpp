@@ -39,6 +39,9 @@ std::vector<double> savitzky_golay(std::span<const double> x, int window, int po
 /// Decimation by `factor` as MATLAB's decimate: an order-8 Chebyshev I low-pass at 0.8 * (fs/2)/factor applied
 /// forwards and backwards, then every factor-th sample, ending on the last one.
 std::vector<double> decimate(std::span<const double> x, int factor);
+/// The gain decimate()'s filter has at 0 Hz, forwards and backwards: that of the even-order Chebyshev I, the
+/// ripple's trough, squared (0.05 dB twice: 0.98855), not 1. A constant comes out of decimate() scaled by it.
+double decimation_dc_gain(int factor);
 
 /// The indices decimate() keeps for a signal of n samples.
 std::vector<std::size_t> decimation_indices(std::size_t n, int factor);
