@@ -353,7 +353,7 @@ void check_version4_headers(const std::filesystem::path& path, const std::string
         const bool v4 = type <= 1052 && (type / 100) % 10 == 0 && (type / 10) % 10 <= 5 && type % 10 <= 2;
         if (!v4) return;  // no v4 header (or VAX, Cray): libmatio stops or refuses here too
         const bool swap = type / 1000 == 1;
-        std::array<std::uint32_t, 5> fields{};  // type, rows, columns, imaginary part, name length
+        std::array<std::uint32_t, 5> fields{type};  // type, rows, columns, imaginary part, name length
         for (std::size_t k = 1; k < fields.size(); ++k) fields[k] = word_at(raw.data() + 4 * k, swap);
         constexpr std::array<std::uint64_t, 6> element_bytes{8, 4, 4, 2, 2, 1};
         const std::uint64_t rest = size - position - 20;
