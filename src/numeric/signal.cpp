@@ -257,6 +257,29 @@ void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std:
     std::copy(y.begin(), y.begin() + static_cast<std::ptrdiff_t>(n), out.begin());
 }
 
+void filtfilt_in_place(const SecondOrderSections& filter, std::vector<double>& x) {
+    const std::size_t n = x.size();
+    if (n < 2) return;
+    const std::size_t pad = filtfilt_padding(filter, n);
+    x.reserve(n + 2 * pad);
+    // the reflections of padded(), formed before the signal moves: the front's from x[1..pad], the back's appended
+    std::vector<double> front;
+    front.reserve(pad);
+    for (std::size_t k = pad; k >= 1; --k) front.push_back(2.0 * x[0] - x[k]);
+    for (std::size_t k = 1; k <= pad; ++k) x.push_back(2.0 * x[n - 1] - x[n - 1 - k]);
+    x.insert(x.begin(), front.begin(), front.end());  // within the capacity: the signal moves up, not elsewhere
+    if (filter.sections.empty()) {
+        x.erase(x.begin(), x.begin() + static_cast<std::ptrdiff_t>(pad));
+    } else {
+        filtfilt_passes(filter, x, pad);
+    }
+    x.resize(n);  // the signal is at the front (filtfilt_passes)
+}
+
+std::size_t filtfilt_capacity(const SecondOrderSections& filter, std::size_t n) {
+    return n < 2 ? n : n + 2 * filtfilt_padding(filter, n);
+}
+
 std::vector<double> central_difference(std::span<const double> x, double dt) {
     const std::size_t n = x.size();
     if (n < 2) return std::vector<double>(n, 0.0);

@@ -125,6 +125,34 @@ TEST(SignalReference, FiltfiltWithFeedidsDesignIsSosfiltfilt) {
     }
 }
 
+// In a column's own storage: the same values as filtfilt to the last bit, on every case of the reference (10 samples,
+// where the padding is cut to n - 1, and longer), with the padding in the column's capacity or not; with it reserved
+// (filtfilt_capacity) the column does not move, so no second column exists while it is filtered.
+TEST(SignalReference, FiltfiltInPlaceIsFiltfiltInTheColumnsOwnStorage) {
+    for (const auto& c : reference::filtfilt_cases) {
+        SCOPED_TRACE(fmt::format("{} on {} samples", describe(c.design), c.samples));
+        const feedid::SecondOrderSections design = design_with_feedid(c.design);
+        const auto signal = std::span<const double>(reference::signal).first(c.samples);
+        const auto expected = feedid::filtfilt(design, signal);
+        std::vector<double> short_of_room(signal.begin(), signal.end());
+        short_of_room.shrink_to_fit();
+        feedid::filtfilt_in_place(design, short_of_room);
+        EXPECT_EQ(short_of_room, expected);
+        std::vector<double> column;
+        column.reserve(feedid::filtfilt_capacity(design, signal.size()));
+        EXPECT_EQ(feedid::filtfilt_capacity(design, signal.size()), c.samples + 2 * c.padding);
+        column.assign(signal.begin(), signal.end());
+        const double* storage = column.data();
+        feedid::filtfilt_in_place(design, column);
+        EXPECT_EQ(column, expected);
+        EXPECT_EQ(column.data(), storage);
+    }
+    // no sections: the signal itself, as filtfilt gives it
+    std::vector<double> column(reference::signal.begin(), reference::signal.end());
+    feedid::filtfilt_in_place({}, column);
+    EXPECT_EQ(column, feedid::filtfilt({}, reference::signal));
+}
+
 // ---- Derivatives ---------------------------------------------------------------------------------------------------
 
 TEST(SignalReference, CentralDifferenceIsNumpyGradient) {

@@ -29,6 +29,13 @@ std::vector<double> filtfilt(const SecondOrderSections& filter, std::span<const 
 void filtfilt(const SecondOrderSections& filter, std::span<const double> x, std::span<double> out,
               std::vector<double>& workspace);
 
+/// filtfilt(filter, x) in x's own storage: the padding is added around the signal in place (x's capacity grown to
+/// the padded length only if it is short of it: reserve filtfilt_capacity() first to filter without a second column),
+/// and cut off again. The same values as filtfilt(filter, x), bit for bit.
+void filtfilt_in_place(const SecondOrderSections& filter, std::vector<double>& x);
+/// The capacity filtfilt_in_place() needs for a signal of n samples: n and the padding at both ends.
+std::size_t filtfilt_capacity(const SecondOrderSections& filter, std::size_t n);
+
 /// Central differences: d[k] = (x[k+1] - x[k-1]) / (2*dt); one-sided at the ends.
 std::vector<double> central_difference(std::span<const double> x, double dt);
 
