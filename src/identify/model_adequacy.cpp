@@ -48,7 +48,7 @@ double normal_quantile(double level) {
 /// Least squares of `output` on `columns` over `rows`, with standard errors that allow for residuals correlated over
 /// `block` samples.
 LeastSquaresResult fit_columns(const std::vector<std::span<const double>>& columns, std::span<const double> output,
-                               const std::vector<std::size_t>& rows, std::size_t block) {
+                               std::span<const SampleIndex> rows, std::size_t block) {
     const auto p = static_cast<Eigen::Index>(columns.size());
     const auto row = [&](std::size_t i, double* phi) {
         const std::size_t k = rows[i];
@@ -98,10 +98,10 @@ ModelCandidate test_combination(std::string name, std::string tested, const Leas
 class RowSupport {
 public:
     /// With `neighbours`, each row's neighbours within its stretch are held too (for slope()).
-    RowSupport(const Derivatives& d, std::span<const std::size_t> rows, bool neighbours) : d_(d), rows_(rows) {
+    RowSupport(const Derivatives& d, std::span<const SampleIndex> rows, bool neighbours) : d_(d), rows_(rows) {
         const std::size_t n = d.size();
         std::size_t s = 0;
-        std::vector<std::array<std::size_t, 2>> reach;  // each row's central difference's ends (sample indices)
+        std::vector<std::array<SampleIndex, 2>> reach;  // each row's central difference's ends (sample indices)
         reach.reserve(rows.size());
         for (const std::size_t k : rows) {
             while (s + 1 < d.segment_starts.size() && d.segment_starts[s + 1] <= k) ++s;
@@ -112,8 +112,8 @@ public:
             const std::size_t before = differenced && k > begin ? k - 1 : k;
             const std::size_t after = differenced && k + 1 < end ? k + 1 : k;
             for (const std::size_t m : {before, k, after})
-                if (samples_.empty() || m > samples_.back()) samples_.push_back(m);
-            reach.push_back({before, after});
+                if (samples_.empty() || m > samples_.back()) samples_.push_back(static_cast<SampleIndex>(m));
+            reach.push_back({static_cast<SampleIndex>(before), static_cast<SampleIndex>(after)});
         }
         const auto at = [&](std::size_t m) {
             return static_cast<std::uint32_t>(std::lower_bound(samples_.begin(), samples_.end(), m) - samples_.begin());
@@ -125,7 +125,7 @@ public:
             ends_[i] = {at(reach[i][0]), at(reach[i][1])};
         }
     }
-    [[nodiscard]] std::span<const std::size_t> rows() const { return rows_; }
+    [[nodiscard]] std::span<const SampleIndex> rows() const { return rows_; }
     [[nodiscard]] std::size_t size() const { return rows_.size(); }
     /// Where row i's value lies in a column held on the support.
     [[nodiscard]] std::size_t at(std::size_t i) const { return position_[i]; }
@@ -142,6 +142,12 @@ public:
         const double dt = d_.time[samples_[after]] - d_.time[samples_[before]];
         return dt > 0.0 ? (held[after] - held[before]) / dt : 0.0;
     }
+    /// The same of a whole-trace column.
+    [[nodiscard]] double slope_of_whole(std::span<const double> full, std::size_t i) const {
+        const std::size_t before = samples_[ends_[i][0]], after = samples_[ends_[i][1]];
+        const double dt = d_.time[after] - d_.time[before];
+        return dt > 0.0 ? (full[after] - full[before]) / dt : 0.0;
+    }
     /// The column -F'(t) (delay_column) at row i.
     [[nodiscard]] double negated_force_slope(std::size_t i) const {
         const std::size_t before = samples_[ends_[i][0]], after = samples_[ends_[i][1]];
@@ -151,27 +157,46 @@ public:
 
 private:
     const Derivatives& d_;
-    std::span<const std::size_t> rows_;
-    std::vector<std::size_t> samples_;                     // the support's sample indices, ascending
+    std::span<const SampleIndex> rows_;
+    SampleIndices samples_;                                // the support's sample indices, ascending
     std::vector<std::uint32_t> position_;                  // row i's place in samples_
     std::vector<std::array<std::uint32_t, 2>> ends_;       // the places of its central difference's ends
 };
 
-/// A regressor on the rows of a RowSupport: values[c] column c on the support.
+/// One column of a RowRegressors: held on the support (gathered from a whole-trace column the stage formed), a view of
+/// a whole-trace column held anyway (the Derivatives' x'' and x': not copied), or the constant 1 (the offset of an
+/// undecimated trace: not formed).
+struct RowColumn {
+    std::shared_ptr<const std::vector<double>> held;
+    std::span<const double> whole;
+    /// At support place j, sample k (the same row).
+    [[nodiscard]] double at(std::size_t j, std::size_t k) const {
+        return held ? (*held)[j] : whole.empty() ? 1.0 : whole[k];
+    }
+};
+
+/// A regressor on the rows of a RowSupport: values[c] column c.
 struct RowRegressors {
     const RowSupport* support{nullptr};
     std::vector<RegressorColumn> columns;
-    std::vector<std::shared_ptr<const std::vector<double>>> values;
+    std::vector<RowColumn> values;
     [[nodiscard]] std::size_t parameters() const { return columns.size(); }
     /// Row i of Phi into phi.
     void row(std::size_t i, double* phi) const {
-        const std::size_t j = support->at(i);
-        for (std::size_t c = 0; c < values.size(); ++c) phi[c] = (*values[c])[j];
+        const std::size_t j = support->at(i), k = support->rows()[i];
+        for (std::size_t c = 0; c < values.size(); ++c) phi[c] = values[c].at(j, k);
+    }
+    /// The time derivative of column c at row i (RowSupport::slope).
+    [[nodiscard]] double slope(std::size_t c, std::size_t i) const {
+        const RowColumn& column = values[c];
+        if (column.held) return support->slope(*column.held, i);
+        return column.whole.empty() ? 0.0 : support->slope_of_whole(column.whole, i);
     }
 };
 
 /// The columns of the models the stage fits, on a RowSupport: each formed on the whole trace (or taken from the
-/// caller's cache), gathered and released, so that only one whole-trace column exists at a time.
+/// caller's cache), gathered and released, so that only one whole-trace column exists at a time; the Derivatives' own
+/// columns are viewed and the constant is not formed.
 class RowColumns {
 public:
     RowColumns(const Derivatives& d, const RowSupport& support, const RegressorColumnCache* full)
@@ -185,22 +210,24 @@ public:
     }
 
 private:
-    std::shared_ptr<const std::vector<double>> held(const RegressorColumn& column) {
+    RowColumn held(const RegressorColumn& column) {
+        if (column.term == Term::offset && d_.used.decimation <= 1) return {};  // 1 on every sample
         for (const auto& [key, values] : held_)
             if (key.term == column.term && key.direction == column.direction) return values;
-        auto values = std::make_shared<const std::vector<double>>(
-            support_.gather(regressor_values(d_, column, full_).values));
+        RegressorValues formed = regressor_values(d_, column, full_);
+        if (!formed.owned) return {nullptr, formed.values};  // the Derivatives' own column
+        RowColumn values{std::make_shared<const std::vector<double>>(support_.gather(formed.values)), {}};
         held_.emplace_back(column, values);
         return values;
     }
     const Derivatives& d_;
     const RowSupport& support_;
     const RegressorColumnCache* full_;
-    std::vector<std::pair<RegressorColumn, std::shared_ptr<const std::vector<double>>>> held_;
+    std::vector<std::pair<RegressorColumn, RowColumn>> held_;
 };
 
 /// A whole-trace column at the rows.
-std::vector<double> at_rows(std::span<const double> full, std::span<const std::size_t> rows) {
+std::vector<double> at_rows(std::span<const double> full, std::span<const SampleIndex> rows) {
     std::vector<double> out(rows.size());
     for (std::size_t i = 0; i < rows.size(); ++i) out[i] = full[rows[i]];
     return out;
@@ -222,14 +249,14 @@ LeastSquaresResult fit_rows(const RowRegressors& r, std::span<const double> extr
 }
 
 /// Step 1's samples per direction.
-std::pair<std::size_t, std::size_t> direction_counts(const Derivatives& d, const std::vector<std::size_t>& rows) {
+std::pair<std::size_t, std::size_t> direction_counts(const Derivatives& d, std::span<const SampleIndex> rows) {
     std::size_t forward = 0;
     for (const auto k : rows) forward += d.velocity[k] > 0.0 ? 1 : 0;
     return {forward, rows.size() - forward};
 }
 
 /// The typical magnitude of the drive force on step 1's samples (its median |F|) [N].
-double typical_force(const Derivatives& d, const std::vector<std::size_t>& rows) {
+double typical_force(const Derivatives& d, std::span<const SampleIndex> rows) {
     std::vector<double> magnitudes;
     const std::size_t stride = std::max<std::size_t>(1, rows.size() / 20000);
     for (std::size_t i = 0; i < rows.size(); i += stride) magnitudes.push_back(std::abs(d.force[rows[i]]));
@@ -327,7 +354,7 @@ struct RowRun {
     double step;
 };
 
-std::vector<RowRun> row_runs(const Derivatives& d, std::span<const std::size_t> rows) {
+std::vector<RowRun> row_runs(const Derivatives& d, std::span<const SampleIndex> rows) {
     std::vector<RowRun> runs;
     std::size_t s = 0;
     const std::size_t n = d.size();
@@ -440,7 +467,7 @@ private:
     const Derivatives& d_;
     const RowRegressors& regressors_;
     std::size_t first_;
-    std::span<const std::size_t> rows_;
+    std::span<const SampleIndex> rows_;
     std::vector<RowRun> runs_;
     Eigen::LDLT<Eigen::MatrixXd> solver_;
     bool valid_{false};
@@ -500,7 +527,7 @@ double minimise_profile(const DelayProfile& profile, double limit, double sample
 }
 
 /// The filtered force read `delay` later (shift_drive_force) at the rows.
-std::vector<double> shifted_force_at_rows(const Derivatives& d, std::span<const std::size_t> rows, double delay) {
+std::vector<double> shifted_force_at_rows(const Derivatives& d, std::span<const SampleIndex> rows, double delay) {
     std::vector<double> out(rows.size());
     for (const RowRun& run : row_runs(d, rows)) {
         const double offset = delay / run.step;  // in samples
@@ -524,7 +551,7 @@ std::vector<double> negated_model_derivative(const RowRegressors& regressors, st
     std::vector<double> column(support.size(), 0.0);
     for (std::size_t c = 0; c < regressors.values.size(); ++c) {
         const double theta = base.estimate(static_cast<Eigen::Index>(c));
-        for (std::size_t i = 0; i < support.size(); ++i) column[i] -= theta * support.slope(*regressors.values[c], i);
+        for (std::size_t i = 0; i < support.size(); ++i) column[i] -= theta * regressors.slope(c, i);
     }
     return column;
 }
@@ -790,7 +817,7 @@ struct Burst {
 
 /// Runs of consecutive samples (indices `index`, ascending; a gap of more than `gap` samples ends a run) whose
 /// residual lies beyond `limit` on one side, at least `minimum` samples long.
-void find_bursts(const Derivatives& d, const std::vector<std::size_t>& index, const std::vector<double>& residual,
+void find_bursts(const Derivatives& d, std::span<const SampleIndex> index, const std::vector<double>& residual,
                  double limit, std::size_t minimum, std::size_t gap, std::vector<Burst>& out) {
     std::size_t run = 0;
     int side = 0;
@@ -820,8 +847,8 @@ void find_bursts(const Derivatives& d, const std::vector<std::size_t>& index, co
 
 /// The quasi-static samples of every steady pass (at least 20 of them) and their force less M x'' against the pass's
 /// median: each pass's friction is one level, so a burst shows against it.
-void steady_pass_levels(const Derivatives& d, const Selection& selection, double mass,
-                        std::vector<std::size_t>& slow_index, std::vector<double>& slow) {
+void steady_pass_levels(const Derivatives& d, const Selection& selection, double mass, SampleIndices& slow_index,
+                        std::vector<double>& slow) {
     const auto slow_member = [&](std::size_t k) { return selection.steady(k) && !selection.near_rest(k); };
     std::size_t slow_count = 0;  // counted first: the columns below are allocated once, at their size
     for (const auto& pass : selection.stick_slip.passes) {
@@ -835,10 +862,10 @@ void steady_pass_levels(const Derivatives& d, const Selection& selection, double
     for (const auto& pass : selection.stick_slip.passes) {
         if (pass.stick_slip) continue;
         std::vector<double> level;
-        std::vector<std::size_t> members;
+        SampleIndices members;
         for (std::size_t k = pass.first; k < pass.last && k < d.size(); ++k) {
             if (!slow_member(k)) continue;
-            members.push_back(k);
+            members.push_back(static_cast<SampleIndex>(k));
             level.push_back(d.force[k] - mass * d.acceleration[k]);
         }
         if (members.size() < 20) continue;
@@ -865,7 +892,7 @@ void detect_process_forces(const Derivatives& d, const Selection& selection, boo
         const RowSupport& support = *largest.support;
         std::vector<double> timing(support.size() == 0 ? 0 : support.at(support.size() - 1) + 1, 0.0);
         for (std::size_t i = 0; i < support.size(); ++i) timing[support.at(i)] = support.negated_force_slope(i);
-        largest.values.push_back(std::make_shared<const std::vector<double>>(std::move(timing)));
+        largest.values.push_back({std::make_shared<const std::vector<double>>(std::move(timing)), {}});
         largest.columns.push_back(RegressorColumn{Term::offset, Direction::both});
     }
     // the force at step 1's rows becomes the fit's residual in place, and is released before the steady passes'
@@ -897,7 +924,7 @@ void detect_process_forces(const Derivatives& d, const Selection& selection, boo
         find_bursts(d, rows, fast, std::max(options.burst_deviations * fast_scale, floor), minimum, correlation,
                     bursts);
     std::vector<double>().swap(fast);
-    std::vector<std::size_t> slow_index;
+    SampleIndices slow_index;
     std::vector<double> slow;
     steady_pass_levels(d, selection, mass, slow_index, slow);
     const double slow_scale = robust_deviation(slow);
@@ -971,9 +998,11 @@ void judge_one_way(const Derivatives& d, const Selection& selection, bool offset
 /// blocks of b consecutive samples, the sum over blocks of (block sum)^2 / the sum of squares rises from 1 to 2 tau_int
 /// once b is well beyond tau_int; the largest value over b (at least 50 blocks) is taken, erring long. 1 for
 /// uncorrelated values (or too few).
-double integrated_autocorrelation(const std::vector<std::size_t>& rows, const std::vector<double>& values) {
+/// `values`: anything with size() and values[i] (a vector, or values formed where they are read).
+template <class Index, class Values>
+double integrated_autocorrelation(std::span<const Index> rows, const Values& values) {
     double squares = 0.0;
-    for (const double v : values) squares += v * v;
+    for (std::size_t i = 0; i < values.size(); ++i) squares += values[i] * values[i];
     if (rows.size() < 100 || !(squares > 0.0)) return 1.0;
     const std::size_t span = rows.back() - rows.front() + 1;
     double largest = 1.0;
@@ -1082,7 +1111,7 @@ void add_by_group(const std::vector<GroupIndex>& group, std::size_t groups, std:
 /// correlated neighbours once: each group's variance over its effective number of samples, its count over twice the
 /// integrated autocorrelation time of the residual's deviations from the group means (on a slow pass the residual
 /// wanders together for seconds), at least one.
-std::vector<GroupMean> group_means(const std::vector<std::size_t>& rows, const std::vector<double>& residual,
+std::vector<GroupMean> group_means(std::span<const SampleIndex> rows, const std::vector<double>& residual,
                                    const std::vector<GroupIndex>& group, std::size_t groups) {
     std::vector<GroupMean> means(groups);
     std::vector<double> sums(groups, 0.0), squares(groups, 0.0);
@@ -1092,12 +1121,19 @@ std::vector<GroupMean> group_means(const std::vector<std::size_t>& rows, const s
         means[g].count = counts[g];
         if (means[g].count > 0) means[g].mean = sums[g] / static_cast<double>(means[g].count);
     }
-    std::vector<double> deviation;
-    deviation.reserve(rows.size());
-    for (std::size_t i = 0; i < rows.size(); ++i)
-        deviation.push_back(group[i] < groups ? residual[i] - means[group[i]].mean : 0.0);
+    // each residual's deviation from its group's mean (0 in none), formed where it is read, not held (a column of
+    // the checked rows' length at identify's peak)
+    struct Deviations {
+        const std::vector<double>& residual;
+        const std::vector<GroupIndex>& group;
+        const std::vector<GroupMean>& means;
+        std::size_t groups, n;
+        [[nodiscard]] std::size_t size() const { return n; }
+        double operator[](std::size_t i) const { return group[i] < groups ? residual[i] - means[group[i]].mean : 0.0; }
+    };
+    const Deviations deviation{residual, group, means, groups, rows.size()};
     add_by_group(group, groups, squares, unused, [&](std::size_t i) { return deviation[i] * deviation[i]; });
-    const double inflation = std::max(1.0, 2.0 * integrated_autocorrelation(rows, deviation));
+    const double inflation = std::max(1.0, 2.0 * integrated_autocorrelation<SampleIndex>(rows, deviation));
     for (std::size_t g = 0; g < groups; ++g) {
         const double n = static_cast<double>(means[g].count);
         if (n > 0.0) means[g].variance_of_mean = squares[g] / n / std::max(1.0, n / inflation);
@@ -1319,11 +1355,11 @@ std::vector<double> delay_sensitivity(const ModelChoice& choice, std::size_t blo
 }  // namespace
 
 double integrated_autocorrelation_time(const std::vector<std::size_t>& rows, const std::vector<double>& values) {
-    return integrated_autocorrelation(rows, values);
+    return integrated_autocorrelation<std::size_t>(std::span<const std::size_t>(rows), values);
 }
 
 double residual_autocorrelation_time(const Derivatives& d, const Regressors& regressors,
-                                     const std::vector<std::size_t>& rows) {
+                                     std::span<const SampleIndex> rows) {
     (void)d;
     if (rows.size() < 100) return 1.0;
     const LeastSquaresResult fit = fit_columns(columns_of(regressors), regressors.output, rows, 1);
@@ -1332,15 +1368,15 @@ double residual_autocorrelation_time(const Derivatives& d, const Regressors& reg
     Eigen::VectorXd phi(static_cast<Eigen::Index>(regressors.parameters()));
     for (std::size_t i = 0; i < rows.size(); ++i)
         residual[i] = regressors.row(rows[i], phi.data()) - phi.dot(fit.estimate);
-    return integrated_autocorrelation(rows, residual);
+    return integrated_autocorrelation<SampleIndex>(rows, residual);
 }
 
 namespace {
 
 /// The samples the checked model describes: step 1's, and step 2's where the friction has its Stribeck term.
-std::vector<std::size_t> checked_rows(const Selection& selection, const AxisModel& axis) {
+SampleIndices checked_rows(const Selection& selection, const AxisModel& axis) {
     if (!axis.friction.forward.has_stribeck() && !axis.friction.reverse.has_stribeck()) return selection.step1;
-    std::vector<std::size_t> rows;
+    SampleIndices rows;
     rows.reserve(selection.step1.size() + selection.step2.size());
     std::set_union(selection.step1.begin(), selection.step1.end(), selection.step2.begin(), selection.step2.end(),
                    std::back_inserter(rows));
@@ -1348,7 +1384,7 @@ std::vector<std::size_t> checked_rows(const Selection& selection, const AxisMode
 }
 
 /// Group edges of a column over rows: `bins` quantiles of a sample of it.
-std::vector<double> quantile_edges(std::span<const double> column, const std::vector<std::size_t>& rows, int bins) {
+std::vector<double> quantile_edges(std::span<const double> column, std::span<const SampleIndex> rows, int bins) {
     std::vector<double> values;
     const std::size_t stride = std::max<std::size_t>(1, rows.size() / 20000);
     for (std::size_t i = 0; i < rows.size(); i += stride) values.push_back(column[rows[i]]);
@@ -1397,7 +1433,7 @@ private:
 
 std::vector<FitCheck> check_fit(const Derivatives& d, const Selection& selection, const AxisModel& axis,
                                 const ModelSelectionOptions& options) {
-    const std::vector<std::size_t> rows = checked_rows(selection, axis);
+    const SampleIndices rows = checked_rows(selection, axis);
     if (rows.size() < 200) return {};
     constexpr int speed_bins = 8, acceleration_bins = 4, time_bins = 8;
     double low = INFINITY, high = 0.0;
@@ -1461,7 +1497,7 @@ ModelChoice choose_model(Derivatives& d, const Selection& selection, FrictionMod
     choice.automatic = options.automatic;
     choice.model = forced_model;
     choice.offset = forced_offset;
-    const std::vector<std::size_t>& rows = selection.step1;
+    const SampleIndices& rows = selection.step1;
     const auto [forward, reverse] = direction_counts(d, rows);
     const double least = std::max(10.0, options.one_way_fraction * static_cast<double>(rows.size()));
     choice.one_way = static_cast<double>(std::min(forward, reverse)) < least;

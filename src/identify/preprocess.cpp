@@ -170,15 +170,9 @@ PositionHold position_hold(const Trace& trace, std::span<const double> position)
 /// phi). A force with content above the band that the filtered acceleration cannot have biases M: on a stick-slip
 /// axis, whose slip bursts are short, M came out 17 % high with the force left unfiltered, and on the rotary
 /// SINUMERIK-like synthetic axis 1.25 % high. Central differences filter nothing, so neither is the force.
-std::vector<double> filter_like_position(std::span<const double> force, const PreprocessReport& used, double dt) {
-    std::vector<double> filtered;
-    if (used.differentiation == "butterworth")
-        filtered = filtfilt(butterworth_lowpass(used.filter_order, used.cutoff_hz, 1.0 / dt), force);
-    else if (used.differentiation == "savitzky-golay" &&
-             static_cast<std::size_t>(used.savitzky_golay_window) <= force.size())
-        filtered = savitzky_golay(force, used.savitzky_golay_window, used.savitzky_golay_order, 0, dt);
-    else
-        filtered.assign(force.begin(), force.end());
+/// The three-tap kernel that gives a low-passed column the response of the central differences x'' went through, in
+/// place.
+void match_central_differences(std::vector<double>& filtered, const PreprocessReport& used) {
     // Central differences are low-passes too: x'' = D_c(D_c(x)) has the response -w^2 * sinc^2(w*dt) of the true
     // second derivative, x'' = D_c(v) of a logged velocity iw * sinc(w*dt). The three-tap kernels [1 1 1]/3 and
     // [1 4 1]/6 match sinc^2 and sinc to second order (at a tenth of the sample rate sinc^2 is 0.87: the force
@@ -192,7 +186,39 @@ std::vector<double> filter_like_position(std::span<const double> force, const Pr
         filtered[k] = side * before + centre * here + side * after;
         before = here;
     }
+}
+
+bool butterworth(const PreprocessReport& used) {
+    return used.differentiation == "butterworth";
+}
+
+std::vector<double> filter_like_position(std::span<const double> force, const PreprocessReport& used, double dt) {
+    std::vector<double> filtered;
+    if (butterworth(used))
+        filtered = filtfilt(butterworth_lowpass(used.filter_order, used.cutoff_hz, 1.0 / dt), force);
+    else if (used.differentiation == "savitzky-golay" &&
+             static_cast<std::size_t>(used.savitzky_golay_window) <= force.size())
+        filtered = savitzky_golay(force, used.savitzky_golay_window, used.savitzky_golay_order, 0, dt);
+    else
+        filtered.assign(force.begin(), force.end());
+    match_central_differences(filtered, used);
     return filtered;
+}
+
+/// filter_like_position() on a column it may overwrite: a Butterworth filters it in its own storage (no second
+/// column when its capacity holds the padding: filter_like_force_capacity()).
+void filter_like_position_in_place(std::vector<double>& values, const PreprocessReport& used, double dt) {
+    if (butterworth(used))
+        filtfilt_in_place(butterworth_lowpass(used.filter_order, used.cutoff_hz, 1.0 / dt), values);
+    else if (used.differentiation == "savitzky-golay" &&
+             static_cast<std::size_t>(used.savitzky_golay_window) <= values.size())
+        values = savitzky_golay(values, used.savitzky_golay_window, used.savitzky_golay_order, 0, dt);
+    match_central_differences(values, used);
+}
+
+/// filter_like_force() filters the column as a whole: one stretch, not decimated.
+bool filtered_whole(const Derivatives& d) {
+    return d.segment_starts.size() == 1 && d.used.decimation <= 1;
 }
 
 /// min(100 Hz, fs/10) of the position signal's native rate.
@@ -232,6 +258,11 @@ std::pair<std::size_t, std::size_t> analysis_window(std::span<const double> time
             "{}: only {} samples in the analysis window: too short to identify anything (record "
             "at least a few seconds of motion)",
             d.source, last > first ? last - first : 0);
+    } else if (last - first > max_analysed_samples) {
+        d.failure = fmt::format(
+            "{}: {} samples in the analysis window, more than the {} identify analyses at once: take a part with "
+            "--from/--to, or `feedid scan` the whole",
+            d.source, last - first, max_analysed_samples);
     }
     return {first, last};
 }
@@ -567,7 +598,7 @@ Derivatives preprocess(const Trace& trace, std::span<const double> force, const 
 
 std::vector<double> filter_like_force(std::span<const double> full_rate, const Derivatives& d) {
     const auto& starts = d.used.decimation > 1 ? d.full_rate_segment_starts : d.segment_starts;
-    if (starts.size() == 1 && d.used.decimation <= 1) return filter_like_position(full_rate, d.used, d.sample_time_s);
+    if (filtered_whole(d)) return filter_like_position(full_rate, d.used, d.sample_time_s);
     std::vector<double> filtered;
     filtered.reserve(full_rate.size());
     for (std::size_t s = 0; s < starts.size(); ++s) {
@@ -576,6 +607,30 @@ std::vector<double> filter_like_force(std::span<const double> full_rate, const D
         filtered.insert(filtered.end(), part.begin(), part.end());
     }
     return d.used.decimation > 1 ? decimate_segments(filtered, starts, d.used.decimation) : filtered;
+}
+
+std::vector<double> filter_like_force(std::vector<double>&& full_rate, const Derivatives& d) {
+    if (d.used.decimation > 1) return filter_like_force(std::span<const double>(full_rate), d);
+    if (filtered_whole(d)) {
+        filter_like_position_in_place(full_rate, d.used, d.sample_time_s);
+        return std::move(full_rate);
+    }
+    // stretch by stretch through one workspace, each filtered stretch written back where it came from
+    std::vector<double> part;
+    const auto& starts = d.segment_starts;
+    for (std::size_t s = 0; s < starts.size(); ++s) {
+        const std::size_t begin = starts[s], end = s + 1 < starts.size() ? starts[s + 1] : full_rate.size();
+        const auto first = full_rate.begin() + static_cast<std::ptrdiff_t>(begin);
+        part.assign(first, full_rate.begin() + static_cast<std::ptrdiff_t>(end));
+        filter_like_position_in_place(part, d.used, d.sample_time_s);
+        std::copy(part.begin(), part.end(), first);
+    }
+    return std::move(full_rate);
+}
+
+std::size_t filter_like_force_capacity(const Derivatives& d, std::size_t n) {
+    if (!filtered_whole(d) || !butterworth(d.used)) return n;
+    return filtfilt_capacity(butterworth_lowpass(d.used.filter_order, d.used.cutoff_hz, 1.0 / d.sample_time_s), n);
 }
 
 std::vector<double> decimate_segments(std::span<const double> values, std::span<const std::size_t> starts, int factor) {

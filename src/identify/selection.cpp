@@ -37,7 +37,7 @@ std::vector<char> quasi_static_flags(const Derivatives& d, const SelectionOption
 
 /// Mean of the residuals of `rows` from the fit, signed with the direction of motion: the friction they carry above
 /// the fitted model.
-double friction_rise(const Regressors& r, const Derivatives& d, const std::vector<std::size_t>& rows,
+double friction_rise(const Regressors& r, const Derivatives& d, std::span<const SampleIndex> rows,
                      const Eigen::VectorXd& estimate) {
     Eigen::VectorXd phi(static_cast<Eigen::Index>(r.parameters()));
     double rise = 0.0;
@@ -49,7 +49,7 @@ double friction_rise(const Regressors& r, const Derivatives& d, const std::vecto
 }
 
 /// The step-1 model fitted on `rows`, straight from the regressors' columns (no matrix of the rows).
-LeastSquaresResult fit_rows(const Regressors& r, const std::vector<std::size_t>& rows) {
+LeastSquaresResult fit_rows(const Regressors& r, std::span<const SampleIndex> rows) {
     return solve_least_squares_rows(
         rows.size(), static_cast<Eigen::Index>(r.parameters()),
         [&](std::size_t i, double* phi) { return r.row(rows[i], phi); }, [&](std::size_t i) { return rows[i]; }, 1);
@@ -61,10 +61,10 @@ LeastSquaresResult fit_rows(const Regressors& r, const std::vector<std::size_t>&
 /// sit on the ramp samples nearest the split, correlated with the acceleration, and bias M and B far more than its
 /// size suggests.
 double raise_split_above_stribeck(const Derivatives& d, const Regressors& r, const SelectionOptions& options,
-                                  const std::vector<std::size_t>& moving, double split, SelectionReport& report) {
+                                  std::span<const SampleIndex> moving, double split, SelectionReport& report) {
     const Units units{ParameterNaming{d.rotary}};
     for (int doubling = 0; doubling < options.max_split_doublings; ++doubling) {
-        std::vector<std::size_t> band, faster;
+        SampleIndices band, faster;
         for (const auto k : moving) {
             const double speed = std::abs(d.velocity[k]);
             if (speed >= 2.0 * split)
@@ -96,7 +96,7 @@ double raise_split_above_stribeck(const Derivatives& d, const Regressors& r, con
 void merge_slow_ramps(const Derivatives& d, const Regressors& r, const SelectionOptions& options, Selection& s) {
     const Units units{ParameterNaming{d.rotary}};
     const double split = s.report.split_velocity;
-    std::vector<std::size_t> slow;
+    SampleIndices slow;
     for (const auto k : s.moving) {
         if (std::abs(d.velocity[k]) < split && !(s.near_rest(k) && d.used.differentiation != "central"))
             slow.push_back(k);
@@ -205,7 +205,7 @@ void select_moving(const Derivatives& d, const SelectionOptions& options, double
         if (!d.unusable.empty() && d.unusable[k]) {
             ++s.report.clipped;
         } else if (!s.stick_slip.flags[k]) {
-            s.moving.push_back(k);
+            s.moving.push_back(static_cast<SampleIndex>(k));
         }
     }
     s.report.moving = s.moving.size();

@@ -30,24 +30,27 @@ std::vector<RegressorColumn> linear_columns(FrictionModelKind model, bool offset
 
 namespace {
 
-/// RegressorColumn c of eq. (11) at every sample of (a, v).
+/// RegressorColumn c of eq. (11) at every sample of (a, v), in a vector of at least `capacity` (room for the padding
+/// of the low-pass it goes through next).
 std::vector<double> regressor_column(const RegressorColumn& column, std::span<const double> a,
-                                     std::span<const double> v) {
-    std::vector<double> out(v.size());
+                                     std::span<const double> v, std::size_t capacity) {
+    std::vector<double> out;
+    out.reserve(std::max(capacity, v.size()));
+    // appended, not zeroed and overwritten: a fresh column is written once
     for (std::size_t k = 0; k < v.size(); ++k) {
         switch (column.term) {
-            case Term::mass: out[k] = a[k]; break;
+            case Term::mass: out.push_back(a[k]); break;
             case Term::viscous:
-                out[k] = column.direction == Direction::forward   ? std::max(v[k], 0.0)
-                         : column.direction == Direction::reverse ? std::min(v[k], 0.0)
-                                                                  : v[k];
+                out.push_back(column.direction == Direction::forward   ? std::max(v[k], 0.0)
+                              : column.direction == Direction::reverse ? std::min(v[k], 0.0)
+                                                                       : v[k]);
                 break;
             case Term::coulomb:
-                out[k] = column.direction == Direction::forward   ? (v[k] > 0.0 ? 1.0 : 0.0)
-                         : column.direction == Direction::reverse ? (v[k] < 0.0 ? -1.0 : 0.0)
-                                                                  : sign(v[k]);
+                out.push_back(column.direction == Direction::forward   ? (v[k] > 0.0 ? 1.0 : 0.0)
+                              : column.direction == Direction::reverse ? (v[k] < 0.0 ? -1.0 : 0.0)
+                                                                       : sign(v[k]));
                 break;
-            default: out[k] = 1.0; break;
+            default: out.push_back(1.0); break;
         }
     }
     return out;
@@ -162,11 +165,13 @@ RegressorValues regressor_values(const Derivatives& derivatives, const Regressor
     const bool decimated = factor > 1;
     const auto& a = decimated ? derivatives.full_rate_acceleration : derivatives.acceleration;
     const auto& v = decimated ? derivatives.full_rate_velocity : derivatives.velocity;
-    std::vector<double> values = regressor_column(column, a, v);
-    if (nonlinear(column)) {
+    const bool filtered = nonlinear(column);
+    std::vector<double> values =
+        regressor_column(column, a, v, filtered ? filter_like_force_capacity(derivatives, v.size()) : v.size());
+    if (filtered) {
         // sgn(x') (and x' per direction) of the filtered x' is not the filtered sgn(x'): through the force's
-        // low-pass, then decimated like every column
-        values = filter_like_force(values, derivatives);
+        // low-pass, then decimated like every column; filtered where it stands (no second whole column)
+        values = filter_like_force(std::move(values), derivatives);
     } else if (decimated) {
         // every column through the same anti-alias filter, the constant one too (IDIM practice): whatever the
         // filter does to a constant, it does to the force alike
@@ -191,7 +196,7 @@ Regressors build_regressors(const Derivatives& derivatives, FrictionModelKind mo
     return r;
 }
 
-Eigen::MatrixXd Regressors::matrix(const std::vector<std::size_t>& rows) const {
+Eigen::MatrixXd Regressors::matrix(std::span<const SampleIndex> rows) const {
     Eigen::MatrixXd m(static_cast<Eigen::Index>(rows.size()), static_cast<Eigen::Index>(columns.size()));
     for (std::size_t i = 0; i < rows.size(); ++i) {
         for (std::size_t c = 0; c < columns.size(); ++c) {
@@ -201,7 +206,7 @@ Eigen::MatrixXd Regressors::matrix(const std::vector<std::size_t>& rows) const {
     return m;
 }
 
-Eigen::VectorXd Regressors::outputs(const std::vector<std::size_t>& rows) const {
+Eigen::VectorXd Regressors::outputs(std::span<const SampleIndex> rows) const {
     Eigen::VectorXd out(static_cast<Eigen::Index>(rows.size()));
     for (std::size_t i = 0; i < rows.size(); ++i) out(static_cast<Eigen::Index>(i)) = output[rows[i]];
     return out;
@@ -246,7 +251,7 @@ namespace {
 
 /// Which parameter is missing its excitation, when the regressors are linearly dependent.
 std::string rank_deficiency_message(const Step1Fit& fit, const Regressors& regressors,
-                                    const std::vector<std::size_t>& rows, const Derivatives& derivatives, bool offset) {
+                                    std::span<const SampleIndex> rows, const Derivatives& derivatives, bool offset) {
     std::vector<std::string> silent;
     for (std::size_t c = 0; c < fit.columns.size(); ++c) {
         const auto& column = regressors.values[c];
@@ -282,7 +287,7 @@ std::vector<double> time_to_reversal(const Derivatives& d) {
 /// the slow ones and those near reversals, against their share of the samples; the class most over-represented
 /// names the likely cause.
 std::string investigate_residual(const Step1Fit& fit, const Regressors& regressors, const Derivatives& d,
-                                 const std::vector<std::size_t>& rows, const Step1Options& options) {
+                                 std::span<const SampleIndex> rows, const Step1Options& options) {
     Eigen::VectorXd residual(static_cast<Eigen::Index>(rows.size()));
     Eigen::VectorXd phi(static_cast<Eigen::Index>(regressors.parameters()));
     for (std::size_t i = 0; i < rows.size(); ++i) {
@@ -344,7 +349,7 @@ std::string investigate_residual(const Step1Fit& fit, const Regressors& regresso
 
 }  // namespace
 
-Step1Fit fit_step1(const Regressors& regressors, const Derivatives& derivatives, const std::vector<std::size_t>& rows,
+Step1Fit fit_step1(const Regressors& regressors, const Derivatives& derivatives, std::span<const SampleIndex> rows,
                    const Step1Options& options) {
     Step1Fit fit;
     fit.columns = regressors.columns;

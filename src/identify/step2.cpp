@@ -56,7 +56,7 @@ void fit_log_linear_per_direction(const Step2Data& data, FrictionFit& out) {
     const auto& d = data.d;
     for (std::size_t g = 0; g < 2; ++g) {
         // this direction's step-2 samples, as indices (not as gathered columns: a long trace has millions)
-        std::vector<std::size_t> rows;
+        SampleIndices rows;
         rows.reserve(data.slow_count[g]);
         for (const auto k : data.s.step2) {
             if ((d.velocity[k] > 0) == (g == 0)) rows.push_back(k);
@@ -101,7 +101,7 @@ detail::FitSamples curve_samples(const Step2Data& data) {
 
 /// Can the curve come from the quasi-static samples alone (and M from the transients)? Only when every direction's
 /// quasi-static samples span speeds far enough apart to separate B from F_C.
-bool curve_separable(const Step2Data& data, const std::vector<std::size_t>& quasi_static) {
+bool curve_separable(const Step2Data& data, std::span<const SampleIndex> quasi_static) {
     const auto& o = data.options;
     for (std::size_t g = 0; g < data.groups(); ++g) {
         std::vector<double> speeds;
@@ -149,7 +149,7 @@ bool fit_mass_with_curve_held(const detail::FitSamples& samples, const detail::C
 /// accelerations take step 1's mass: one round is enough (a second, with the mass of the first, moved no estimate by
 /// more than 0.001 of its standard error on 20 synthetic closed-loop traces).
 CurveResult fit_separated(const Step2Data& data, const detail::FitSamples& samples,
-                          const std::vector<std::size_t>& quasi_static, detail::CurveModel model, double vs_low,
+                          std::span<const SampleIndex> quasi_static, detail::CurveModel model, double vs_low,
                           double vs_high) {
     const auto& d = data.d;
     model.mass = false;
@@ -285,7 +285,7 @@ void fit_nonlinear(const Step2Data& data, FrictionFit& out) {
     // B and F_C, which the Stribeck friction above the split biases
     bounds.high =
         std::max({data.s.split_velocity(), o.stribeck_velocity_search_above * data.s.initial_split, 2.0 * bounds.low});
-    std::vector<std::size_t> quasi_static;
+    SampleIndices quasi_static;
     for (const auto k : data.s.step1) {
         if (data.s.steady(k)) quasi_static.push_back(k);
     }

@@ -6,6 +6,8 @@
 
 #include <cmath>
 #include <numbers>
+#include <span>
+#include <tuple>
 #include <vector>
 
 #include "feedid/identify/stribeck_fit.hpp"
@@ -86,6 +88,40 @@ TEST(Preprocess, DecimationKeepsEveryNthSampleOfEveryColumn) {
     // that a force stays the force it was (step 2 fits it against the speed).
     EXPECT_NEAR(feedid::decimation_dc_gain(4), std::pow(10.0, -2.0 * 0.05 / 20.0), 1e-12);
     EXPECT_NEAR(d.force[d.size() / 2], 2.0, 1e-9);
+}
+
+// A regressor column filtered in its own storage (filter_like_force on a column it may overwrite) has the values of the
+// filtered copy to the last bit: one stretch, three stretches (time-stamp gaps: each filtered on its own), a
+// Savitzky-Golay low-pass and a decimated trace (which filter a copy). With one stretch, the Butterworth and the
+// capacity it asks for, the column does not move: no second column is formed.
+TEST(Preprocess, AColumnFilteredInItsOwnStorageIsTheFilteredCopy) {
+    const auto whole = sine_trace(1000.0, 9000);
+    auto gapped = sine_trace(1000.0, 9000);
+    std::vector<double> time(gapped.column(feedid::Role::time).begin(), gapped.column(feedid::Role::time).end());
+    for (std::size_t k = 3000; k < time.size(); ++k) time[k] += k < 6000 ? 0.5 : 1.25;  // two gaps of many samples
+    gapped.set("t", feedid::Role::time, "s", time);
+    feedid::PreprocessOptions savitzky_golay, decimated;
+    savitzky_golay.differentiation = feedid::Differentiation::savitzky_golay;
+    decimated.decimation = 2;
+    using Case = std::tuple<const feedid::Trace*, feedid::PreprocessOptions, std::size_t>;
+    for (const auto& [trace, options, stretches] :
+         {Case{&whole, {}, 1}, Case{&gapped, {}, 3}, Case{&whole, savitzky_golay, 1}, Case{&whole, decimated, 1}}) {
+        const std::vector<double> force(trace->samples(), 1.0);
+        const Derivatives d = feedid::preprocess(*trace, force, options);
+        ASSERT_FALSE(d.failed()) << d.failure;
+        ASSERT_EQ(d.segment_starts.size(), stretches);
+        const auto& v = d.used.decimation > 1 ? d.full_rate_velocity : d.velocity;
+        std::vector<double> sign;
+        sign.reserve(feedid::filter_like_force_capacity(d, v.size()));
+        for (const double value : v) sign.push_back(value > 0.0 ? 1.0 : value < 0.0 ? -1.0 : 0.0);
+        const auto expected = feedid::filter_like_force(std::span<const double>(sign), d);
+        const double* storage = sign.data();
+        const auto filtered = feedid::filter_like_force(std::move(sign), d);
+        EXPECT_EQ(filtered, expected);
+        if (stretches == 1 && d.used.decimation == 1 && d.used.differentiation == "butterworth") {
+            EXPECT_EQ(filtered.data(), storage);
+        }
+    }
 }
 
 TEST(Preprocess, SaysWhyATraceIsUnusable) {

@@ -180,7 +180,7 @@ double integrated_autocorrelation_time(const std::vector<std::size_t>& rows, con
 /// half the largest ratio, over blocks of 2, 4, 8 ... samples (at least 50 of them), of the sum of squared block sums
 /// to the sum of squares; 1 for an uncorrelated residual.
 double residual_autocorrelation_time(const Derivatives& derivatives, const Regressors& regressors,
-                                     const std::vector<std::size_t>& rows);
+                                     std::span<const SampleIndex> rows);
 
 /// The lack-of-fit checks of `axis` (the identified model) on the samples it was identified from: step 1's, and step
 /// 2's where the friction has a Stribeck term.

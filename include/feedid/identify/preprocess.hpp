@@ -5,6 +5,8 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
+#include <limits>
 #include <optional>
 #include <span>
 #include <string>
@@ -13,6 +15,13 @@
 #include "feedid/core/trace.hpp"
 
 namespace feedid {
+
+/// The index of an analysed sample (into the Derivatives' columns). 32 bits: the selection's lists of them are the
+/// largest of identify's working memory after the columns themselves, 4 bytes per listed sample instead of 8;
+/// preprocess() refuses a window of more samples than it can count (max_analysed_samples).
+using SampleIndex = std::uint32_t;
+using SampleIndices = std::vector<SampleIndex>;
+inline constexpr std::size_t max_analysed_samples = std::numeric_limits<SampleIndex>::max();
 
 enum class Differentiation { central, butterworth, savitzky_golay };
 
@@ -137,6 +146,12 @@ Derivatives preprocess(const Trace& trace, std::span<const double> force, const 
 /// the filtered function: through this it becomes comparable with the filtered force (IDIM's parallel filtering
 /// filters every column of the regressor, not only the force).
 std::vector<double> filter_like_force(std::span<const double> full_rate, const Derivatives& d);
+/// The same on a column it may overwrite, unless decimating: filtered in its own storage (no second column when its
+/// capacity is at least filter_like_force_capacity()), a trace with gaps stretch by stretch through a workspace of one
+/// stretch.
+std::vector<double> filter_like_force(std::vector<double>&& full_rate, const Derivatives& d);
+/// The capacity a full-rate column of n samples needs for filter_like_force() to filter it in its own storage.
+std::size_t filter_like_force_capacity(const Derivatives& d, std::size_t n);
 
 /// decimate() stretch by stretch, divided by the filter's gain at 0 Hz (decimation_dc_gain: a constant stays what it
 /// was): `starts` are where the stretches begin in `values` (the first 0).

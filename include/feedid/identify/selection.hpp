@@ -75,8 +75,8 @@ struct SelectionReport {
 /// (the preprocessing family's split variant) or for another model (after the model-adequacy stage) share it.
 struct MovingSamples {
     SelectionReport report;  ///< the counts and notes of this part (total, window, moving, passes, clipped, threshold)
-    std::vector<std::size_t> moving;  ///< indices into Derivatives, ascending
-    std::vector<char> quasi_static;   ///< per sample of Derivatives
+    SampleIndices moving;    ///< indices into Derivatives, ascending
+    std::vector<char> quasi_static;  ///< per sample of Derivatives
     StickSlip stick_slip;
 };
 
@@ -84,9 +84,9 @@ struct Selection {
     SelectionReport report;
     /// The first this many of report.notes are the moving samples' (MovingSamples).
     std::size_t moving_notes{0};
-    std::vector<std::size_t> moving;  ///< indices into Derivatives, ascending
-    std::vector<std::size_t> step1;   ///< ascending
-    std::vector<std::size_t> step2;   ///< ascending
+    SampleIndices moving;             ///< indices into Derivatives, ascending
+    SampleIndices step1;              ///< ascending
+    SampleIndices step2;              ///< ascending
     std::vector<char> quasi_static;   ///< per sample of Derivatives
     /// Per sample of Derivatives: within the low-pass's reach of a sample where the axis rests. The force went
     /// through the same low-pass as the position, so there it carries the smeared static force of the stop, which

@@ -60,9 +60,9 @@ struct Regressors {
     }
 
     /// Phi over the given samples (rows in that order).
-    [[nodiscard]] Eigen::MatrixXd matrix(const std::vector<std::size_t>& rows) const;
+    [[nodiscard]] Eigen::MatrixXd matrix(std::span<const SampleIndex> rows) const;
     /// y over the given samples.
-    [[nodiscard]] Eigen::VectorXd outputs(const std::vector<std::size_t>& rows) const;
+    [[nodiscard]] Eigen::VectorXd outputs(std::span<const SampleIndex> rows) const;
     [[nodiscard]] std::size_t parameters() const { return columns.size(); }
 };
 
@@ -176,7 +176,7 @@ std::optional<std::string> opposed_drive_signal(const std::vector<RegressorColum
 
 /// Batch QR and RLS on the step-1 samples `rows` (ascending, i.e. in time order). `source` names the trace in
 /// messages.
-Step1Fit fit_step1(const Regressors& regressors, const Derivatives& derivatives, const std::vector<std::size_t>& rows,
+Step1Fit fit_step1(const Regressors& regressors, const Derivatives& derivatives, std::span<const SampleIndex> rows,
                    const Step1Options& options);
 
 /// RLS over the rows of phi in order, with a thinned history and transient detection (the first point after which
