@@ -117,9 +117,7 @@ double tukey_weight(double r, double limit) {
 
 /// 1.4826 times the median of |r|: the standard deviation of Gaussian residuals, unmoved by a minority of outliers.
 double robust_scale_of(const Eigen::VectorXd& r) {
-    std::vector<double> magnitude(static_cast<std::size_t>(r.size()));
-    for (Eigen::Index i = 0; i < r.size(); ++i) magnitude[static_cast<std::size_t>(i)] = std::abs(r(i));
-    return 1.4826 * percentile(std::move(magnitude), 0.5);
+    return 1.4826 * absolute_percentile(std::span<const double>(r.data(), static_cast<std::size_t>(r.size())), 0.5);
 }
 
 /// Least squares with row weights w (a row of weight 0 drops out); NaN where the weighted rows are rank deficient.

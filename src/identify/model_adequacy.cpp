@@ -767,9 +767,8 @@ double biweight(double residual, double limit) {
 }
 
 /// The median of |x| times 1.4826: a robust standard deviation.
-double robust_deviation(std::vector<double> values) {
-    for (double& v : values) v = std::abs(v);
-    return values.empty() ? 0.0 : 1.4826 * percentile_in_place(values, 0.5);
+double robust_deviation(std::span<const double> values) {
+    return values.empty() ? 0.0 : 1.4826 * absolute_percentile(values, 0.5);
 }
 
 /// Step 1's model fitted robustly (iteratively reweighted least squares with Tukey's biweight, from the least-squares

@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <complex>
+#include <cstdint>
 #include <functional>
 #include <numbers>
 #include <stdexcept>
@@ -439,6 +441,31 @@ double percentile_in_place(std::span<double> values, double fraction) {
     const std::size_t index = percentile_rank(values.size(), fraction);
     std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(index), values.end());
     return values[index];
+}
+
+double absolute_percentile(std::span<const double> values, double fraction) {
+    if (values.empty()) return 0.0;
+    const std::size_t rank = percentile_rank(values.size(), fraction);
+    constexpr std::size_t small = 4096;  // a copy this short costs less than the histogram
+    if (values.size() <= small) {
+        std::vector<double> magnitudes;
+        magnitudes.reserve(values.size());
+        for (const double v : values) magnitudes.push_back(std::abs(v));
+        return percentile_in_place(magnitudes, fraction);
+    }
+    constexpr int shift = 48;  // the leading 16 bits of a magnitude: its (zero) sign, exponent, 4 bits of mantissa
+    const auto bucket_of = [](double v) { return std::bit_cast<std::uint64_t>(std::abs(v)) >> shift; };
+    std::vector<std::size_t> counts(std::size_t{1} << (64 - shift), 0);
+    for (const double v : values) ++counts[bucket_of(v)];
+    std::size_t below = 0, bucket = 0;
+    while (below + counts[bucket] <= rank) below += counts[bucket++];
+    std::vector<double> members;
+    members.reserve(counts[bucket]);
+    for (const double v : values)
+        if (bucket_of(v) == bucket) members.push_back(std::abs(v));
+    const auto nth = members.begin() + static_cast<std::ptrdiff_t>(rank - below);
+    std::nth_element(members.begin(), nth, members.end());
+    return *nth;
 }
 
 bool percentile_at_least(std::span<const double> values, double fraction, double threshold) {

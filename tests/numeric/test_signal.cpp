@@ -3,10 +3,12 @@
 // conventions. Agreement is scored in significant digits.
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <random>
 #include <span>
 #include <string>
 #include <vector>
@@ -250,6 +252,40 @@ TEST(Percentile, LongColumnsGiveTheElementOfTheRankExactly) {
 
 // The counted test agrees with the element of the rank at thresholds just below, at and just above it (ties too),
 // and says no for no values.
+// The percentile of the magnitudes without their copy is the percentile of the copied magnitudes, bit for bit: short
+// and long columns (on both sides of the length where the histogram takes over), scattered residuals, ties, zeros of
+// both signs, magnitudes over hundreds of binades, and a column whose every value shares one bucket.
+TEST(Percentile, OfTheMagnitudesIsThePercentileOfTheCopiedMagnitudes) {
+    std::mt19937_64 random(29);
+    std::normal_distribution<double> normal(0.0, 3.0);
+    std::uniform_int_distribution<int> binade(-300, 300), tie(-3, 3);
+    const auto magnitudes = [](std::vector<double> v) {
+        for (double& x : v) x = std::abs(x);
+        return v;
+    };
+    for (const std::size_t n : {std::size_t{1}, std::size_t{10}, std::size_t{4096}, std::size_t{4097},
+                                std::size_t{100'000}, std::size_t{1'000'000}}) {
+        std::vector<std::vector<double>> columns(5, std::vector<double>(n));
+        for (std::size_t k = 0; k < n; ++k) {
+            columns[0][k] = normal(random);
+            columns[1][k] = static_cast<double>(tie(random));  // ties and zeros
+            columns[2][k] =
+                (k % 2 == 0 ? -1.0 : 1.0) * std::ldexp(1.0 + 0.5 * std::abs(normal(random)) / 10.0, binade(random));
+            columns[3][k] = k % 3 == 0 ? -0.0 : (k % 3 == 1 ? 0.0 : normal(random));
+            columns[4][k] = 1.0 + 1e-12 * static_cast<double>(k % 977);  // one bucket holds them all
+        }
+        for (std::size_t c = 0; c < columns.size(); ++c) {
+            for (const double fraction : {0.0, 0.01, 0.5, 0.75, 0.99, 1.0}) {
+                SCOPED_TRACE(fmt::format("column {} of {} values, fraction {}", c, n, fraction));
+                const double expected = feedid::percentile(magnitudes(columns[c]), fraction);
+                const double found = feedid::absolute_percentile(columns[c], fraction);
+                EXPECT_EQ(std::bit_cast<std::uint64_t>(found), std::bit_cast<std::uint64_t>(expected));
+            }
+        }
+    }
+    EXPECT_EQ(feedid::absolute_percentile({}, 0.5), 0.0);
+}
+
 TEST(Percentile, AtLeastAgreesWithTheElementOfTheRank) {
     const std::size_t n = 10'001;
     std::uint64_t state = 7;
