@@ -432,14 +432,15 @@ Resolution assess_resolution(const Derivatives& d, const FrictionOnlyOptions& op
     r.position_quantum = d.position_quantum;
     const auto& v = steady_source(d).velocity;
     if (v.size() < 2) return r;
-    // one buffer for both percentiles, moved in (a copy of each would be 16 bytes per sample more)
     const auto moving = [&](std::size_t k) { return !(moving_speed > 0.0) || std::abs(v[k]) > moving_speed; };
-    std::vector<double> buffer;
-    buffer.reserve(v.size());
-    for (std::size_t k = 0; k < v.size(); ++k)
-        if (moving(k)) buffer.push_back(std::abs(v[k]));
-    if (buffer.size() < 2) return r;
-    r.typical_speed = percentile(std::move(buffer), 0.95);
+    const auto each_moving = [&](const auto& f) {
+        for (std::size_t k = 0; k < v.size(); ++k)
+            if (moving(k)) f(v[k]);
+    };
+    std::size_t moving_count = 0;
+    each_moving([&moving_count](double) { ++moving_count; });
+    if (moving_count < 2) return r;
+    r.typical_speed = absolute_percentile_of(moving_count, each_moving, 0.95);
     // whether the steps' 99th percentile exceeds the limit, by counting the steps at or below it (the element of
     // rank i exceeds it exactly when at most i steps do not); the percentile itself, for the description, only then
     constexpr double step_fraction = 0.99;  // Resolution::largest_speed_step's percentile

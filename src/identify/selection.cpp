@@ -230,12 +230,15 @@ void select_moving(const Derivatives& d, const SelectionOptions& options, double
 
 /// The default split: a fraction of the typical constant-velocity speed (or of the largest speed without any).
 double default_split(const Derivatives& d, const SelectionOptions& options, double fastest, const Selection& s) {
-    std::vector<double> steady_speeds;
-    for (const auto k : s.moving) {
-        if (s.steady(k)) steady_speeds.push_back(std::abs(d.velocity[k]));
-    }
-    const double typical = percentile(steady_speeds.empty() ? std::vector<double>{fastest} : std::move(steady_speeds),
-                                      options.typical_speed_percentile);
+    const auto each_steady = [&](const auto& f) {
+        for (const auto k : s.moving) {
+            if (s.steady(k)) f(d.velocity[k]);
+        }
+    };
+    std::size_t steady = 0;
+    each_steady([&steady](double) { ++steady; });
+    const double typical =
+        steady == 0 ? fastest : absolute_percentile_of(steady, each_steady, options.typical_speed_percentile);
     return options.stribeck ? options.split_fraction * typical : 0.0;
 }
 

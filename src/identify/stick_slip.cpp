@@ -27,9 +27,10 @@ std::vector<MotionPass> reference_passes(const std::vector<double>& reference, d
         MotionPass pass{k, k, direction, 0.0, false};
         while (k < reference.size() && direction_of(reference[k], threshold) == direction) ++k;
         pass.last = k;
-        std::vector<double> speeds;
-        for (std::size_t j = pass.first; j < pass.last; ++j) speeds.push_back(std::abs(reference[j]));
-        pass.speed = percentile(std::move(speeds), 0.5);
+        const auto each = [&](const auto& f) {
+            for (std::size_t j = pass.first; j < pass.last; ++j) f(reference[j]);
+        };
+        pass.speed = absolute_percentile_of(pass.last - pass.first, each, 0.5);
         passes.push_back(pass);
     }
     return passes;
@@ -75,11 +76,14 @@ std::vector<MotionPass> tracked_passes(const Derivatives& d, double threshold, c
     }
     if (auto ended = tracker.finish()) passes.push_back(*ended);
     for (MotionPass& pass : passes) {
-        std::vector<double> speeds;
-        for (std::size_t j = pass.first; j < pass.last; ++j) {
-            if (direction_of(d.velocity[j], threshold) == pass.direction) speeds.push_back(std::abs(d.velocity[j]));
-        }
-        pass.speed = percentile(std::move(speeds), 0.5);
+        const auto each = [&](const auto& f) {
+            for (std::size_t j = pass.first; j < pass.last; ++j) {
+                if (direction_of(d.velocity[j], threshold) == pass.direction) f(d.velocity[j]);
+            }
+        };
+        std::size_t count = 0;
+        each([&count](double) { ++count; });
+        pass.speed = absolute_percentile_of(count, each, 0.5);
     }
     return passes;
 }

@@ -31,21 +31,16 @@ std::vector<double> speeds_of(const Trace& trace, const Channel& channel) {
     return speeds;
 }
 
-std::vector<double> magnitudes(const std::vector<double>& values) {
-    std::vector<double> out(values.size());
-    std::transform(values.begin(), values.end(), out.begin(), [](double v) { return std::abs(v); });
-    return out;
-}
-
 /// A typical level of a speed series and whether it stands above its noise.
 struct Level {
     double typical{0.0};  ///< 95th percentile
     bool moving{false};
 };
 
-Level level_of(const std::vector<double>& speeds, const std::vector<double>& signal, double noise_multiple) {
+/// Of the speeds |values| (a velocity, or speeds already), without a copy of them.
+Level level_of(std::span<const double> values, const std::vector<double>& signal, double noise_multiple) {
     Level level;
-    level.typical = percentile(speeds, 0.95);
+    level.typical = absolute_percentile(values, 0.95);
     const double noise = noise_floor(signal);
     level.moving = level.typical > 0.0 && level.typical > noise_multiple * noise;
     return level;
@@ -140,7 +135,7 @@ std::vector<std::string> unit_inconsistencies(const Trace& trace, const Consiste
     if (position != nullptr) {
         const auto speeds = speeds_of(trace, *position);
         position_speed = level_of(speeds, speeds, options.noise_multiple);
-        if (const double fast = percentile(speeds, 0.99); fast > speed_limit) {
+        if (const double fast = absolute_percentile(speeds, 0.99); fast > speed_limit) {
             problems.push_back(
                 fmt::format("{} moves at up to {:.4g} {} (99th percentile): no feed drive moves that "
                             "fast; is its unit right? (state it with --unit position=UNIT)",
@@ -149,9 +144,8 @@ std::vector<std::string> unit_inconsistencies(const Trace& trace, const Consiste
     }
     std::optional<Level> logged_speed;
     if (velocity != nullptr) {
-        const auto speeds = magnitudes(velocity->values);
-        logged_speed = level_of(speeds, velocity->values, options.noise_multiple);
-        if (const double fast = percentile(speeds, 0.99); fast > speed_limit) {
+        logged_speed = level_of(velocity->values, velocity->values, options.noise_multiple);
+        if (const double fast = absolute_percentile(velocity->values, 0.99); fast > speed_limit) {
             problems.push_back(
                 fmt::format("{} reaches {:.4g} {} (99th percentile): no feed drive moves that fast; is "
                             "its unit right? (state it with --unit velocity=UNIT)",
@@ -170,15 +164,14 @@ std::vector<std::string> unit_inconsistencies(const Trace& trace, const Consiste
                 speed_unit, options, problems);
     }
     if (command != nullptr) {
-        const auto speeds = magnitudes(command->values);
-        const Level commanded = level_of(speeds, command->values, options.noise_multiple);
+        const Level commanded = level_of(command->values, command->values, options.noise_multiple);
         if (velocity != nullptr)
             compare(named(velocity), *logged_speed, named(command), commanded, speed_unit, options, problems);
         else if (position != nullptr)
             compare(named(position), *position_speed, named(command), commanded, speed_unit, options, problems);
     }
     if (current != nullptr && current->unit == "A") {
-        const double largest = percentile(magnitudes(current->values), 0.99);
+        const double largest = absolute_percentile(current->values, 0.99);
         if (largest > options.max_current) {
             problems.push_back(
                 fmt::format("{} reaches {:.4g} A (99th percentile): no feed drive draws that much; is "

@@ -443,29 +443,19 @@ double percentile_in_place(std::span<double> values, double fraction) {
     return values[index];
 }
 
-double absolute_percentile(std::span<const double> values, double fraction) {
-    if (values.empty()) return 0.0;
-    const std::size_t rank = percentile_rank(values.size(), fraction);
-    constexpr std::size_t small = 4096;  // a copy this short costs less than the histogram
-    if (values.size() <= small) {
-        std::vector<double> magnitudes;
-        magnitudes.reserve(values.size());
-        for (const double v : values) magnitudes.push_back(std::abs(v));
-        return percentile_in_place(magnitudes, fraction);
-    }
-    constexpr int shift = 48;  // the leading 16 bits of a magnitude: its (zero) sign, exponent, 4 bits of mantissa
-    const auto bucket_of = [](double v) { return std::bit_cast<std::uint64_t>(std::abs(v)) >> shift; };
-    std::vector<std::size_t> counts(std::size_t{1} << (64 - shift), 0);
-    for (const double v : values) ++counts[bucket_of(v)];
-    std::size_t below = 0, bucket = 0;
-    while (below + counts[bucket] <= rank) below += counts[bucket++];
-    std::vector<double> members;
-    members.reserve(counts[bucket]);
-    for (const double v : values)
-        if (bucket_of(v) == bucket) members.push_back(std::abs(v));
-    const auto nth = members.begin() + static_cast<std::ptrdiff_t>(rank - below);
+double detail::select_rank(std::vector<double>& members, std::size_t rank) {
+    const auto nth = members.begin() + static_cast<std::ptrdiff_t>(rank);
     std::nth_element(members.begin(), nth, members.end());
     return *nth;
+}
+
+double absolute_percentile(std::span<const double> values, double fraction) {
+    return absolute_percentile_of(
+        values.size(),
+        [values](const auto& f) {
+            for (const double v : values) f(v);
+        },
+        fraction);
 }
 
 bool percentile_at_least(std::span<const double> values, double fraction, double threshold) {
@@ -477,29 +467,47 @@ bool percentile_at_least(std::span<const double> values, double fraction, double
 }
 
 namespace {
+/// The windows' extremes by van Herk and Gil-Werman: with blocks of the window's length w = 2 half + 1 from sample 0,
+/// a window [a, b] (at most w long) lies in at most two blocks, and its extreme is that of the extreme from a to its
+/// block's end (suffix) and of the extreme from b's block's start to b (prefix): three comparisons per sample,
+/// whatever the window's length, where a monotonic queue spent several on its bookkeeping. Of equal values the latest
+/// is taken, as by the queue (`better` strict). The prefixes are written into the output and replaced, in order, by
+/// the windows' extremes (a window's prefix lies at or after its own sample); the suffixes of one block at a time in
+/// a buffer of w. The blocks of a and b are followed as they move (no division per sample).
 template <class Compare>
 std::vector<double> running_extreme(std::span<const double> x, std::size_t half, Compare better) {
     const std::size_t n = x.size();
-    std::vector<double> out;
+    std::vector<double> out(n);
     if (n == 0) return out;
-    out.reserve(n);  // appended: written once, not zeroed first
-    // the monotonic queue of candidates' indices in a ring of the window's length (no more can wait in it): the same
-    // extremes as a deque, without its block allocations and indirections
-    const std::size_t capacity = std::min(n, 2 * half + 2) + 1;
-    std::vector<std::size_t> ring(capacity);
-    std::size_t head = 0, tail = 0;  // queue = ring[head, tail) modulo capacity, tail != head when not empty
-    const auto before = [capacity](std::size_t i) { return i == 0 ? capacity - 1 : i - 1; };
-    const auto after = [capacity](std::size_t i) { return i + 1 == capacity ? 0 : i + 1; };
-    std::size_t next = 0;  // the next index to enter the window
+    const std::size_t w = std::min(n, 2 * half + 1);  // a window no longer than the trace: one block or two
+    // of two values, the earlier one only where strictly better
+    const auto pick = [&better](double earlier, double later) { return better(earlier, later) ? earlier : later; };
+    for (std::size_t start = 0; start < n; start += w) {
+        out[start] = x[start];
+        for (std::size_t i = start + 1; i < std::min(n, start + w); ++i) out[i] = pick(out[i - 1], x[i]);
+    }
+    std::vector<double> suffix(w);
+    std::size_t a_start = 0, b_start = 0;  // the starts of the blocks of a and b, followed as they move
+    bool suffix_ready = false;             // whether the buffer holds the suffixes of a's block
     for (std::size_t k = 0; k < n; ++k) {
-        const std::size_t last = std::min(n - 1, k + half);
-        for (; next <= last; ++next) {
-            while (tail != head && !better(x[ring[before(tail)]], x[next])) tail = before(tail);
-            ring[tail] = next;
-            tail = after(tail);
+        const std::size_t a = k > half ? k - half : 0, b = std::min(n - 1, k + half);
+        if (a == a_start + w) {
+            a_start += w;
+            suffix_ready = false;
         }
-        while (ring[head] + half < k) head = after(head);
-        out.push_back(x[ring[head]]);
+        if (b == b_start + w) b_start += w;
+        if (a_start == b_start && a == a_start) {
+            out[k] = out[b];  // the window starts its block: the prefix alone
+            continue;
+        }
+        if (!suffix_ready) {
+            const std::size_t end = std::min(n, a_start + w);
+            suffix[end - 1 - a_start] = x[end - 1];
+            for (std::size_t i = end - 1; i-- > a_start;) suffix[i - a_start] = pick(x[i], suffix[i + 1 - a_start]);
+            suffix_ready = true;
+        }
+        // within one block only where the window ends at the trace's end, where the suffix ends too
+        out[k] = a_start == b_start ? suffix[a - a_start] : pick(suffix[a - a_start], out[b]);
     }
     return out;
 }

@@ -308,20 +308,36 @@ TEST(Percentile, AtLeastAgreesWithTheElementOfTheRank) {
 }
 
 TEST(RunningExtremes, AreTheWindowsMinimumAndMaximum) {
-    std::vector<double> x(2'000);
     std::uint64_t state = 99;
-    for (auto& v : x) {
+    const auto next = [&state] {
         state = state * 6364136223846793005ULL + 1442695040888963407ULL;
-        v = static_cast<double>(state >> 40);
-    }
-    for (const std::size_t half : std::array<std::size_t, 5>{0, 1, 7, 1'000, 5'000}) {
-        const auto low = feedid::running_minimum(x, half), high = feedid::running_maximum(x, half);
-        for (std::size_t k = 0; k < x.size(); ++k) {
-            const std::size_t from = k > half ? k - half : 0, to = std::min(x.size(), k + half + 1);
-            const auto [lo, hi] = std::minmax_element(x.begin() + static_cast<std::ptrdiff_t>(from),
-                                                      x.begin() + static_cast<std::ptrdiff_t>(to));
-            ASSERT_EQ(low[k], *lo) << half << " " << k;
-            ASSERT_EQ(high[k], *hi) << half << " " << k;
+        return state >> 40;
+    };
+    // lengths that are and are not multiples of the windows, and values with many ties (a few levels)
+    for (const std::size_t n : std::array<std::size_t, 6>{1, 2, 5, 2'000, 2'003, 4'099}) {
+        for (const bool ties : {false, true}) {
+            std::vector<double> x(n);
+            for (auto& v : x) v = ties ? static_cast<double>(next() % 4) : static_cast<double>(next());
+            for (const std::size_t half : std::array<std::size_t, 7>{0, 1, 2, 7, 50, 1'000, 5'000}) {
+                const auto low = feedid::running_minimum(x, half), high = feedid::running_maximum(x, half);
+                ASSERT_EQ(low.size(), n);
+                ASSERT_EQ(high.size(), n);
+                for (std::size_t k = 0; k < n; ++k) {
+                    const std::size_t from = k > half ? k - half : 0, to = std::min(n, k + half + 1);
+                    const auto [lo, hi] = std::minmax_element(x.begin() + static_cast<std::ptrdiff_t>(from),
+                                                              x.begin() + static_cast<std::ptrdiff_t>(to));
+                    ASSERT_EQ(low[k], *lo) << n << " " << half << " " << k;
+                    ASSERT_EQ(high[k], *hi) << n << " " << half << " " << k;
+                }
+            }
         }
     }
+    // of equal values the latest: a zero's sign says which
+    const std::vector<double> zeros{-0.0, 0.0, 1.0, 0.0, -0.0};
+    const auto low = feedid::running_minimum(zeros, 1), high = feedid::running_maximum(zeros, 1);
+    EXPECT_FALSE(std::signbit(low[0]));  // {-0, +0}: +0
+    EXPECT_FALSE(std::signbit(low[2]));  // {+0, 1, +0}
+    EXPECT_TRUE(std::signbit(low[3]));   // {1, +0, -0}: -0
+    EXPECT_TRUE(std::signbit(high[4]));  // {+0, -0}: -0
+    EXPECT_TRUE(feedid::running_minimum(std::vector<double>{}, 3).empty());
 }

@@ -2,7 +2,10 @@
 // Preprocessing: differentiation, zero-phase filtering, decimation, data selection.
 
 #include <array>
+#include <bit>
+#include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <span>
 #include <string>
 #include <vector>
@@ -88,12 +91,47 @@ double percentile_in_place(std::span<double> values, double fraction);
 /// bucket the rank falls in, and only the values in that bucket (a few per cent of scattered residuals; all of them at
 /// worst) are gathered and selected among. 0 for no values.
 double absolute_percentile(std::span<const double> values, double fraction);
+/// absolute_percentile() of the `count` values that `each` visits, never gathered: each(f) calls f(x) for every one
+/// of them, the same values in the same order every time (two or three calls), so that the percentile of a subset of
+/// a column (the moving samples' speeds, a pass's) costs a pass or two and no copy. The same value, bit for bit.
+template <class Each>
+double absolute_percentile_of(std::size_t count, const Each& each, double fraction);
 /// Whether percentile(values, fraction) >= threshold, by counting in one pass (no selection, no reordering): the
 /// element of rank r is at least `threshold` exactly when at most r values lie below it. False for no values.
 bool percentile_at_least(std::span<const double> values, double fraction, double threshold);
 
-/// The minimum (maximum) of x over [k - half, k + half], for every k, in O(n) (a monotonic queue of indices).
+/// The minimum (maximum) of x over [k - half, k + half], for every k, in O(n) (three comparisons per sample); of
+/// equal values the latest in the window.
 std::vector<double> running_minimum(std::span<const double> x, std::size_t half);
 std::vector<double> running_maximum(std::span<const double> x, std::size_t half);
+
+namespace detail {
+/// The element of rank `rank` of `members` (reordered).
+double select_rank(std::vector<double>& members, std::size_t rank);
+}  // namespace detail
+
+template <class Each>
+double absolute_percentile_of(std::size_t count, const Each& each, double fraction) {
+    if (count == 0) return 0.0;
+    const std::size_t rank = percentile_rank(count, fraction);
+    std::vector<double> members;
+    constexpr std::size_t small = 4096;  // a copy this short costs less than the histogram
+    if (count <= small) {
+        members.reserve(count);
+        each([&](double v) { members.push_back(std::abs(v)); });
+        return detail::select_rank(members, rank);
+    }
+    constexpr int shift = 48;  // the leading 16 bits of a magnitude: its (zero) sign, exponent, 4 bits of mantissa
+    const auto bucket_of = [](double v) { return std::bit_cast<std::uint64_t>(std::abs(v)) >> shift; };
+    std::vector<std::size_t> counts(std::size_t{1} << (64 - shift), 0);
+    each([&](double v) { ++counts[bucket_of(v)]; });
+    std::size_t below = 0, bucket = 0;
+    while (below + counts[bucket] <= rank) below += counts[bucket++];
+    members.reserve(counts[bucket]);
+    each([&](double v) {
+        if (bucket_of(v) == bucket) members.push_back(std::abs(v));
+    });
+    return detail::select_rank(members, rank - below);
+}
 
 }  // namespace feedid
