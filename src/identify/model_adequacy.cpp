@@ -414,7 +414,7 @@ public:
         Eigen::VectorXd phi(p);
         for (std::size_t i = first; i < last; ++i) {
             regressors.row(i, phi.data());
-            gram.selfadjointView<Eigen::Lower>().rankUpdate(phi);
+            add_outer_product_lower(gram, phi.data());
         }
         gram = gram.selfadjointView<Eigen::Lower>();
         solver_.compute(gram);
@@ -422,23 +422,31 @@ public:
     }
     [[nodiscard]] bool valid() const { return valid_; }
 
-    double residual(double delay) const {
-        double out = 0.0;
-        residuals(std::span<const double>(&delay, 1), std::span<double>(&out, 1));
-        return out;
-    }
-
     /// The profile at several delays (at most max_delays) in one pass over the rows: each row's regressors read once
     /// for all of them, each delay's sums formed in the same order as on its own.
-    static constexpr std::size_t max_delays = 8;
+    static constexpr std::size_t max_delays = 24;
     void residuals(std::span<const double> delays, std::span<double> out) const {
-        const auto p = static_cast<Eigen::Index>(regressors_.parameters());
+        switch (regressors_.parameters()) {
+            case 1: return residuals_of<1>(delays, out);
+            case 2: return residuals_of<2>(delays, out);
+            case 3: return residuals_of<3>(delays, out);
+            case 4: return residuals_of<4>(delays, out);
+            case 5: return residuals_of<5>(delays, out);
+            case 6: return residuals_of<6>(delays, out);
+            case 7: return residuals_of<7>(delays, out);
+            default: return residuals_of<max_parameters>(delays, out);  // valid() with at most max_parameters
+        }
+    }
+
+private:
+    /// residuals() with the parameters' count known to the compiler: the sums of each row unrolled.
+    template <int P>
+    void residuals_of(std::span<const double> delays, std::span<double> out) const {
         const std::size_t m = delays.size();
-        std::array<Vector, max_delays> cross;
+        std::array<std::array<double, P>, max_delays> cross{};
         std::array<double, max_delays> squares{}, offset{};
-        std::array<std::ptrdiff_t, max_delays> whole{};  // the shift in samples where it is one, else -1
-        for (std::size_t j = 0; j < m; ++j) cross[j] = Vector::Zero(p);
-        Vector phi(p);
+        std::array<std::ptrdiff_t, max_delays> whole{};  // the shift in samples where it is one, else no_whole_shift
+        std::array<double, P> phi{};
         for (const RowRun& run : runs_) {
             for (std::size_t j = 0; j < m; ++j) {
                 offset[j] = delays[j] / run.step;  // in samples, for the stretch
@@ -454,16 +462,17 @@ public:
                             ? d_.force[static_cast<std::size_t>(
                                   std::clamp(static_cast<std::ptrdiff_t>(k) + whole[j], first, last))]
                             : force_at(d_.force, static_cast<double>(k) + offset[j], run.begin, run.end);
-                    cross[j] += phi * y;
+                    for (int c = 0; c < P; ++c) cross[j][c] += phi[c] * y;
                     squares[j] += y * y;
                 }
             }
         }
-        for (std::size_t j = 0; j < m; ++j)
-            out[j] = squares[j] - cross[j].dot(solver_.solve(Eigen::VectorXd(cross[j])));
+        for (std::size_t j = 0; j < m; ++j) {
+            const Vector sums = Eigen::Map<const Vector>(cross[j].data(), P);
+            out[j] = squares[j] - sums.dot(solver_.solve(Eigen::VectorXd(sums)));
+        }
     }
 
-private:
     const Derivatives& d_;
     const RowRegressors& regressors_;
     std::size_t first_;
@@ -567,7 +576,7 @@ double delay_information(const RowRegressors& regressors, std::span<const double
     for (std::size_t i = first; i < last; ++i) {
         regressors.row(i, phi.data());
         phi(p) = column[i];
-        gram.selfadjointView<Eigen::Lower>().rankUpdate(phi);
+        add_outer_product_lower(gram, phi.data());
     }
     gram = gram.selfadjointView<Eigen::Lower>();
     const Eigen::LDLT<Eigen::MatrixXd> solver(gram.topLeftCorner(p, p));
@@ -621,8 +630,11 @@ void widen_to_profile(const DelayProfile& profile, double delay, double sample_t
     // a whole sample either side: the interpolated force's smoothing changes with the shift's fraction of a sample
     // (a ripple of one sample's period on the profile), which points a whole sample apart share
     const double h = sample_time;
-    const double at = profile.residual(delay);
-    const double curvature = (profile.residual(delay + h) - 2.0 * at + profile.residual(delay - h)) / (h * h);
+    const std::array<double, 3> delays{delay - h, delay, delay + h};
+    std::array<double, 3> values{};
+    profile.residuals(delays, values);  // one pass for the three
+    const double at = values[1];
+    const double curvature = (values[2] - 2.0 * at + values[0]) / (h * h);
     const double variance = at / static_cast<double>(rows - parameters);
     const double inflation =
         fit.plain_standard_error > 0.0 ? std::max(1.0, fit.standard_error / fit.plain_standard_error) : 1.0;
@@ -786,8 +798,8 @@ Eigen::VectorXd robust_fit(const RowRegressors& regressors, std::span<const doub
             if (weights[i] == 0.0) continue;
             regressors.row(i, phi.data());
             const double y = output[i];
-            gram.selfadjointView<Eigen::Lower>().rankUpdate(phi, weights[i]);
-            cross += weights[i] * y * phi;
+            add_outer_product_lower(gram, phi.data(), weights[i]);
+            add_scaled(cross.data(), phi.data(), weights[i] * y, p);
         }
         gram = gram.selfadjointView<Eigen::Lower>();
         const Eigen::LDLT<Eigen::MatrixXd> solver(gram);

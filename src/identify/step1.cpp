@@ -36,22 +36,31 @@ std::vector<double> regressor_column(const RegressorColumn& column, std::span<co
                                      std::span<const double> v, std::size_t capacity) {
     std::vector<double> out;
     out.reserve(std::max(capacity, v.size()));
-    // appended, not zeroed and overwritten: a fresh column is written once
-    for (std::size_t k = 0; k < v.size(); ++k) {
-        switch (column.term) {
-            case Term::mass: out.push_back(a[k]); break;
-            case Term::viscous:
-                out.push_back(column.direction == Direction::forward   ? std::max(v[k], 0.0)
-                              : column.direction == Direction::reverse ? std::min(v[k], 0.0)
-                                                                       : v[k]);
-                break;
-            case Term::coulomb:
-                out.push_back(column.direction == Direction::forward   ? (v[k] > 0.0 ? 1.0 : 0.0)
-                              : column.direction == Direction::reverse ? (v[k] < 0.0 ? -1.0 : 0.0)
-                                                                       : sign(v[k]));
-                break;
-            default: out.push_back(1.0); break;
-        }
+    out.resize(v.size());
+    // one loop per kind of column, each vectorised (appending value by value called vector's growth path per value)
+    const auto fill = [&](std::span<const double> from, auto value) {
+        std::transform(from.begin(), from.end(), out.begin(), value);
+    };
+    const Direction direction = column.direction;
+    switch (column.term) {
+        case Term::mass: std::copy_n(a.begin(), v.size(), out.begin()); break;
+        case Term::viscous:
+            if (direction == Direction::forward)
+                fill(v, [](double x) { return std::max(x, 0.0); });
+            else if (direction == Direction::reverse)
+                fill(v, [](double x) { return std::min(x, 0.0); });
+            else
+                std::copy(v.begin(), v.end(), out.begin());
+            break;
+        case Term::coulomb:
+            if (direction == Direction::forward)
+                fill(v, [](double x) { return x > 0.0 ? 1.0 : 0.0; });
+            else if (direction == Direction::reverse)
+                fill(v, [](double x) { return x < 0.0 ? -1.0 : 0.0; });
+            else
+                fill(v, [](double x) { return sign(x); });
+            break;
+        default: std::fill(out.begin(), out.end(), 1.0); break;
     }
     return out;
 }

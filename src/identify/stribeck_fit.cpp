@@ -123,8 +123,8 @@ double solve_linear_part(const FitSamples& samples, const CurveModel& model, con
         if (layout.offset >= 0) row(layout.offset) = 1.0;
         const double w = samples.root_weight(k);
         row *= w;
-        normal.selfadjointView<Eigen::Lower>().rankUpdate(row);
-        rhs += row * (w * samples.force[k]);
+        add_outer_product_lower(normal, row.data());
+        add_scaled(rhs.data(), row.data(), w * samples.force[k], p);
         yy += w * w * samples.force[k] * samples.force[k];
     }
     // the ln v_s entries are not linear parameters: pin them (unit diagonal, zero right-hand side)
@@ -314,12 +314,17 @@ SpeedBins speed_bins(const FitSamples& samples) {
     SpeedBins out;
     std::vector<SpeedBin> bins(2 * per_direction);
     const std::size_t block = std::max<std::size_t>(1, samples.correlation_block);
+    std::size_t cluster = 0, cluster_start = 0, cluster_end = 0;  // the last cluster: a division per cluster met
     for (std::size_t k = 0; k < samples.size(); ++k) {
         const double v = samples.velocity[k];
         const std::size_t bin =
             std::min(per_direction - 1, static_cast<std::size_t>(std::log(std::abs(v) / low) / width)) +
             (v < 0.0 ? per_direction : 0);
-        const std::size_t cluster = samples.index[k] / block;
+        if (samples.index[k] < cluster_start || samples.index[k] >= cluster_end) {
+            cluster = samples.index[k] / block;
+            cluster_start = cluster * block;
+            cluster_end = cluster_start + block;
+        }
         bins[bin].add(v, samples.force[k], cluster);
         if (out.pieces.empty() || out.pieces.back().cluster != cluster || out.pieces.back().bin != bin)
             out.pieces.push_back({cluster, bin, 0.0, 0.0});

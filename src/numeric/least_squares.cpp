@@ -61,9 +61,16 @@ Eigen::MatrixXd long_run_covariance(const Eigen::MatrixXd& phi, const Eigen::Vec
     // g_b summed per block of sample indices, in one pass (the rows need not be in order)
     const std::size_t blocks = index.empty() ? 0 : *std::max_element(index.begin(), index.end()) / block + 1;
     Eigen::MatrixXd sums = Eigen::MatrixXd::Zero(p, static_cast<Eigen::Index>(blocks));
+    std::size_t current = 0, start = 0, end = 0;  // the last row's block: a division per block met, not per row
     for (Eigen::Index t = 0; t < n; ++t) {
-        sums.col(static_cast<Eigen::Index>(index[static_cast<std::size_t>(t)] / block)) +=
-            phi.row(t).transpose() * residual(t);
+        const std::size_t k = index[static_cast<std::size_t>(t)];
+        if (k < start || k >= end) {
+            current = k / block;
+            start = current * block;
+            end = start + block;
+        }
+        double* sum = sums.col(static_cast<Eigen::Index>(current)).data();
+        for (Eigen::Index c = 0; c < p; ++c) sum[c] += phi(t, c) * residual(t);
     }
     Eigen::MatrixXd s = sums * sums.transpose();
     return n > p ? Eigen::MatrixXd(s * (static_cast<double>(n) / static_cast<double>(n - p))) : s;
@@ -152,17 +159,17 @@ void StreamedLeastSquares::add_residual(const double* phi, double y, std::size_t
     rss_ += e * e;
     y_squared_ += y * y;
     if (block_ <= 1) return;
-    const std::size_t b = index / block_;
     if (!ascending_) {
-        sums_.col(static_cast<Eigen::Index>(b)) += row * e;
+        add_scaled(sums_.col(static_cast<Eigen::Index>(index / block_)).data(), phi, e, p_);
         return;
     }
-    if (!in_block_ || b != current_block_) {
+    // ascending indices leave a block only past its end: a division per block, not per row
+    if (!in_block_ || index >= block_end_) {
         close_block();
-        current_block_ = b;
+        block_end_ = (index / block_ + 1) * block_;
         in_block_ = true;
     }
-    g_ += row * e;
+    add_scaled(g_.data(), phi, e, p_);
 }
 
 LeastSquaresResult StreamedLeastSquares::finish() {

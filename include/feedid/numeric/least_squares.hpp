@@ -25,6 +25,24 @@ struct LeastSquaresResult {
     bool rank_deficient{false};  ///< Phi has numerically dependent columns; estimate is then not unique
 };
 
+/// gram += weight * phi phi^T in its lower triangle (p = gram.rows() values at phi): what
+/// gram.selfadjointView<Eigen::Lower>().rankUpdate(phi, weight) adds, the same products in the same order, without
+/// the dispatch Eigen spends on a matrix of a few columns, a cost that dominated sums over millions of rows.
+inline void add_outer_product_lower(Eigen::MatrixXd& gram, const double* phi, double weight = 1.0) {
+    const Eigen::Index p = gram.rows();
+    double* column = gram.data();
+    for (Eigen::Index j = 0; j < p; ++j, column += p) {
+        const double scaled = weight * phi[j];
+        for (Eigen::Index i = j; i < p; ++i) column[i] += scaled * phi[i];
+    }
+}
+
+/// sum += scale * x over n values: Eigen's `sum += x * scale` on vectors of a few entries, the same products and
+/// sums, without its dispatch.
+inline void add_scaled(double* sum, const double* x, double scale, Eigen::Index n) {
+    for (Eigen::Index i = 0; i < n; ++i) sum[i] += x[i] * scale;
+}
+
 /// Solves min ||y - Phi*theta||. Requires rows >= columns; returns rank_deficient when Phi lacks full column rank.
 LeastSquaresResult solve_least_squares(const Eigen::MatrixXd& phi, const Eigen::VectorXd& y);
 
@@ -80,7 +98,7 @@ private:
     bool ascending_{true};
     Eigen::MatrixXd long_run_;  ///< sum over blocks of g_b g_b^T
     Eigen::VectorXd g_;         ///< the current block's sum of phi_t e_t (ascending indices)
-    std::size_t current_block_{0};
+    std::size_t block_end_{0};  ///< the first index past the current block
     bool in_block_{false};
     Eigen::MatrixXd sums_;  ///< per block (indices not ascending)
 };
