@@ -24,14 +24,11 @@ std::vector<char> quasi_static_flags(const Derivatives& d, const SelectionOption
     const auto& v = d.velocity;
     const double dt = d.sample_time_s * d.used.decimation;
     const auto half = static_cast<std::size_t>(std::max(1.0, std::round(options.steady_half_window_s / dt)));
-    const auto low = running_minimum(v, half);
-    const auto high = running_maximum(v, half);
     std::vector<char> flags(v.size(), 0);
-    for (std::size_t k = 0; k < v.size(); ++k) {
-        flags[k] =
-            (low[k] > 0.0 || high[k] < 0.0) && high[k] - low[k] <= options.steady_spread_fraction * std::abs(v[k]) +
-                                                                       options.steady_noise_multiple * d.velocity_noise;
-    }
+    window_extremes(v, half, [&](std::size_t k, double low, double high) {
+        flags[k] = (low > 0.0 || high < 0.0) && high - low <= options.steady_spread_fraction * std::abs(v[k]) +
+                                                                  options.steady_noise_multiple * d.velocity_noise;
+    });
     return flags;
 }
 

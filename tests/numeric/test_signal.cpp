@@ -11,6 +11,7 @@
 #include <random>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -307,7 +308,20 @@ TEST(Percentile, AtLeastAgreesWithTheElementOfTheRank) {
     EXPECT_FALSE(feedid::percentile_at_least(std::vector<double>{}, 0.5, 0.0));
 }
 
-TEST(RunningExtremes, AreTheWindowsMinimumAndMaximum) {
+namespace {
+/// window_extremes' lows and highs as columns, checking that every k comes once, in order.
+std::pair<std::vector<double>, std::vector<double>> extremes_of(std::span<const double> x, std::size_t half) {
+    std::vector<double> low, high;
+    feedid::window_extremes(x, half, [&](std::size_t k, double lo, double hi) {
+        EXPECT_EQ(k, low.size());
+        low.push_back(lo);
+        high.push_back(hi);
+    });
+    return {low, high};
+}
+}  // namespace
+
+TEST(WindowExtremes, AreTheWindowsMinimumAndMaximum) {
     std::uint64_t state = 99;
     const auto next = [&state] {
         state = state * 6364136223846793005ULL + 1442695040888963407ULL;
@@ -319,7 +333,7 @@ TEST(RunningExtremes, AreTheWindowsMinimumAndMaximum) {
             std::vector<double> x(n);
             for (auto& v : x) v = ties ? static_cast<double>(next() % 4) : static_cast<double>(next());
             for (const std::size_t half : std::array<std::size_t, 7>{0, 1, 2, 7, 50, 1'000, 5'000}) {
-                const auto low = feedid::running_minimum(x, half), high = feedid::running_maximum(x, half);
+                const auto [low, high] = extremes_of(x, half);
                 ASSERT_EQ(low.size(), n);
                 ASSERT_EQ(high.size(), n);
                 for (std::size_t k = 0; k < n; ++k) {
@@ -334,10 +348,10 @@ TEST(RunningExtremes, AreTheWindowsMinimumAndMaximum) {
     }
     // of equal values the latest: a zero's sign says which
     const std::vector<double> zeros{-0.0, 0.0, 1.0, 0.0, -0.0};
-    const auto low = feedid::running_minimum(zeros, 1), high = feedid::running_maximum(zeros, 1);
+    const auto [low, high] = extremes_of(zeros, 1);
     EXPECT_FALSE(std::signbit(low[0]));  // {-0, +0}: +0
     EXPECT_FALSE(std::signbit(low[2]));  // {+0, 1, +0}
     EXPECT_TRUE(std::signbit(low[3]));   // {1, +0, -0}: -0
     EXPECT_TRUE(std::signbit(high[4]));  // {+0, -0}: -0
-    EXPECT_TRUE(feedid::running_minimum(std::vector<double>{}, 3).empty());
+    EXPECT_TRUE(extremes_of(std::vector<double>{}, 3).first.empty());
 }

@@ -1,6 +1,7 @@
 #pragma once
 // Preprocessing: differentiation, zero-phase filtering, decimation, data selection.
 
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <cmath>
@@ -100,10 +101,14 @@ double absolute_percentile_of(std::size_t count, const Each& each, double fracti
 /// element of rank r is at least `threshold` exactly when at most r values lie below it. False for no values.
 bool percentile_at_least(std::span<const double> values, double fraction, double threshold);
 
-/// The minimum (maximum) of x over [k - half, k + half], for every k, in O(n) (three comparisons per sample); of
-/// equal values the latest in the window.
-std::vector<double> running_minimum(std::span<const double> x, std::size_t half);
-std::vector<double> running_maximum(std::span<const double> x, std::size_t half);
+/// The minimum and the maximum of x over the window [k - half, k + half] (clipped to the trace) for k = 0, 1, ...,
+/// n - 1 in turn, each handed to visit(k, low, high); of equal values the latest in the window. By van Herk and
+/// Gil-Werman: with blocks of the window's length w = 2 half + 1 from sample 0, a window lies in at most two blocks,
+/// and its extreme is that of the extreme from its start to its block's end (a suffix) and of the extreme from its
+/// end's block's start to its end (a prefix): three comparisons per sample and extreme whatever the window's length,
+/// and memory for four blocks, not a column.
+template <class Visit>
+void window_extremes(std::span<const double> x, std::size_t half, const Visit& visit);
 
 namespace detail {
 /// The element of rank `rank` of `members` (reordered).
@@ -132,6 +137,50 @@ double absolute_percentile_of(std::size_t count, const Each& each, double fracti
         if (bucket_of(v) == bucket) members.push_back(std::abs(v));
     });
     return detail::select_rank(members, rank - below);
+}
+
+template <class Visit>
+void window_extremes(std::span<const double> x, std::size_t half, const Visit& visit) {
+    const std::size_t n = x.size();
+    if (n == 0) return;
+    const std::size_t w = std::min(n, 2 * half + 1);  // a window no longer than the trace: one block or two
+    // of two values, the earlier only where strictly more extreme
+    const auto lower = [](double earlier, double later) { return earlier < later ? earlier : later; };
+    const auto higher = [](double earlier, double later) { return earlier > later ? earlier : later; };
+    std::vector<double> low_prefix(w), high_prefix(w), low_suffix(w), high_suffix(w);
+    std::size_t a_start = 0, b_start = 0, formed = 0;  // the blocks of the window's ends; prefixes formed to `formed`
+    bool suffixes = false;                             // whether the suffixes of a's block are formed
+    for (std::size_t k = 0; k < n; ++k) {
+        const std::size_t a = k > half ? k - half : 0, b = std::min(n - 1, k + half);
+        for (; formed <= b; ++formed) {
+            if (formed == b_start + w) b_start += w;
+            const std::size_t i = formed - b_start;
+            low_prefix[i] = i == 0 ? x[formed] : lower(low_prefix[i - 1], x[formed]);
+            high_prefix[i] = i == 0 ? x[formed] : higher(high_prefix[i - 1], x[formed]);
+        }
+        if (a == a_start + w) {
+            a_start += w;
+            suffixes = false;
+        }
+        if (a_start == b_start && a == a_start) {  // the window starts its block: the prefix alone
+            visit(k, low_prefix[b - b_start], high_prefix[b - b_start]);
+            continue;
+        }
+        if (!suffixes) {
+            const std::size_t last = std::min(n, a_start + w) - 1;
+            low_suffix[last - a_start] = high_suffix[last - a_start] = x[last];
+            for (std::size_t i = last; i-- > a_start;) {
+                low_suffix[i - a_start] = lower(x[i], low_suffix[i + 1 - a_start]);
+                high_suffix[i - a_start] = higher(x[i], high_suffix[i + 1 - a_start]);
+            }
+            suffixes = true;
+        }
+        const std::size_t i = a - a_start;
+        if (a_start == b_start)  // within one block only where the window ends at the trace's end, as the suffix
+            visit(k, low_suffix[i], high_suffix[i]);
+        else
+            visit(k, lower(low_suffix[i], low_prefix[b - b_start]), higher(high_suffix[i], high_prefix[b - b_start]));
+    }
 }
 
 }  // namespace feedid
