@@ -437,8 +437,7 @@ Resolution assess_resolution(const Derivatives& d, const FrictionOnlyOptions& op
         for (std::size_t k = 0; k < v.size(); ++k)
             if (moving(k)) f(v[k]);
     };
-    std::size_t moving_count = 0;
-    each_moving([&moving_count](double) { ++moving_count; });
+    const std::size_t moving_count = visited_count(each_moving);
     if (moving_count < 2) return r;
     r.typical_speed = absolute_percentile_of(moving_count, each_moving, 0.95);
     // whether the steps' 99th percentile exceeds the limit, by counting the steps at or below it (the element of

@@ -232,8 +232,7 @@ double default_split(const Derivatives& d, const SelectionOptions& options, doub
             if (s.steady(k)) f(d.velocity[k]);
         }
     };
-    std::size_t steady = 0;
-    each_steady([&steady](double) { ++steady; });
+    const std::size_t steady = visited_count(each_steady);
     const double typical =
         steady == 0 ? fastest : absolute_percentile_of(steady, each_steady, options.typical_speed_percentile);
     return options.stribeck ? options.split_fraction * typical : 0.0;

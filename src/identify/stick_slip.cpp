@@ -81,9 +81,7 @@ std::vector<MotionPass> tracked_passes(const Derivatives& d, double threshold, c
                 if (direction_of(d.velocity[j], threshold) == pass.direction) f(d.velocity[j]);
             }
         };
-        std::size_t count = 0;
-        each([&count](double) { ++count; });
-        pass.speed = absolute_percentile_of(count, each, 0.5);
+        pass.speed = absolute_percentile_of(visited_count(each), each, 0.5);
     }
     return passes;
 }

@@ -97,6 +97,13 @@ double absolute_percentile(std::span<const double> values, double fraction);
 /// a column (the moving samples' speeds, a pass's) costs a pass or two and no copy. The same value, bit for bit.
 template <class Each>
 double absolute_percentile_of(std::size_t count, const Each& each, double fraction);
+/// How many values `each` visits (as absolute_percentile_of takes it): one pass.
+template <class Each>
+std::size_t visited_count(const Each& each) {
+    std::size_t count = 0;
+    each([&count](double) { ++count; });
+    return count;
+}
 /// Whether percentile(values, fraction) >= threshold, by counting in one pass (no selection, no reordering): the
 /// element of rank r is at least `threshold` exactly when at most r values lie below it. False for no values.
 bool percentile_at_least(std::span<const double> values, double fraction, double threshold);
